@@ -1,0 +1,2 @@
+# Sources of libsabo/core.
+target_sources(sabo_core PRIVATE)

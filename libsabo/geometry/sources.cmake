@@ -1,0 +1,2 @@
+# Sources of libsabo/geometry.
+target_sources(sabo_core PRIVATE)

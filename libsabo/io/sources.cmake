@@ -1,0 +1,2 @@
+# Sources of libsabo/io.
+target_sources(sabo_core PRIVATE)

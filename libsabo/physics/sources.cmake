@@ -1,0 +1,2 @@
+# Sources of libsabo/physics.
+target_sources(sabo_core PRIVATE)

@@ -1,0 +1,2 @@
+# Sources of libsabo/protocol.
+target_sources(sabo_core PRIVATE)

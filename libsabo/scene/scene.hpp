@@ -1,0 +1,176 @@
+#pragma once
+// The scene model: what a validated scene file says. Every process builds its
+// part of the simulation from this, and nothing else. The loader
+// (scene/loader.hpp) guarantees every invariant documented here; values are SI.
+// The TOML reference is docs/scene.md, generated from scene/schema.cpp.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "libsabo/core/types.hpp"
+
+namespace sabo::scene {
+
+enum class Role { sph, dem, fem };
+[[nodiscard]] const char* role_name(Role role);  // "sph_solver", "dem_solver", "fem_solver"
+
+// Where a value came from, for error messages raised after loading.
+struct Origin {
+  std::filesystem::path file;
+  int line = 0;
+  std::string key;  // dotted key, e.g. "particles[0].radius"
+};
+
+struct Material {
+  std::string name;
+  Origin origin;
+  double density = 0;         // kg/m^3, > 0
+  double youngs_modulus = 0;  // Pa, > 0
+  double poisson_ratio = 0;   // in [0, 0.5)
+  [[nodiscard]] double bulk_modulus() const { return youngs_modulus / (3.0 * (1.0 - 2.0 * poisson_ratio)); }
+  [[nodiscard]] double shear_modulus() const { return youngs_modulus / (2.0 * (1.0 + poisson_ratio)); }
+};
+
+struct RunSettings {
+  double end_time = 0;              // s, > 0
+  double output_interval = 0;       // s, > 0
+  std::string endpoint = "ipc";     // "ipc" (socket in the run folder) or "tcp://HOST:PORT"
+  Vec3 gravity{0, 0, -9.81};        // m/s^2
+  double hang_timeout = 10.0;       // s: a solver silent this long is declared hung
+  std::optional<double> max_dt;     // s: upper bound on the coupled dt
+};
+
+// One solver process. `command` is the program and its fixed arguments; the
+// supervisor appends --scene, --coupler, --out. Empty: the built executable.
+struct SolverSettings {
+  Role role = Role::dem;
+  std::vector<std::string> command;
+  double beta = 1.0;                // eq. 7 scale of this solver's stable dt, in (0, 1]
+  Origin origin;
+};
+
+struct Sphere {
+  Vec3 center = Vec3::Zero();           // m
+  double radius = 0;                    // m, > 0
+  Vec3 velocity = Vec3::Zero();         // m/s
+  Vec3 angular_velocity = Vec3::Zero(); // rad/s
+};
+
+// A set of DEM spheres: an explicit list, or a box filled with a seeded random
+// non-overlapping set whose diameters are uniform in [diameter_min, diameter_max].
+struct ParticleSet {
+  enum class Kind { list, fill };
+  std::string name;
+  std::string material;       // a key of Scene::materials (checked)
+  Origin origin;
+  Kind kind = Kind::list;
+  std::vector<Sphere> spheres;           // kind == list (checked: no overlap)
+  Aabb region;                           // kind == fill
+  std::size_t count = 0;                 // kind == fill
+  double diameter_min = 0, diameter_max = 0;  // m, kind == fill
+  std::uint64_t seed = 1;                // kind == fill
+  Vec3 velocity = Vec3::Zero();          // m/s, initial velocity of filled spheres
+};
+
+// DEM-DEM contact (dem_solver): linear spring-dashpot, tangential spring with
+// a Coulomb limit, constant-torque rolling resistance.
+struct DemContact {
+  double normal_damping_ratio = 0.7;       // zeta_n in [0, 1)
+  double tangential_damping_ratio = 0.4;   // zeta_t in [0, 1)
+  double friction = 1.0;                   // sliding, >= 0
+  double rolling_friction = 0.1;           // >= 0, dimensionless (torque = mu_r * r_eff * |F_n|)
+  // Normal stiffness: explicit (N/m), or LS-DYNA's NormK scale:
+  // k_n = scale * K1 r1 K2 r2 / (K1 r1 + K2 r2), K the bulk modulus.
+  std::optional<double> normal_stiffness;
+  double normal_stiffness_scale = 0.01;
+  double tangential_stiffness_ratio = 2.0 / 7.0;  // k_t = ratio * k_n
+};
+
+// One structure part (FEM). Rigid in this version: fixed in space.
+struct Shape {
+  enum class Type { plane, box, chute, mesh };
+  Type type = Type::plane;
+  // plane: a finite rectangle centred at `origin`, normal `normal`, sides
+  // `length` (along `direction` projected on the plane) and `width`.
+  Vec3 origin = Vec3::Zero();
+  Vec3 normal{0, 0, 1};
+  Vec3 direction{1, 0, 0};
+  double length = 0, width = 0;
+  // box: closed surface of [min, max], outward normals.
+  Aabb box;
+  // chute: floor starting at `origin` (centre of its upper edge), running
+  // `length` along `direction` (horizontal) and down at `slope_deg`, `width`
+  // wide, with side walls `wall_height` high; `end_wall_height` > 0 closes
+  // the lower end with a wall normal to the floor direction.
+  double slope_deg = 0;
+  double wall_height = 0;
+  double end_wall_height = 0;
+  // mesh: STL file (ASCII or binary), resolved to an absolute path; scaled
+  // then translated.
+  std::filesystem::path file;
+  double scale = 1.0;
+  Vec3 translate = Vec3::Zero();
+  double element_size = 0;  // m: target triangle edge for generated shapes (0: coarsest)
+};
+
+struct Structure {
+  std::string name;
+  std::string material;     // a key of Scene::materials (checked)
+  Origin origin;
+  bool rigid = true;
+  double thickness = 0;     // m: shell thickness for the eq. 3 offset (0: solid face)
+  Shape shape;
+};
+
+// Penalty contact of particles against structure surfaces, computed by the
+// coupler (paper eqs. 3-6). Defaults for every pair; `pairs` override per pair.
+struct SurfaceContact {
+  double friction = 0.3;                  // mu >= 0
+  double penalty_scale = 0.1;             // k1 of eq. 6
+  std::optional<double> normal_stiffness; // N/m: replaces eq. 6 when given
+  double normal_damping_ratio = 0.0;      // zeta: c_n = 2 zeta sqrt(k_n m)
+  double tangential_damping_ratio = 0.0;
+  bool enabled = true;
+};
+
+struct Interaction {
+  std::string a, b;          // a particle set and a structure (checked)
+  Origin origin;
+  SurfaceContact contact;    // defaults filled from [contact.dem_fem]
+};
+
+// What the coupler records into traffic.h5.
+struct Recording {
+  bool enabled = true;
+  // Fields: position, velocity, angular_velocity, force, torque,
+  // node_position, node_velocity, node_force, energies. Empty = all.
+  std::vector<std::string> fields;
+  std::uint64_t every = 1;           // record every N-th step
+  std::uint64_t first_step = 0;
+  std::uint64_t last_step = UINT64_MAX;
+  double flush_interval = 0.2;       // s of wall time between flushes
+};
+
+struct Scene {
+  std::filesystem::path file;        // absolute path of the scene file
+  int format_version = 1;
+  RunSettings run;
+  std::vector<SolverSettings> solvers;     // only the roles the scene needs
+  std::vector<Material> materials;         // sorted by name; index = material id
+  std::vector<ParticleSet> particle_sets;  // DEM bodies, in file order
+  std::vector<Structure> structures;       // FEM parts, in file order
+  DemContact dem_contact;
+  SurfaceContact dem_fem_default;
+  std::vector<Interaction> interactions;   // explicit per-pair settings
+  Recording recording;
+
+  [[nodiscard]] bool needs(Role role) const;
+  [[nodiscard]] const SolverSettings* solver(Role role) const;
+  [[nodiscard]] std::size_t material_index(const std::string& name) const;  // asserts it exists
+  // Contact settings for particle set `set` against structure `structure`.
+  [[nodiscard]] SurfaceContact surface_contact(const std::string& set, const std::string& structure) const;
+};
+
+}  // namespace sabo::scene
