@@ -1,2 +1,1 @@
-# Sources of libsabo/core.
-target_sources(sabo_core PRIVATE)
+target_sources(sabo_core PRIVATE ${CMAKE_CURRENT_LIST_DIR}/signals.cpp ${CMAKE_CURRENT_LIST_DIR}/log.cpp)

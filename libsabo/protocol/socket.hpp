@@ -1,0 +1,85 @@
+#pragma once
+// Thin RAII layer over cppzmq for the Sabo wire format (wire.hpp): typed
+// errors carrying ZeroMQ's own text, two-frame messages, and zero-copy sends
+// from buffers that are reused from one step to the next.
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <zmq.hpp>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/protocol/wire.hpp"
+
+namespace sabo::protocol {
+
+// Storage for outgoing message bodies, handed to ZeroMQ without a copy and
+// reused for the next message once ZeroMQ has released it.
+class SendBuffer {
+ public:
+  SendBuffer();
+  // Serializes `message` into the buffer and returns a ZeroMQ message over it.
+  zmq::message_t wrap(const google::protobuf::MessageLite& message);
+
+ private:
+  struct State {
+    std::atomic<bool> in_flight{false};
+    std::vector<std::uint8_t> bytes;
+  };
+  std::shared_ptr<State> state_;
+};
+
+// One received message: the peer identity (ROUTER only), header and body.
+struct Inbound {
+  std::string peer;
+  Header header;
+  zmq::message_t body;
+  std::string problem;  // non-empty: the frames were not a valid Sabo message
+
+  [[nodiscard]] bool valid() const { return problem.empty(); }
+  // Parses the body into `out`; throws ProtocolError when it is not a valid message.
+  void parse(google::protobuf::MessageLite& out) const;
+};
+
+class Socket {
+ public:
+  // kind: zmq::socket_type::router (coupler) or dealer (solver).
+  Socket(zmq::context_t& context, zmq::socket_type kind);
+  void bind(const std::string& endpoint);
+  void connect(const std::string& endpoint);
+
+  // Sends header + body (preceded by the peer identity on a ROUTER).
+  template <class Message>
+  void send(const Message& message, SendBuffer& buffer, const std::string& peer = {}) {
+    send_frames(message_type_of<Message>(), buffer.wrap(message), peer);
+  }
+  // Sends a small message by copy (registration replies, errors, stops).
+  template <class Message>
+  void send(const Message& message, const std::string& peer = {}) {
+    send_frames(message_type_of<Message>(), copy_body(message), peer);
+  }
+
+  // Waits up to `timeout` for one message. Returns false on timeout. Frames that
+  // are not a Sabo message are returned with `problem` set, never thrown.
+  bool receive(Inbound& inbound, std::chrono::milliseconds timeout);
+
+  [[nodiscard]] std::uint64_t bytes_sent() const { return bytes_sent_; }
+  [[nodiscard]] std::uint64_t bytes_received() const { return bytes_received_; }
+  [[nodiscard]] const std::string& endpoint() const { return endpoint_; }
+
+ private:
+  static zmq::message_t copy_body(const google::protobuf::MessageLite& message);
+  void send_frames(MessageType type, zmq::message_t body, const std::string& peer);
+
+  zmq::socket_t socket_;
+  bool is_router_;
+  std::string endpoint_;
+  std::uint64_t bytes_sent_ = 0;
+  std::uint64_t bytes_received_ = 0;
+  std::vector<zmq::message_t> frames_;
+};
+
+}  // namespace sabo::protocol

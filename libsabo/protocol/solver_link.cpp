@@ -1,0 +1,87 @@
+#include "libsabo/protocol/solver_link.hpp"
+
+#include <fmt/format.h>
+
+#include "libsabo/core/signals.hpp"
+
+namespace sabo::protocol {
+
+namespace {
+constexpr std::chrono::milliseconds kPollSlice{100};
+}
+
+SolverLink::SolverLink(const std::string& endpoint, std::chrono::milliseconds reply_timeout)
+    : context_(1), socket_(context_, zmq::socket_type::dealer), reply_timeout_(reply_timeout) {
+  socket_.connect(endpoint);
+}
+
+const Inbound& SolverLink::wait_for(MessageType expected, const std::string& what) {
+  const auto start = std::chrono::steady_clock::now();
+  for (;;) {
+    if (stop_requested()) throw StopRequested(fmt::format("stopped by signal {} while waiting for {}", stop_signal(), what));
+    if (socket_.receive(inbound_, kPollSlice)) break;
+    if (std::chrono::steady_clock::now() - start > reply_timeout_) {
+      throw LibraryError(fmt::format("the coupler at {} did not answer within {} s while waiting for {}",
+                                     socket_.endpoint(), static_cast<double>(reply_timeout_.count()) / 1000.0, what));
+    }
+  }
+  wait_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!inbound_.valid()) throw ProtocolError(fmt::format("invalid message from the coupler: {}", inbound_.problem));
+  const auto type = inbound_.header.type;
+  if (type == sabo::v1::MESSAGE_TYPE_STOP) {
+    sabo::v1::Stop stop;
+    inbound_.parse(stop);
+    throw StopRequested(fmt::format("the coupler asked to stop: {}", stop.reason()));
+  }
+  if (type == sabo::v1::MESSAGE_TYPE_ERROR) {
+    sabo::v1::Error error;
+    inbound_.parse(error);
+    throw ProtocolError(fmt::format("the coupler reported an error: {}", error.message()));
+  }
+  if (type != expected) {
+    throw ProtocolError(fmt::format("expected {} from the coupler, got {}", message_type_name(expected),
+                                    message_type_name(type)));
+  }
+  return inbound_;
+}
+
+const sabo::v1::RegisterReply& SolverLink::register_solver(const sabo::v1::Register& registration) {
+  socket_.send(registration, state_buffer_);
+  wait_for(sabo::v1::MESSAGE_TYPE_REGISTER_REPLY, "the registration reply").parse(register_reply_);
+  if (!register_reply_.accepted()) {
+    throw ProtocolError(fmt::format("the coupler refused the registration of {}: {}",
+                                    role_name(registration.role()), register_reply_.error()));
+  }
+  return register_reply_;
+}
+
+void SolverLink::send_state(const sabo::v1::StepState& state) { socket_.send(state, state_buffer_); }
+
+const sabo::v1::StepForces& SolverLink::receive_forces(std::uint64_t step) {
+  wait_for(sabo::v1::MESSAGE_TYPE_STEP_FORCES, fmt::format("the forces of step {}", step)).parse(forces_);
+  if (forces_.step() != step) {
+    throw ProtocolError(fmt::format("the coupler sent the forces of step {} while this solver is at step {}",
+                                    forces_.step(), step));
+  }
+  return forces_;
+}
+
+void SolverLink::send_goodbye(const sabo::v1::Goodbye& goodbye) {
+  try {
+    socket_.send(goodbye);
+  } catch (const LibraryError&) {
+  }
+}
+
+void SolverLink::send_error(sabo::v1::Error::Code code, const std::string& message) {
+  sabo::v1::Error error;
+  error.set_code(code);
+  error.set_message(message);
+  error.set_fatal(true);
+  try {
+    socket_.send(error);
+  } catch (const LibraryError&) {
+  }
+}
+
+}  // namespace sabo::protocol

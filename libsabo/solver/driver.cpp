@@ -1,0 +1,172 @@
+#include "libsabo/solver/driver.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/core/log.hpp"
+#include "libsabo/core/signals.hpp"
+#include "libsabo/protocol/solver_link.hpp"
+#include "libsabo/scene/loader.hpp"
+
+namespace sabo::solver {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+void Interest::update(const google::protobuf::RepeatedPtrField<sabo::v1::Box>& boxes, bool all) {
+  all_ = all;
+  boxes_.clear();
+  for (const auto& box : boxes) {
+    boxes_.push_back(Aabb{Vec3(box.min_x(), box.min_y(), box.min_z()), Vec3(box.max_x(), box.max_y(), box.max_z())});
+  }
+}
+
+bool Interest::contains(const Vec3& point) const {
+  if (all_) return true;
+  for (const auto& box : boxes_) {
+    if (box.contains(point)) return true;
+  }
+  return false;
+}
+
+std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, const std::string& program) {
+  SolverOptions options;
+  CLI::App app{fmt::format("{}: a Sabo solver process. Normally started by './sabo run SCENE'.", program), program};
+  app.add_option("--scene", options.scene, "scene file (TOML)")->required();
+  app.add_option("--coupler", options.coupler_endpoint, "coupler endpoint, e.g. ipc:///tmp/run/coupler.sock")
+      ->required();
+  app.add_option("--out", options.out_dir, "run folder for output files")->capture_default_str();
+  app.add_option("--log-level", options.log_level, "trace, debug, info, warn or error")->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& help) {
+    app.exit(help);
+    return std::nullopt;
+  } catch (const CLI::ParseError& error) {
+    throw Error(fmt::format("{}: {}. Run '{} --help' for the options.", program, error.what(), program));
+  }
+  return options;
+}
+
+int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, sabo::v1::Role role) {
+  const auto reply_timeout = std::chrono::milliseconds(
+      static_cast<long>(1000.0 * std::max(60.0, 6.0 * scene.run.hang_timeout)));
+  protocol::SolverLink link(options.coupler_endpoint, reply_timeout);
+
+  sabo::v1::Register registration;
+  registration.set_protocol_version(protocol::kProtocolVersion);
+  registration.set_role(role);
+  registration.set_pid(static_cast<std::uint32_t>(::getpid()));
+  solver.describe(registration);
+  registration.set_stable_dt(solver.stable_dt());
+
+  sabo::v1::Goodbye goodbye;
+  double compute_seconds = 0;
+  std::uint64_t step = 0;
+  int exit_code = 0;
+  try {
+    const auto& reply = link.register_solver(registration);
+    spdlog::info("registered with the coupler at {} (protocol {})", options.coupler_endpoint,
+                 reply.protocol_version());
+    Interest interest;
+    interest.update(reply.interest(), reply.interest_all());
+
+    sabo::v1::StepState state;
+    double time = 0;
+    double dt_previous = 0;
+    double compute_since_last = 0;
+    for (;; ++step) {
+      auto start = Clock::now();
+      state.Clear();
+      state.set_step(step);
+      state.set_time(time);
+      state.set_stable_dt(solver.stable_dt());
+      solver.fill_state(interest, state);
+      compute_since_last += seconds_since(start);
+      state.set_compute_seconds(compute_since_last);
+      state.set_wait_seconds(link.wait_seconds());
+      link.send_state(state);
+
+      start = Clock::now();
+      solver.compute_internal_forces(dt_previous);
+      const double overlapped = seconds_since(start);
+
+      const auto& forces = link.receive_forces(step);
+
+      start = Clock::now();
+      solver.apply_coupling_forces(forces);
+      interest.update(forces.interest(), forces.interest_all());
+      if (forces.output()) solver.write_output(step, time);
+      if (forces.stop()) {
+        compute_seconds += overlapped + seconds_since(start);
+        ++step;
+        break;
+      }
+      solver.integrate(dt_previous, forces.dt());
+      time += forces.dt();
+      dt_previous = forces.dt();
+      compute_since_last = overlapped + seconds_since(start);
+      compute_seconds += compute_since_last;
+    }
+    goodbye.set_reason("completed");
+    spdlog::info("completed {} steps, t = {:.6g} s", step, time);
+  } catch (const StopRequested& stop) {
+    spdlog::warn("{}", stop.what());
+    goodbye.set_reason(stop.what());
+    exit_code = 130;
+  } catch (const std::exception& error) {
+    spdlog::error("{}", error.what());
+    link.send_error(sabo::v1::Error::CODE_SOLVER, fmt::format("{}: {}", protocol::role_name(role), error.what()));
+    exit_code = 1;
+  }
+  try {
+    solver.finish();
+  } catch (const std::exception& error) {
+    spdlog::error("while closing the output files: {}", error.what());
+    exit_code = exit_code == 0 ? 1 : exit_code;
+  }
+  goodbye.set_steps(step);
+  goodbye.set_compute_seconds(compute_seconds);
+  goodbye.set_wait_seconds(link.wait_seconds());
+  if (exit_code != 1) link.send_goodbye(goodbye);
+  spdlog::info("compute {:.3f} s, waiting for the coupler {:.3f} s", compute_seconds, link.wait_seconds());
+  return exit_code;
+}
+
+int solver_main(int argc, char** argv, const std::string& program, sabo::v1::Role role, const SolverFactory& make) {
+  std::optional<SolverOptions> options;
+  try {
+    options = parse_solver_command_line(argc, argv, program);
+    if (!options) return 0;
+    setup_logging(program, options->log_level);
+  } catch (const std::exception& error) {
+    fmt::print(stderr, "{}\n", error.what());
+    return 2;
+  }
+  install_stop_handlers();
+  try {
+    const scene::Scene scene = scene::load_scene(options->scene);
+    auto solver = make(scene, *options);
+    return run_solver(*solver, scene, *options, role);
+  } catch (const SceneError& error) {
+    spdlog::error("{}", error.what());
+    return 2;
+  } catch (const std::exception& error) {
+    spdlog::error("{}", error.what());
+    return 1;
+  }
+}
+
+}  // namespace sabo::solver

@@ -1,0 +1,79 @@
+#pragma once
+// The lock-step loop every solver process runs (DESIGN.md §2), written once.
+// A solver implements CoupledSolver; run_solver() does the protocol, timing,
+// signals and error reporting.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "libsabo/scene/scene.hpp"
+#include "sabo/v1/sabo.pb.h"
+
+namespace sabo::solver {
+
+// Interest regions received from the coupler: only entities inside need to be sent.
+class Interest {
+ public:
+  void update(const google::protobuf::RepeatedPtrField<sabo::v1::Box>& boxes, bool all);
+  [[nodiscard]] bool all() const { return all_; }
+  [[nodiscard]] bool contains(const Vec3& point) const;
+
+ private:
+  bool all_ = true;
+  std::vector<Aabb> boxes_;
+};
+
+// The contract of one solver step. At step n the solver holds positions x_n and
+// half-step velocities v_{n-1/2}. run_solver() calls, in this order:
+//   1. stable_dt() and fill_state(): the state at x_n sent to the coupler;
+//   2. compute_internal_forces(dt_{n-1}) while the coupler computes contacts
+//      (dt_{n-1} is the step that led to x_n, 0 at n = 0);
+//   3. apply_coupling_forces(): the contact forces received for step n;
+//   4. write_output() when the coupler asks for output at t_n;
+//   5. integrate(dt_{n-1}, dt_n): v_{n+1/2}, x_{n+1} (skipped on the last step).
+class CoupledSolver {
+ public:
+  virtual ~CoupledSolver() = default;
+  // Registration: role, what the solver exposes, particle table or surface.
+  virtual void describe(sabo::v1::Register& registration) = 0;
+  virtual double stable_dt() = 0;
+  // Fills positions, velocities (and topology/table changes) of the entities
+  // inside `interest`, plus the energies. Step, time and stable dt are set by the driver.
+  virtual void fill_state(const Interest& interest, sabo::v1::StepState& state) = 0;
+  virtual void compute_internal_forces(double dt_previous) = 0;
+  virtual void apply_coupling_forces(const sabo::v1::StepForces& forces) = 0;
+  virtual void write_output(std::uint64_t step, double time) = 0;
+  virtual void integrate(double dt_previous, double dt) = 0;
+  // Called once at the end, also after errors: close files.
+  virtual void finish() = 0;
+};
+
+struct SolverOptions {
+  std::filesystem::path scene;
+  std::string coupler_endpoint;
+  std::filesystem::path out_dir = ".";
+  std::string log_level = "info";
+};
+
+// Parses the command line shared by every solver:
+//   <solver> --scene FILE --coupler ENDPOINT [--out DIR] [--log-level L]
+// Returns nullopt after printing help; throws sabo::Error on a bad command line.
+std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, const std::string& program);
+
+// Runs the coupled loop until the coupler says stop. Returns the process exit
+// code: 0 done, 130 stopped by signal or by the coupler's Stop, 1 on errors
+// (logged, and reported to the coupler when possible).
+int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options,
+               sabo::v1::Role role);
+
+// main() of a solver: parses the command line, sets up logging, loads the
+// scene, builds the solver with `make` and runs it. Every error becomes a log
+// line and an exit code (2: bad scene or command line).
+using SolverFactory =
+    std::function<std::unique_ptr<CoupledSolver>(const scene::Scene& scene, const SolverOptions& options)>;
+int solver_main(int argc, char** argv, const std::string& program, sabo::v1::Role role, const SolverFactory& make);
+
+}  // namespace sabo::solver

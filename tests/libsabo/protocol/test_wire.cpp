@@ -1,0 +1,40 @@
+#include <gtest/gtest.h>
+
+#include <array>
+
+#include "libsabo/protocol/wire.hpp"
+
+using namespace sabo::protocol;
+
+TEST(Wire, HeaderRoundTrip) {
+  for (int type = 1; type <= 7; ++type) {
+    std::array<std::uint8_t, kHeaderSize> bytes{};
+    encode_header({kProtocolVersion, static_cast<MessageType>(type)}, bytes);
+    std::string problem;
+    auto header = decode_header(bytes, problem);
+    ASSERT_TRUE(header) << problem;
+    EXPECT_EQ(header->version, kProtocolVersion);
+    EXPECT_EQ(header->type, type);
+  }
+}
+
+TEST(Wire, HeaderRejectsGarbage) {
+  std::string problem;
+  const std::array<std::uint8_t, 8> wrong_magic = {'H', 'T', 'T', 'P', 1, 0, 3, 0};
+  EXPECT_FALSE(decode_header(wrong_magic, problem));
+  EXPECT_NE(problem.find("magic"), std::string::npos) << problem;
+
+  const std::array<std::uint8_t, 3> short_frame = {'S', 'A', 'B'};
+  EXPECT_FALSE(decode_header(short_frame, problem));
+  EXPECT_NE(problem.find("3 bytes"), std::string::npos) << problem;
+
+  const std::array<std::uint8_t, 8> unknown_type = {'S', 'A', 'B', 'O', 1, 0, 99, 0};
+  EXPECT_FALSE(decode_header(unknown_type, problem));
+  EXPECT_NE(problem.find("unknown message type 99"), std::string::npos) << problem;
+}
+
+TEST(Wire, RoleNames) {
+  EXPECT_EQ(role_from_scene_name("dem_solver"), sabo::v1::ROLE_DEM);
+  EXPECT_EQ(role_name(sabo::v1::ROLE_FEM), "fem_solver");
+  EXPECT_EQ(role_from_scene_name("nonsense"), sabo::v1::ROLE_UNSPECIFIED);
+}
