@@ -1,0 +1,171 @@
+"""The command line of `./sabo`: setup, run, test."""
+import argparse
+import os
+import sys
+import time
+
+from .display import Display
+from .errors import SaboError, EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from .plan import check_scene
+from .run import PIDS_FILE, Supervisor
+from .setup_env import setup
+
+BUILD_DIR_VARIABLE = "SABO_BUILD_DIR"
+
+DESCRIPTION = """\
+Sabo: co-simulation of debris flows striking protective structures.
+
+  ./sabo setup             install the Debian packages, configure and build (idempotent)
+  ./sabo run SCENE         run a scene (does setup first); output goes to a run folder
+  ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
+"""
+
+EPILOG = """\
+environment:
+  SABO_BUILD_DIR       build folder (default: build/ in the repository)
+  SABO_PLAN_OVERRIDE   JSON launch plan to use instead of the scene check (debugging)
+  SABO_WATCHDOG_MIN_S  lower bound of the no-progress watchdog, seconds (default 30)
+"""
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(prog="sabo", description=DESCRIPTION, epilog=EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    setup_parser = commands.add_parser(
+        "setup", help="install missing packages, configure and build",
+        description="Install the missing Debian packages listed in packages.txt (apt-get, through sudo when "
+                    "not root), configure CMake (Release, Ninja) and build. Does nothing when all is done.")
+    setup_parser.add_argument("--quiet", action="store_true", help="show build output only when it fails")
+
+    run_parser = commands.add_parser(
+        "run", help="run a scene",
+        description="Check the scene, start the coupler and the solvers it needs, show progress and stop "
+                    "everything cleanly at the end, on a failure or on Ctrl-C. Exit status: 0 when the run "
+                    "completed, 1 when it failed, 2 for bad input (scene errors, run folder refused), "
+                    "130 when stopped by Ctrl-C or SIGTERM.")
+    run_parser.add_argument("scene", metavar="SCENE", help="scene file (TOML), e.g. configs/sphere_drop.toml")
+    run_parser.add_argument("--out", metavar="DIR",
+                            help="run folder; must not exist or be empty (default: runs/<scene>-<date>-<time>)")
+    run_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
+    run_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+
+    test_parser = commands.add_parser(
+        "test", help="build, then run the tests with ctest",
+        description="Build (as `./sabo setup`), then run `ctest --test-dir BUILD --output-on-failure ARGS...`.")
+    test_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build "
+                                                                     "(must come first)")
+    test_parser.add_argument("ctest_args", nargs="*", metavar="ARGS", help="passed to ctest, e.g. -R e2e -j2")
+    return parser
+
+
+def default_run_dir_base(scene):
+    stem = os.path.splitext(os.path.basename(scene))[0] or "run"
+    return os.path.join("runs", "{}-{}".format(stem, time.strftime("%Y%m%d-%H%M%S")))
+
+
+def refuse_used_run_dir(path):
+    """SaboError unless `path` is absent or an empty folder: a run never overwrites another."""
+    if not os.path.exists(path):
+        return
+    if not os.path.isdir(path):
+        raise SaboError("--out {}: exists and is not a folder; choose another --out".format(path), EXIT_BAD_INPUT)
+    if os.listdir(path):
+        raise SaboError("--out {}: the folder already exists and is not empty; nothing was overwritten. "
+                        "Choose another --out, or delete it first (rm -r {})".format(path, path), EXIT_BAD_INPUT)
+
+
+def claim_run_dir(path):
+    """Create `path` (or take it if empty) and mark it as taken, atomically: False if another run has it."""
+    try:
+        os.makedirs(path, exist_ok=True)
+        if os.listdir(path):
+            return False
+        os.close(os.open(os.path.join(path, PIDS_FILE), os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    except FileExistsError:
+        return False
+    except OSError as error:
+        raise SaboError("cannot create the run folder {}: {}".format(path, error.strerror), EXIT_BAD_INPUT)
+    return True
+
+
+def create_run_dir(out, scene):
+    """The run folder, created and claimed: `out`, or runs/<scene stem>-<date>-<time>[-N]."""
+    if out is not None:
+        refuse_used_run_dir(out)
+        if not claim_run_dir(out):
+            refuse_used_run_dir(out)
+            raise SaboError("--out {}: taken by another run; choose another --out".format(out), EXIT_BAD_INPUT)
+        return out
+    base = default_run_dir_base(scene)
+    candidate, suffix = base, 2
+    while not claim_run_dir(candidate):
+        candidate = "{}-{}".format(base, suffix)
+        suffix += 1
+    return candidate
+
+
+def command_setup(root, build_dir, args):
+    setup(root, build_dir, quiet=args.quiet)
+    print("sabo: packages installed, build up to date in {}".format(build_dir))
+    return 0
+
+
+def command_run(root, build_dir, args):
+    scene = args.scene
+    if not os.path.isfile(scene):
+        raise SaboError("scene file not found: {}".format(scene), EXIT_BAD_INPUT)
+    if args.out is not None:
+        refuse_used_run_dir(args.out)
+    if not args.no_setup:
+        setup(root, build_dir, quiet=args.quiet)
+    try:
+        plan = check_scene(scene, os.path.join(build_dir, "bin"))
+    except SaboError as error:
+        if error.exit_code == EXIT_BAD_INPUT:
+            print(error, file=sys.stderr)
+            raise SaboError("{}: the scene has errors (above); nothing was started".format(scene), EXIT_BAD_INPUT)
+        raise
+    run_dir = create_run_dir(args.out, scene)
+    display = Display(quiet=args.quiet)
+    return Supervisor(plan, scene, run_dir, display).run()
+
+
+def command_test(root, build_dir, no_setup, ctest_args):
+    if not no_setup:
+        setup(root, build_dir)
+    command = ["ctest", "--test-dir", build_dir, "--output-on-failure"] + list(ctest_args)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    try:
+        os.execvp(command[0], command)
+    except OSError as error:
+        raise SaboError("cannot run ctest: {}".format(error.strerror))
+
+
+def main(root, argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    build_dir = os.path.abspath(os.environ.get(BUILD_DIR_VARIABLE) or os.path.join(root, "build"))
+    parser = build_parser()
+    try:
+        if argv and argv[0] == "test" and argv[1:2] not in (["-h"], ["--help"]):
+            # Everything after `test` belongs to ctest (argparse would take -j, -R... for itself).
+            rest = argv[1:]
+            no_setup = rest[:1] == ["--no-setup"]
+            rest = rest[1:] if no_setup else rest
+            rest = rest[1:] if rest[:1] == ["--"] else rest
+            return command_test(root, build_dir, no_setup, rest)
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help(sys.stderr)
+            return EXIT_BAD_INPUT
+        if args.command == "setup":
+            return command_setup(root, build_dir, args)
+        return command_run(root, build_dir, args)
+    except SaboError as error:
+        print("sabo: error: {}".format(error), file=sys.stderr)
+        return error.exit_code
+    except KeyboardInterrupt:
+        print("\nsabo: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED

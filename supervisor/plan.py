@@ -1,0 +1,133 @@
+"""The launch plan of a run: which processes to start, with which command lines.
+
+`sabo_scene check SCENE --bin-dir DIR` validates the scene and prints the plan
+as one JSON object:
+
+    {"scene": "/abs/scene.toml", "end_time": 2.0, "output_interval": 0.01,
+     "hang_timeout": 10.0, "endpoint": "ipc" | "tcp://HOST:PORT",
+     "processes": [{"role": "coupler", "command": ["/abs/coupler"]},
+                   {"role": "dem_solver", "command": ["/abs/dem_solver"]}, ...]}
+
+Exit status 2 with the errors on stderr means the scene is wrong.
+For debugging, the environment variable SABO_PLAN_OVERRIDE may name a JSON
+file holding a plan; it replaces the scene check (e.g. to run a solver under
+gdb or valgrind by editing its command).
+"""
+import json
+import os
+import subprocess
+import sys
+
+from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
+from .processes import describe_exit
+
+COUPLER_ROLE = "coupler"
+PLAN_OVERRIDE_VARIABLE = "SABO_PLAN_OVERRIDE"
+
+
+class ProcessSpec:
+    def __init__(self, role, command):
+        self.role = role
+        self.command = list(command)
+
+
+class LaunchPlan:
+    def __init__(self, scene, end_time, output_interval, hang_timeout, endpoint, processes):
+        self.scene = scene
+        self.end_time = end_time
+        self.output_interval = output_interval
+        self.hang_timeout = hang_timeout
+        self.endpoint = endpoint
+        self.processes = processes  # the coupler first, then the solvers in plan order
+
+    @property
+    def coupler(self):
+        return self.processes[0]
+
+    @property
+    def solvers(self):
+        return self.processes[1:]
+
+
+def _number(plan, key, source, positive=True):
+    value = plan.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (positive and not value > 0):
+        raise SaboError("{}: launch plan key \"{}\" must be a positive number, got {!r}".format(source, key, value),
+                        EXIT_FAILED)
+    return float(value)
+
+
+def parse_plan(text, source):
+    """The LaunchPlan in JSON `text`; `source` names where it came from, for errors."""
+    try:
+        plan = json.loads(text)
+    except ValueError as error:
+        raise SaboError("{}: the launch plan is not valid JSON: {}".format(source, error), EXIT_FAILED)
+    if not isinstance(plan, dict):
+        raise SaboError("{}: the launch plan must be a JSON object".format(source), EXIT_FAILED)
+
+    endpoint = plan.get("endpoint", "ipc")
+    if not isinstance(endpoint, str) or not (endpoint == "ipc" or endpoint.startswith("tcp://")):
+        raise SaboError("{}: launch plan key \"endpoint\" must be \"ipc\" or \"tcp://HOST:PORT\", got {!r}".format(
+            source, endpoint), EXIT_FAILED)
+
+    entries = plan.get("processes")
+    if not isinstance(entries, list) or not entries:
+        raise SaboError("{}: launch plan key \"processes\" must be a non-empty list".format(source), EXIT_FAILED)
+    processes = []
+    for index, entry in enumerate(entries):
+        where = "{}: processes[{}]".format(source, index)
+        if not isinstance(entry, dict):
+            raise SaboError("{} must be an object with \"role\" and \"command\"".format(where), EXIT_FAILED)
+        role, command = entry.get("role"), entry.get("command")
+        if not isinstance(role, str) or not role or "/" in role:
+            raise SaboError("{}: \"role\" must be a name such as \"dem_solver\", got {!r}".format(where, role),
+                            EXIT_FAILED)
+        if (not isinstance(command, list) or not command or
+                not all(isinstance(part, str) and part for part in command)):
+            raise SaboError("{} ({}): \"command\" must be a non-empty list of strings, got {!r}".format(
+                where, role, command), EXIT_FAILED)
+        if any(spec.role == role for spec in processes):
+            raise SaboError("{}: role \"{}\" appears twice".format(where, role), EXIT_FAILED)
+        processes.append(ProcessSpec(role, command))
+    couplers = [spec for spec in processes if spec.role == COUPLER_ROLE]
+    if len(couplers) != 1:
+        raise SaboError("{}: the launch plan must have exactly one process with role \"coupler\"".format(source),
+                        EXIT_FAILED)
+    processes = couplers + [spec for spec in processes if spec.role != COUPLER_ROLE]
+
+    return LaunchPlan(scene=plan.get("scene"),
+                      end_time=_number(plan, "end_time", source),
+                      output_interval=_number(plan, "output_interval", source),
+                      hang_timeout=_number(plan, "hang_timeout", source),
+                      endpoint=endpoint,
+                      processes=processes)
+
+
+def check_scene(scene, bin_dir):
+    """Validate `scene` with sabo_scene and return its LaunchPlan; SaboError(exit 2) on scene errors."""
+    override = os.environ.get(PLAN_OVERRIDE_VARIABLE)
+    if override:
+        try:
+            with open(override, encoding="utf-8") as handle:
+                text = handle.read()
+        except OSError as error:
+            raise SaboError("{}={}: {}".format(PLAN_OVERRIDE_VARIABLE, override, error.strerror), EXIT_BAD_INPUT)
+        return parse_plan(text, "{}={}".format(PLAN_OVERRIDE_VARIABLE, override))
+
+    checker = os.path.join(bin_dir, "sabo_scene")
+    if not os.access(checker, os.X_OK):
+        raise SaboError("{} is missing: build the project with `./sabo setup`".format(checker), EXIT_FAILED)
+    result = subprocess.run([checker, "check", scene, "--bin-dir", bin_dir], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True,
+                            errors="replace")
+    errors = result.stderr.rstrip("\n")
+    if result.returncode == 2:
+        raise SaboError(errors or "{}: the scene has errors (sabo_scene gave no details)".format(scene),
+                        EXIT_BAD_INPUT)
+    if result.returncode != 0:
+        raise SaboError("sabo_scene {} while checking {}{}".format(
+            describe_exit(result.returncode), scene, ":\n" + errors if errors else ""), EXIT_FAILED)
+    if errors:  # warnings
+        print(errors, file=sys.stderr)
+    return parse_plan(result.stdout, "sabo_scene check {}".format(scene))

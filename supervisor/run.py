@@ -1,0 +1,537 @@
+"""`./sabo run`: supervise one coupled run.
+
+The coupler starts first; its stdout is a stream of JSON event lines (see
+docs in README.md, "What the supervisor expects"). When it reports
+`listening`, the solvers start. Every ~100 ms the supervisor reads events and
+polls every process; whatever goes wrong (a process dies, a solver exits too
+early, the coupler reports a failure, nothing progresses, the user presses
+Ctrl-C) ends with every process stopped and a report naming the culprit.
+"""
+import json
+import os
+import selectors
+import shutil
+import signal
+import stat
+import subprocess
+import tempfile
+import time
+
+from .display import format_duration, format_progress, list_run_folder, wrap_items
+from .errors import EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from .processes import signal_name, start_process
+
+POLL_INTERVAL_S = 0.1
+# SIGTERM -> SIGKILL when stopping after a fault. The coupler needs some of it to give up waiting for
+# the dead solver's goodbye and close traffic.h5 and the summary.
+FAULT_GRACE_S = 5.0
+EARLY_EXIT_GRACE_S = 3.0     # beyond hang_timeout, for a solver that left early with code 0
+INTERRUPT_GRACE_S = 5.0      # Ctrl-C: time for the coupler to stop the solvers cleanly
+SETTLE_S = 0.5              # after a solver died: time for the coupler to react before judging
+FINISH_GRACE_S = 10.0        # solvers' time to exit once the coupler has completed
+SOLVER_TERM_DELAY_S = 1.0    # Ctrl-C: solvers still alive this long after the coupler exited get SIGTERM
+MAX_UNIX_SOCKET_PATH = 100   # bytes; sun_path holds 108 with the NUL, keep a margin
+WATCHDOG_MIN_VARIABLE = "SABO_WATCHDOG_MIN_S"
+DEFAULT_WATCHDOG_MIN_S = 30.0
+LOG_TAIL_LINES = 10
+
+COUPLER_EXIT_COMPLETED = 0
+COUPLER_EXIT_BAD_INPUT = 2
+COUPLER_EXIT_SOLVER_FAILED = 3
+COUPLER_EXIT_STOPPED = 130
+
+EVENTS_FILE = "coupler.events.jsonl"
+PIDS_FILE = "pids.json"
+
+
+class Outcome:
+    def __init__(self, status, exit_code, reason=None):
+        self.status = status        # "completed", "failed", "stopped", "bad input"
+        self.exit_code = exit_code
+        self.reason = reason
+
+
+def resolve_endpoint(plan_endpoint, run_dir):
+    """(endpoint for the coupler and solvers, temporary folder to remove at the end or None)."""
+    if plan_endpoint != "ipc":
+        return plan_endpoint, None
+    path = os.path.join(os.path.abspath(run_dir), "coupler.sock")
+    if len(os.fsencode(path)) <= MAX_UNIX_SOCKET_PATH:
+        return "ipc://" + path, None
+    folder = tempfile.mkdtemp(prefix="sabo-", dir="/tmp")
+    return "ipc://" + os.path.join(folder, "coupler.sock"), folder
+
+
+def watchdog_seconds(hang_timeout):
+    minimum = DEFAULT_WATCHDOG_MIN_S
+    text = os.environ.get(WATCHDOG_MIN_VARIABLE)
+    if text:
+        try:
+            minimum = max(0.1, float(text))
+        except ValueError:
+            pass
+    return max(3.0 * hang_timeout, minimum)
+
+
+class Supervisor:
+    def __init__(self, plan, scene, run_dir, display):
+        self.plan = plan
+        self.scene = os.path.abspath(scene)
+        self.run_dir = os.path.abspath(run_dir)
+        self.display = display
+        self.endpoint, self._socket_folder = resolve_endpoint(plan.endpoint, self.run_dir)
+        self.watchdog_s = watchdog_seconds(plan.hang_timeout)
+        # A solver that exits cleanly before the coupler says the run is ending: the coupler
+        # should notice within hang_timeout and explain; after that the supervisor does.
+        self.early_exit_grace_s = plan.hang_timeout + EARLY_EXIT_GRACE_S
+
+        self.processes = []          # ManagedProcess, coupler first, in start order
+        self._interrupts = []        # signal numbers received
+        self._previous_handlers = {}
+        self._selector = None
+        self._pipe = None            # the coupler's stdout
+        self._buffer = b""
+        self._events = None          # coupler.events.jsonl
+        self._solvers_started = False
+        self._start_failure = None
+        self._stopping = False       # the coupler said the run is ending
+        self._done = None            # the done event
+        self._errors = []            # error events
+        self._last_progress = None   # last progress event
+        self._last_activity = None   # monotonic time of the last progress (watchdog)
+        self._started_at = None
+
+    # ----------------------------------------------------------------------------- public
+
+    def run(self):
+        """Run to the end; returns the exit code of `./sabo run`."""
+        self._started_at = time.monotonic()
+        self._last_activity = self._started_at
+        self._install_signal_handlers()
+        outcome = Outcome("failed", EXIT_FAILED, "internal error")
+        try:
+            self._events = open(os.path.join(self.run_dir, EVENTS_FILE), "a", encoding="utf-8")
+            self._write_pids()
+            outcome = self._start_and_supervise()
+        finally:
+            self._kill_leftovers()
+            self._close_pipe()
+            if self._events is not None:
+                self._events.close()
+            self._remove_socket()
+            self._restore_signal_handlers()
+        self._report(outcome)
+        return outcome.exit_code
+
+    # ------------------------------------------------------------------------ signals
+
+    def _install_signal_handlers(self):
+        for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            self._previous_handlers[number] = signal.signal(number, self._on_signal)
+
+    def _restore_signal_handlers(self):
+        for number, handler in self._previous_handlers.items():
+            signal.signal(number, handler if handler is not None else signal.SIG_DFL)
+
+    def _on_signal(self, number, _frame):
+        self._interrupts.append(number)
+
+    # ---------------------------------------------------------------------- processes
+
+    @property
+    def coupler(self):
+        return self.processes[0] if self.processes else None
+
+    @property
+    def solvers(self):
+        return self.processes[1:]
+
+    def _running(self, processes=None):
+        return [p for p in (self.processes if processes is None else processes) if p.running]
+
+    def _start(self, spec, arguments, pipe):
+        process = start_process(spec.role, spec.command + arguments, self.run_dir,
+                                os.path.join(self.run_dir, spec.role + ".log"), stdout_to_pipe=pipe)
+        self.processes.append(process)
+        self._write_pids()
+        return process
+
+    def _write_pids(self):
+        pids = {"supervisor": os.getpid()}
+        for process in self.processes:
+            pids[process.role] = process.pid
+        path = os.path.join(self.run_dir, PIDS_FILE)
+        with open(path + ".tmp", "w", encoding="utf-8") as handle:
+            json.dump(pids, handle, indent=2)
+            handle.write("\n")
+        os.replace(path + ".tmp", path)
+
+    def _start_and_supervise(self):
+        spec = self.plan.coupler
+        try:
+            coupler = self._start(spec, ["--scene", self.scene, "--endpoint", self.endpoint, "--out", self.run_dir],
+                                  pipe=True)
+        except OSError as error:
+            return self._outcome_failed("could not start the coupler: {}: {}".format(spec.command[0], error.strerror))
+        self._pipe = coupler.popen.stdout
+        os.set_blocking(self._pipe.fileno(), False)
+        self._selector = selectors.DefaultSelector()
+        self._selector.register(self._pipe, selectors.EVENT_READ)
+        return self._supervise()
+
+    def _start_solvers(self, endpoint):
+        self._solvers_started = True
+        for spec in self.plan.solvers:
+            if self._interrupts:
+                return
+            try:
+                self._start(spec, ["--scene", self.scene, "--coupler", endpoint, "--out", self.run_dir], pipe=False)
+            except OSError as error:
+                self._start_failure = "could not start {}: {}: {}".format(spec.role, spec.command[0], error.strerror)
+                return
+
+    # ------------------------------------------------------------------ the main loop
+
+    def _supervise(self):
+        while True:
+            self._pump(POLL_INTERVAL_S)
+            now = time.monotonic()
+            if self._interrupts:
+                return self._stop_on_interrupt()
+            if self._start_failure:
+                return self._fail(self._start_failure)
+            if self.coupler.poll() is not None:
+                return self._on_coupler_exit()
+            failed = self._failed_solvers()
+            if failed:
+                # The coupler may be going down at the same moment, and the solver only because of it
+                # (the coupler's exit code and error events then tell the story): let it settle.
+                self._wait_for_exit(self.coupler, SETTLE_S)
+                if self.coupler.poll() is not None:
+                    return self._on_coupler_exit(failed)
+                return self._fail("; ".join(p.describe() for p in failed), culprits=failed)
+            for solver in self.solvers:
+                if solver.poll() is None or solver.handled:
+                    continue
+                if self._stopping:
+                    solver.handled = True
+                elif now - solver.exited_at > self.early_exit_grace_s:
+                    solver.handled = True
+                    return self._fail("{} (pid {}) exited with code 0 before the coupler reported the end of the run"
+                                      .format(solver.role, solver.pid), culprits=[solver])
+            if now - self._last_activity > self.watchdog_s:
+                return self._fail(
+                    "no progress reported by the coupler for {:.0f} s while every process is alive: the run looks "
+                    "hung (the scene's hang_timeout is {:g} s){}".format(
+                        now - self._last_activity, self.plan.hang_timeout, self._last_progress_text()),
+                    culprits=[self.coupler])
+
+    def _last_progress_text(self):
+        if self._last_progress is None:
+            return "; no progress event at all"
+        return "; last progress: step {}, t = {}".format(self._last_progress.get("step"),
+                                                         self._last_progress.get("time"))
+
+    # ---------------------------------------------------------------------- endings
+
+    def _outcome_failed(self, reason):
+        self.display.error("sabo: " + reason)
+        return Outcome("failed", EXIT_FAILED, reason)
+
+    def _show_log_tail(self, process):
+        lines = process.log_tail(LOG_TAIL_LINES)
+        if not lines:
+            self.display.error("sabo: {} is empty".format(self._relative(process.log_path)))
+            return
+        self.display.error("sabo: last lines of {}:".format(self._relative(process.log_path)))
+        for line in lines:
+            self.display.error("    " + line)
+
+    def _fail(self, reason, culprits=()):
+        """Report `reason` (and the culprits' log tails), stop every process, return a failed outcome."""
+        outcome = self._outcome_failed(reason)
+        shown = set()
+        for culprit in culprits:
+            if culprit.role not in shown:
+                shown.add(culprit.role)
+                self._show_log_tail(culprit)
+        self._terminate(self._running(), FAULT_GRACE_S)
+        return outcome
+
+    def _failed_solvers(self):
+        """Solvers that ended with a non-zero code or a signal, not yet reported; killed by a signal first."""
+        failed = [p for p in self.solvers if not p.handled and p.poll() is not None and p.returncode != 0]
+        for process in failed:
+            process.handled = True
+        return sorted(failed, key=lambda p: p.returncode > 0)
+
+    def _terminate(self, processes, grace_s):
+        """SIGTERM `processes`, SIGKILL those still alive after `grace_s` (at once on a new Ctrl-C)."""
+        processes = [p for p in processes if p.running]
+        if not processes:
+            return
+        interrupts_before = len(self._interrupts)
+        for process in processes:
+            process.send(signal.SIGTERM)
+        deadline = time.monotonic() + grace_s
+        why = "{:g} s after SIGTERM".format(grace_s)
+        while self._running(processes) and time.monotonic() < deadline:
+            if len(self._interrupts) > interrupts_before:
+                why = "at the interrupt"
+                break
+            self._pump(POLL_INTERVAL_S)
+        self._kill(self._running(processes), why)
+
+    def _kill(self, processes, why):
+        for process in processes:
+            self.display.error("sabo: {} (pid {}) still running {}: killing it (SIGKILL)".format(
+                process.role, process.pid, why))
+            process.send(signal.SIGKILL)
+        for process in processes:
+            try:
+                process.popen.wait(timeout=5)
+            except subprocess.TimeoutExpired:  # unkillable (e.g. stuck in the kernel): nothing more to do
+                self.display.error("sabo: {} (pid {}) does not die even with SIGKILL".format(process.role, process.pid))
+
+    def _error_text(self):
+        return "; ".join("{}: {}".format(event.get("process", "?"), event.get("message", "?"))
+                         for event in self._errors)
+
+    def _process_by_role(self, role):
+        for process in self.processes:
+            if process.role == role:
+                return process
+        return None
+
+    def _wait_for_exit(self, process, timeout_s):
+        deadline = time.monotonic() + timeout_s
+        while process.running and time.monotonic() < deadline:
+            self._pump(0.05)
+
+    def _on_coupler_exit(self, failed_before=()):
+        coupler = self.coupler
+        coupler.handled = True
+        self._drain_pipe(1.0)
+        code = coupler.returncode
+        if code == COUPLER_EXIT_COMPLETED:
+            return self._finish_completed()
+        errors = self._error_text()
+        reported = "the coupler reports: " + errors if errors else ""
+        # A solver's death is usually why the coupler gave up; it may still be on its way out.
+        deadline = time.monotonic() + SETTLE_S
+        while self._running(self.solvers) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        failed = list(failed_before) + self._failed_solvers()
+        named = [self._process_by_role(event.get("process")) for event in self._errors]
+        failed.sort(key=lambda p: (p not in named, p.returncode > 0))
+        if code == COUPLER_EXIT_BAD_INPUT:
+            reason = "the coupler rejected the input (exit code 2){}".format("; " + reported if errors else "")
+            self.display.error("sabo: " + reason)
+            if not errors:
+                self._show_log_tail(coupler)
+            self._terminate(self._running(), FAULT_GRACE_S)
+            return Outcome("bad input", EXIT_BAD_INPUT, reason)
+        if code == COUPLER_EXIT_SOLVER_FAILED:
+            culprits = failed + [p for p in named if p is not None and p not in failed]
+            reason = "; ".join([p.describe() for p in failed] +
+                               [reported or "the coupler exited with code 3 (a solver failed or hung) "
+                                            "without an error event"])
+            return self._fail(reason, culprits=culprits or [coupler])
+        if code == COUPLER_EXIT_STOPPED and not failed:
+            reason = "the coupler was stopped by a signal that did not come from the supervisor (exit code 130)"
+            self.display.error("sabo: " + reason)
+            self._terminate(self._running(), INTERRUPT_GRACE_S)
+            return Outcome("stopped", EXIT_INTERRUPTED, reason)
+        ended = sorted([coupler] + failed, key=lambda p: p.returncode > 0)
+        reason = "; ".join(p.describe() for p in ended) + ("; " + reported if errors else "")
+        return self._fail(reason, culprits=ended)
+
+    def _finish_completed(self):
+        """The coupler completed: the solvers have been told to stop and must now exit cleanly."""
+        deadline = time.monotonic() + FINISH_GRACE_S
+        while self._running(self.solvers) and time.monotonic() < deadline and not self._interrupts:
+            self._pump(POLL_INTERVAL_S)
+        late = self._running(self.solvers)
+        if late and self._interrupts:
+            what = "Ctrl-C" if self._interrupts[0] == signal.SIGINT else signal_name(self._interrupts[0])
+            self.display.error("sabo: {}: stopping the solvers that are still finishing".format(what))
+            self._terminate(late, INTERRUPT_GRACE_S)
+            return Outcome("stopped", EXIT_INTERRUPTED, "stopped by {} after the coupler completed".format(what))
+        if late:
+            reason = "{} did not exit within {:g} s after the coupler completed the run".format(
+                ", ".join("{} (pid {})".format(p.role, p.pid) for p in late), FINISH_GRACE_S)
+            self.display.error("sabo: " + reason)
+            self._terminate(late, FAULT_GRACE_S)
+            return Outcome("failed", EXIT_FAILED, reason)
+        failed = [p for p in self.solvers if p.returncode != 0]
+        if failed:
+            reason = "the coupler completed, but " + ", ".join(p.describe() for p in failed)
+            self.display.error("sabo: " + reason)
+            for process in failed:
+                self._show_log_tail(process)
+            return Outcome("failed", EXIT_FAILED, reason)
+        return Outcome("completed", EXIT_OK)
+
+    def _stop_on_interrupt(self):
+        first = self._interrupts[0]
+        what = "Ctrl-C" if first == signal.SIGINT else signal_name(first)
+        self.display.error("sabo: {}: stopping the run (press Ctrl-C again to kill everything at once)".format(what))
+        interrupts_seen = len(self._interrupts)
+        coupler = self.coupler
+        if coupler.running:
+            coupler.send(signal.SIGTERM)
+            solvers_signalled = False
+        else:
+            for solver in self._running(self.solvers):
+                solver.send(signal.SIGTERM)
+            solvers_signalled = True
+        deadline = time.monotonic() + INTERRUPT_GRACE_S
+        while self._running():
+            now = time.monotonic()
+            if len(self._interrupts) > interrupts_seen:
+                self.display.error("sabo: killing every process now")
+                self._kill(self._running(), "at the second interrupt")
+                break
+            if now >= deadline:
+                self._kill(self._running(), "{:g} s after the stop request".format(INTERRUPT_GRACE_S))
+                break
+            if (not solvers_signalled and not coupler.running and
+                    now - coupler.exited_at > SOLVER_TERM_DELAY_S):
+                for solver in self._running(self.solvers):
+                    solver.send(signal.SIGTERM)
+                solvers_signalled = True
+            self._pump(POLL_INTERVAL_S)
+        self._drain_pipe(0.5)
+        return Outcome("stopped", EXIT_INTERRUPTED, "stopped by {}".format(what))
+
+    def _kill_leftovers(self):
+        """Last line of defence (also on an internal error): nothing outlives the supervisor."""
+        running = self._running()
+        if running:
+            self._kill(running, "at the end of the run")
+        for process in self.processes:
+            process.sweep()
+
+    # ------------------------------------------------------------------------- events
+
+    def _pump(self, timeout):
+        """Wait up to `timeout` for coupler output and handle the complete lines."""
+        if self._pipe is None:
+            time.sleep(timeout)
+            return
+        if self._selector.select(timeout):
+            self._read_pipe()
+
+    def _read_pipe(self):
+        for _ in range(64):  # bounded, so that a flood of output cannot starve the polling
+            try:
+                data = os.read(self._pipe.fileno(), 65536)
+            except BlockingIOError:
+                return
+            if not data:
+                if self._buffer:
+                    self._handle_line(self._buffer)
+                    self._buffer = b""
+                self._close_pipe()
+                return
+            self._buffer += data
+            *lines, self._buffer = self._buffer.split(b"\n")
+            for line in lines:
+                self._handle_line(line)
+
+    def _drain_pipe(self, timeout_s):
+        deadline = time.monotonic() + timeout_s
+        while self._pipe is not None and time.monotonic() < deadline:
+            self._pump(0.05)
+
+    def _close_pipe(self):
+        if self._pipe is None:
+            return
+        if self._selector is not None:
+            self._selector.unregister(self._pipe)
+            self._selector.close()
+            self._selector = None
+        self._pipe.close()
+        self._pipe = None
+
+    def _handle_line(self, raw):
+        text = raw.decode("utf-8", "replace").rstrip("\r")
+        if not text.strip():
+            return
+        try:
+            event = json.loads(text)
+        except ValueError:
+            event = None
+        if not isinstance(event, dict) or not isinstance(event.get("event"), str):
+            self._append_to_coupler_log(text)
+            return
+        self._events.write(text + "\n")
+        self._events.flush()
+        kind = event["event"]
+        if kind == "listening":
+            self._last_activity = time.monotonic()
+            if not self._solvers_started:
+                endpoint = event.get("endpoint")
+                if not isinstance(endpoint, str) or "://" not in endpoint or "*" in endpoint:
+                    endpoint = self.endpoint
+                self.display.info("sabo: coupler (pid {}) listening on {}".format(self.coupler.pid, endpoint))
+                self._start_solvers(endpoint)
+        elif kind == "registered":
+            self._last_activity = time.monotonic()
+            self.display.info("sabo: {} registered (pid {}{})".format(
+                event.get("role", "?"), event.get("pid", "?"),
+                ", " + str(event["name"]) if event.get("name") else ""))
+        elif kind == "progress":
+            self._last_activity = time.monotonic()
+            self._last_progress = event
+            self.display.progress(event, self.plan.end_time)
+        elif kind == "error":
+            self._errors.append(event)
+            self.display.error("sabo: the coupler reports: {}: {}".format(event.get("process", "?"),
+                                                                           event.get("message", "?")))
+        elif kind == "stopping":
+            self._last_activity = time.monotonic()
+            self._stopping = True
+        elif kind == "done":
+            self._last_activity = time.monotonic()
+            self._stopping = True
+            self._done = event
+
+    def _append_to_coupler_log(self, text):
+        try:
+            with open(os.path.join(self.run_dir, "coupler.log"), "a", encoding="utf-8") as log:
+                log.write("[stdout] " + text + "\n")
+        except OSError:
+            pass
+
+    # ------------------------------------------------------------------------ the end
+
+    def _remove_socket(self):
+        if self._socket_folder is not None:
+            shutil.rmtree(self._socket_folder, ignore_errors=True)
+            return
+        if self.endpoint.startswith("ipc://"):
+            path = self.endpoint[len("ipc://"):]
+            try:
+                if stat.S_ISSOCK(os.lstat(path).st_mode):
+                    os.unlink(path)
+            except OSError:
+                pass
+
+    def _relative(self, path):
+        relative = os.path.relpath(path)
+        return path if relative.startswith("..") else relative
+
+    def _report(self, outcome):
+        wall = time.monotonic() - self._started_at
+        headline = {"completed": "completed", "failed": "FAILED", "stopped": "stopped",
+                    "bad input": "FAILED (bad input)"}[outcome.status]
+        lines = ["sabo: run {}{}".format(headline, ": " + outcome.reason if outcome.reason else "")]
+        if self._last_progress is not None:
+            lines.append("  last step:   " + format_progress(self._last_progress, self.plan.end_time))
+        lines.append("  wall time:   {}".format(format_duration(wall)))
+        lines.append("  run folder:  {}".format(self._relative(self.run_dir)))
+        files = list_run_folder(self.run_dir)
+        if files:
+            lines.extend(wrap_items(files, "  files:       ", " " * 15))
+        self.display.summary(lines)

@@ -1,0 +1,250 @@
+"""Shared helpers of the end-to-end tests: run `./sabo`, wait for events, find leftover processes."""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+SABO = os.path.join(ROOT, "sabo")
+FAKES = os.path.join(HERE, "fakes")
+BUILD_DIR = os.path.abspath(os.environ.get("SABO_BUILD_DIR") or os.path.join(ROOT, "build"))
+
+
+def read_text(path):
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        return handle.read()
+
+
+def read_json(path):
+    with open(path, encoding="utf-8") as handle:
+        return json.load(handle)
+
+
+def read_events(run_dir):
+    """The coupler events recorded by the supervisor so far (complete lines only)."""
+    try:
+        with open(os.path.join(run_dir, "coupler.events.jsonl"), encoding="utf-8") as handle:
+            text = handle.read()
+    except OSError:
+        return []
+    events = []
+    for line in text.split("\n")[:-1]:
+        try:
+            events.append(json.loads(line))
+        except ValueError:
+            pass
+    return events
+
+
+def _process_state(pid):
+    try:
+        with open("/proc/{}/stat".format(pid), encoding="utf-8", errors="replace") as handle:
+            return handle.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return None
+
+
+def processes_in(run_dir):
+    """(pid, command line) of live processes whose command line or working folder mention `run_dir`."""
+    run_dir = os.path.realpath(run_dir)
+    found = []
+    for name in os.listdir("/proc"):
+        if not name.isdigit() or int(name) == os.getpid():
+            continue
+        pid = int(name)
+        try:
+            with open("/proc/{}/cmdline".format(pid), "rb") as handle:
+                command = handle.read().replace(b"\0", b" ").decode("utf-8", "replace").strip()
+        except OSError:
+            continue
+        try:
+            cwd = os.readlink("/proc/{}/cwd".format(pid))
+        except OSError:
+            cwd = ""
+        if _process_state(pid) in (None, "Z", "X"):
+            continue
+        if run_dir in command or cwd == run_dir or cwd.startswith(run_dir + "/"):
+            found.append((pid, command))
+    return found
+
+
+def pid_alive(pid):
+    return _process_state(pid) not in (None, "Z", "X")
+
+
+class Sabo:
+    """`./sabo ARGS` started in the background, output to files (no pipe to fill up)."""
+
+    def __init__(self, args, env=None, cwd=None, work_dir=None):
+        self.work_dir = work_dir or tempfile.mkdtemp(prefix="sabo-e2e-")
+        self.stdout_path = os.path.join(self.work_dir, "sabo.stdout")
+        self.stderr_path = os.path.join(self.work_dir, "sabo.stderr")
+        full_env = dict(os.environ)
+        full_env.update(env or {})
+        with open(self.stdout_path, "wb") as out, open(self.stderr_path, "wb") as err:
+            self.popen = subprocess.Popen([SABO] + list(args), cwd=cwd or ROOT, env=full_env,
+                                          stdin=subprocess.DEVNULL, stdout=out, stderr=err)
+        self.started = time.monotonic()
+        self.ended = None
+
+    def wait(self, timeout):
+        try:
+            code = self.popen.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.popen.kill()
+            self.popen.wait()
+            raise AssertionError("./sabo did not exit within {} s\nstdout:\n{}\nstderr:\n{}".format(
+                timeout, self.stdout, self.stderr))
+        if self.ended is None:
+            self.ended = time.monotonic()
+        return code
+
+    def signal(self, number):
+        self.popen.send_signal(number)
+
+    @property
+    def stdout(self):
+        with open(self.stdout_path, encoding="utf-8", errors="replace") as handle:
+            return handle.read()
+
+    @property
+    def stderr(self):
+        with open(self.stderr_path, encoding="utf-8", errors="replace") as handle:
+            return handle.read()
+
+    def output(self):
+        return "stdout:\n{}\nstderr:\n{}".format(self.stdout, self.stderr)
+
+
+def wait_for_events(sabo, run_dir, predicate, timeout, what):
+    """Wait until predicate(events) holds; fail if ./sabo exits first or after `timeout` s."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        events = read_events(run_dir)
+        if predicate(events):
+            return events
+        if sabo.popen.poll() is not None:
+            raise AssertionError("./sabo exited with {} before {}\n{}".format(sabo.popen.returncode, what,
+                                                                              sabo.output()))
+        time.sleep(0.05)
+    raise AssertionError("no {} within {} s\n{}".format(what, timeout, sabo.output()))
+
+
+def progress_count(events):
+    return sum(1 for event in events if event.get("event") == "progress")
+
+
+class E2eTestCase(unittest.TestCase):
+    """A temporary folder per test; kills whatever a failed test left behind."""
+
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="sabo-e2e-")
+        self.started = []
+
+    def tearDown(self):
+        for sabo in self.started:
+            if sabo.popen.poll() is None:
+                sabo.popen.kill()
+                sabo.popen.wait()
+        for pid, _ in processes_in(self.tmp):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def sabo(self, args, env=None, cwd=None):
+        sabo = Sabo(args, env=env, cwd=cwd, work_dir=self.tmp)
+        self.started.append(sabo)
+        return sabo
+
+    def assertNoProcessLeft(self, run_dir, pids_file=True, wait_s=0.0):
+        """No live process mentions `run_dir`, and none of the PIDs in its pids.json is alive."""
+        deadline = time.monotonic() + wait_s
+        while True:
+            left = processes_in(run_dir)
+            pids = {}
+            if pids_file and os.path.exists(os.path.join(run_dir, "pids.json")):
+                pids = read_json(os.path.join(run_dir, "pids.json"))
+            alive = {role: pid for role, pid in pids.items() if role != "supervisor" and pid_alive(pid) and
+                     any(pid == other for other, _ in left)}
+            if (not left and not alive) or time.monotonic() >= deadline:
+                break
+            time.sleep(0.05)
+        self.assertEqual(left, [], "processes left behind in {}".format(run_dir))
+        self.assertEqual(alive, {}, "recorded processes still alive")
+
+
+class FakeRunTestCase(E2eTestCase):
+    """Runs `./sabo run` against the fake coupler and solvers of fakes/: a temporary build folder
+    whose bin/sabo_scene is fakes/sabo_scene.py, and fake scenes that say how the fakes behave."""
+
+    def setUp(self):
+        super().setUp()
+        self.build_dir = os.path.join(self.tmp, "build")
+        os.makedirs(os.path.join(self.build_dir, "bin"))
+        checker = os.path.join(self.build_dir, "bin", "sabo_scene")
+        with open(checker, "w", encoding="utf-8") as handle:
+            handle.write('#!/bin/sh\nexec "{}" "{}" "$@"\n'.format(sys.executable,
+                                                                  os.path.join(FAKES, "sabo_scene.py")))
+        os.chmod(checker, 0o755)
+
+    def scene(self, name="fake", **behaviour):
+        """A fake scene file; `behaviour` as documented in fakes/coupler.py and fakes/solver.py."""
+        path = os.path.join(self.tmp, name + ".json")
+        with open(path, "w", encoding="utf-8") as handle:
+            json.dump(behaviour, handle)
+        return path
+
+    def run_sabo(self, scene, out=None, env=None, extra=(), cwd=None):
+        args = ["run", scene, "--no-setup"] + list(extra)
+        if out is not None:
+            args += ["--out", out]
+        full_env = {"SABO_BUILD_DIR": self.build_dir, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
+        full_env.update(env or {})
+        return self.sabo(args, env=full_env, cwd=cwd)
+
+    def out_dir(self, name="run"):
+        return os.path.join(self.tmp, name)
+
+
+class RealRunTestCase(E2eTestCase):
+    """Runs `./sabo run --no-setup` with the built executables of BUILD_DIR (ctest builds them first)."""
+
+    def run_sabo(self, scene, out, extra=()):
+        env = {"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
+        return self.sabo(["run", scene, "--out", out, "--no-setup"] + list(extra), env=env)
+
+    def scene_path(self, relative):
+        path = os.path.join(ROOT, relative)
+        self.assertTrue(os.path.isfile(path), "missing test scene {}".format(relative))
+        return path
+
+    def assertTrafficReadable(self, run_dir, roles):
+        """traffic.h5 opens (as after a crash: SWMR) and has recorded steps both ways for each solver role
+        (layout: docs/traffic.md, /<role>/state/step and /<role>/forces/step)."""
+        import h5py  # Debian's python3-h5py; imported here so that the fake-based tests do not need it
+        path = os.path.join(run_dir, "traffic.h5")
+        self.assertTrue(os.path.isfile(path), "no traffic.h5 in " + run_dir)
+        try:
+            traffic = h5py.File(path, "r", swmr=True)
+        except (OSError, ValueError):
+            traffic = h5py.File(path, "r")
+        with traffic:
+            for role in roles:
+                for direction in ("state", "forces"):
+                    name = "{}/{}/step".format(role, direction)
+                    self.assertIn(name, traffic, "traffic.h5 has no " + name)
+                    steps = traffic[name][()]
+                    print("traffic.h5: {} holds {} recorded steps".format(name, len(steps)))
+                    self.assertGreater(len(steps), 0, name)
+
+    def solver_roles(self, run_dir):
+        pids = read_json(os.path.join(run_dir, "pids.json"))
+        return sorted(role for role in pids if role not in ("supervisor", "coupler"))

@@ -1,0 +1,103 @@
+"""The supervisor's pieces on their own: progress line, launch plan validation, endpoints, exit texts."""
+import json
+import os
+import signal
+import sys
+import unittest
+
+from e2e_support import ROOT
+
+sys.path.insert(0, ROOT)
+from supervisor.display import format_duration, format_progress, wrap_items  # noqa: E402
+from supervisor.errors import SaboError  # noqa: E402
+from supervisor.plan import parse_plan  # noqa: E402
+from supervisor.processes import describe_exit  # noqa: E402
+from supervisor.run import resolve_endpoint, watchdog_seconds  # noqa: E402
+
+PLAN = {"scene": "/s.toml", "end_time": 2.0, "output_interval": 0.1, "hang_timeout": 10.0, "endpoint": "ipc",
+        "processes": [{"role": "dem_solver", "command": ["/b/dem_solver"]},
+                      {"role": "coupler", "command": ["/b/coupler"]},
+                      {"role": "fem_solver", "command": ["/b/fem_solver", "--threads", "2"]}],
+        "bodies": {"spheres": 3}}
+
+
+def plan_with(**changes):
+    plan = json.loads(json.dumps(PLAN))
+    plan.update(changes)
+    return json.dumps(plan)
+
+
+class ProgressLineTest(unittest.TestCase):
+    def test_the_documented_line(self):
+        event = {"event": "progress", "step": 1200, "time": 3.2071, "end_time": 20.0, "dt": 6.1e-4,
+                 "steps_per_second": 1850.2, "eta_seconds": 12.4}
+        self.assertEqual(format_progress(event),
+                         "step 1200  t = 3.21 / 20.00 s  dt = 6.1e-04 s  1850 steps/s  ETA 0:00:12")
+
+    def test_short_runs_get_more_decimals_and_unknown_eta_dashes(self):
+        event = {"step": 7, "time": 0.01234, "end_time": 0.05, "dt": 1e-5, "steps_per_second": 3.25,
+                 "eta_seconds": -1}
+        self.assertEqual(format_progress(event), "step 7  t = 0.0123 / 0.0500 s  dt = 1.0e-05 s  3.2 steps/s  ETA --")
+        self.assertEqual(format_progress({"step": 0}), "step 0  ETA --")
+
+    def test_durations_and_wrapping(self):
+        self.assertEqual(format_duration(3725.4), "1:02:05")
+        self.assertEqual(wrap_items(["aaaa", "bbbb", "cccc"], "> ", "  ", width=13), ["> aaaa, bbbb,", "  cccc"])
+
+
+class LaunchPlanTest(unittest.TestCase):
+    def test_valid_plan_puts_the_coupler_first(self):
+        plan = parse_plan(json.dumps(PLAN), "test")
+        self.assertEqual([p.role for p in plan.processes], ["coupler", "dem_solver", "fem_solver"])
+        self.assertEqual(plan.solvers[1].command, ["/b/fem_solver", "--threads", "2"])
+        self.assertEqual((plan.end_time, plan.hang_timeout, plan.endpoint), (2.0, 10.0, "ipc"))
+
+    def test_invalid_plans_are_explained(self):
+        cases = [
+            ("not json", "not valid JSON"),
+            (plan_with(endpoint="udp://x"), "\"endpoint\" must be \"ipc\" or \"tcp://HOST:PORT\""),
+            (plan_with(hang_timeout=0), "\"hang_timeout\" must be a positive number, got 0"),
+            (plan_with(end_time="2"), "\"end_time\" must be a positive number"),
+            (plan_with(processes=[]), "\"processes\" must be a non-empty list"),
+            (plan_with(processes=[{"role": "coupler", "command": []}]), "\"command\" must be a non-empty list"),
+            (plan_with(processes=[{"role": "coupler", "command": ["c"]}, {"role": "coupler", "command": ["c"]}]),
+             "role \"coupler\" appears twice"),
+            (plan_with(processes=[{"role": "dem_solver", "command": ["d"]}]), "exactly one process with role"),
+        ]
+        for text, message in cases:
+            with self.subTest(message=message):
+                with self.assertRaises(SaboError) as raised:
+                    parse_plan(text, "plan.json")
+                self.assertIn(message, str(raised.exception))
+                self.assertTrue(str(raised.exception).startswith("plan.json"))
+
+
+class EndpointTest(unittest.TestCase):
+    def test_ipc_socket_in_the_run_folder_unless_too_long(self):
+        self.assertEqual(resolve_endpoint("ipc", "/data/runs/x"), ("ipc:///data/runs/x/coupler.sock", None))
+        long_dir = "/data/" + "r" * 90
+        endpoint, folder = resolve_endpoint("ipc", long_dir)
+        try:
+            self.assertTrue(os.path.isdir(folder))
+            self.assertEqual(endpoint, "ipc://" + folder + "/coupler.sock")
+            self.assertLessEqual(len(endpoint) - len("ipc://"), 100)
+        finally:
+            os.rmdir(folder)
+        self.assertEqual(resolve_endpoint("tcp://10.0.0.2:5555", "/x"), ("tcp://10.0.0.2:5555", None))
+
+    def test_watchdog_is_three_hang_timeouts_or_30_s(self):
+        os.environ.pop("SABO_WATCHDOG_MIN_S", None)
+        self.assertEqual(watchdog_seconds(10.0), 30.0)
+        self.assertEqual(watchdog_seconds(20.0), 60.0)
+        self.assertEqual(watchdog_seconds(2.0), 30.0)
+
+
+class ExitTextTest(unittest.TestCase):
+    def test_exit_descriptions(self):
+        self.assertEqual(describe_exit(3), "exited with code 3")
+        self.assertEqual(describe_exit(-signal.SIGKILL), "was killed by SIGKILL")
+        self.assertEqual(describe_exit(-signal.SIGSEGV), "was killed by SIGSEGV")
+
+
+if __name__ == "__main__":
+    unittest.main()
