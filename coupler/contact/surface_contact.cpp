@@ -1,0 +1,618 @@
+#include "coupler/contact/surface_contact.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+
+#include "libsabo/core/error.hpp"
+
+namespace sabo::coupler {
+
+namespace {
+
+constexpr std::uint64_t kNoNode = std::numeric_limits<std::uint64_t>::max();
+// A face whose area is below this fraction of its longest edge squared has no
+// usable normal: it takes no part in the contact.
+constexpr double kDegenerateAreaRatio = 1e-12;
+// Paper eq. 7's DEM factor: dt = 0.2 pi sqrt(m / k).
+constexpr double kStableStepFactor = 0.2 * std::numbers::pi;
+// Below this many particles a parallel region costs more than it saves.
+constexpr std::int64_t kParallelThreshold = 256;
+// Relative slack when comparing distances of the same point computed from different triangles.
+constexpr double kDistanceSlack = 1e-9;
+
+Vec3 vec3_at(std::span<const double> values, std::size_t i) {
+  return {values[3 * i], values[3 * i + 1], values[3 * i + 2]};
+}
+
+void add_at(std::vector<double>& values, std::size_t i, const Vec3& v) {
+  values[3 * i] += v.x();
+  values[3 * i + 1] += v.y();
+  values[3 * i + 2] += v.z();
+}
+
+int feature_rank(Feature feature) {
+  return static_cast<int>(feature);
+}
+
+}  // namespace
+
+struct SurfaceContact::Scratch {
+  std::vector<std::uint32_t> candidates;
+  std::vector<Hit> hits;              // ascending face index
+  std::vector<std::size_t> touching;  // indices into hits
+  std::vector<std::size_t> kept;
+  std::vector<char> history_used;
+  std::vector<Vec3> displacement;
+  std::vector<char> has_history;
+};
+
+SurfaceContact::SurfaceContact(const scene::Scene& scene, SurfaceContactOptions options) : options_(options) {
+  for (const auto& set : scene.particle_sets) source_names_.push_back(set.name);
+  // Keep only what the pair lookup needs, so that the scene need not outlive this object.
+  scene::Scene pairs_only;
+  pairs_only.interactions = scene.interactions;
+  pairs_only.dem_fem_default = scene.dem_fem_default;
+  settings_ = [pairs_only = std::move(pairs_only)](const std::string& source, const std::string& part) {
+    return pairs_only.surface_contact(source, part);
+  };
+  cos_smooth_ = std::cos(options_.smooth_angle_deg * std::numbers::pi / 180.0);
+  cos_transfer_ = std::cos(options_.history_transfer_angle_deg * std::numbers::pi / 180.0);
+}
+
+SurfaceContact::SurfaceContact(std::vector<std::string> source_names, PairSettings settings,
+                               SurfaceContactOptions options)
+    : source_names_(std::move(source_names)), settings_(std::move(settings)), options_(options) {
+  assert(settings_);
+  cos_smooth_ = std::cos(options_.smooth_angle_deg * std::numbers::pi / 180.0);
+  cos_transfer_ = std::cos(options_.history_transfer_angle_deg * std::numbers::pi / 180.0);
+}
+
+// ---------------------------------------------------------------- surface --
+
+void SurfaceContact::set_surface(const geometry::SurfaceMesh& surface) {
+  const std::size_t nodes = surface.node_position.size();
+  const std::size_t faces = surface.triangle.size();
+  auto fail = [](const std::string& problem) {
+    throw ProtocolError(
+        fmt::format("surface for the particle-surface contact: {}. Fix the FEM solver's surface export.", problem));
+  };
+  if (surface.node_id.size() != nodes) {
+    fail(fmt::format("{} node ids for {} node positions", surface.node_id.size(), nodes));
+  }
+  auto check_face_array = [&](std::size_t size, const char* name) {
+    if (size != faces) fail(fmt::format("{} has {} entries for {} triangles", name, size, faces));
+  };
+  check_face_array(surface.face_part.size(), "face_part");
+  check_face_array(surface.face_thickness.size(), "face_thickness");
+  check_face_array(surface.face_bulk_modulus.size(), "face_bulk_modulus");
+  check_face_array(surface.face_element_volume.size(), "face_element_volume");
+  if (nodes >= std::numeric_limits<std::uint32_t>::max() || faces >= std::numeric_limits<std::uint32_t>::max()) {
+    fail(fmt::format("{} nodes and {} triangles exceed the 32-bit indices", nodes, faces));
+  }
+  for (std::size_t i = 0; i < nodes; ++i) {
+    if (!surface.node_position[i].allFinite()) fail(fmt::format("node {} has a non-finite position", i));
+  }
+  for (std::size_t f = 0; f < faces; ++f) {
+    for (std::uint32_t node : surface.triangle[f]) {
+      if (node >= nodes) fail(fmt::format("triangle {} refers to node {} of {}", f, node, nodes));
+    }
+    if (surface.face_part[f] >= surface.part_name.size()) {
+      fail(fmt::format("triangle {} belongs to part {} of {}", f, surface.face_part[f], surface.part_name.size()));
+    }
+    const double thickness = surface.face_thickness[f];
+    if (!std::isfinite(thickness) || thickness < 0) {
+      fail(fmt::format("triangle {} has thickness {} m (must be >= 0)", f, thickness));
+    }
+    const double volume = surface.face_element_volume[f];
+    if (!std::isfinite(volume) || volume < 0) {
+      fail(fmt::format("triangle {} has element volume {} m^3 (must be >= 0)", f, volume));
+    }
+  }
+  surface_ = surface;
+  node_velocity_.assign(nodes, Vec3::Zero());
+
+  // Merge nodes at exactly the same position (unwelded STL meshes).
+  std::vector<std::uint32_t> order(nodes);
+  std::iota(order.begin(), order.end(), 0U);
+  auto position_less = [&](std::uint32_t i, std::uint32_t j) {
+    const Vec3& p = surface_.node_position[i];
+    const Vec3& q = surface_.node_position[j];
+    if (p.x() != q.x()) return p.x() < q.x();
+    if (p.y() != q.y()) return p.y() < q.y();
+    if (p.z() != q.z()) return p.z() < q.z();
+    return i < j;
+  };
+  std::sort(order.begin(), order.end(), position_less);
+  canonical_.assign(nodes, 0);
+  for (std::size_t k = 0; k < nodes; ++k) {
+    const std::uint32_t node = order[k];
+    if (k > 0 && surface_.node_position[order[k - 1]] == surface_.node_position[node]) {
+      canonical_[node] = canonical_[order[k - 1]];
+    } else {
+      canonical_[node] = node;
+    }
+  }
+
+  // Faces around each (merged) node.
+  node_face_start_.assign(nodes + 1, 0);
+  for (const auto& tri : surface_.triangle) {
+    for (std::uint32_t node : tri) ++node_face_start_[canonical_[node] + 1];
+  }
+  for (std::size_t i = 0; i < nodes; ++i) node_face_start_[i + 1] += node_face_start_[i];
+  node_faces_.resize(node_face_start_[nodes]);
+  std::vector<std::uint32_t> cursor(node_face_start_.begin(), node_face_start_.end() - 1);
+  for (std::size_t f = 0; f < faces; ++f) {
+    for (std::uint32_t node : surface_.triangle[f])
+      node_faces_[cursor[canonical_[node]]++] = static_cast<std::uint32_t>(f);
+  }
+
+  refresh_geometry();
+  resolve_pairs();
+}
+
+void SurfaceContact::refresh_geometry() {
+  const std::size_t faces = surface_.triangle.size();
+  face_normal_.resize(faces);
+  face_stiffness_factor_.resize(faces);
+  degenerate_.resize(faces);
+  face_box_.resize(faces);
+  max_thickness_ = 0;
+  std::vector<double> sizes;
+  sizes.reserve(faces);
+  for (std::size_t f = 0; f < faces; ++f) {
+    const auto& tri = surface_.triangle[f];
+    const Vec3& a = surface_.node_position[tri[0]];
+    const Vec3& b = surface_.node_position[tri[1]];
+    const Vec3& c = surface_.node_position[tri[2]];
+    const bool merged = canonical_[tri[0]] == canonical_[tri[1]] || canonical_[tri[1]] == canonical_[tri[2]] ||
+                        canonical_[tri[2]] == canonical_[tri[0]];
+    const Vec3 cross = (b - a).cross(c - a);
+    const double twice_area = cross.norm();
+    const double longest = std::sqrt(std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
+    const bool degenerate = merged || !(twice_area > kDegenerateAreaRatio * longest * longest);
+    degenerate_[f] = degenerate ? 1 : 0;
+    face_box_[f] = Aabb{};
+    if (degenerate) {
+      face_normal_[f] = Vec3::UnitZ();
+      face_stiffness_factor_[f] = 0;
+      continue;
+    }
+    face_normal_[f] = cross / twice_area;
+    const double area = 0.5 * twice_area;
+    const double bulk_modulus = surface_.face_bulk_modulus[f];
+    const double volume = surface_.face_element_volume[f];
+    // Eq. 6 without k1. A triangle's longest edge stands for the segment's "max diagonal".
+    face_stiffness_factor_[f] = volume > 0 ? bulk_modulus * area * area / volume : bulk_modulus * area / longest;
+    face_box_[f].extend(a);
+    face_box_[f].extend(b);
+    face_box_[f].extend(c);
+    sizes.push_back((face_box_[f].max - face_box_[f].min).maxCoeff());
+    max_thickness_ = std::max(max_thickness_, surface_.face_thickness[f]);
+  }
+  if (sizes.empty()) {
+    median_face_size_ = 0;
+  } else {
+    auto middle = sizes.begin() + static_cast<std::ptrdiff_t>(sizes.size() / 2);
+    std::nth_element(sizes.begin(), middle, sizes.end());
+    median_face_size_ = *middle;
+  }
+  grid_valid_ = false;
+}
+
+void SurfaceContact::resolve_pairs() {
+  const std::size_t parts = surface_.part_name.size();
+  pairs_.assign(source_names_.size() * parts, Pair{});
+  for (std::size_t s = 0; s < source_names_.size(); ++s) {
+    for (std::size_t p = 0; p < parts; ++p) {
+      const scene::SurfaceContact settings = settings_(source_names_[s], surface_.part_name[p]);
+      Pair& pair = pairs_[s * parts + p];
+      pair.enabled = settings.enabled;
+      pair.friction = settings.friction;
+      pair.penalty_scale = settings.penalty_scale;
+      pair.explicit_stiffness = settings.normal_stiffness.value_or(0.0);
+      pair.normal_damping_ratio = settings.normal_damping_ratio;
+      pair.tangential_damping_ratio = settings.tangential_damping_ratio;
+    }
+  }
+  for (std::size_t f = 0; f < surface_.triangle.size(); ++f) {
+    if (degenerate_[f]) continue;
+    for (std::size_t s = 0; s < source_names_.size(); ++s) {
+      if (!pair(static_cast<std::uint32_t>(s), f).enabled) continue;
+      const double k = face_stiffness(f, s);
+      if (!(k > 0) || !std::isfinite(k)) {
+        const std::size_t part = surface_.face_part[f];
+        throw ProtocolError(fmt::format(
+            "surface for the particle-surface contact: triangle {} of part '{}' gets no penalty stiffness against "
+            "'{}' (paper eq. 6 with bulk modulus {} Pa, element volume {} m^3, penalty scale {}). Fix: the FEM "
+            "solver must send the bulk modulus of the face's material, or give the pair an explicit "
+            "normal_stiffness in the scene",
+            f, surface_.part_name[part], source_names_[s], surface_.face_bulk_modulus[f],
+            surface_.face_element_volume[f], pairs_[s * parts + part].penalty_scale));
+      }
+    }
+  }
+}
+
+double SurfaceContact::face_stiffness(std::size_t face, std::size_t source) const {
+  const Pair& settings = pair(static_cast<std::uint32_t>(source), face);
+  if (settings.explicit_stiffness > 0) return settings.explicit_stiffness;
+  return settings.penalty_scale * face_stiffness_factor_[face];
+}
+
+void SurfaceContact::update_nodes(std::span<const double> position, std::span<const double> velocity) {
+  const std::size_t nodes = surface_.node_position.size();
+  if (position.size() != 3 * nodes || (!velocity.empty() && velocity.size() != 3 * nodes)) {
+    throw ProtocolError(fmt::format(
+        "surface node update: {} position and {} velocity values for {} nodes (3 each expected). Fix the FEM "
+        "solver's StepState",
+        position.size(), velocity.size(), nodes));
+  }
+  bool moved = false;
+  for (std::size_t i = 0; i < nodes; ++i) {
+    const Vec3 p = vec3_at(position, i);
+    if (!p.allFinite()) throw ProtocolError(fmt::format("surface node update: node {} has a non-finite position", i));
+    if (p != surface_.node_position[i]) {
+      surface_.node_position[i] = p;
+      moved = true;
+    }
+    node_velocity_[i] = velocity.empty() ? Vec3::Zero() : vec3_at(velocity, i);
+  }
+  if (moved) refresh_geometry();
+}
+
+void SurfaceContact::build_grid(double query_reach) {
+  double cell = std::max(median_face_size_, query_reach);
+  if (!(cell > 0)) cell = 1.0;
+  grid_.build_boxes(face_box_, cell);
+  grid_reach_ = query_reach;
+  grid_valid_ = true;
+}
+
+Aabb SurfaceContact::interest_region(double max_radius) const {
+  Aabb box;
+  for (const Vec3& p : surface_.node_position) box.extend(p);
+  return box.inflated(max_radius * (2.0 + options_.potential_margin) + 0.5 * max_thickness_);
+}
+
+// ------------------------------------------------------------- per particle --
+
+SurfaceContact::Hit SurfaceContact::evaluate(std::size_t face, const Vec3& centre, double radius) const {
+  const auto& tri = surface_.triangle[face];
+  const Vec3& a = surface_.node_position[tri[0]];
+  Hit hit;
+  hit.face = static_cast<std::uint32_t>(face);
+  hit.closest = closest_point_on_triangle(centre, a, surface_.node_position[tri[1]], surface_.node_position[tri[2]]);
+  hit.gap = sphere_triangle_gap(centre, radius, surface_.face_thickness[face], a, face_normal_[face], hit.closest);
+  return hit;
+}
+
+bool SurfaceContact::shares_node(std::uint32_t face_a, std::uint32_t face_b) const {
+  const auto& a = surface_.triangle[face_a];
+  const auto& b = surface_.triangle[face_b];
+  for (std::uint32_t i : a) {
+    for (std::uint32_t j : b) {
+      if (canonical_[i] == canonical_[j]) return true;
+    }
+  }
+  return false;
+}
+
+SurfaceContact::FeatureKey SurfaceContact::feature_key(const Hit& hit) const {
+  const auto& tri = surface_.triangle[hit.face];
+  FeatureKey key;
+  key.kind = hit.closest.feature;
+  key.node = {kNoNode, kNoNode, kNoNode};
+  auto id = [&](int corner) { return surface_.node_id[canonical_[tri[static_cast<std::size_t>(corner % 3)]]]; };
+  switch (hit.closest.feature) {
+    case Feature::face: key.node = {id(0), id(1), id(2)}; break;
+    case Feature::edge: key.node = {id(hit.closest.index), id(hit.closest.index + 1), kNoNode}; break;
+    case Feature::vertex: key.node = {id(hit.closest.index), kNoNode, kNoNode}; break;
+  }
+  std::sort(key.node.begin(), key.node.end());
+  return key;
+}
+
+bool SurfaceContact::feature_is_local_minimum(const Hit& hit, std::uint32_t source, const Vec3& centre, double radius,
+                                              Scratch& scratch) const {
+  const auto& tri = surface_.triangle[hit.face];
+  const auto corner = [&](int k) { return canonical_[tri[static_cast<std::size_t>(k % 3)]]; };
+  const bool is_edge = hit.closest.feature == Feature::edge;
+  const std::uint32_t u = corner(hit.closest.index);
+  const std::uint32_t v = is_edge ? corner(hit.closest.index + 1) : u;
+  for (std::uint32_t k = node_face_start_[u]; k < node_face_start_[u + 1]; ++k) {
+    const std::uint32_t other = node_faces_[k];
+    if (other == hit.face || !usable(source, other)) continue;
+    const auto& other_tri = surface_.triangle[other];
+    std::array<std::uint32_t, 3> nodes{canonical_[other_tri[0]], canonical_[other_tri[1]], canonical_[other_tri[2]]};
+    if (is_edge && std::find(nodes.begin(), nodes.end(), v) == nodes.end()) continue;  // not around this edge
+    // The neighbour's own closest point (computed once per particle and face).
+    auto found = std::lower_bound(scratch.hits.begin(), scratch.hits.end(), other,
+                                  [](const Hit& h, std::uint32_t face) { return h.face < face; });
+    const Hit other_hit =
+        (found != scratch.hits.end() && found->face == other) ? *found : evaluate(other, centre, radius);
+    const TrianglePoint& closest = other_hit.closest;
+    if (closest.feature == Feature::face) return false;
+    const std::uint32_t p = nodes[static_cast<std::size_t>(closest.index)];
+    const std::uint32_t q =
+        closest.feature == Feature::edge ? nodes[static_cast<std::size_t>((closest.index + 1) % 3)] : p;
+    if (is_edge) {
+      // The neighbour's closest point must lie on this edge: the edge itself or one of its ends.
+      if ((p != u && p != v) || (q != u && q != v)) return false;
+    } else if (closest.feature != Feature::vertex || p != u) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void SurfaceContact::process_particle(std::size_t i, const ParticleView& particles, double dt_previous,
+                                      Scratch& scratch, ParticleResult& result, ContactOutput& out) const {
+  result.contacts.clear();
+  result.stable_dt = std::numeric_limits<double>::infinity();
+  const Vec3 centre = vec3_at(particles.position, i);
+  const double radius = particles.radius[i];
+  const double mass = particles.mass[i];
+  const std::uint32_t source = particles.body.empty() ? 0U : particles.body[i];
+  const double potential_reach = radius * (1.0 + options_.potential_margin);
+  const double reach = potential_reach + 0.5 * max_thickness_;
+
+  if (options_.brute_force_search) {
+    scratch.candidates.resize(surface_.triangle.size());
+    std::iota(scratch.candidates.begin(), scratch.candidates.end(), 0U);
+  } else {
+    grid_.candidates(Aabb{centre.array() - reach, centre.array() + reach}, scratch.candidates);
+  }
+  scratch.hits.clear();
+  double nearest = std::numeric_limits<double>::infinity();
+  for (std::uint32_t face : scratch.candidates) {
+    if (!usable(source, face)) continue;
+    const Hit hit = evaluate(face, centre, radius);
+    nearest = std::min(nearest, hit.gap.distance);
+    if (hit.gap.reachable && hit.gap.overlap > radius - potential_reach) {
+      const double k = face_stiffness(face, source);
+      result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(mass / k));
+    }
+    scratch.hits.push_back(hit);
+  }
+
+  // Contacts: in reach, not behind a one-sided face unless it is the nearest,
+  // edges and vertices only where they are a local minimum of the distance.
+  scratch.touching.clear();
+  for (std::size_t h = 0; h < scratch.hits.size(); ++h) {
+    const Hit& hit = scratch.hits[h];
+    if (!(hit.gap.overlap > 0) || !hit.gap.reachable) continue;
+    if (hit.gap.behind && hit.gap.distance > nearest * (1.0 + kDistanceSlack)) continue;
+    if (hit.closest.feature != Feature::face && !feature_is_local_minimum(hit, source, centre, radius, scratch)) {
+      continue;
+    }
+    scratch.touching.push_back(h);
+  }
+  // One contact per smooth piece of surface: deepest first, then lower face, then face before edge before vertex.
+  std::sort(scratch.touching.begin(), scratch.touching.end(), [&](std::size_t x, std::size_t y) {
+    const Hit& a = scratch.hits[x];
+    const Hit& b = scratch.hits[y];
+    if (a.gap.overlap != b.gap.overlap) return a.gap.overlap > b.gap.overlap;
+    if (a.face != b.face) return a.face < b.face;
+    return feature_rank(a.closest.feature) < feature_rank(b.closest.feature);
+  });
+  scratch.kept.clear();
+  for (std::size_t h : scratch.touching) {
+    const Hit& hit = scratch.hits[h];
+    const bool duplicate = std::any_of(scratch.kept.begin(), scratch.kept.end(), [&](std::size_t k) {
+      const Hit& other = scratch.hits[k];
+      return hit.gap.normal.dot(other.gap.normal) >= cos_smooth_ && shares_node(hit.face, other.face);
+    });
+    if (!duplicate) scratch.kept.push_back(h);
+  }
+  if (scratch.kept.empty()) return;
+
+  // Tangential springs: same feature first, then the closest-normal vanished contact.
+  const std::uint64_t id = particles.id[i];
+  const auto range =
+      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}},
+                       [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
+  const auto previous = std::span<const HistoryEntry>(history_).subspan(
+      static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
+  const std::size_t count = scratch.kept.size();
+  result.contacts.resize(count);
+  scratch.history_used.assign(previous.size(), 0);
+  scratch.has_history.assign(count, 0);
+  scratch.displacement.assign(count, Vec3::Zero());
+  for (std::size_t c = 0; c < count; ++c) {
+    ActiveContact& contact = result.contacts[c];
+    contact.hit = scratch.hits[scratch.kept[c]];
+    contact.key = feature_key(contact.hit);
+    for (std::size_t e = 0; e < previous.size(); ++e) {
+      if (!scratch.history_used[e] && previous[e].key == contact.key) {
+        scratch.history_used[e] = 1;
+        scratch.has_history[c] = 1;
+        scratch.displacement[c] = previous[e].displacement;
+        break;
+      }
+    }
+  }
+  for (std::size_t c = 0; c < count; ++c) {
+    if (scratch.has_history[c]) continue;
+    const Vec3& normal = result.contacts[c].hit.gap.normal;
+    std::size_t best = previous.size();
+    double best_alignment = cos_transfer_;
+    for (std::size_t e = 0; e < previous.size(); ++e) {
+      const double alignment = previous[e].normal.dot(normal);
+      if (!scratch.history_used[e] && alignment >= best_alignment) {
+        if (best == previous.size() || alignment > best_alignment) {
+          best = e;
+          best_alignment = alignment;
+        }
+      }
+    }
+    if (best < previous.size()) {
+      scratch.history_used[best] = 1;
+      scratch.displacement[c] = previous[best].displacement;
+    }
+  }
+
+  const Vec3 velocity = vec3_at(particles.velocity, i);
+  const Vec3 spin = particles.angular_velocity.empty() ? Vec3::Zero() : vec3_at(particles.angular_velocity, i);
+  Vec3 force_sum = Vec3::Zero();
+  Vec3 torque_sum = Vec3::Zero();
+  for (std::size_t c = 0; c < count; ++c) {
+    ActiveContact& contact = result.contacts[c];
+    const Hit& hit = contact.hit;
+    const Pair& settings = pair(source, hit.face);
+    const double k = face_stiffness(hit.face, source);
+    physics::SpringDashpot law{};
+    law.normal_stiffness = k;
+    law.normal_damping = physics::damping_coefficient(k, mass, settings.normal_damping_ratio);
+    law.tangential_stiffness = k;
+    law.tangential_damping = physics::damping_coefficient(k, mass, settings.tangential_damping_ratio);
+    law.friction = settings.friction;
+
+    const Vec3& n = hit.gap.normal;
+    const Vec3 lever = -radius * n;  // centre to the particle's contact point
+    const auto& tri = surface_.triangle[hit.face];
+    const auto& w = hit.closest.weight;
+    const Vec3 surface_velocity =
+        w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
+    const Vec3 relative_velocity = velocity + spin.cross(lever) - surface_velocity;
+    physics::TangentialHistory spring{scratch.displacement[c]};
+    contact.law = physics::spring_dashpot_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
+    contact.displacement = spring.displacement;
+    contact.dissipated_power = -contact.law.dissipative_force.dot(relative_velocity);
+    contact.normal_stiffness = k;
+    force_sum += contact.law.force;
+    torque_sum += lever.cross(contact.law.force);
+  }
+  for (int axis = 0; axis < 3; ++axis) {
+    out.particle_force[3 * i + static_cast<std::size_t>(axis)] = force_sum[axis];
+    out.particle_torque[3 * i + static_cast<std::size_t>(axis)] = torque_sum[axis];
+  }
+}
+
+// ------------------------------------------------------------------- step --
+
+void SurfaceContact::compute(const ParticleView& particles, double dt_previous, ContactOutput& out) {
+  const std::size_t n = particles.size();
+  const auto fail = [](const std::string& problem) {
+    throw ProtocolError(fmt::format("particles for the particle-surface contact: {}", problem));
+  };
+  if (particles.position.size() != 3 * n || particles.velocity.size() != 3 * n ||
+      (!particles.angular_velocity.empty() && particles.angular_velocity.size() != 3 * n) ||
+      particles.radius.size() != n || particles.mass.size() != n ||
+      (!particles.body.empty() && particles.body.size() != n)) {
+    fail(
+        fmt::format("array sizes disagree: {} ids, {} positions, {} velocities, {} angular velocities, {} radii, "
+                    "{} masses, {} bodies",
+                    n, particles.position.size(), particles.velocity.size(), particles.angular_velocity.size(),
+                    particles.radius.size(), particles.mass.size(), particles.body.size()));
+  }
+  if (!(dt_previous >= 0)) fail(fmt::format("dt_previous = {} s must be >= 0", dt_previous));
+  if (n >= std::numeric_limits<std::uint32_t>::max()) fail(fmt::format("{} particles exceed 32-bit indices", n));
+  double max_radius = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(particles.radius[i] > 0) || !std::isfinite(particles.radius[i])) {
+      fail(fmt::format("particle {} (id {}) has radius {} m", i, particles.id[i], particles.radius[i]));
+    }
+    if (!(particles.mass[i] > 0) || !std::isfinite(particles.mass[i])) {
+      fail(fmt::format("particle {} (id {}) has mass {} kg", i, particles.id[i], particles.mass[i]));
+    }
+    if (!particles.body.empty() && particles.body[i] >= source_names_.size()) {
+      fail(fmt::format("particle {} (id {}) belongs to body {} but there are {} bodies", i, particles.id[i],
+                       particles.body[i], source_names_.size()));
+    }
+    if (!vec3_at(particles.position, i).allFinite()) {
+      fail(fmt::format("particle {} (id {}) has a non-finite position", i, particles.id[i]));
+    }
+    max_radius = std::max(max_radius, particles.radius[i]);
+  }
+  if (n > 0 && source_names_.empty()) fail("particles given but no particle bodies are known");
+  max_radius_seen_ = std::max(max_radius_seen_, max_radius);
+
+  const std::size_t parts = surface_.part_name.size();
+  const std::size_t sources = source_names_.size();
+  out.particle_force.assign(3 * n, 0.0);
+  out.particle_torque.assign(3 * n, 0.0);
+  out.node_force.assign(3 * surface_.node_position.size(), 0.0);
+  out.part_force.assign(parts, Vec3::Zero());
+  out.part_source_force.assign(parts * sources, Vec3::Zero());
+  out.source_count = sources;
+  out.contact_count = 0;
+  out.elastic_energy = 0;
+  out.dissipated_power = 0;
+  out.max_contact_stiffness = 0;
+  out.min_contact_mass = std::numeric_limits<double>::infinity();
+  records_.clear();
+  stable_dt_ = std::numeric_limits<double>::infinity();
+  if (surface_.triangle.empty()) {
+    history_.clear();
+    return;
+  }
+
+  const double query_reach = max_radius * (1.0 + options_.potential_margin) + 0.5 * max_thickness_;
+  if (!grid_valid_ || query_reach > grid_reach_) build_grid(query_reach);
+
+  if (results_.size() < n) results_.resize(n);
+  const auto count = static_cast<std::int64_t>(n);
+#pragma omp parallel if (count > kParallelThreshold)
+  {
+    Scratch scratch;
+#pragma omp for schedule(dynamic, 64)
+    for (std::int64_t i = 0; i < count; ++i) {
+      const auto index = static_cast<std::size_t>(i);
+      process_particle(index, particles, dt_previous, scratch, results_[index], out);
+    }
+  }
+
+  // Sums over particles, in particle order.
+  next_history_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    const ParticleResult& result = results_[i];
+    stable_dt_ = std::min(stable_dt_, result.stable_dt);
+    const std::uint32_t source = particles.body.empty() ? 0U : particles.body[i];
+    for (const ActiveContact& contact : result.contacts) {
+      const Hit& hit = contact.hit;
+      const Vec3& force = contact.law.force;
+      const auto& tri = surface_.triangle[hit.face];
+      const auto& w = hit.closest.weight;
+      const Vec3 f0 = -w[0] * force;
+      const Vec3 f1 = -w[1] * force;
+      const Vec3 f2 = -force - f0 - f1;
+      add_at(out.node_force, tri[0], f0);
+      add_at(out.node_force, tri[1], f1);
+      add_at(out.node_force, tri[2], f2);
+      const std::size_t part = surface_.face_part[hit.face];
+      out.part_force[part] -= force;
+      out.part_source_force[part * sources + source] -= force;
+      out.elastic_energy += contact.law.elastic_energy;
+      out.dissipated_power += contact.dissipated_power;
+      out.max_contact_stiffness = std::max(out.max_contact_stiffness, contact.normal_stiffness);
+      out.min_contact_mass = std::min(out.min_contact_mass, particles.mass[i]);
+      ++out.contact_count;
+
+      ContactRecord record;
+      record.particle = static_cast<std::uint32_t>(i);
+      record.face = hit.face;
+      record.feature = hit.closest.feature;
+      record.point = hit.closest.point;
+      record.normal = hit.gap.normal;
+      record.overlap = hit.gap.overlap;
+      record.normal_stiffness = contact.normal_stiffness;
+      record.force = force;
+      record.normal_force = contact.law.normal_force;
+      record.sliding = contact.law.sliding;
+      records_.push_back(record);
+
+      next_history_.push_back(HistoryEntry{particles.id[i], contact.key, contact.displacement, hit.gap.normal});
+    }
+  }
+  std::stable_sort(next_history_.begin(), next_history_.end(),
+                   [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
+  history_.swap(next_history_);
+}
+
+}  // namespace sabo::coupler

@@ -1,0 +1,262 @@
+#pragma once
+// Penalty contact of particles (DEM spheres now, SPH particles later) against
+// the triangulated surface of the FEM solver (MODEL.md "SPH-FEM", "DEM-FEM",
+// paper eqs. 3-6). Computed by the coupler once per step.
+//
+// Search: triangle bounds are binned in a physics::CellList whose cell is the
+// larger of the median triangle size and the largest particle's reach; it is
+// rebuilt only when the nodes move, the topology changes or a larger particle
+// comes. Each particle queries the box of its reach (radius * (1 +
+// potential_margin) + largest thickness / 2): cost linear in particles.
+// Faces with a thickness are two-sided, faces without are one-sided (see
+// sphere_triangle.hpp).
+//
+// Per particle: the triangles near it come from the grid; each gives its
+// closest point and the feature it lies on (face, edge, vertex). A surface
+// made of many triangles must give one contact where it is one surface, so:
+//  1. an edge or vertex contact counts only if every triangle around that
+//     edge or vertex has its closest point on it (the feature is a local
+//     minimum of the distance: the convex edge of a box counts, the shared
+//     edge of a flat floor does not, because the neighbour's face is closer);
+//  2. the same edge or vertex reached from several triangles counts once;
+//  3. contacts on triangles that share a node and whose normals differ by
+//     less than SurfaceContactOptions::smooth_angle_deg are one contact, the
+//     deepest (a flat floor crossed on a shared edge, a shallow fold); a
+//     concave corner (floor meets wall) keeps both contacts;
+//  4. a face contact with the centre behind a one-sided face counts only if
+//     that face is the particle's nearest triangle (a particle on top of a
+//     thin solid is not pulled through by its bottom face).
+// Nodes at exactly the same position are merged for this bookkeeping (STL
+// meshes arrive unwelded).
+//
+// Force (on the particle) per contact: physics::spring_dashpot_force with
+// k_n from eq. 6 per face (shell: k1 K s / longest edge; solid: k1 K s^2 / V)
+// or the pair's explicit stiffness, k_t = k_n, c = 2 zeta sqrt(k m) with m the
+// particle's mass (the wall is taken as infinitely heavy: rigid parts are, and
+// the coupler does not know the FEM node masses), Coulomb friction mu. The
+// relative velocity is that of the particle's contact point (v + w x (-r n))
+// minus the surface's (barycentric interpolation of the node velocities; zero
+// until update_nodes gives them). Torque on the particle: (-r n) x F. The
+// reaction -F goes to the triangle's three nodes by the barycentric weights of
+// the closest point; the third node takes the remainder so that the three sum
+// to -F.
+//
+// Tangential springs are kept per (particle id, feature), the feature named by
+// its node ids, across steps while the contact lasts. A contact that moves to
+// a neighbouring feature (rolling over a shared edge) takes over the spring of
+// the contact it replaces (the previous contact of the same particle with the
+// closest normal, within 30 degrees).
+//
+// Deterministic: the particles are processed in parallel (OpenMP), each on its
+// own, and everything summed over particles (node forces, part totals,
+// energies) is summed afterwards in particle order.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "coupler/contact/sphere_triangle.hpp"
+#include "libsabo/core/types.hpp"
+#include "libsabo/geometry/surface_mesh.hpp"
+#include "libsabo/physics/cell_list.hpp"
+#include "libsabo/physics/contact_law.hpp"
+#include "libsabo/scene/scene.hpp"
+
+namespace sabo::coupler {
+
+// The particles of one solver this step, structure of arrays. 3-vectors are
+// 3 doubles per particle (x0, y0, z0, x1, ...).
+struct ParticleView {
+  std::span<const std::uint64_t> id;         // stable id (keys the tangential springs)
+  std::span<const double> position;          // m
+  std::span<const double> velocity;          // m/s
+  std::span<const double> angular_velocity;  // rad/s; empty: none (SPH)
+  std::span<const double> radius;            // m: sphere radius, or SPH contact radius h
+  std::span<const double> mass;              // kg
+  std::span<const std::uint32_t> body;       // index into the source names; empty: all 0
+  [[nodiscard]] std::size_t size() const { return id.size(); }
+};
+
+struct ContactOutput {
+  std::vector<double> particle_force;   // 3 per particle of the view, N
+  std::vector<double> particle_torque;  // 3 per particle, N m
+  std::vector<double> node_force;       // 3 per surface node, N (the reactions)
+  std::vector<Vec3> part_force;         // [part]: force on the part from all sources, N
+  std::vector<Vec3> part_source_force;  // [part * source_count + source]: force on the part from one source, N
+  std::size_t source_count = 0;
+  std::size_t contact_count = 0;
+  double elastic_energy = 0;         // J in the penalty springs
+  double dissipated_power = 0;       // W dissipated now by the dashpots and by Coulomb slip
+  double max_contact_stiffness = 0;  // N/m, stiffest active contact (0: none)
+  double min_contact_mass = std::numeric_limits<double>::infinity();  // kg, lightest particle in contact
+  [[nodiscard]] Vec3 force_on_part(std::size_t part, std::size_t source) const {
+    return part_source_force[part * source_count + source];
+  }
+};
+
+// One active contact of the last compute(), for tests, diagnostics and output.
+struct ContactRecord {
+  std::uint32_t particle = 0;  // index in the view
+  std::uint32_t face = 0;      // triangle index in the surface
+  Feature feature = Feature::face;
+  Vec3 point = Vec3::Zero();    // closest point on the surface, m
+  Vec3 normal = Vec3::UnitZ();  // unit, from the surface to the particle
+  double overlap = 0;           // m
+  double normal_stiffness = 0;  // N/m
+  Vec3 force = Vec3::Zero();    // on the particle, N
+  double normal_force = 0;      // N, along normal
+  bool sliding = false;
+};
+
+struct SurfaceContactOptions {
+  // Pairs closer than (radius + thickness / 2 + potential_margin * radius)
+  // count for stable_dt(): a particle is limited one radius before it touches.
+  double potential_margin = 1.0;
+  // Contacts on triangles sharing a node with normals closer than this are one contact (degrees).
+  double smooth_angle_deg = 10.0;
+  // A new contact takes over the tangential spring of a vanished contact of the
+  // same particle whose normal is within this angle (degrees).
+  double history_transfer_angle_deg = 30.0;
+  // Test every triangle against every particle instead of using the grid (tests and debugging only: O(N F)).
+  bool brute_force_search = false;
+};
+
+class SurfaceContact {
+ public:
+  // Contact settings of (source name, structure part name).
+  using PairSettings = std::function<scene::SurfaceContact(const std::string& source, const std::string& part)>;
+
+  // DEM against FEM: sources are scene.particle_sets (ParticleView::body is
+  // the set's index), settings from scene.surface_contact(set, structure).
+  explicit SurfaceContact(const scene::Scene& scene, SurfaceContactOptions options = {});
+  // Any particle solver: source_names[body] names each body (forces.csv).
+  SurfaceContact(std::vector<std::string> source_names, PairSettings settings, SurfaceContactOptions options = {});
+
+  // (Re)sets the surface: topology, reference positions, thickness, bulk
+  // modulus and volumes per face. Node velocities restart at zero. Keeps the
+  // tangential springs (they are keyed by node ids). Throws ProtocolError if
+  // the mesh is inconsistent or a face cannot be given a stiffness.
+  void set_surface(const geometry::SurfaceMesh& surface);
+  // Moves the nodes: 3 positions (m) and 3 velocities (m/s) per node, in the
+  // surface's node order. velocity may be empty (nodes at rest). Throws
+  // ProtocolError on a size mismatch.
+  void update_nodes(std::span<const double> position, std::span<const double> velocity);
+
+  // Contact forces for the particles' current state. dt_previous (s) is the
+  // step that led from the previous positions to these (tangential springs
+  // grow by v_t * dt_previous). Throws ProtocolError on inconsistent arrays.
+  void compute(const ParticleView& particles, double dt_previous, ContactOutput& out);
+
+  // The contact's own stable step after the last compute(), s: the smallest
+  // 0.2 pi sqrt(m / k_n) over every particle-face pair within reach of
+  // contact (see SurfaceContactOptions::potential_margin), infinity if none.
+  [[nodiscard]] double stable_dt() const { return stable_dt_; }
+  // Where particles must be sent from: the surface's bounds inflated by the
+  // reach of the largest particle seen so far, plus one such radius of motion margin.
+  [[nodiscard]] Aabb interest_region() const { return interest_region(max_radius_seen_); }
+  [[nodiscard]] Aabb interest_region(double max_radius) const;
+
+  [[nodiscard]] const std::vector<ContactRecord>& contacts() const { return records_; }
+  [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
+  [[nodiscard]] const std::vector<std::string>& source_names() const { return source_names_; }
+  [[nodiscard]] std::size_t part_count() const { return surface_.part_name.size(); }
+  // Tangential springs carried to the next step.
+  [[nodiscard]] std::size_t history_size() const { return history_.size(); }
+  // Normal stiffness of `face` against particles of `source`, N/m (eq. 6 or explicit).
+  [[nodiscard]] double face_stiffness(std::size_t face, std::size_t source) const;
+
+  // Implementation types, public for the .cpp's helpers only.
+  struct FeatureKey {
+    Feature kind = Feature::face;
+    std::array<std::uint64_t, 3> node{0, 0, 0};  // sorted node ids; unused = max
+    bool operator==(const FeatureKey&) const = default;
+  };
+  struct HistoryEntry {
+    std::uint64_t particle = 0;
+    FeatureKey key;
+    Vec3 displacement = Vec3::Zero();
+    Vec3 normal = Vec3::UnitZ();
+  };
+  // One triangle's closest point to a particle.
+  struct Hit {
+    std::uint32_t face = 0;
+    TrianglePoint closest;
+    SphereTriangleGap gap;
+  };
+  struct ActiveContact {
+    Hit hit;
+    FeatureKey key;
+    double normal_stiffness = 0;
+    physics::ContactForce law;
+    Vec3 displacement = Vec3::Zero();  // tangential spring after this step
+    double dissipated_power = 0;       // W
+  };
+  struct Scratch;
+
+ private:
+  struct Pair {
+    bool enabled = true;
+    double friction = 0;
+    double penalty_scale = 0;
+    double explicit_stiffness = 0;  // > 0: replaces eq. 6
+    double normal_damping_ratio = 0;
+    double tangential_damping_ratio = 0;
+  };
+  struct ParticleResult {
+    std::vector<ActiveContact> contacts;
+    double stable_dt = std::numeric_limits<double>::infinity();
+  };
+
+  void refresh_geometry();
+  void resolve_pairs();
+  void build_grid(double query_reach);
+  [[nodiscard]] const Pair& pair(std::uint32_t source, std::size_t face) const {
+    return pairs_[source * surface_.part_name.size() + surface_.face_part[face]];
+  }
+  [[nodiscard]] bool usable(std::uint32_t source, std::size_t face) const {
+    return !degenerate_[face] && pair(source, face).enabled;
+  }
+  Hit evaluate(std::size_t face, const Vec3& centre, double radius) const;
+  [[nodiscard]] const Hit* find_hit(const Scratch& scratch, std::uint32_t face) const;
+  [[nodiscard]] bool feature_is_local_minimum(const Hit& hit, std::uint32_t source, const Vec3& centre, double radius,
+                                              Scratch& scratch) const;
+  [[nodiscard]] bool shares_node(std::uint32_t face_a, std::uint32_t face_b) const;
+  [[nodiscard]] FeatureKey feature_key(const Hit& hit) const;
+  void process_particle(std::size_t i, const ParticleView& particles, double dt_previous, Scratch& scratch,
+                        ParticleResult& result, ContactOutput& out) const;
+
+  std::vector<std::string> source_names_;
+  PairSettings settings_;
+  SurfaceContactOptions options_;
+  double cos_smooth_ = 1;
+  double cos_transfer_ = 1;
+
+  geometry::SurfaceMesh surface_;
+  std::vector<Vec3> node_velocity_;
+  std::vector<std::uint32_t> canonical_;        // node -> lowest-index node at the same position
+  std::vector<std::uint32_t> node_face_start_;  // canonical node -> faces (CSR)
+  std::vector<std::uint32_t> node_faces_;
+  std::vector<Vec3> face_normal_;              // unit, outward
+  std::vector<double> face_stiffness_factor_;  // eq. 6 without k1: K s / L_max or K s^2 / V, N/m
+  std::vector<char> degenerate_;               // zero-area faces take no part
+  std::vector<Aabb> face_box_;
+  double median_face_size_ = 0;
+  double max_thickness_ = 0;
+  std::vector<Pair> pairs_;  // [source * parts + part]
+
+  physics::CellList grid_;
+  bool grid_valid_ = false;
+  double grid_reach_ = 0;  // the per-particle query reach the grid was sized for, m
+
+  std::vector<HistoryEntry> history_;  // sorted by particle id; per particle in contact order
+  std::vector<HistoryEntry> next_history_;
+  std::vector<ParticleResult> results_;
+  std::vector<ContactRecord> records_;
+  double stable_dt_ = std::numeric_limits<double>::infinity();
+  double max_radius_seen_ = 0;
+};
+
+}  // namespace sabo::coupler

@@ -1,0 +1,772 @@
+// Particle-surface penalty contact (paper eqs. 3-6): hand-computed forces for
+// face, edge and vertex contacts, eq. 6 stiffness, friction, one contact per
+// smooth surface, Newton's third law, search and determinism.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstring>
+#include <iostream>
+#include <numbers>
+#include <random>
+
+#include "contact_fixtures.hpp"
+#include "libsabo/core/error.hpp"
+
+namespace sabo::coupler {
+namespace {
+
+using test::Cloud;
+using test::explicit_stiffness;
+using test::MeshBuilder;
+using test::uniform;
+using test::vec_at;
+
+void expect_vec_near(const Vec3& measured, const Vec3& expected, double tolerance, const std::string& what) {
+  std::cout << what << ": measured (" << measured.transpose() << ") expected (" << expected.transpose() << ")\n";
+  EXPECT_LE((measured - expected).norm(), tolerance) << what;
+}
+
+// ------------------------------------------------------------ geometry ------
+
+TEST(ClosestPoint, FaceEdgeVertexRegions) {
+  const Vec3 a(0, 0, 0), b(4, 0, 0), c(0, 4, 0);
+  auto face = closest_point_on_triangle(Vec3(1, 1, 0.7), a, b, c);
+  EXPECT_EQ(face.feature, Feature::face);
+  expect_vec_near(face.point, Vec3(1, 1, 0), 1e-15, "face point");
+  EXPECT_NEAR(face.weight[0], 0.5, 1e-15);
+  EXPECT_NEAR(face.weight[1], 0.25, 1e-15);
+  EXPECT_NEAR(face.weight[2], 0.25, 1e-15);
+
+  auto edge = closest_point_on_triangle(Vec3(2, -0.3, 0.3), a, b, c);
+  EXPECT_EQ(edge.feature, Feature::edge);
+  EXPECT_EQ(edge.index, 0);  // ab
+  expect_vec_near(edge.point, Vec3(2, 0, 0), 1e-15, "edge point");
+  EXPECT_NEAR(edge.weight[0], 0.5, 1e-15);
+  EXPECT_NEAR(edge.weight[1], 0.5, 1e-15);
+  EXPECT_EQ(edge.weight[2], 0.0);
+
+  auto hypotenuse = closest_point_on_triangle(Vec3(3, 3, 0), a, b, c);
+  EXPECT_EQ(hypotenuse.feature, Feature::edge);
+  EXPECT_EQ(hypotenuse.index, 1);  // bc
+  expect_vec_near(hypotenuse.point, Vec3(2, 2, 0), 1e-14, "hypotenuse point");
+
+  auto vertex = closest_point_on_triangle(Vec3(-1, -0.5, 2), a, b, c);
+  EXPECT_EQ(vertex.feature, Feature::vertex);
+  EXPECT_EQ(vertex.index, 0);
+  EXPECT_EQ(vertex.point, a);
+  auto vertex_c = closest_point_on_triangle(Vec3(-0.1, 5, -1), a, b, c);
+  EXPECT_EQ(vertex_c.feature, Feature::vertex);
+  EXPECT_EQ(vertex_c.index, 2);
+
+  // A point exactly over an edge is a face point (within kFaceTolerance).
+  auto on_edge = closest_point_on_triangle(Vec3(2, 0, 1), a, b, c);
+  EXPECT_EQ(on_edge.feature, Feature::face);
+}
+
+TEST(ClosestPoint, MatchesDenseSampling) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-2, 2);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Vec3 a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng)), c(u(rng), u(rng), u(rng));
+    const Vec3 p(u(rng), u(rng), u(rng));
+    const auto cp = closest_point_on_triangle(p, a, b, c);
+    double best = std::numeric_limits<double>::infinity();
+    const int n = 200;
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; i + j <= n; ++j) {
+        const double s = double(i) / n, t = double(j) / n;
+        best = std::min(best, (p - (a + s * (b - a) + t * (c - a))).norm());
+      }
+    }
+    const double measured = (p - cp.point).norm();
+    EXPECT_LE(measured, best + 1e-12);
+    EXPECT_GE(measured, best - 0.03);  // sampling resolution
+    const Vec3 from_weights = cp.weight[0] * a + cp.weight[1] * b + cp.weight[2] * c;
+    EXPECT_LE((from_weights - cp.point).norm(), 1e-12);
+    EXPECT_NEAR(cp.weight[0] + cp.weight[1] + cp.weight[2], 1.0, 1e-15);
+  }
+}
+
+// ------------------------------------------------- hand-computed forces ------
+
+// Triangle (0,0,0), (4,0,0), (0,4,0): area 8 m^2, longest edge 4 sqrt 2 m.
+MeshBuilder single_triangle(double thickness, double element_volume) {
+  MeshBuilder b;
+  const auto part = b.part("wall");
+  const auto a = b.node({0, 0, 0});
+  const auto bb = b.node({4, 0, 0});
+  const auto c = b.node({0, 4, 0});
+  b.triangle(a, bb, c, part, thickness, 1e9, element_volume);
+  return b;
+}
+
+scene::SurfaceContact eq6_settings(double friction = 0.0, double zeta_n = 0.0, double zeta_t = 0.0) {
+  scene::SurfaceContact s;
+  s.penalty_scale = 0.1;
+  s.friction = friction;
+  s.normal_damping_ratio = zeta_n;
+  s.tangential_damping_ratio = zeta_t;
+  return s;
+}
+
+TEST(SurfaceContact, Eq6StiffnessShellAndSolid) {
+  SurfaceContact shell({"boulders"}, uniform(eq6_settings()));
+  shell.set_surface(single_triangle(0.0, 0.0).mesh());
+  const double k_shell = 0.1 * 1e9 * 8.0 / (4.0 * std::sqrt(2.0));
+  std::cout << "shell k_n: measured " << shell.face_stiffness(0, 0) << " expected " << k_shell << "\n";
+  EXPECT_NEAR(shell.face_stiffness(0, 0), k_shell, 1e-6 * k_shell);
+
+  SurfaceContact solid({"boulders"}, uniform(eq6_settings()));
+  solid.set_surface(single_triangle(0.0, 16.0).mesh());
+  const double k_solid = 0.1 * 1e9 * 64.0 / 16.0;
+  std::cout << "solid k_n: measured " << solid.face_stiffness(0, 0) << " expected " << k_solid << "\n";
+  EXPECT_NEAR(solid.face_stiffness(0, 0), k_solid, 1e-6 * k_solid);
+
+  SurfaceContact fixed({"boulders"}, uniform(explicit_stiffness(3e7)));
+  fixed.set_surface(single_triangle(0.0, 16.0).mesh());
+  EXPECT_EQ(fixed.face_stiffness(0, 0), 3e7);
+}
+
+TEST(SurfaceContact, FaceContactSolidWithDamping) {
+  SurfaceContact contact({"boulders"}, uniform(eq6_settings(0.3, 0.5, 0.0)));
+  auto mesh = single_triangle(0.0, 16.0);
+  contact.set_surface(mesh.mesh());
+  Cloud cloud;
+  const double mass = 500.0;
+  cloud.add({1, 1, 0.45}, 0.5, mass, {0, 0, -2.0});
+  ContactOutput out;
+  contact.compute(cloud.view(), 1e-5, out);
+  const double k = 4e8, overlap = 0.05;
+  const double c_n = 2 * 0.5 * std::sqrt(k * mass);
+  const double expected = k * overlap + c_n * 2.0;
+  ASSERT_EQ(out.contact_count, 1u);
+  EXPECT_EQ(contact.contacts()[0].feature, Feature::face);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, expected), 1e-6 * expected, "solid face force");
+  expect_vec_near(vec_at(out.particle_torque, 0), Vec3::Zero(), 1e-6, "solid face torque");
+  // Reaction on the nodes by the weights (0.5, 0.25, 0.25) of (1, 1).
+  expect_vec_near(vec_at(out.node_force, 0), Vec3(0, 0, -0.5 * expected), 1e-6 * expected, "node a");
+  expect_vec_near(vec_at(out.node_force, 1), Vec3(0, 0, -0.25 * expected), 1e-6 * expected, "node b");
+  expect_vec_near(vec_at(out.node_force, 2), Vec3(0, 0, -0.25 * expected), 1e-6 * expected, "node c");
+  EXPECT_NEAR(out.elastic_energy, 0.5 * k * overlap * overlap, 1e-9 * k);
+  EXPECT_EQ(out.max_contact_stiffness, k);
+  EXPECT_EQ(out.min_contact_mass, mass);
+  expect_vec_near(out.part_force[0], Vec3(0, 0, -expected), 1e-6 * expected, "part force");
+  expect_vec_near(out.force_on_part(0, 0), Vec3(0, 0, -expected), 1e-6 * expected, "part force from boulders");
+}
+
+TEST(SurfaceContact, FaceContactShellThicknessTwoSided) {
+  SurfaceContact contact({"boulders"}, uniform(eq6_settings()));
+  contact.set_surface(single_triangle(0.2, 0.0).mesh());
+  const double k = 0.1 * 1e9 * 8.0 / (4.0 * std::sqrt(2.0));
+  Cloud cloud;
+  cloud.add({1, 1, 0.45}, 0.5);   // front: overlap 0.5 + 0.1 - 0.45
+  cloud.add({2, 1, -0.45}, 0.5);  // back side of the shell: pushed to the back
+  cloud.add({1, 2, 0.61}, 0.5);   // just out of reach (0.6)
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 2u);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.15), 1e-6 * k, "shell front");
+  expect_vec_near(vec_at(out.particle_force, 1), Vec3(0, 0, -k * 0.15), 1e-6 * k, "shell back");
+  expect_vec_near(vec_at(out.particle_force, 2), Vec3::Zero(), 0, "shell out of reach");
+}
+
+TEST(SurfaceContact, FaceContactBehindOneSidedFace) {
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(1e6)));
+  contact.set_surface(single_triangle(0.0, 0.0).mesh());
+  Cloud cloud;
+  cloud.add({1, 1, -0.1}, 0.5);   // sunk below the plane: still pushed up, overlap 0.6
+  cloud.add({1, 2, -0.55}, 0.5);  // deeper than its radius: ignored
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 1u);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, 1e6 * 0.6), 1e-6, "behind the face");
+  expect_vec_near(vec_at(out.particle_force, 1), Vec3::Zero(), 0, "too deep behind");
+}
+
+TEST(SurfaceContact, EdgeAndVertexContacts) {
+  for (const double thickness : {0.0, 0.2}) {
+    SurfaceContact contact({"boulders"}, uniform(eq6_settings()));
+    auto mesh = single_triangle(thickness, 0.0);
+    contact.set_surface(mesh.mesh());
+    const double k = 0.1 * 1e9 * 8.0 / (4.0 * std::sqrt(2.0));
+    Cloud cloud;
+    cloud.add({2, -0.3, 0.3}, 0.5);     // edge ab at (2, 0, 0)
+    cloud.add({-0.3, -0.3, 0.3}, 0.6);  // vertex a
+    ContactOutput out;
+    contact.compute(cloud.view(), 0.0, out);
+    ASSERT_EQ(out.contact_count, 2u);
+    EXPECT_EQ(contact.contacts()[0].feature, Feature::edge);
+    EXPECT_EQ(contact.contacts()[1].feature, Feature::vertex);
+    const double d_edge = std::sqrt(0.18), d_vertex = std::sqrt(0.27);
+    const Vec3 f_edge = k * (0.5 + thickness / 2 - d_edge) * Vec3(0, -0.3, 0.3) / d_edge;
+    const Vec3 f_vertex = k * (0.6 + thickness / 2 - d_vertex) * Vec3(-0.3, -0.3, 0.3) / d_vertex;
+    const std::string t = " (thickness " + std::to_string(thickness) + ")";
+    expect_vec_near(vec_at(out.particle_force, 0), f_edge, 1e-6 * k, "edge force" + t);
+    expect_vec_near(vec_at(out.particle_force, 1), f_vertex, 1e-6 * k, "vertex force" + t);
+    // Edge reaction split half-half between a and b; the vertex's all on a.
+    expect_vec_near(vec_at(out.node_force, 0), -0.5 * f_edge - f_vertex, 1e-6 * k, "node a reaction" + t);
+    expect_vec_near(vec_at(out.node_force, 1), -0.5 * f_edge, 1e-6 * k, "node b reaction" + t);
+    expect_vec_near(vec_at(out.node_force, 2), Vec3::Zero(), 1e-6 * k, "node c reaction" + t);
+    // Torque lever -r n: a purely normal force gives no torque.
+    EXPECT_LE(vec_at(out.particle_torque, 0).norm(), 1e-6 * k);
+  }
+}
+
+// ------------------------------------------------------------- friction ------
+
+TEST(SurfaceContact, TangentialStickThenSlip) {
+  const double k = 1e6, mass = 10.0, dt = 1e-3;
+  scene::SurfaceContact settings = explicit_stiffness(k, 0.5);
+  SurfaceContact contact({"boulders"}, uniform(settings));
+  MeshBuilder b;
+  b.grid({-2, -2, 0}, 4, 4, 1.0, b.part("floor"));
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  const double speed = 0.01;  // m/s along x; the sphere does not move in this test
+  cloud.add({0.3, 0.2, 0.49}, 0.5, mass, {speed, 0, 0});
+  ContactOutput out;
+  const double normal = k * 0.01;  // 1e4 N, Coulomb limit 5e3 N
+  for (int step = 1; step <= 3; ++step) {
+    contact.compute(cloud.view(), dt, out);
+    const Vec3 expected(-k * speed * dt * step, 0, normal);
+    expect_vec_near(vec_at(out.particle_force, 0), expected, 1e-6, "stick, step " + std::to_string(step));
+    EXPECT_FALSE(contact.contacts()[0].sliding);
+    // Torque on the sphere from the tangential force at the lever -r n.
+    const Vec3 torque = Vec3(0, 0, -0.5).cross(expected);
+    expect_vec_near(vec_at(out.particle_torque, 0), torque, 1e-6, "stick torque");
+  }
+  // Fast slip: the tangential force is capped at mu F_n.
+  cloud.velocity[0] = 10.0;
+  contact.compute(cloud.view(), dt, out);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(-0.5 * normal, 0, normal), 1e-6, "slip (Coulomb cap)");
+  EXPECT_TRUE(contact.contacts()[0].sliding);
+  EXPECT_GT(out.dissipated_power, 0.0);
+  // Contact ends: the spring is dropped.
+  EXPECT_EQ(contact.history_size(), 1u);
+  cloud.move(0, {0.3, 0.2, 0.6});
+  contact.compute(cloud.view(), dt, out);
+  EXPECT_EQ(out.contact_count, 0u);
+  EXPECT_EQ(contact.history_size(), 0u);
+}
+
+TEST(SurfaceContact, SpinGivesContactPointVelocity) {
+  // A sphere spinning about y on a floor: its contact point moves at -r w x.
+  const double k = 1e6, dt = 1e-3, r = 0.5, w = 2.0;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k, 1.0)));
+  MeshBuilder b;
+  b.grid({-2, -2, 0}, 2, 2, 2.0, b.part("floor"));
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  cloud.add({0.3, 0.2, 0.49}, r, 10.0, Vec3::Zero(), {0, w, 0});
+  ContactOutput out;
+  contact.compute(cloud.view(), dt, out);
+  const Vec3 expected(k * r * w * dt, 0, k * 0.01);  // spring stretched by -r w dt along x, pulls back +x
+  expect_vec_near(vec_at(out.particle_force, 0), expected, 1e-6, "spin friction");
+  expect_vec_near(vec_at(out.particle_torque, 0), Vec3(0, 0, -r).cross(expected), 1e-6, "spin torque");
+}
+
+TEST(SurfaceContact, MovingSurfaceVelocity) {
+  // The floor moves at the sphere's speed: no relative motion, no tangential force.
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k, 1.0)));
+  MeshBuilder b;
+  b.grid({-2, -2, 0}, 2, 2, 2.0, b.part("floor"));
+  contact.set_surface(b.mesh());
+  std::vector<double> position, velocity;
+  for (const Vec3& p : b.mesh().node_position) {
+    for (int a = 0; a < 3; ++a) position.push_back(p[a]);
+    velocity.insert(velocity.end(), {0.3, 0.0, -0.1});
+  }
+  contact.update_nodes(position, velocity);
+  Cloud cloud;
+  cloud.add({0.3, 0.2, 0.49}, 0.5, 10.0, {0.3, 0.0, -0.1});
+  ContactOutput out;
+  contact.compute(cloud.view(), 1e-3, out);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.01), 1e-9, "co-moving floor");
+}
+
+// ------------------------------------------ one contact per smooth surface ---
+
+TEST(SurfaceContact, SharedEdgeOfTwoCoplanarTriangles) {
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  b.grid({-1, -1, 0}, 1, 1, 2.0, b.part("floor"));  // diagonal from (-1,-1) to (1,1)
+  contact.set_surface(b.mesh());
+  // Rolling across the diagonal x = y, including exactly on it and 1e-13 off it.
+  std::vector<double> offsets{-1e-2, -1e-3, -1e-6, -1e-13, 0.0, 1e-13, 1e-6, 1e-3, 1e-2};
+  double max_deviation = 0;
+  for (double offset : offsets) {
+    Cloud cloud;
+    cloud.add({0.2 + offset, 0.2 - offset, 0.45}, 0.5);
+    ContactOutput out;
+    contact.compute(cloud.view(), 0.0, out);
+    EXPECT_EQ(out.contact_count, 1u) << "offset " << offset;
+    max_deviation = std::max(max_deviation, (vec_at(out.particle_force, 0) - Vec3(0, 0, k * 0.05)).norm());
+  }
+  std::cout << "shared edge: largest deviation from the single-plane force " << max_deviation << " N of " << k * 0.05
+            << " N\n";
+  EXPECT_LE(max_deviation, 1e-9 * k * 0.05);
+}
+
+TEST(SurfaceContact, SharedVertexOfSixTriangles) {
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  const auto part = b.part("floor");
+  const auto centre = b.node({0, 0, 0});
+  std::vector<std::uint32_t> rim;
+  for (int i = 0; i < 6; ++i) {
+    const double angle = i * std::numbers::pi / 3;
+    rim.push_back(b.node({2 * std::cos(angle), 2 * std::sin(angle), 0}));
+  }
+  for (int i = 0; i < 6; ++i)
+    b.triangle(centre, rim[static_cast<std::size_t>(i)], rim[static_cast<std::size_t>((i + 1) % 6)], part);
+  contact.set_surface(b.mesh());
+  for (const Vec3& offset : {Vec3(0, 0, 0), Vec3(1e-13, -1e-13, 0), Vec3(-1e-9, 0, 0), Vec3(0.01, 0.003, 0)}) {
+    Cloud cloud;
+    cloud.add(Vec3(0, 0, 0.45) + offset, 0.5);
+    ContactOutput out;
+    contact.compute(cloud.view(), 0.0, out);
+    EXPECT_EQ(out.contact_count, 1u);
+    expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-9, "six-triangle vertex");
+    expect_vec_near(vec_at(out.node_force, centre) + vec_at(out.node_force, rim[0]) + vec_at(out.node_force, rim[1]) +
+                        vec_at(out.node_force, rim[2]) + vec_at(out.node_force, rim[3]) +
+                        vec_at(out.node_force, rim[4]) + vec_at(out.node_force, rim[5]),
+                    Vec3(0, 0, -k * 0.05), 1e-9, "six-triangle vertex reaction");
+  }
+}
+
+TEST(SurfaceContact, LargeSphereOnFineMeshIsOnePlane) {
+  // Triangles much smaller than the sphere: one contact everywhere, force continuous.
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  b.grid({-1, -1, 0}, 20, 20, 0.1, b.part("floor"));
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-0.4, 0.4);
+  for (int i = 0; i < 200; ++i) cloud.add({u(rng), u(rng), 0.45}, 0.5);
+  // Also on grid nodes and edges exactly, and rolling along x in small steps.
+  cloud.add({0.0, 0.0, 0.45}, 0.5);
+  cloud.add({0.1, 0.05, 0.45}, 0.5);
+  cloud.add({0.05, 0.05, 0.45}, 0.5);
+  for (int i = 0; i <= 100; ++i) cloud.add({0.001 * i, 0.0301, 0.45}, 0.5);
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, cloud.size());
+  double max_deviation = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    max_deviation = std::max(max_deviation, (vec_at(out.particle_force, i) - Vec3(0, 0, k * 0.05)).norm());
+  }
+  std::cout << "fine mesh: " << out.contact_count << " contacts for " << cloud.size()
+            << " spheres; largest deviation from k delta: " << max_deviation << " N of " << k * 0.05 << " N\n";
+  EXPECT_LE(max_deviation, 1e-9 * k * 0.05);
+}
+
+TEST(SurfaceContact, UnweldedMeshStillOneContact) {
+  // Every triangle with its own nodes (an STL file): the shared edge is found by position.
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  const auto part = b.part("floor");
+  b.triangle(Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(1, 1, 0), part);
+  b.triangle(Vec3(-1, -1, 0), Vec3(1, 1, 0), Vec3(-1, 1, 0), part);
+  contact.set_surface(b.mesh());
+  for (double offset : {-1e-3, -1e-7, 0.0, 1e-7, 1e-3}) {
+    Cloud cloud;
+    cloud.add({0.2 + offset, 0.2 - offset, 0.45}, 0.5);
+    ContactOutput out;
+    contact.compute(cloud.view(), 0.0, out);
+    EXPECT_EQ(out.contact_count, 1u);
+    expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-9, "unwelded shared edge");
+  }
+}
+
+TEST(SurfaceContact, ConvexEdgeOfABox) {
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  b.box({0, 0, 0}, {1, 1, 1}, b.part("block"), 1.0);
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  cloud.add({1.3, 0.4, 1.2}, 0.5);    // beyond the edge x = 1, z = 1
+  cloud.add({0.85, 0.5, 1.45}, 0.5);  // on the top, near the edge: a face contact only
+  cloud.add({1.2, 1.2, 1.2}, 0.5);    // beyond the corner (1, 1, 1)
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 3u);
+  const Vec3 d_edge(0.3, 0, 0.2);
+  expect_vec_near(vec_at(out.particle_force, 0), k * (0.5 - d_edge.norm()) * d_edge.normalized(), 1e-6,
+                  "convex edge force along edge-to-centre");
+  expect_vec_near(vec_at(out.particle_force, 1), Vec3(0, 0, k * 0.05), 1e-6, "top face near the edge");
+  const Vec3 d_corner(0.2, 0.2, 0.2);
+  expect_vec_near(vec_at(out.particle_force, 2), k * (0.5 - d_corner.norm()) * d_corner.normalized(), 1e-6,
+                  "convex corner force");
+  EXPECT_EQ(contact.contacts()[0].feature, Feature::edge);
+  EXPECT_EQ(contact.contacts()[1].feature, Feature::face);
+  EXPECT_EQ(contact.contacts()[2].feature, Feature::vertex);
+}
+
+TEST(SurfaceContact, RollingOverConvexEdgeIsContinuous) {
+  // Sphere centre on a circle of radius 0.45 around the box's top edge: the
+  // overlap is 0.05 everywhere, so the force magnitude must stay k * 0.05
+  // through face -> edge -> face.
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  b.box({0, 0, 0}, {1, 1, 1}, b.part("block"), 1.0);
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  for (int i = 0; i <= 90; ++i) {
+    const double angle = i * std::numbers::pi / 180;  // 0: above the top, 90 deg: beside the side x = 1
+    cloud.add({1 + 0.45 * std::sin(angle), 0.5, 1 + 0.45 * std::cos(angle)}, 0.5);
+  }
+  // And slightly inward on the top / below on the side, where the face alone acts.
+  cloud.add({0.99, 0.5, 1.45}, 0.5);
+  cloud.add({1.45, 0.5, 0.99}, 0.5);
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, cloud.size());
+  double max_deviation = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    max_deviation = std::max(max_deviation, std::abs(vec_at(out.particle_force, i).norm() - k * 0.05));
+  }
+  std::cout << "rolling over a convex edge: largest deviation of |F| from k delta " << max_deviation << " N of "
+            << k * 0.05 << " N\n";
+  EXPECT_LE(max_deviation, 1e-6 * k * 0.05);
+}
+
+TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  const auto part = b.part("channel");
+  // Floor z = 0 for x in [0, 2] and a wall x = 0 for z in [0, 2], sharing the edge x = 0, z = 0.
+  const auto p0 = b.node({0, -1, 0}), p1 = b.node({0, 1, 0});
+  const auto f0 = b.node({2, -1, 0}), f1 = b.node({2, 1, 0});
+  const auto w0 = b.node({0, -1, 2}), w1 = b.node({0, 1, 2});
+  b.triangle(p0, f0, f1, part);
+  b.triangle(p0, f1, p1, part);
+  b.triangle(p0, p1, w1, part);
+  b.triangle(p0, w1, w0, part);
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  cloud.add({0.45, 0.1, 0.48}, 0.5);
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 2u);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.05, 0, k * 0.02), 1e-6, "concave corner (wall + floor)");
+}
+
+TEST(SurfaceContact, ShallowFoldIsOneContact) {
+  // Two floor panels meeting in a 5 degree valley: one contact (the deeper), never both.
+  const double k = 1e6;
+  const double slope = 5.0 * std::numbers::pi / 180;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  const auto part = b.part("floor");
+  const auto a0 = b.node({-2, -1, 0}), a1 = b.node({-2, 1, 0});
+  const auto m0 = b.node({0, -1, 0}), m1 = b.node({0, 1, 0});
+  const auto c0 = b.node({2, -1, 2 * std::tan(slope)}), c1 = b.node({2, 1, 2 * std::tan(slope)});
+  b.triangle(a0, m0, m1, part);
+  b.triangle(a0, m1, a1, part);
+  b.triangle(m0, c0, c1, part);
+  b.triangle(m0, c1, m1, part);
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  for (int i = -10; i <= 10; ++i) cloud.add({0.005 * i, 0, 0.48}, 0.5);
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const double x = cloud.at(i).x();
+    const Vec3 n2(-std::sin(slope), 0, std::cos(slope));
+    const double overlap_flat = 0.5 - 0.48;
+    const double overlap_slope = 0.5 - (cloud.at(i) - Vec3(0, 0, 0)).dot(n2);
+    const double expected = k * std::max(overlap_flat, overlap_slope);
+    EXPECT_NEAR(vec_at(out.particle_force, i).norm(), expected, 1e-6) << "x = " << x;
+  }
+}
+
+TEST(SurfaceContact, ThinSolidBottomFaceDoesNotPull) {
+  // A solid plate 1 cm thick: the sphere resting on top is behind the bottom
+  // face (within reach), but the top face is nearer: only the top acts.
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  b.box({-1, -1, -0.01}, {1, 1, 0}, b.part("plate"), 0.04);
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  cloud.add({0.1, 0.2, 0.45}, 0.5);
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 1u);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-6, "thin plate");
+
+  // Sunk into a block: pushed out through the nearest face.
+  SurfaceContact block({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder bb;
+  bb.box({0, 0, 0}, {1, 1, 1}, bb.part("block"), 1.0);
+  block.set_surface(bb.mesh());
+  Cloud sunk;
+  sunk.add({0.5, 0.5, 0.95}, 0.6);
+  block.compute(sunk.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 1u);
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.65), 1e-6, "sunk into a block");
+}
+
+TEST(SurfaceContact, SpringCarriedAcrossSharedEdge) {
+  // Sticking contact dragged across the diagonal of a two-triangle floor: the
+  // tangential spring keeps growing linearly, it is not reset at the edge.
+  const double k = 1e6, dt = 1e-3, speed = 1e-3;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k, 1.0)));
+  MeshBuilder b;
+  b.grid({-1, -1, 0}, 1, 1, 2.0, b.part("floor"));
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  cloud.add({0.2 - 10 * speed * dt, 0.2, 0.49}, 0.5, 10.0, {speed, 0, 0});
+  ContactOutput out;
+  std::vector<std::uint32_t> faces;
+  for (int step = 1; step <= 20; ++step) {
+    contact.compute(cloud.view(), dt, out);
+    faces.push_back(contact.contacts()[0].face);
+    const double expected = -k * speed * dt * step;
+    EXPECT_NEAR(out.particle_force[0], expected, 1e-9) << "step " << step;
+    cloud.move(0, cloud.at(0) + Vec3(speed * dt, 0, 0));
+  }
+  std::cout << "spring across the edge: tangential force measured " << out.particle_force[0] << " expected "
+            << -k * speed * dt * 20 << "; faces " << faces.front() << " -> " << faces.back() << "\n";
+  EXPECT_NE(faces.front(), faces.back());
+}
+
+// -------------------------------------------------------- bulk behaviour ---
+
+// A bumpy terrain grid, rotated by a random rotation, and spheres scattered
+// near it with random velocities and spins.
+struct RandomScene {
+  MeshBuilder builder;
+  Cloud cloud;
+  RandomScene(std::uint64_t seed, int spheres) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    const auto terrain = builder.part("terrain");
+    const auto block = builder.part("block");
+    const int n = 16;
+    const double h = 0.25;
+    std::vector<std::uint32_t> ids;
+    for (int j = 0; j <= n; ++j) {
+      for (int i = 0; i <= n; ++i) ids.push_back(builder.node({i * h, j * h, 0.1 * u(rng)}));
+    }
+    auto at = [&](int i, int j) { return ids[static_cast<std::size_t>(j * (n + 1) + i)]; };
+    for (int j = 0; j < n; ++j) {
+      for (int i = 0; i < n; ++i) {
+        builder.triangle(at(i, j), at(i + 1, j), at(i + 1, j + 1), terrain, 0.0, 2e9 + 1e9 * u(rng), 0.0);
+        builder.triangle(at(i, j), at(i + 1, j + 1), at(i, j + 1), terrain, 0.05, 2e9, 0.0);
+      }
+    }
+    builder.box({1.5, 1.5, 0.1}, {2.5, 2.2, 0.8}, block, 0.5);
+    const Eigen::Quaterniond rotation =
+        Eigen::Quaterniond(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    for (Vec3& p : builder.mesh().node_position) p = rotation * p + Vec3(0.3, -0.2, 0.1);
+    for (int s = 0; s < spheres; ++s) {
+      const double r = 0.05 + 0.15 * u(rng);
+      const Vec3 local(4 * u(rng), 4 * u(rng), -0.2 + u(rng));
+      const Vec3 v(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+      const Vec3 w(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+      cloud.add(rotation * local + Vec3(0.3, -0.2, 0.1), r, 1000 * r * r * r, v, 10 * w,
+                static_cast<std::uint32_t>(s % 2));
+    }
+  }
+};
+
+scene::SurfaceContact bulk_settings() {
+  scene::SurfaceContact s;
+  s.friction = 0.4;
+  s.penalty_scale = 0.1;
+  s.normal_damping_ratio = 0.3;
+  s.tangential_damping_ratio = 0.2;
+  return s;
+}
+
+TEST(SurfaceContact, NewtonThirdLaw) {
+  RandomScene scene(5, 400);
+  SurfaceContact contact({"boulders", "gravel"}, uniform(bulk_settings()));
+  contact.set_surface(scene.builder.mesh());
+  ContactOutput out;
+  contact.compute(scene.cloud.view(), 1e-4, out);
+  contact.compute(scene.cloud.view(), 1e-4, out);  // with tangential springs
+  Vec3 sum = Vec3::Zero(), particles = Vec3::Zero();
+  double scale = 0;
+  for (std::size_t i = 0; i < scene.cloud.size(); ++i) {
+    sum += vec_at(out.particle_force, i);
+    particles += vec_at(out.particle_force, i);
+    scale += vec_at(out.particle_force, i).norm();
+  }
+  for (std::size_t i = 0; i < scene.builder.mesh().node_count(); ++i) sum += vec_at(out.node_force, i);
+  std::cout << "Newton: " << out.contact_count << " contacts, |sum of all forces| / sum |F| = " << sum.norm() / scale
+            << " (limit 1e-12)\n";
+  ASSERT_GT(out.contact_count, 50u);
+  EXPECT_LE(sum.norm(), 1e-12 * scale);
+  // Part totals (split by source) hold the reaction.
+  Vec3 parts = Vec3::Zero(), by_source = Vec3::Zero();
+  for (std::size_t p = 0; p < contact.part_count(); ++p) {
+    parts += out.part_force[p];
+    for (std::size_t s = 0; s < 2; ++s) by_source += out.force_on_part(p, s);
+  }
+  EXPECT_LE((parts + particles).norm(), 1e-12 * scale);
+  EXPECT_LE((by_source + particles).norm(), 1e-12 * scale);
+  EXPECT_GT(out.force_on_part(0, 0).norm(), 0.0);
+  EXPECT_GT(out.force_on_part(0, 1).norm(), 0.0);
+}
+
+bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+TEST(SurfaceContact, GridSearchEqualsBruteForce) {
+  RandomScene scene(8, 600);
+  SurfaceContactOptions brute;
+  brute.brute_force_search = true;
+  SurfaceContact grid({"boulders", "gravel"}, uniform(bulk_settings()));
+  SurfaceContact all({"boulders", "gravel"}, uniform(bulk_settings()), brute);
+  grid.set_surface(scene.builder.mesh());
+  all.set_surface(scene.builder.mesh());
+  ContactOutput out_grid, out_all;
+  grid.compute(scene.cloud.view(), 1e-4, out_grid);
+  all.compute(scene.cloud.view(), 1e-4, out_all);
+  std::cout << "search: grid " << out_grid.contact_count << " contacts, brute force " << out_all.contact_count
+            << "; stable dt " << grid.stable_dt() << " vs " << all.stable_dt() << "\n";
+  ASSERT_GT(out_grid.contact_count, 50u);
+  ASSERT_EQ(grid.contacts().size(), all.contacts().size());
+  for (std::size_t c = 0; c < grid.contacts().size(); ++c) {
+    EXPECT_EQ(grid.contacts()[c].particle, all.contacts()[c].particle);
+    EXPECT_EQ(grid.contacts()[c].face, all.contacts()[c].face);
+    EXPECT_EQ(grid.contacts()[c].feature, all.contacts()[c].feature);
+  }
+  EXPECT_TRUE(same_bits(out_grid.particle_force, out_all.particle_force));
+  EXPECT_TRUE(same_bits(out_grid.node_force, out_all.node_force));
+  EXPECT_EQ(grid.stable_dt(), all.stable_dt());
+}
+
+TEST(SurfaceContact, DeterministicWithOneAndTwoThreads) {
+  RandomScene scene(13, 500);
+  auto run = [&](int threads) {
+    omp_set_num_threads(threads);
+    SurfaceContact contact({"boulders", "gravel"}, uniform(bulk_settings()));
+    contact.set_surface(scene.builder.mesh());
+    Cloud cloud = scene.cloud;
+    ContactOutput out;
+    std::vector<double> trace;
+    for (int step = 0; step < 5; ++step) {
+      contact.compute(cloud.view(), 1e-3, out);
+      trace.insert(trace.end(), out.particle_force.begin(), out.particle_force.end());
+      trace.insert(trace.end(), out.particle_torque.begin(), out.particle_torque.end());
+      trace.insert(trace.end(), out.node_force.begin(), out.node_force.end());
+      trace.push_back(out.elastic_energy);
+      trace.push_back(contact.stable_dt());
+      for (std::size_t i = 0; i < cloud.size(); ++i) cloud.move(i, cloud.at(i) + 1e-3 * vec_at(cloud.velocity, i));
+    }
+    return trace;
+  };
+  const auto one = run(1);
+  const auto two = run(2);
+  omp_set_num_threads(omp_get_num_procs());
+  std::cout << "determinism: " << one.size() << " values compared bit for bit\n";
+  EXPECT_TRUE(same_bits(one, two));
+}
+
+// ------------------------------------------------------ settings, dt, IO ---
+
+TEST(SurfaceContact, PairSettingsFromScene) {
+  scene::Scene s;
+  s.particle_sets.resize(2);
+  s.particle_sets[0].name = "boulders";
+  s.particle_sets[1].name = "gravel";
+  s.dem_fem_default.penalty_scale = 0.1;
+  s.dem_fem_default.friction = 0.3;
+  scene::Interaction gravel_dam;
+  gravel_dam.a = "gravel";
+  gravel_dam.b = "dam";
+  gravel_dam.contact = s.dem_fem_default;
+  gravel_dam.contact.normal_stiffness = 5e6;
+  scene::Interaction boulders_house;
+  boulders_house.a = "house";
+  boulders_house.b = "boulders";
+  boulders_house.contact = s.dem_fem_default;
+  boulders_house.contact.enabled = false;
+  s.interactions = {gravel_dam, boulders_house};
+
+  MeshBuilder b;
+  const auto dam = b.part("dam");
+  const auto house = b.part("house");
+  b.triangle(Vec3(0, 0, 0), Vec3(4, 0, 0), Vec3(0, 4, 0), dam);
+  b.triangle(Vec3(10, 0, 0), Vec3(14, 0, 0), Vec3(10, 4, 0), house, 0.24);
+  SurfaceContact contact(s);
+  contact.set_surface(b.mesh());
+  const double k_eq6 = 0.1 * 1e9 * 8.0 / (4.0 * std::sqrt(2.0));
+  EXPECT_NEAR(contact.face_stiffness(0, 0), k_eq6, 1e-6 * k_eq6);
+  EXPECT_EQ(contact.face_stiffness(0, 1), 5e6);
+
+  Cloud cloud;
+  cloud.add({1, 1, 0.45}, 0.5, 10, Vec3::Zero(), Vec3::Zero(), 0);   // boulder on the dam
+  cloud.add({1, 2, 0.45}, 0.5, 10, Vec3::Zero(), Vec3::Zero(), 1);   // gravel on the dam
+  cloud.add({11, 1, 0.45}, 0.5, 10, Vec3::Zero(), Vec3::Zero(), 0);  // boulder on the house: disabled
+  cloud.add({11, 2, 0.45}, 0.5, 10, Vec3::Zero(), Vec3::Zero(), 1);  // gravel on the house
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  EXPECT_EQ(out.contact_count, 3u);
+  expect_vec_near(out.force_on_part(dam, 0), Vec3(0, 0, -k_eq6 * 0.05), 1e-6 * k_eq6, "dam from boulders");
+  expect_vec_near(out.force_on_part(dam, 1), Vec3(0, 0, -5e6 * 0.05), 1e-3, "dam from gravel");
+  expect_vec_near(out.force_on_part(house, 0), Vec3::Zero(), 0, "house from boulders (disabled)");
+  expect_vec_near(out.force_on_part(house, 1), Vec3(0, 0, -k_eq6 * 0.17), 1e-6 * k_eq6, "house from gravel");
+  EXPECT_EQ(contact.source_names()[1], "gravel");
+}
+
+TEST(SurfaceContact, StableStepOverPotentialContacts) {
+  const double k = 4e6, mass = 25.0;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  b.grid({-2, -2, 0}, 2, 2, 2.0, b.part("floor"));
+  contact.set_surface(b.mesh());
+  ContactOutput out;
+  Cloud far;
+  far.add({0, 0, 1.01}, 0.5, mass);  // gap 0.51 > one radius
+  contact.compute(far.view(), 0.0, out);
+  EXPECT_TRUE(std::isinf(contact.stable_dt()));
+  Cloud near;
+  near.add({0, 0, 0.9}, 0.5, mass);  // gap 0.4: within one radius of touching
+  contact.compute(near.view(), 0.0, out);
+  const double expected = 0.2 * std::numbers::pi * std::sqrt(mass / k);
+  std::cout << "stable dt: measured " << contact.stable_dt() << " expected " << expected << "\n";
+  EXPECT_NEAR(contact.stable_dt(), expected, 1e-15);
+  EXPECT_EQ(out.contact_count, 0u);
+
+  const Aabb region = contact.interest_region();
+  EXPECT_NEAR(region.max.z(), 0.5 * 3.0, 1e-12);
+  EXPECT_NEAR(region.min.x(), -2.0 - 1.5, 1e-12);
+}
+
+TEST(SurfaceContact, RejectsInconsistentInput) {
+  SurfaceContact contact({"boulders"}, uniform(eq6_settings()));
+  auto mesh = single_triangle(0.0, 0.0);
+  auto bad_node = mesh.mesh();
+  bad_node.triangle[0][2] = 7;
+  EXPECT_THROW(contact.set_surface(bad_node), ProtocolError);
+  auto no_bulk = mesh.mesh();
+  no_bulk.face_bulk_modulus[0] = 0.0;
+  EXPECT_THROW(contact.set_surface(no_bulk), ProtocolError);
+  contact.set_surface(mesh.mesh());
+  Cloud cloud;
+  cloud.add({1, 1, 0.45}, 0.5, 10, Vec3::Zero(), Vec3::Zero(), 3);
+  ContactOutput out;
+  EXPECT_THROW(contact.compute(cloud.view(), 0.0, out), ProtocolError);
+  const std::vector<double> short_positions(5, 0.0);
+  EXPECT_THROW(contact.update_nodes(short_positions, {}), ProtocolError);
+}
+
+}  // namespace
+}  // namespace sabo::coupler
