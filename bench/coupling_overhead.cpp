@@ -1,0 +1,134 @@
+// Coupling overhead per step with N interface entities and trivial physics:
+// one solver process and one coupler process exchange a full StepState
+// (index, position, velocity, angular velocity of N spheres) and a full
+// StepForces (index, force, torque) every step, through the same library code
+// as a real run (Socket, SendBuffer, SolverLink). Prints one JSON line.
+//
+//   bench_coupling_overhead --entities 10000 --transport ipc --steps 2000
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "libsabo/protocol/solver_link.hpp"
+
+using namespace sabo;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+int run_coupler(const std::string& endpoint, int steps) {
+  zmq::context_t context(1);
+  protocol::Socket socket(context, zmq::socket_type::router);
+  socket.bind(endpoint);
+  protocol::Inbound inbound;
+  while (!socket.receive(inbound, std::chrono::milliseconds(10000))) {
+  }
+  sabo::v1::RegisterReply reply;
+  reply.set_accepted(true);
+  reply.set_interest_all(true);
+  socket.send(reply, inbound.peer);
+  const std::string peer = inbound.peer;
+
+  sabo::v1::StepState state;
+  sabo::v1::StepForces forces;
+  protocol::SendBuffer buffer;
+  for (int step = 0; step < steps; ++step) {
+    if (!socket.receive(inbound, std::chrono::milliseconds(10000))) return 1;
+    inbound.parse(state);
+    forces.Clear();
+    forces.set_step(state.step());
+    forces.set_dt(1e-4);
+    forces.mutable_index()->CopyFrom(state.index());
+    const int n3 = state.position_size();
+    auto* f = forces.mutable_force();
+    auto* t = forces.mutable_torque();
+    f->Resize(n3, 0.0);
+    t->Resize(n3, 0.0);
+    const double* x = state.position().data();
+    double* fp = f->mutable_data();
+    for (int i = 0; i < n3; ++i) fp[i] = -1e-3 * x[i];
+    socket.send(forces, buffer, peer);
+  }
+  return 0;
+}
+
+struct Result {
+  double median_us, min_us, p90_us;
+};
+
+Result run_solver(const std::string& endpoint, int entities, int steps, int warmup) {
+  protocol::SolverLink link(endpoint, std::chrono::milliseconds(20000));
+  sabo::v1::Register registration;
+  registration.set_protocol_version(protocol::kProtocolVersion);
+  registration.set_role(sabo::v1::ROLE_DEM);
+  registration.set_exposes_particles(true);
+  registration.set_exposes_angular_velocity(true);
+  link.register_solver(registration);
+
+  std::vector<double> x(3 * static_cast<std::size_t>(entities)), v(x.size(), 1.0), w(x.size(), 0.5);
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] = static_cast<double>(i) * 1e-3;
+  sabo::v1::StepState state;
+  std::vector<double> per_step;
+  per_step.reserve(static_cast<std::size_t>(steps));
+  for (int step = 0; step < steps; ++step) {
+    const auto start = Clock::now();
+    state.Clear();
+    state.set_step(static_cast<std::uint64_t>(step));
+    auto* index = state.mutable_index();
+    index->Resize(entities, 0);
+    for (int i = 0; i < entities; ++i) index->Set(i, static_cast<std::uint32_t>(i));
+    state.mutable_position()->Assign(x.begin(), x.end());
+    state.mutable_velocity()->Assign(v.begin(), v.end());
+    state.mutable_angular_velocity()->Assign(w.begin(), w.end());
+    link.send_state(state);
+    const auto& forces = link.receive_forces(static_cast<std::uint64_t>(step));
+    const double* f = forces.force().data();
+    for (std::size_t i = 0; i < x.size(); ++i) x[i] += 1e-9 * f[i];
+    if (step >= warmup) per_step.push_back(std::chrono::duration<double, std::micro>(Clock::now() - start).count());
+  }
+  std::sort(per_step.begin(), per_step.end());
+  const auto at = [&](double q) { return per_step[static_cast<std::size_t>(q * static_cast<double>(per_step.size() - 1))]; };
+  return {at(0.5), per_step.front(), at(0.9)};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int entities = 1000;
+  int steps = 2000;
+  int warmup = 100;
+  std::string transport = "ipc";
+  CLI::App app{"Coupling overhead per step: full state in, forces out, N entities."};
+  app.add_option("--entities", entities, "interface entities (spheres) exchanged per step")->capture_default_str();
+  app.add_option("--steps", steps, "measured steps + warmup")->capture_default_str();
+  app.add_option("--warmup", warmup, "steps not measured")->capture_default_str();
+  app.add_option("--transport", transport, "ipc or tcp")->check(CLI::IsMember({"ipc", "tcp"}))->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  steps += warmup;
+
+  const std::string endpoint =
+      transport == "ipc" ? fmt::format("ipc:///tmp/sabo-bench-{}.sock", ::getpid()) : std::string("tcp://127.0.0.1:0");
+  std::string resolved = endpoint;
+  if (transport == "tcp") resolved = fmt::format("tcp://127.0.0.1:{}", 20000 + ::getpid() % 20000);
+
+  const pid_t child = ::fork();
+  if (child == 0) _exit(run_coupler(resolved, steps));
+  const Result result = run_solver(resolved, entities, steps, warmup);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  if (transport == "ipc") std::filesystem::remove(resolved.substr(6));
+  const double bytes_per_step = static_cast<double>(entities) * (4 + 3 * 8 * 3) + static_cast<double>(entities) * (4 + 2 * 3 * 8);
+  fmt::print("{{\"bench\": \"coupling_overhead\", \"transport\": \"{}\", \"entities\": {}, \"steps\": {}, "
+             "\"median_us_per_step\": {:.2f}, \"min_us_per_step\": {:.2f}, \"p90_us_per_step\": {:.2f}, "
+             "\"payload_bytes_per_step\": {:.0f}}}\n",
+             transport, entities, steps - warmup, result.median_us, result.min_us, result.p90_us, bytes_per_step);
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1;
+}

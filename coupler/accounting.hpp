@@ -1,0 +1,83 @@
+#pragma once
+// What the coupler accounts for a run: the force on every structure part split
+// by source (forces.csv) and the energy balance (energy.csv).
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "libsabo/core/types.hpp"
+
+namespace sabo::coupler {
+
+// forces.csv: one row per output time, part and source:
+//   time, part, source, Fx, Fy, Fz, F, F_peak
+// F* is the mean force over the output interval that ends at `time` (impulse
+// divided by duration; N), F its magnitude, F_peak the largest instantaneous
+// magnitude within the interval. The first row (t = 0) holds the force at t = 0.
+class ForceHistory {
+ public:
+  ForceHistory(const std::filesystem::path& file, std::vector<std::string> part_names,
+               std::vector<std::string> sources);
+  ~ForceHistory();
+  ForceHistory(const ForceHistory&) = delete;
+  ForceHistory& operator=(const ForceHistory&) = delete;
+
+  // The force of `source` on `part` during a step of length dt (s).
+  void add(std::size_t part, std::size_t source, const Vec3& force, double dt);
+  void write(double time);
+  void close();
+  // Largest instantaneous |F| over the run per part and source, N.
+  [[nodiscard]] const std::vector<std::vector<double>>& peak() const { return run_peak_; }
+  [[nodiscard]] const std::vector<std::string>& part_names() const { return part_names_; }
+  [[nodiscard]] const std::vector<std::string>& sources() const { return sources_; }
+
+ private:
+  struct Accumulator {
+    Vec3 impulse = Vec3::Zero();
+    Vec3 last = Vec3::Zero();
+    double duration = 0;
+    double peak = 0;
+  };
+  std::FILE* file_ = nullptr;
+  std::vector<std::string> part_names_;
+  std::vector<std::string> sources_;
+  std::vector<std::vector<Accumulator>> accumulators_;  // [part][source]
+  std::vector<std::vector<double>> run_peak_;
+};
+
+// The energy of the coupled system (J) at one time.
+struct EnergySample {
+  double time = 0;
+  double kinetic = 0;
+  double potential = 0;
+  double solver_elastic = 0;   // springs and strain inside the solvers
+  double contact_elastic = 0;  // penalty springs of the coupler
+  double dissipated = 0;       // reported by the solvers
+  [[nodiscard]] double total() const { return kinetic + potential + solver_elastic + contact_elastic; }
+};
+
+// energy.csv: time, kinetic, potential, solver_elastic, contact_elastic, total, dissipated.
+class EnergyHistory {
+ public:
+  explicit EnergyHistory(const std::filesystem::path& file);
+  ~EnergyHistory();
+  EnergyHistory(const EnergyHistory&) = delete;
+  EnergyHistory& operator=(const EnergyHistory&) = delete;
+
+  // Every step: tracks the initial and the largest total. `write` appends a row.
+  void observe(const EnergySample& sample, bool write);
+  void close();
+  [[nodiscard]] const EnergySample& initial() const { return initial_; }
+  [[nodiscard]] const EnergySample& last() const { return last_; }
+  [[nodiscard]] double max_total() const { return max_total_; }
+
+ private:
+  std::FILE* file_ = nullptr;
+  bool first_ = true;
+  EnergySample initial_, last_;
+  double max_total_ = 0;
+};
+
+}  // namespace sabo::coupler

@@ -1,0 +1,624 @@
+#include "coupler/coupler.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "libsabo/core/signals.hpp"
+#include "libsabo/protocol/surface_codec.hpp"
+#include "libsabo/protocol/wire.hpp"
+
+namespace sabo::coupler {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using sabo::v1::MessageType;
+constexpr std::chrono::milliseconds kPollSlice{100};
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+bool all_finite(const google::protobuf::RepeatedField<double>& values) {
+  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+}  // namespace
+
+struct Coupler::Peer {
+  std::string identity;
+  sabo::v1::Role role = sabo::v1::ROLE_UNSPECIFIED;
+  std::string role_name;
+  double beta = 1.0;
+  sabo::v1::Register registration;
+  sabo::v1::StepState state;
+  sabo::v1::StepForces forces;
+  protocol::SendBuffer buffer;
+  bool has_state = false;
+  bool said_goodbye = false;
+  sabo::v1::Goodbye goodbye;
+  double compute_seconds = 0;  // reported in StepState, summed
+};
+
+Coupler::Coupler(const scene::Scene& scene, CouplerOptions options, EventStream& events)
+    : scene_(scene), options_(std::move(options)), events_(events), socket_(context_, zmq::socket_type::router) {}
+
+Coupler::~Coupler() = default;
+
+void Coupler::fail(const std::string& process, const std::string& message) {
+  failure_ = fmt::format("{}: {}", process, message);
+  throw Error(failure_);
+}
+
+void Coupler::bind() {
+  socket_.bind(options_.endpoint);
+  spdlog::info("listening on {}", socket_.endpoint());
+  events_.listening(socket_.endpoint());
+}
+
+Coupler::Peer* Coupler::route(const protocol::Inbound& inbound, MessageType expected, std::uint64_t step) {
+  if (!inbound.valid()) {
+    spdlog::warn("refused a malformed message: {}", inbound.problem);
+    sabo::v1::Error error;
+    error.set_code(sabo::v1::Error::CODE_MALFORMED);
+    error.set_message(fmt::format("malformed message: {}", inbound.problem));
+    socket_.send(error, inbound.peer);
+    return nullptr;
+  }
+  auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->identity == inbound.peer; });
+  Peer* peer = it == peers_.end() ? nullptr : it->get();
+  const auto type = inbound.header.type;
+  if (type == sabo::v1::MESSAGE_TYPE_REGISTER) {
+    accept_registration(inbound);
+    return nullptr;
+  }
+  if (peer == nullptr) {
+    sabo::v1::Error error;
+    error.set_code(sabo::v1::Error::CODE_SEQUENCE);
+    error.set_message(fmt::format("{} from an unregistered peer: register first", protocol::message_type_name(type)));
+    spdlog::warn("{}", error.message());
+    socket_.send(error, inbound.peer);
+    return nullptr;
+  }
+  if (type == sabo::v1::MESSAGE_TYPE_ERROR) {
+    sabo::v1::Error error;
+    inbound.parse(error);
+    fail(peer->role_name, fmt::format("reported an error: {}", error.message()));
+  }
+  if (type == sabo::v1::MESSAGE_TYPE_GOODBYE) {
+    inbound.parse(peer->goodbye);
+    peer->said_goodbye = true;
+    if (expected != sabo::v1::MESSAGE_TYPE_GOODBYE) {
+      fail(peer->role_name, fmt::format("left the run at step {}: {}", step, peer->goodbye.reason()));
+    }
+    return nullptr;
+  }
+  if (type != expected) {
+    fail(peer->role_name, fmt::format("sent {} while the coupler expected {} (step {})",
+                                      protocol::message_type_name(type), protocol::message_type_name(expected), step));
+  }
+  return peer;
+}
+
+void Coupler::accept_registration(const protocol::Inbound& inbound) {
+  sabo::v1::Register registration;
+  sabo::v1::RegisterReply reply;
+  reply.set_protocol_version(protocol::kProtocolVersion);
+  reply.set_end_time(scene_.run.end_time);
+  auto refuse = [&](sabo::v1::Error::Code code, const std::string& why) {
+    spdlog::warn("refused a registration: {}", why);
+    reply.set_accepted(false);
+    reply.set_error(why);
+    socket_.send(reply, inbound.peer);
+    (void)code;
+  };
+  try {
+    inbound.parse(registration);
+  } catch (const ProtocolError& error) {
+    refuse(sabo::v1::Error::CODE_MALFORMED, error.what());
+    return;
+  }
+  const auto role = registration.role();
+  const std::string name = protocol::role_name(role);
+  if (registration.protocol_version() != protocol::kProtocolVersion || inbound.header.version != protocol::kProtocolVersion) {
+    refuse(sabo::v1::Error::CODE_PROTOCOL_VERSION,
+           fmt::format("{} speaks protocol version {}, this coupler speaks {}: rebuild the solver against "
+                       "proto/sabo/v1 or use a matching coupler",
+                       name, registration.protocol_version(), protocol::kProtocolVersion));
+    return;
+  }
+  if (role != sabo::v1::ROLE_SPH && role != sabo::v1::ROLE_DEM && role != sabo::v1::ROLE_FEM) {
+    refuse(sabo::v1::Error::CODE_ROLE, fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver",
+                                                   static_cast<int>(role)));
+    return;
+  }
+  const scene::SolverSettings* settings = nullptr;
+  for (const auto& s : scene_.solvers) {
+    if (protocol::role_from_scene_name(scene::role_name(s.role)) == role) settings = &s;
+  }
+  if (settings == nullptr) {
+    refuse(sabo::v1::Error::CODE_ROLE, fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
+    return;
+  }
+  for (const auto& peer : peers_) {
+    if (peer->role == role) {
+      refuse(sabo::v1::Error::CODE_ROLE,
+             fmt::format("the role {} is already taken by pid {}", name, peer->registration.pid()));
+      return;
+    }
+  }
+  const auto& table = registration.particles();
+  const std::size_t n = static_cast<std::size_t>(table.id_size());
+  if (static_cast<std::size_t>(table.radius_size()) != n || static_cast<std::size_t>(table.mass_size()) != n ||
+      static_cast<std::size_t>(table.body_size()) != n) {
+    refuse(sabo::v1::Error::CODE_INVALID, fmt::format("{}: the particle table's arrays differ in length", name));
+    return;
+  }
+  if (registration.exposes_surface()) {
+    const auto& surface = registration.surface();
+    if (surface.node_position_size() != 3 * surface.node_id_size() || surface.triangle_size() % 3 != 0 ||
+        surface.face_part_size() * 3 != surface.triangle_size()) {
+      refuse(sabo::v1::Error::CODE_INVALID, fmt::format("{}: the surface's arrays are inconsistent", name));
+      return;
+    }
+  }
+
+  auto peer = std::make_unique<Peer>();
+  peer->identity = inbound.peer;
+  peer->role = role;
+  peer->role_name = name;
+  peer->beta = settings->beta;
+  peer->registration = std::move(registration);
+  reply.set_accepted(true);
+  reply.set_interest_all(true);
+  socket_.send(reply, inbound.peer);
+  spdlog::info("registered {} (pid {}, '{}'): {} particles, {} surface nodes", name, peer->registration.pid(),
+               peer->registration.name(), n, peer->registration.surface().node_id_size());
+  events_.registered(name, peer->registration.pid(), peer->registration.name());
+  if (recorder_) recorder_->record_registration(name, peer->registration);
+  if (role == sabo::v1::ROLE_DEM) dem_ = peer.get();
+  if (role == sabo::v1::ROLE_FEM) fem_ = peer.get();
+  peers_.push_back(std::move(peer));
+}
+
+void Coupler::wait_for_registrations() {
+  const auto deadline = Clock::now() + options_.registration_timeout;
+  while (peers_.size() < scene_.solvers.size()) {
+    if (stop_requested()) throw StopRequested("stopped by signal while waiting for the solvers to register");
+    if (Clock::now() > deadline) {
+      std::vector<std::string> missing;
+      for (const auto& s : scene_.solvers) {
+        const auto role = protocol::role_from_scene_name(scene::role_name(s.role));
+        if (std::none_of(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; })) {
+          missing.emplace_back(scene::role_name(s.role));
+        }
+      }
+      fail("coupler", fmt::format("no registration from {} within {} s", fmt::join(missing, ", "),
+                                  std::chrono::duration<double>(options_.registration_timeout).count()));
+    }
+    if (socket_.receive(inbound_, kPollSlice)) route(inbound_, sabo::v1::MESSAGE_TYPE_REGISTER, 0);
+  }
+}
+
+void Coupler::collect_states(std::uint64_t step) {
+  for (auto& peer : peers_) peer->has_state = false;
+  std::size_t received = 0;
+  auto wait_start = Clock::now();
+  const auto hang = std::chrono::duration<double>(scene_.run.hang_timeout);
+  while (received < peers_.size()) {
+    if (stop_requested()) throw StopRequested(fmt::format("stopped by signal {} at step {}", stop_signal(), step));
+    if (!socket_.receive(inbound_, kPollSlice)) {
+      if (Clock::now() - wait_start > hang) {
+        std::vector<std::string> silent;
+        Peer* first_silent = nullptr;
+        for (auto& peer : peers_) {
+          if (peer->has_state) continue;
+          silent.push_back(fmt::format("{} (pid {})", peer->role_name, peer->registration.pid()));
+          peer->said_goodbye = true;  // a hung process will not say goodbye: do not wait for it
+          if (first_silent == nullptr) first_silent = peer.get();
+        }
+        fail(first_silent->role_name,
+             fmt::format("{} sent no state for step {} within hang_timeout = {} s: the process is hung or dead",
+                         fmt::join(silent, " and "), step, scene_.run.hang_timeout));
+      }
+      continue;
+    }
+    const auto receive_start = Clock::now();
+    Peer* peer = route(inbound_, sabo::v1::MESSAGE_TYPE_STEP_STATE, step);
+    if (peer == nullptr) continue;
+    if (peer->has_state) fail(peer->role_name, fmt::format("sent two states for step {}", step));
+    try {
+      inbound_.parse(peer->state);
+    } catch (const ProtocolError& error) {
+      fail(peer->role_name, error.what());
+    }
+    if (peer->state.step() != step) {
+      fail(peer->role_name, fmt::format("sent the state of step {} while the coupler is at step {}",
+                                        peer->state.step(), step));
+    }
+    validate_state(*peer);
+    peer->has_state = true;
+    ++received;
+    if (recorder_) recorder_->record_state(peer->role_name, peer->state);
+    messaging_seconds_ += seconds_since(receive_start);
+  }
+  wait_seconds_ += seconds_since(wait_start);
+}
+
+void Coupler::validate_state(const Peer& peer) const {
+  const auto& s = peer.state;
+  const auto n = static_cast<std::size_t>(s.index_size());
+  const auto table_size = static_cast<std::uint32_t>(peer.registration.particles().id_size());
+  auto invalid = [&](const std::string& what) {
+    const_cast<Coupler*>(this)->fail(peer.role_name, fmt::format("state of step {}: {}", s.step(), what));
+  };
+  if (static_cast<std::size_t>(s.position_size()) != 3 * n || static_cast<std::size_t>(s.velocity_size()) != 3 * n) {
+    invalid(fmt::format("{} indices but {} position and {} velocity values (expected 3 per index)", n,
+                        s.position_size(), s.velocity_size()));
+  }
+  if (peer.registration.exposes_angular_velocity() && static_cast<std::size_t>(s.angular_velocity_size()) != 3 * n) {
+    invalid(fmt::format("{} indices but {} angular velocity values", n, s.angular_velocity_size()));
+  }
+  for (auto index : s.index()) {
+    if (index >= table_size) invalid(fmt::format("particle index {} is outside its table of {}", index, table_size));
+  }
+  if (!all_finite(s.position()) || !all_finite(s.velocity()) || !all_finite(s.angular_velocity())) {
+    invalid("non-finite position or velocity (the solver has blown up)");
+  }
+  if (!std::isfinite(s.stable_dt()) && !std::isinf(s.stable_dt())) invalid("stable_dt is NaN");
+  if (s.stable_dt() <= 0) invalid(fmt::format("stable_dt = {} must be > 0", s.stable_dt()));
+  if (peer.registration.exposes_surface() && s.node_position_size() != 0) {
+    const auto nodes = peer.registration.surface().node_id_size();
+    if (s.node_position_size() != 3 * nodes || s.node_velocity_size() != 3 * nodes) {
+      invalid(fmt::format("{} node positions for {} surface nodes", s.node_position_size(), nodes));
+    }
+    if (!all_finite(s.node_position()) || !all_finite(s.node_velocity())) invalid("non-finite node position");
+  }
+}
+
+void Coupler::prepare_contacts() {
+  if (dem_ == nullptr || fem_ == nullptr) return;
+  surface_contact_ = std::make_unique<SurfaceContact>(scene_);
+  surface_contact_->set_surface(protocol::surface_from_message(fem_->registration.surface(), "fem_solver"));
+}
+
+double Coupler::coupled_dt() const {
+  double dt = std::numeric_limits<double>::infinity();
+  for (const auto& peer : peers_) dt = std::min(dt, peer->beta * peer->state.stable_dt());
+  if (surface_contact_ && dem_ != nullptr) dt = std::min(dt, dem_->beta * surface_contact_->stable_dt());
+  if (scene_.run.max_dt) dt = std::min(dt, *scene_.run.max_dt);
+  // Only rigid parts and nothing else that limits the step: take output-sized steps.
+  if (!std::isfinite(dt)) dt = scene_.run.output_interval;
+  return dt;
+}
+
+void Coupler::compute_contacts(double dt_previous) {
+  if (!surface_contact_) return;
+  const auto start = Clock::now();
+  const auto& fem_state = fem_->state;
+  if (fem_state.node_position_size() > 0) {
+    surface_contact_->update_nodes({fem_state.node_position().data(), static_cast<std::size_t>(fem_state.node_position_size())},
+                                   {fem_state.node_velocity().data(), static_cast<std::size_t>(fem_state.node_velocity_size())});
+  }
+  gather_.gather(dem_->registration.particles(), dem_->state);
+  surface_contact_->compute(gather_.view(), dt_previous, contact_out_);
+  max_contacts_ = std::max(max_contacts_, contact_out_.contact_count);
+  contact_seconds_ += seconds_since(start);
+}
+
+void Coupler::check_newton_third_law(std::uint64_t step) {
+  if (!surface_contact_) return;
+  Vec3 sum = Vec3::Zero();
+  double scale = 0;
+  const auto& pf = contact_out_.particle_force;
+  for (std::size_t i = 0; i + 2 < pf.size(); i += 3) {
+    sum += Vec3(pf[i], pf[i + 1], pf[i + 2]);
+    scale += std::abs(pf[i]) + std::abs(pf[i + 1]) + std::abs(pf[i + 2]);
+  }
+  const auto& nf = contact_out_.node_force;
+  for (std::size_t i = 0; i + 2 < nf.size(); i += 3) sum += Vec3(nf[i], nf[i + 1], nf[i + 2]);
+  if (scale == 0) return;
+  const double residual = sum.norm() / scale;
+  newton_max_residual_ = std::max(newton_max_residual_, residual);
+  if (residual > 1e-10) {
+    if (newton_violations_ == 0) {
+      spdlog::error("Newton's third law broken at step {}: the contact forces sum to ({:.3e}, {:.3e}, {:.3e}) N, "
+                    "{:.2e} of their total",
+                    step, sum.x(), sum.y(), sum.z(), residual);
+    }
+    ++newton_violations_;
+  }
+}
+
+void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop) {
+  const auto start = Clock::now();
+  for (auto& peer : peers_) {
+    auto& f = peer->forces;
+    f.Clear();
+    f.set_step(step);
+    f.set_dt(dt);
+    f.set_output(output);
+    f.set_stop(stop);
+    if (peer.get() == dem_) {
+      f.mutable_index()->CopyFrom(peer->state.index());
+      if (surface_contact_) {
+        f.mutable_force()->Assign(contact_out_.particle_force.begin(), contact_out_.particle_force.end());
+        f.mutable_torque()->Assign(contact_out_.particle_torque.begin(), contact_out_.particle_torque.end());
+      } else {
+        f.mutable_force()->Resize(3 * peer->state.index_size(), 0.0);
+        f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
+      }
+      if (surface_contact_) {
+        const Aabb box = surface_contact_->interest_region();
+        auto* b = f.add_interest();
+        b->set_min_x(box.min.x()), b->set_min_y(box.min.y()), b->set_min_z(box.min.z());
+        b->set_max_x(box.max.x()), b->set_max_y(box.max.y()), b->set_max_z(box.max.z());
+        f.set_interest_all(false);
+      } else {
+        f.set_interest_all(false);  // nothing to touch: send nothing
+      }
+    } else if (peer.get() == fem_) {
+      if (surface_contact_ && contact_out_.contact_count > 0) {
+        f.mutable_node_force()->Assign(contact_out_.node_force.begin(), contact_out_.node_force.end());
+      }
+      f.set_interest_all(true);
+    }
+    if (recorder_) recorder_->record_forces(peer->role_name, f);
+    socket_.send(f, peer->buffer, peer->identity);
+  }
+  messaging_seconds_ += seconds_since(start);
+}
+
+void Coupler::account(double time, double dt, bool output) {
+  if (forces_csv_ && surface_contact_) {
+    const auto& per_part = contact_out_.part_force;  // [part] -> force from the particles, N
+    for (std::size_t part = 0; part < per_part.size(); ++part) forces_csv_->add(part, 0, per_part[part], dt);
+  }
+  if (forces_csv_ && output) forces_csv_->write(time);
+
+  EnergySample sample;
+  sample.time = time;
+  for (const auto& peer : peers_) {
+    const auto& e = peer->state.energies();
+    sample.kinetic += e.kinetic();
+    sample.potential += e.potential();
+    sample.solver_elastic += e.elastic();
+    sample.dissipated += e.dissipated();
+  }
+  if (surface_contact_) sample.contact_elastic = contact_out_.elastic_energy;
+  if (energy_csv_) energy_csv_->observe(sample, output);
+}
+
+void Coupler::progress(std::uint64_t step, double time, double dt, bool force_emit) {
+  const auto now = Clock::now();
+  if (!force_emit && now - last_progress_ < std::chrono::milliseconds(500)) return;
+  last_progress_ = now;
+  const double wall = seconds_since(start_wall_);
+  const double rate = wall > 0 ? static_cast<double>(step) / wall : 0.0;
+  const double remaining = std::max(0.0, scene_.run.end_time - time);
+  const double eta = time > 0 ? wall * remaining / time : -1.0;
+  events_.emit({{"event", "progress"},
+                {"step", step},
+                {"time", time},
+                {"end_time", scene_.run.end_time},
+                {"dt", dt},
+                {"steps_per_second", rate},
+                {"eta_seconds", eta}});
+}
+
+void Coupler::stop_solvers(const std::string& reason) {
+  sabo::v1::Stop stop;
+  stop.set_reason(reason);
+  for (const auto& peer : peers_) {
+    if (peer->said_goodbye) continue;
+    try {
+      socket_.send(stop, peer->identity);
+    } catch (const LibraryError& error) {
+      spdlog::warn("could not send Stop to {}: {}", peer->role_name, error.what());
+    }
+  }
+}
+
+void Coupler::wait_for_goodbyes(std::chrono::milliseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  auto missing = [&] {
+    return std::any_of(peers_.begin(), peers_.end(), [](const auto& p) { return !p->said_goodbye; });
+  };
+  while (missing() && Clock::now() < deadline) {
+    if (!socket_.receive(inbound_, kPollSlice) || !inbound_.valid()) continue;
+    auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->identity == inbound_.peer; });
+    if (it == peers_.end()) continue;
+    if (inbound_.header.type == sabo::v1::MESSAGE_TYPE_GOODBYE) {
+      try {
+        inbound_.parse((*it)->goodbye);
+      } catch (const ProtocolError&) {
+      }
+      (*it)->said_goodbye = true;
+    } else if (inbound_.header.type == sabo::v1::MESSAGE_TYPE_ERROR) {
+      (*it)->said_goodbye = true;
+    }
+  }
+}
+
+void Coupler::write_summary(const std::string& status) {
+  using nlohmann::json;
+  const double wall = seconds_since(start_wall_);
+  json processes = json::object();
+  processes["coupler"] = {{"contact_seconds", contact_seconds_},
+                          {"messaging_seconds", messaging_seconds_},
+                          {"wait_seconds", wait_seconds_ - messaging_seconds_}};
+  for (const auto& peer : peers_) {
+    const bool have_goodbye = peer->said_goodbye && peer->goodbye.steps() > 0;
+    processes[peer->role_name] = {
+        {"pid", peer->registration.pid()},
+        {"name", peer->registration.name()},
+        {"compute_seconds", have_goodbye ? peer->goodbye.compute_seconds() : peer->compute_seconds},
+        {"wait_seconds", have_goodbye ? peer->goodbye.wait_seconds() : peer->state.wait_seconds()},
+        {"steps", have_goodbye ? peer->goodbye.steps() : steps_},
+        {"exit", peer->said_goodbye ? peer->goodbye.reason() : std::string("no goodbye")}};
+  }
+  const double per_step = steps_ > 0 ? 1.0 / static_cast<double>(steps_) : 0.0;
+  const double overhead = std::max(0.0, wall - critical_compute_seconds_ - contact_seconds_);
+  json energies = json::object();
+  if (energy_csv_) {
+    auto sample_json = [](const EnergySample& e) {
+      return json{{"time", e.time},          {"kinetic", e.kinetic},
+                  {"potential", e.potential}, {"solver_elastic", e.solver_elastic},
+                  {"contact_elastic", e.contact_elastic}, {"dissipated", e.dissipated},
+                  {"total", e.total()}};
+    };
+    energies = {{"initial", sample_json(energy_csv_->initial())},
+                {"final", sample_json(energy_csv_->last())},
+                {"max_total", energy_csv_->max_total()},
+                {"max_rise_over_initial", energy_csv_->max_total() - energy_csv_->initial().total()}};
+  }
+  json peak_forces = json::object();
+  if (forces_csv_) {
+    for (std::size_t part = 0; part < forces_csv_->part_names().size(); ++part) {
+      for (std::size_t source = 0; source < forces_csv_->sources().size(); ++source) {
+        peak_forces[forces_csv_->part_names()[part]][forces_csv_->sources()[source]] = forces_csv_->peak()[part][source];
+      }
+    }
+  }
+  json effects = json::array();
+  if (dem_ != nullptr) {
+    const auto& c = scene_.dem_contact;
+    const double dem_seconds = processes["dem_solver"]["compute_seconds"].get<double>();
+    effects.push_back({{"effect", "dem_dem_contact"}, {"process", "dem_solver"}, {"seconds", dem_seconds}});
+    if (c.friction > 0) effects.push_back({{"effect", "dem_sliding_friction"}, {"process", "dem_solver"}});
+    if (c.rolling_friction > 0) effects.push_back({{"effect", "dem_rolling_friction"}, {"process", "dem_solver"}});
+  }
+  if (surface_contact_) {
+    effects.push_back({{"effect", "dem_fem_contact"}, {"process", "coupler"}, {"seconds", contact_seconds_}});
+  }
+  if (recorder_) effects.push_back({{"effect", "traffic_recording"}, {"process", "coupler"}});
+
+  json summary = {
+      {"status", status},
+      {"failure", failure_},
+      {"scene", scene_.file.string()},
+      {"steps", steps_},
+      {"simulated_time", time_},
+      {"end_time", scene_.run.end_time},
+      {"wall_seconds", wall},
+      {"steps_per_second", wall > 0 ? static_cast<double>(steps_) / wall : 0.0},
+      {"dt", {{"min", std::isfinite(dt_min_) ? dt_min_ : 0.0}, {"max", dt_max_}}},
+      {"processes", processes},
+      {"coupling_overhead",
+       {{"seconds", overhead},
+        {"microseconds_per_step", 1e6 * overhead * per_step},
+        {"fraction_of_wall", wall > 0 ? overhead / wall : 0.0}}},
+      {"bytes_exchanged",
+       {{"received", socket_.bytes_received()},
+        {"sent", socket_.bytes_sent()},
+        {"per_step", static_cast<double>(socket_.bytes_received() + socket_.bytes_sent()) * per_step}}},
+      {"traffic", {{"file", "traffic.h5"}, {"bytes", recorder_ ? recorder_->bytes_written() : 0}}},
+      {"energies", energies},
+      {"newton_third_law", {{"max_relative_residual", newton_max_residual_}, {"violations", newton_violations_}}},
+      {"contacts", {{"max_simultaneous", max_contacts_}}},
+      {"peak_force", peak_forces},
+      {"active_effects", effects},
+  };
+  const auto file = options_.out_dir / "summary.json";
+  const auto temporary = options_.out_dir / "summary.json.tmp";
+  {
+    std::ofstream out(temporary);
+    out << summary.dump(2) << "\n";
+    if (!out) throw FileError(fmt::format("cannot write '{}'", temporary.string()));
+  }
+  std::filesystem::rename(temporary, file);
+}
+
+int Coupler::run() {
+  start_wall_ = Clock::now();
+  last_progress_ = start_wall_ - std::chrono::seconds(10);
+  std::string status = "completed";
+  int exit_code = kCompleted;
+  try {
+    if (scene_.recording.enabled) {
+      std::ifstream scene_file(scene_.file);
+      const std::string scene_text((std::istreambuf_iterator<char>(scene_file)), std::istreambuf_iterator<char>());
+      recorder_ = std::make_unique<io::TrafficRecorder>(options_.out_dir / "traffic.h5", scene_.recording, scene_text);
+    }
+    bind();
+    wait_for_registrations();
+    prepare_contacts();
+    std::vector<std::string> parts;
+    for (const auto& s : scene_.structures) parts.push_back(s.name);
+    forces_csv_ = std::make_unique<ForceHistory>(options_.out_dir / "forces.csv", parts,
+                                                 std::vector<std::string>{"particles"});
+    energy_csv_ = std::make_unique<EnergyHistory>(options_.out_dir / "energy.csv");
+
+    double dt_previous = 0;
+    const double end_tolerance = 1e-12 * scene_.run.end_time;
+    for (std::uint64_t step = 0;; ++step) {
+      collect_states(step);
+      time_ = peers_.front()->state.time();
+      double step_compute = 0;
+      for (auto& peer : peers_) {
+        step_compute = std::max(step_compute, peer->state.compute_seconds());
+        peer->compute_seconds += peer->state.compute_seconds();
+      }
+      critical_compute_seconds_ += step_compute;
+
+      const bool last = time_ >= scene_.run.end_time - end_tolerance;
+      const bool output = last || time_ >= next_output_time_ - 1e-9 * scene_.run.output_interval;
+      while (next_output_time_ <= time_ + 1e-9 * scene_.run.output_interval) {
+        next_output_time_ += scene_.run.output_interval;
+      }
+      compute_contacts(dt_previous);
+      check_newton_third_law(step);
+      const double dt = coupled_dt();
+      dt_min_ = std::min(dt_min_, dt);
+      dt_max_ = std::max(dt_max_, dt);
+      account(time_, dt, output);
+      if (last) events_.emit({{"event", "stopping"}, {"reason", "end_time reached"}});
+      send_forces(step, dt, output, last);
+      if (recorder_) recorder_->end_step(step);
+      steps_ = step + 1;
+      progress(step, time_, dt, last);
+      if (last) break;
+      dt_previous = dt;
+    }
+    wait_for_goodbyes(std::chrono::milliseconds(static_cast<long>(1000 * std::max(5.0, scene_.run.hang_timeout))));
+  } catch (const StopRequested& stop) {
+    spdlog::warn("{}", stop.what());
+    status = "stopped";
+    exit_code = kStopped;
+    events_.emit({{"event", "stopping"}, {"reason", stop.what()}});
+    stop_solvers(stop.what());
+    wait_for_goodbyes(std::chrono::milliseconds(3000));
+  } catch (const SceneError& error) {
+    spdlog::error("{}", error.what());
+    events_.error("coupler", error.what());
+    status = "failed";
+    exit_code = kBadInput;
+  } catch (const std::exception& error) {
+    const bool solver_failed = !failure_.empty();
+    const std::string process = solver_failed ? failure_.substr(0, failure_.find(':')) : "coupler";
+    spdlog::error("{}", error.what());
+    events_.error(process, solver_failed ? failure_.substr(failure_.find(':') + 2) : error.what());
+    status = "failed";
+    exit_code = solver_failed ? kSolverFailed : kFailed;
+    if (failure_.empty()) failure_ = error.what();
+    stop_solvers(fmt::format("the run failed: {}", failure_));
+    wait_for_goodbyes(std::chrono::milliseconds(2000));
+  }
+  try {
+    if (recorder_) recorder_->close();
+    if (forces_csv_) forces_csv_->close();
+    if (energy_csv_) energy_csv_->close();
+    write_summary(status);
+  } catch (const std::exception& error) {
+    spdlog::error("while closing the run files: {}", error.what());
+    if (exit_code == kCompleted) exit_code = kFailed;
+  }
+  events_.done(status, "summary.json");
+  spdlog::info("{}: {} steps, t = {:.6g} s, {:.2f} s wall", status, steps_, time_, seconds_since(start_wall_));
+  return exit_code;
+}
+
+}  // namespace sabo::coupler

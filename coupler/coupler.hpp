@@ -1,0 +1,102 @@
+#pragma once
+// The coupler process: the lock-step loop of DESIGN.md §2. It registers the
+// solvers the scene needs, then per step gathers every StepState, sets
+// dt_n = min_i(beta_i * stable_dt_i) (paper eq. 7, with the contact's own
+// limit), computes the contact forces of the enabled pairs, checks Newton's
+// third law, accounts the forces per structure part and source, records the
+// traffic and replies with StepForces.
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "coupler/accounting.hpp"
+#include "coupler/contact/surface_contact.hpp"
+#include "coupler/events.hpp"
+#include "coupler/particles.hpp"
+#include "libsabo/io/traffic.hpp"
+#include "libsabo/protocol/socket.hpp"
+#include "libsabo/scene/scene.hpp"
+
+namespace sabo::coupler {
+
+struct CouplerOptions {
+  std::string endpoint;              // bound by the coupler
+  std::filesystem::path out_dir;     // run folder
+  std::chrono::milliseconds registration_timeout{30000};
+};
+
+// Exit codes of the coupler process (the supervisor reads them).
+enum ExitCode : int { kCompleted = 0, kFailed = 1, kBadInput = 2, kSolverFailed = 3, kStopped = 130 };
+
+class Coupler {
+ public:
+  Coupler(const scene::Scene& scene, CouplerOptions options, EventStream& events);
+  ~Coupler();
+  // Runs the whole coupled simulation; returns the process exit code.
+  int run();
+
+ private:
+  struct Peer;
+  struct StepTotals;
+
+  void bind();
+  void wait_for_registrations();
+  // Handles one message outside of the expected flow (unknown peers, bad
+  // frames, late registrations). Returns the peer it came from, if known.
+  Peer* route(const protocol::Inbound& inbound, sabo::v1::MessageType expected, std::uint64_t step);
+  void accept_registration(const protocol::Inbound& inbound);
+  void collect_states(std::uint64_t step);
+  void validate_state(const Peer& peer) const;
+  void prepare_contacts();
+  double coupled_dt() const;
+  void compute_contacts(double dt_previous);
+  void check_newton_third_law(std::uint64_t step);
+  void send_forces(std::uint64_t step, double dt, bool output, bool stop);
+  void account(double time, double dt, bool output);
+  void progress(std::uint64_t step, double time, double dt, bool force_emit);
+  void stop_solvers(const std::string& reason);
+  void wait_for_goodbyes(std::chrono::milliseconds timeout);
+  void write_summary(const std::string& status);
+  [[noreturn]] void fail(const std::string& process, const std::string& message);
+
+  const scene::Scene& scene_;
+  CouplerOptions options_;
+  EventStream& events_;
+  zmq::context_t context_{1};
+  protocol::Socket socket_;
+  protocol::Inbound inbound_;
+  std::vector<std::unique_ptr<Peer>> peers_;
+  Peer* dem_ = nullptr;
+  Peer* fem_ = nullptr;
+
+  std::unique_ptr<SurfaceContact> surface_contact_;
+  ParticleGather gather_;
+  ContactOutput contact_out_;
+
+  std::unique_ptr<io::TrafficRecorder> recorder_;
+  std::unique_ptr<ForceHistory> forces_csv_;
+  std::unique_ptr<EnergyHistory> energy_csv_;
+
+  // Run statistics for summary.json.
+  std::uint64_t steps_ = 0;
+  double time_ = 0;
+  double dt_min_ = std::numeric_limits<double>::infinity();
+  double dt_max_ = 0;
+  double contact_seconds_ = 0;
+  double messaging_seconds_ = 0;
+  double wait_seconds_ = 0;
+  double critical_compute_seconds_ = 0;
+  double newton_max_residual_ = 0;
+  std::uint64_t newton_violations_ = 0;
+  std::size_t max_contacts_ = 0;
+  double next_output_time_ = 0;
+  std::chrono::steady_clock::time_point start_wall_;
+  std::chrono::steady_clock::time_point last_progress_;
+  std::string failure_;
+};
+
+}  // namespace sabo::coupler

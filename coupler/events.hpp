@@ -1,0 +1,24 @@
+#pragma once
+// The coupler's event stream: one JSON object per line on stdout, read by the
+// supervisor (docs/protocol.md, "Events"). Logs go to stderr, never here.
+#include <cstdio>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace sabo::coupler {
+
+class EventStream {
+ public:
+  explicit EventStream(std::FILE* out = stdout) : out_(out) {}
+  void emit(const nlohmann::json& event);
+  void listening(const std::string& endpoint);
+  void registered(const std::string& role, std::uint32_t pid, const std::string& name);
+  void error(const std::string& process, const std::string& message);
+  void done(const std::string& status, const std::string& summary_file);
+
+ private:
+  std::FILE* out_;
+};
+
+}  // namespace sabo::coupler

@@ -1,0 +1,54 @@
+// coupler: the central process of a Sabo run (DESIGN.md §1-2).
+//   coupler --scene FILE --endpoint ENDPOINT --out DIR
+// stdout carries the JSON event stream for the supervisor; logs go to stderr.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "coupler/coupler.hpp"
+#include "libsabo/core/log.hpp"
+#include "libsabo/core/signals.hpp"
+#include "libsabo/scene/loader.hpp"
+
+int main(int argc, char** argv) {
+  using namespace sabo;
+  std::filesystem::path scene_file;
+  coupler::CouplerOptions options;
+  std::string log_level = "info";
+  double registration_timeout = 30;
+  CLI::App app{"coupler: couples the Sabo solvers of a scene. Normally started by './sabo run SCENE'.", "coupler"};
+  app.add_option("--scene", scene_file, "scene file (TOML)")->required();
+  app.add_option("--endpoint", options.endpoint, "ZeroMQ endpoint to bind, e.g. ipc:///tmp/run/coupler.sock")
+      ->required();
+  app.add_option("--out", options.out_dir, "run folder (must exist)")->required();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn or error")->capture_default_str();
+  app.add_option("--registration-timeout", registration_timeout, "seconds to wait for the solvers to register")
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+    setup_logging("coupler", log_level);
+  } catch (const CLI::CallForHelp& help) {
+    return app.exit(help);
+  } catch (const CLI::ParseError& error) {
+    fmt::print(stderr, "coupler: {}. Run 'coupler --help' for the options.\n", error.what());
+    return coupler::kBadInput;
+  } catch (const std::exception& error) {
+    fmt::print(stderr, "coupler: {}\n", error.what());
+    return coupler::kBadInput;
+  }
+  install_stop_handlers();
+  coupler::EventStream events;
+  options.registration_timeout = std::chrono::milliseconds(static_cast<long>(1000 * registration_timeout));
+  try {
+    const scene::Scene scene = scene::load_scene(scene_file);
+    coupler::Coupler coupler(scene, options, events);
+    return coupler.run();
+  } catch (const SceneError& error) {
+    spdlog::error("{}", error.what());
+    events.error("coupler", error.what());
+    return coupler::kBadInput;
+  } catch (const std::exception& error) {
+    spdlog::error("{}", error.what());
+    events.error("coupler", error.what());
+    return coupler::kFailed;
+  }
+}

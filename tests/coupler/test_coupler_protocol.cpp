@@ -1,0 +1,249 @@
+// The coupler process logic against scripted solvers over a real ipc socket:
+// refused registrations, garbage, a complete lock-step run, hang detection.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <future>
+
+#include <nlohmann/json.hpp>
+
+#include "coupler/coupler.hpp"
+#include "libsabo/protocol/solver_link.hpp"
+
+using namespace sabo;
+using namespace std::chrono_literals;
+
+namespace {
+
+struct Fixture : ::testing::Test {
+  std::filesystem::path dir;
+  std::string endpoint;
+  scene::Scene scene;
+  std::FILE* events_file = nullptr;
+
+  void SetUp() override {
+    dir = std::filesystem::temp_directory_path() /
+          ("sabo-coupler-test-" + std::to_string(::getpid()) + "-" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    endpoint = "ipc://" + (dir / "c.sock").string();
+    scene.file = dir / "scene.toml";
+    std::ofstream(scene.file) << "# test scene\n";
+    scene.run.end_time = 0.01;
+    scene.run.output_interval = 0.005;
+    scene.run.hang_timeout = 1.0;
+    scene.recording.enabled = false;
+    scene.materials.push_back({"rock", {}, 3000, 30e9, 0.3});
+    scene::ParticleSet set;
+    set.name = "boulders";
+    set.material = "rock";
+    set.spheres.push_back({Vec3(0, 0, 1), 0.5, Vec3::Zero(), Vec3::Zero()});
+    scene.particle_sets.push_back(set);
+    scene::SolverSettings dem;
+    dem.role = scene::Role::dem;
+    dem.beta = 0.5;
+    scene.solvers.push_back(dem);
+    events_file = std::tmpfile();
+  }
+  void TearDown() override {
+    std::fclose(events_file);
+    std::filesystem::remove_all(dir);
+  }
+
+  std::future<int> start_coupler() {
+    return std::async(std::launch::async, [this] {
+      coupler::EventStream events(events_file);
+      coupler::CouplerOptions options{endpoint, dir, 3000ms};
+      coupler::Coupler c(scene, options, events);
+      return c.run();
+    });
+  }
+
+  std::vector<nlohmann::json> events() const {
+    std::fflush(events_file);
+    std::rewind(events_file);
+    std::vector<nlohmann::json> out;
+    char line[4096];
+    while (std::fgets(line, sizeof line, events_file) != nullptr) out.push_back(nlohmann::json::parse(line));
+    return out;
+  }
+
+  static sabo::v1::Register dem_registration() {
+    sabo::v1::Register r;
+    r.set_protocol_version(protocol::kProtocolVersion);
+    r.set_role(sabo::v1::ROLE_DEM);
+    r.set_name("scripted dem");
+    r.set_pid(static_cast<std::uint32_t>(::getpid()));
+    r.set_exposes_particles(true);
+    r.set_exposes_angular_velocity(true);
+    auto* t = r.mutable_particles();
+    t->add_id(0), t->add_radius(0.5), t->add_mass(1570.8), t->add_material(0), t->add_body(0);
+    return r;
+  }
+
+  // Drives a complete run as a DEM solver; returns the number of steps.
+  static std::uint64_t run_dem(protocol::SolverLink& link, double stable_dt) {
+    sabo::v1::StepState state;
+    double time = 0;
+    for (std::uint64_t step = 0;; ++step) {
+      state.Clear();
+      state.set_step(step);
+      state.set_time(time);
+      state.set_stable_dt(stable_dt);
+      state.add_index(0);
+      for (double v : {0.0, 0.0, 1.0}) state.add_position(v);
+      for (int c = 0; c < 3; ++c) state.add_velocity(0), state.add_angular_velocity(0);
+      link.send_state(state);
+      const auto& forces = link.receive_forces(step);
+      EXPECT_DOUBLE_EQ(forces.dt(), 0.5 * stable_dt) << "dt = beta * stable_dt (eq. 7)";
+      if (forces.stop()) return step + 1;
+      time += forces.dt();
+    }
+  }
+};
+
+sabo::v1::RegisterReply raw_register(const std::string& endpoint, const sabo::v1::Register& registration,
+                                     std::uint16_t header_version = protocol::kProtocolVersion) {
+  zmq::context_t context(1);
+  zmq::socket_t socket(context, zmq::socket_type::dealer);
+  socket.set(zmq::sockopt::linger, 0);
+  socket.connect(endpoint);
+  std::array<std::uint8_t, protocol::kHeaderSize> header{};
+  protocol::encode_header({header_version, sabo::v1::MESSAGE_TYPE_REGISTER}, header);
+  const std::string body = registration.SerializeAsString();
+  socket.send(zmq::buffer(header), zmq::send_flags::sndmore);
+  socket.send(zmq::buffer(body), zmq::send_flags::none);
+  zmq::message_t h, b;
+  socket.set(zmq::sockopt::rcvtimeo, 3000);
+  EXPECT_TRUE(socket.recv(h));
+  EXPECT_TRUE(socket.recv(b));
+  sabo::v1::RegisterReply reply;
+  EXPECT_TRUE(reply.ParseFromArray(b.data(), static_cast<int>(b.size())));
+  return reply;
+}
+
+}  // namespace
+
+TEST_F(Fixture, RefusesBadRegistrationsThenRunsToTheEnd) {
+  auto coupler = start_coupler();
+  std::this_thread::sleep_for(100ms);
+
+  auto wrong_version = dem_registration();
+  wrong_version.set_protocol_version(7);
+  auto reply = raw_register(endpoint, wrong_version, 7);
+  EXPECT_FALSE(reply.accepted());
+  std::cout << "wrong version: " << reply.error() << "\n";
+  EXPECT_NE(reply.error().find("protocol version 7"), std::string::npos);
+
+  auto unknown_role = dem_registration();
+  unknown_role.set_role(static_cast<sabo::v1::Role>(9));
+  reply = raw_register(endpoint, unknown_role);
+  EXPECT_FALSE(reply.accepted());
+  std::cout << "unknown role: " << reply.error() << "\n";
+  EXPECT_NE(reply.error().find("unknown role 9"), std::string::npos);
+
+  auto unneeded = dem_registration();
+  unneeded.set_role(sabo::v1::ROLE_FEM);
+  reply = raw_register(endpoint, unneeded);
+  EXPECT_FALSE(reply.accepted());
+  std::cout << "role not in scene: " << reply.error() << "\n";
+  EXPECT_NE(reply.error().find("no bodies for a fem_solver"), std::string::npos);
+
+  auto broken_table = dem_registration();
+  broken_table.mutable_particles()->add_radius(1.0);
+  reply = raw_register(endpoint, broken_table);
+  EXPECT_FALSE(reply.accepted());
+  EXPECT_NE(reply.error().find("differ in length"), std::string::npos) << reply.error();
+
+  // Garbage: the coupler answers with an Error and keeps running.
+  {
+    zmq::context_t context(1);
+    zmq::socket_t raw(context, zmq::socket_type::dealer);
+    raw.set(zmq::sockopt::linger, 0);
+    raw.set(zmq::sockopt::rcvtimeo, 3000);
+    raw.connect(endpoint);
+    raw.send(zmq::str_buffer("\x00\x01garbage bytes"), zmq::send_flags::none);
+    zmq::message_t h, b;
+    ASSERT_TRUE(raw.recv(h));
+    ASSERT_TRUE(raw.recv(b));
+    sabo::v1::Error error;
+    ASSERT_TRUE(error.ParseFromArray(b.data(), static_cast<int>(b.size())));
+    std::cout << "garbage: " << error.message() << "\n";
+    EXPECT_EQ(error.code(), sabo::v1::Error::CODE_MALFORMED);
+  }
+
+  protocol::SolverLink link(endpoint, 5000ms);
+  link.register_solver(dem_registration());
+  {
+    // A second process claiming the taken role is refused.
+    reply = raw_register(endpoint, dem_registration());
+    EXPECT_FALSE(reply.accepted());
+    std::cout << "duplicate role: " << reply.error() << "\n";
+    EXPECT_NE(reply.error().find("already taken"), std::string::npos);
+  }
+  const std::uint64_t steps = run_dem(link, 1e-3);
+  sabo::v1::Goodbye goodbye;
+  goodbye.set_steps(steps);
+  goodbye.set_reason("completed");
+  link.send_goodbye(goodbye);
+  EXPECT_EQ(coupler.get(), coupler::kCompleted);
+  // t_n reaches end_time = 0.01 s with dt = 0.5 ms after 20 steps: 21 states.
+  EXPECT_EQ(steps, 21u);
+
+  const auto all = events();
+  ASSERT_FALSE(all.empty());
+  EXPECT_EQ(all.front()["event"], "listening");
+  EXPECT_EQ(all.back()["event"], "done");
+  EXPECT_EQ(all.back()["status"], "completed");
+  std::ifstream summary_file(dir / "summary.json");
+  const auto summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["steps"], 21);
+  EXPECT_NEAR(summary["simulated_time"].get<double>(), 0.01, 1e-12);
+  EXPECT_GT(summary["bytes_exchanged"]["received"].get<double>(), 0);
+  EXPECT_TRUE(std::filesystem::exists(dir / "forces.csv"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "energy.csv"));
+}
+
+TEST_F(Fixture, SilentSolverIsReportedAsHung) {
+  auto coupler = start_coupler();
+  protocol::SolverLink link(endpoint, 5000ms);
+  link.register_solver(dem_registration());
+  const auto start = std::chrono::steady_clock::now();
+  // Never send a state: the coupler must give up after hang_timeout (1 s),
+  // and not wait for a goodbye from the hung process.
+  const int code = coupler.get();
+  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(code, coupler::kSolverFailed);
+  std::cout << "hang detected after " << waited << " s (hang_timeout 1 s)\n";
+  EXPECT_LT(waited, 2.0);
+  const auto all = events();
+  const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
+  ASSERT_NE(error, all.end());
+  std::cout << "error event: " << error->dump() << "\n";
+  EXPECT_EQ((*error)["process"], "dem_solver");
+  EXPECT_NE((*error)["message"].get<std::string>().find("hang_timeout"), std::string::npos);
+  EXPECT_NE((*error)["message"].get<std::string>().find("pid"), std::string::npos);
+}
+
+TEST_F(Fixture, InvalidStateEndsTheRunNamingTheSolver) {
+  auto coupler = start_coupler();
+  protocol::SolverLink link(endpoint, 5000ms);
+  link.register_solver(dem_registration());
+  sabo::v1::StepState state;
+  state.set_step(0);
+  state.set_stable_dt(1e-3);
+  state.add_index(0);
+  state.add_position(std::numeric_limits<double>::quiet_NaN()), state.add_position(0), state.add_position(0);
+  for (int c = 0; c < 3; ++c) state.add_velocity(0), state.add_angular_velocity(0);
+  link.send_state(state);
+  EXPECT_THROW(link.receive_forces(0), StopRequested);  // the coupler stops the run
+  EXPECT_EQ(coupler.get(), coupler::kSolverFailed);
+  const auto all = events();
+  const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
+  ASSERT_NE(error, all.end());
+  std::cout << "error event: " << error->dump() << "\n";
+  EXPECT_NE((*error)["message"].get<std::string>().find("non-finite"), std::string::npos);
+}
