@@ -1,0 +1,1214 @@
+#include "libsabo/scene/loader.hpp"
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <numbers>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/scene/schema.hpp"
+#include "libsabo/scene/suggest.hpp"
+
+namespace sabo::scene {
+namespace {
+
+namespace fs = std::filesystem;
+using schema::Key;
+using schema::Table;
+using schema::Type;
+
+// Random filling jams well before dense packing; past this expected solid
+// fraction of the box a fill would likely not fit (docs/scene.md says so).
+constexpr double kMaxFillSolidFraction = 0.3;
+// Overlap reports beyond this many are summarised in one line.
+constexpr std::size_t kMaxOverlapReports = 20;
+
+// ---------------------------------------------------------------- text ----
+
+std::string number_literal(double value) {
+  if (std::isnan(value)) return "nan";
+  if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
+  if (value == std::floor(value) && std::abs(value) < 1e15) return fmt::format("{:.1f}", value);
+  return fmt::format("{}", value);
+}
+
+std::string quote_text(std::string_view text) {
+  std::string out = "\"";
+  for (char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      out += fmt::format("\\u{:04x}", static_cast<int>(c));
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+// A node as TOML-like text for messages, shortened to about `limit` characters.
+std::string value_text(const toml::node& node, std::size_t limit = 80) {
+  std::string text;
+  if (const auto* s = node.as_string()) {
+    text = quote_text(s->get());
+  } else if (const auto* i = node.as_integer()) {
+    text = std::to_string(i->get());
+  } else if (const auto* f = node.as_floating_point()) {
+    text = number_literal(f->get());
+  } else if (const auto* b = node.as_boolean()) {
+    text = b->get() ? "true" : "false";
+  } else if (const auto* array = node.as_array()) {
+    text = "[";
+    for (std::size_t k = 0; k < array->size() && text.size() <= limit; ++k) {
+      text += (k ? ", " : "") + value_text(*array->get(k), limit);
+    }
+    text += "]";
+  } else if (const auto* table = node.as_table()) {
+    text = "{";
+    bool first = true;
+    for (auto&& [key, value] : *table) {
+      if (text.size() > limit) break;
+      text += (first ? " " : ", ") + std::string(key.str()) + " = " + value_text(value, limit);
+      first = false;
+    }
+    text += first ? "}" : " }";
+  } else {
+    std::ostringstream stream;
+    node.visit([&](const auto& v) { stream << v; });
+    text = stream.str();
+  }
+  if (text.size() > limit) text = text.substr(0, limit) + "...";
+  return text;
+}
+
+std::string_view kind_of(const toml::node& node) {
+  switch (node.type()) {
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a float";
+    case toml::node_type::boolean: return "a boolean";
+    case toml::node_type::array: return "an array";
+    case toml::node_type::table: return "a table";
+    default: return "a date/time";
+  }
+}
+
+std::string_view expected_kind(Type type) {
+  switch (type) {
+    case Type::boolean: return "true or false";
+    case Type::integer: return "an integer";
+    case Type::number: return "a number";
+    case Type::string: return "a string";
+    case Type::vec3: return "an array of 3 numbers [x, y, z]";
+    case Type::number_pair: return "an array of 2 numbers [min, max]";
+    case Type::string_list: return "an array of strings";
+    case Type::table: return "a table";
+    case Type::table_list: return "an array of tables";
+    case Type::named_tables: return "a table of named tables";
+  }
+  return "?";
+}
+
+std::string join(const std::vector<std::string>& words, std::string_view separator = ", ") {
+  std::string out;
+  for (const auto& word : words) out += (out.empty() ? "" : std::string(separator)) + word;
+  return out;
+}
+
+std::string noun(std::string_view key_name) {
+  std::string text(key_name);
+  std::replace(text.begin(), text.end(), '_', ' ');
+  return text;
+}
+
+std::string unit_suffix(const Key& key) {
+  return key.unit.empty() ? "" : " (" + key.unit + ")";
+}
+
+int line_of(const toml::node& node) {
+  return static_cast<int>(node.source().begin.line);
+}
+
+bool valid_name(std::string_view name) {
+  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '-';
+  });
+}
+
+bool valid_endpoint(std::string_view endpoint) {
+  if (endpoint == "ipc") return true;
+  constexpr std::string_view prefix = "tcp://";
+  if (!endpoint.starts_with(prefix)) return false;
+  const std::string_view rest = endpoint.substr(prefix.size());
+  const auto colon = rest.rfind(':');
+  if (colon == std::string_view::npos || colon == 0) return false;
+  const std::string_view host = rest.substr(0, colon), port = rest.substr(colon + 1);
+  const bool bracketed = host.size() > 2 && host.front() == '[' && host.back() == ']';
+  const bool plain_host = std::all_of(host.begin(), host.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' || c == '-' || c == '_' || c == '*';
+  });
+  if (!bracketed && !plain_host) return false;
+  if (port.empty() || port.size() > 5 ||
+      !std::all_of(port.begin(), port.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
+    return false;
+  }
+  const int number = std::stoi(std::string(port));
+  return number >= 1 && number <= 65535;
+}
+
+bool is_executable_file(const fs::path& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec) && ::access(path.c_str(), X_OK) == 0;
+}
+
+// ---------------------------------------------------------- diagnostics ----
+
+class Diagnostics {
+ public:
+  explicit Diagnostics(std::string file) : file_(std::move(file)) {}
+
+  // "FILE:LINE: key 'K' = VALUE: PROBLEM. Fix: FIX."
+  void add(int line, std::string_view key, const std::optional<std::string>& value, std::string_view problem,
+           std::string_view fix) {
+    std::string text = fmt::format("{}:{}: key '{}'", file_, line, key);
+    if (value) text += " = " + *value;
+    text += fmt::format(": {}", problem);
+    if (!problem.ends_with('?') && !problem.ends_with('.')) text += '.';
+    if (!fix.empty()) text += fmt::format(" Fix: {}.", fix);
+    problems_.push_back({line, std::move(text)});
+  }
+  // A problem of the file as a whole (no key).
+  void add_plain(int line, std::string_view problem, std::string_view fix) {
+    problems_.push_back({line, fmt::format("{}:{}: {}. Fix: {}.", file_, line, problem, fix)});
+  }
+
+  [[nodiscard]] std::size_t count() const { return problems_.size(); }
+
+  void throw_if_any() {
+    if (problems_.empty()) return;
+    std::stable_sort(problems_.begin(), problems_.end(),
+                     [](const Problem& a, const Problem& b) { return a.line < b.line; });
+    std::string message;
+    for (const auto& problem : problems_) message += (message.empty() ? "" : "\n") + problem.text;
+    throw SceneError(message);
+  }
+
+ private:
+  struct Problem {
+    int line;
+    std::string text;
+  };
+  std::string file_;
+  std::vector<Problem> problems_;
+};
+
+// Defaults of the schema, parsed once from their TOML literals.
+const toml::node& default_node(const Key& key) {
+  static const std::map<const Key*, toml::table> defaults = [] {
+    std::map<const Key*, toml::table> parsed;
+    for (const Table* table : schema::tables()) {
+      for (const Key& k : table->keys) {
+        if (!k.default_value.empty()) parsed.emplace(&k, toml::parse("value = " + k.default_value));
+      }
+    }
+    return parsed;
+  }();
+  auto it = defaults.find(&key);
+  assert(it != defaults.end() && "only keys with a default reach here");
+  return *it->second.get("value");
+}
+
+const toml::table& empty_table() {
+  static const toml::table empty;
+  return empty;
+}
+
+// ---------------------------------------------------------------- reader ----
+
+// Reads the keys of one table against its schema: type, range, choices,
+// required and unknown keys, each problem reported once to Diagnostics.
+// Getters return nullopt when the key is absent without a default or wrong.
+class Reader {
+ public:
+  Reader(Diagnostics& diagnostics, const Table& spec, const toml::table& table, std::string path)
+      : diag_(diagnostics), spec_(spec), table_(table), path_(std::move(path)) {
+    for (auto&& [key, node] : table_) {
+      if (spec_.find(key.str()) != nullptr) continue;
+      const std::string name(key.str());
+      const int line = key.source().begin.line != 0 ? static_cast<int>(key.source().begin.line) : line_of(node);
+      const auto suggestion = closest_match(name, spec_.key_names());
+      if (suggestion) {
+        diag_.add(line, key_path(name), value_text(node), fmt::format("unknown key. Did you mean '{}'?", *suggestion),
+                  fmt::format("rename it to '{}'", *suggestion));
+      } else {
+        diag_.add(line, key_path(name), value_text(node), "unknown key",
+                  fmt::format("remove it; the keys allowed {} are: {}", place(), join(spec_.key_names())));
+      }
+    }
+  }
+
+  // Picks the keys of one value of the table's selector (structures: the
+  // shape) and reports keys given that belong to other values.
+  void select(const std::string& variant) {
+    variant_ = variant;
+    for (const Key& key : spec_.keys) {
+      if (key.only_for.empty() || applies(key)) continue;
+      if (const toml::node* node = table_.get(key.name)) {
+        diag_.add(line_of(*node), key_path(key.name), value_text(*node),
+                  fmt::format("belongs to {} = {}, not to {} = {}", spec_.selector,
+                              join(quote_all(key.only_for), " or "), spec_.selector, quote_text(variant)),
+                  fmt::format("remove it, or change {}", spec_.selector));
+      }
+    }
+  }
+
+  [[nodiscard]] bool has(std::string_view name) const { return table_.get(name) != nullptr; }
+  [[nodiscard]] const toml::node* node(std::string_view name) const { return table_.get(name); }
+  [[nodiscard]] int line() const { return line_of(table_); }
+  [[nodiscard]] int line(std::string_view name) const {
+    const toml::node* n = table_.get(name);
+    return n != nullptr ? line_of(*n) : line();
+  }
+  [[nodiscard]] const std::string& path() const { return path_; }
+  [[nodiscard]] std::string key_path(std::string_view name) const {
+    return path_.empty() ? std::string(name) : path_ + "." + std::string(name);
+  }
+
+  std::optional<double> number(std::string_view name) {
+    auto found = lookup(name, Type::number);
+    if (!found) return std::nullopt;
+    const auto value = as_number(*found->node);
+    if (!value) return type_error(*found);
+    return checked_number(*found, *value);
+  }
+
+  std::optional<std::int64_t> integer(std::string_view name) {
+    auto found = lookup(name, Type::integer);
+    if (!found) return std::nullopt;
+    const auto* node = found->node->as_integer();
+    if (node == nullptr) return type_error(*found);
+    if (!checked_number(*found, static_cast<double>(node->get()))) return std::nullopt;
+    return node->get();
+  }
+
+  std::optional<bool> boolean(std::string_view name) {
+    auto found = lookup(name, Type::boolean);
+    if (!found) return std::nullopt;
+    const auto* node = found->node->as_boolean();
+    if (node == nullptr) return type_error(*found);
+    return node->get();
+  }
+
+  std::optional<std::string> string(std::string_view name) {
+    auto found = lookup(name, Type::string);
+    if (!found) return std::nullopt;
+    const auto* node = found->node->as_string();
+    if (node == nullptr) return type_error(*found);
+    const std::string& value = node->get();
+    if (!found->key->choices.empty() && !check_choice(*found, value, *found->node)) return std::nullopt;
+    return value;
+  }
+
+  std::optional<Vec3> vec3(std::string_view name) {
+    auto found = lookup(name, Type::vec3);
+    if (!found) return std::nullopt;
+    const auto values = numbers(*found->node, 3);
+    if (!values) return type_error(*found);
+    if (!all_finite(*found, *values)) return std::nullopt;
+    return Vec3((*values)[0], (*values)[1], (*values)[2]);
+  }
+
+  std::optional<std::array<double, 2>> pair(std::string_view name) {
+    auto found = lookup(name, Type::number_pair);
+    if (!found) return std::nullopt;
+    const auto values = numbers(*found->node, 2);
+    if (!values) return type_error(*found);
+    if (!all_finite(*found, *values)) return std::nullopt;
+    const Key& key = *found->key;
+    if (!key.range.contains((*values)[0]) || !key.range.contains((*values)[1])) {
+      report(*found,
+             fmt::format("every element must be {}{}{}", key.range.min && key.range.max ? "in " : "", key.range.text(),
+                         unit_suffix(key)),
+             fmt::format("give {} values {}", noun(key.name), key.range.text()));
+      return std::nullopt;
+    }
+    return std::array<double, 2>{(*values)[0], (*values)[1]};
+  }
+
+  std::optional<std::vector<std::string>> strings(std::string_view name) {
+    auto found = lookup(name, Type::string_list);
+    if (!found) return std::nullopt;
+    const auto* array = found->node->as_array();
+    if (array == nullptr) return type_error(*found);
+    std::vector<std::string> values;
+    for (const auto& element : *array) {
+      const auto* text = element.as_string();
+      if (text == nullptr) return type_error(*found);
+      values.push_back(text->get());
+    }
+    if (!found->key->choices.empty()) {
+      for (std::size_t k = 0; k < values.size(); ++k) {
+        if (!check_choice(*found, values[k], *array->get(k))) return std::nullopt;
+      }
+    }
+    return values;
+  }
+
+  // A sub-table; nullptr when absent or not a table (reported).
+  const toml::table* table(std::string_view name) {
+    auto found = lookup(name, Type::table);
+    if (!found) return nullptr;
+    const auto* value = found->node->as_table();
+    if (value == nullptr) type_error(*found);
+    return value;
+  }
+
+  // An array of tables; nullptr when absent or wrong (reported).
+  const toml::array* table_list(std::string_view name) {
+    auto found = lookup(name, Type::table_list);
+    if (!found) return nullptr;
+    const auto* array = found->node->as_array();
+    if (array == nullptr ||
+        !std::all_of(array->begin(), array->end(), [](const toml::node& n) { return n.is_table(); })) {
+      type_error(*found);
+      return nullptr;
+    }
+    return array;
+  }
+
+  // A table whose values are tables ([materials.NAME]); nullptr when absent.
+  // Values that are not tables are reported and left out of the result.
+  std::vector<std::pair<std::string, const toml::table*>> named_tables(std::string_view name) {
+    std::vector<std::pair<std::string, const toml::table*>> out;
+    auto found = lookup(name, Type::named_tables);
+    if (!found) return out;
+    const auto* container = found->node->as_table();
+    if (container == nullptr) {
+      type_error(*found);
+      return out;
+    }
+    for (auto&& [key, value] : *container) {
+      const std::string entry(key.str());
+      if (const auto* entry_table = value.as_table()) {
+        out.emplace_back(entry, entry_table);
+      } else {
+        diag_.add(line_of(value), key_path(name) + "." + entry, value_text(value),
+                  fmt::format("must be a table, not {}", kind_of(value)),
+                  fmt::format("write it as a [{}.{}] table", name, entry));
+      }
+    }
+    return out;
+  }
+
+ private:
+  struct Found {
+    const Key* key;
+    const toml::node* node;
+  };
+
+  [[nodiscard]] bool applies(const Key& key) const {
+    return key.only_for.empty() || std::find(key.only_for.begin(), key.only_for.end(), variant_) != key.only_for.end();
+  }
+
+  [[nodiscard]] std::string place() const { return path_.empty() ? "at the top level" : "in '" + path_ + "'"; }
+
+  static std::vector<std::string> quote_all(const std::vector<std::string>& words) {
+    std::vector<std::string> out;
+    for (const auto& word : words) out.push_back(quote_text(word));
+    return out;
+  }
+
+  std::optional<Found> lookup(std::string_view name, Type type) {
+    const Key* key = spec_.find(name);
+    assert(key != nullptr && key->type == type && "the loader reads only keys of the schema, with their type");
+    (void)type;
+    if (!applies(*key)) return std::nullopt;
+    if (const toml::node* node = table_.get(name)) return Found{key, node};
+    if (key->required) {
+      const std::string where = path_.empty() ? "the top of the file" : "'" + path_ + "'";
+      diag_.add(line(), key_path(name), std::nullopt, fmt::format("missing; it is required{}", unit_suffix(*key)),
+                fmt::format("add {} = {} to {}", key->name, key->example, where));
+      return std::nullopt;
+    }
+    if (!key->default_value.empty()) return Found{key, &default_node(*key)};
+    return std::nullopt;
+  }
+
+  static std::optional<double> as_number(const toml::node& node) {
+    if (const auto* f = node.as_floating_point()) return f->get();
+    if (const auto* i = node.as_integer()) return static_cast<double>(i->get());
+    return std::nullopt;
+  }
+
+  static std::optional<std::vector<double>> numbers(const toml::node& node, std::size_t size) {
+    const auto* array = node.as_array();
+    if (array == nullptr || array->size() != size) return std::nullopt;
+    std::vector<double> values;
+    for (const auto& element : *array) {
+      const auto value = as_number(element);
+      if (!value) return std::nullopt;
+      values.push_back(*value);
+    }
+    return values;
+  }
+
+  void report(const Found& found, std::string_view problem, std::string_view fix) {
+    diag_.add(line_of(*found.node), key_path(found.key->name), value_text(*found.node), problem, fix);
+  }
+
+  std::nullopt_t type_error(const Found& found) {
+    const Key& key = *found.key;
+    const std::string example = key.example.empty() ? key.default_value : key.example;
+    std::string fix;
+    if (key.type == Type::table_list && path_.empty()) {
+      fix = fmt::format("start each entry with a [[{}]] header", key.name);
+    } else if (key.type == Type::table && path_.empty()) {
+      fix = fmt::format("write it as a [{}] table", key.name);
+    } else if (key.type == Type::named_tables) {
+      fix = fmt::format("write one [{}.NAME] table per entry", key.name);
+    } else if (example.empty()) {
+      fix = fmt::format("write it as {}", expected_kind(key.type));
+    } else {
+      fix = fmt::format("write it as {}, e.g. {} = {}", expected_kind(key.type), key.name, example);
+    }
+    std::string actual(kind_of(*found.node));
+    if (const auto* array = found.node->as_array()) actual = fmt::format("an array of {} elements", array->size());
+    report(found, fmt::format("must be {}{}, not {}", expected_kind(key.type), unit_suffix(key), actual), fix);
+    return std::nullopt;
+  }
+
+  bool all_finite(const Found& found, const std::vector<double>& values) {
+    if (std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); })) return true;
+    report(found, "every element must be a finite number", "replace nan and inf by finite numbers");
+    return false;
+  }
+
+  std::optional<double> checked_number(const Found& found, double value) {
+    const Key& key = *found.key;
+    if (!std::isfinite(value)) {
+      report(found, "must be a finite number", fmt::format("give a finite {}", noun(key.name)));
+      return std::nullopt;
+    }
+    if (key.range.contains(value)) return value;
+    std::string fix;
+    const auto& range = key.range;
+    if (range.min && *range.min == 0 && !range.max) {
+      fix = fmt::format("give a {} {}", range.min_exclusive ? "positive" : "non-negative", noun(key.name));
+    } else if (range.min && range.max) {
+      fix = fmt::format("give a {} in {}", noun(key.name), range.text());
+    } else {
+      fix = fmt::format("give a {} {}", noun(key.name), range.text());
+    }
+    report(found, fmt::format("must be {}{}{}", range.min && range.max ? "in " : "", range.text(), unit_suffix(key)),
+           fix);
+    return std::nullopt;
+  }
+
+  bool check_choice(const Found& found, const std::string& value, const toml::node& value_node) {
+    const Key& key = *found.key;
+    if (std::find(key.choices.begin(), key.choices.end(), value) != key.choices.end()) return true;
+    const auto suggestion = closest_match(value, key.choices);
+    const std::string allowed = join(quote_all(key.choices));
+    const std::string problem = key.type == Type::string_list
+                                    ? fmt::format("{} is not one of {}", quote_text(value), allowed)
+                                    : fmt::format("must be one of {}", allowed);
+    if (suggestion) {
+      diag_.add(line_of(value_node), key_path(key.name), value_text(*found.node),
+                fmt::format("{}. Did you mean {}?", problem, quote_text(*suggestion)),
+                fmt::format("write {} instead of {}", quote_text(*suggestion), quote_text(value)));
+    } else {
+      diag_.add(line_of(value_node), key_path(key.name), value_text(*found.node), problem,
+                "use one of the allowed values");
+    }
+    return false;
+  }
+
+  Diagnostics& diag_;
+  const Table& spec_;
+  const toml::table& table_;
+  std::string path_;
+  std::string variant_;
+};
+
+// --------------------------------------------------------------- builder ----
+
+const Table& spec(std::string_view anchor) {
+  for (const Table* table : schema::tables()) {
+    if (table->anchor == anchor) return *table;
+  }
+  assert(false && "unknown schema table");
+  return schema::root();
+}
+
+class Builder {
+ public:
+  Builder(const fs::path& file, const toml::table& document)
+      : diag_(file.string()), document_(document), scene_dir_(fs::absolute(file).parent_path()) {
+    scene_.file = fs::weakly_canonical(fs::absolute(file));
+  }
+
+  Scene build() {
+    Reader root(diag_, schema::root(), document_, "");
+    if (auto version = root.integer("format_version"); version && *version != 1) {
+      diag_.add(root.line("format_version"), "format_version", std::to_string(*version),
+                "this build reads format_version 1 only", "write format_version = 1 and use the keys of format 1");
+    }
+    if (const toml::table* run = root.table("run")) read_run(*run);
+    read_materials(root);
+
+    const toml::array* particles = root.table_list("particles");
+    const toml::array* structures = root.table_list("structures");
+    has_particles_ = particles != nullptr && !particles->empty();
+    has_structures_ = structures != nullptr && !structures->empty();
+    const bool lists_readable =
+        (particles != nullptr || !root.has("particles")) && (structures != nullptr || !root.has("structures"));
+    if (!has_particles_ && !has_structures_ && lists_readable) {
+      diag_.add_plain(1, "the scene has no bodies, so there is nothing to simulate",
+                      "add at least one [[particles]] or [[structures]] table");
+    }
+    if (particles != nullptr) {
+      for (std::size_t k = 0; k < particles->size(); ++k) read_particle_set(*particles->get(k)->as_table(), k);
+    }
+    if (structures != nullptr) {
+      for (std::size_t k = 0; k < structures->size(); ++k) read_structure(*structures->get(k)->as_table(), k);
+    }
+    read_solvers(root);
+    read_contact(root);
+    read_interactions(root);
+    read_recording(root);
+    check_overlaps();
+
+    diag_.throw_if_any();
+    std::sort(scene_.materials.begin(), scene_.materials.end(),
+              [](const Material& a, const Material& b) { return a.name < b.name; });
+    return std::move(scene_);
+  }
+
+ private:
+  struct BodyName {
+    bool is_particle_set;
+    std::string path;
+    int line;
+  };
+  // A sphere of a list, with where it was written, for the overlap check.
+  struct ListedSphere {
+    Vec3 center;
+    double radius;
+    std::string path;
+    int line;
+  };
+
+  [[nodiscard]] Origin origin(int line, std::string key) const { return {scene_.file, line, std::move(key)}; }
+
+  void read_run(const toml::table& table) {
+    Reader r(diag_, spec("run"), table, "run");
+    RunSettings& run = scene_.run;
+    if (auto v = r.number("end_time")) run.end_time = *v;
+    if (auto v = r.number("output_interval")) run.output_interval = *v;
+    if (auto v = r.string("endpoint")) {
+      if (valid_endpoint(*v)) {
+        run.endpoint = *v;
+      } else {
+        diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), "must be \"ipc\" or \"tcp://HOST:PORT\"",
+                  "write endpoint = \"ipc\" to run on one machine, or e.g. endpoint = \"tcp://127.0.0.1:5555\"");
+      }
+    }
+    if (auto v = r.vec3("gravity")) run.gravity = *v;
+    if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
+    run.max_dt = r.number("max_dt");
+  }
+
+  void read_materials(Reader& root) {
+    for (const auto& [name, table] : root.named_tables("materials")) {
+      const std::string path = "materials." + name;
+      material_names_.push_back(name);
+      if (!valid_name(name)) {
+        diag_.add(line_of(*table), path, std::nullopt, "the name must be made of letters, digits, '_' and '-'",
+                  "rename the material");
+      }
+      Reader r(diag_, spec("materials-name"), *table, path);
+      Material material;
+      material.name = name;
+      material.origin = origin(r.line(), path);
+      if (auto v = r.number("density")) material.density = *v;
+      if (auto v = r.number("youngs_modulus")) material.youngs_modulus = *v;
+      if (auto v = r.number("poisson_ratio")) material.poisson_ratio = *v;
+      scene_.materials.push_back(std::move(material));
+    }
+  }
+
+  // Checks `name` (validity, uniqueness among bodies) and records it.
+  void register_body(Reader& r, const std::string& name, bool is_particle_set) {
+    const int line = r.line("name");
+    if (!valid_name(name)) {
+      diag_.add(line, r.key_path("name"), quote_text(name), "a name must be made of letters, digits, '_' and '-'",
+                "rename it, e.g. \"boulders_1\"");
+      return;
+    }
+    auto [it, inserted] = bodies_.try_emplace(name, BodyName{is_particle_set, r.path(), line});
+    if (!inserted) {
+      diag_.add(line, r.key_path("name"), quote_text(name),
+                fmt::format("the name is already used by {} (line {})", it->second.path, it->second.line),
+                "give each particle set and structure its own name");
+    }
+  }
+
+  void check_material(Reader& r, const std::string& material) {
+    if (std::find(material_names_.begin(), material_names_.end(), material) != material_names_.end()) return;
+    const auto suggestion = closest_match(material, material_names_);
+    std::string problem = "no material of that name";
+    if (suggestion) problem += fmt::format(". Did you mean '{}'?", *suggestion);
+    const std::string fix = material_names_.empty() ? fmt::format("add a [materials.{}] table", material)
+                                                    : fmt::format("define [materials.{}] or use one of: {}", material,
+                                                                  join(material_names_));
+    diag_.add(r.line("material"), r.key_path("material"), quote_text(material), problem, fix);
+  }
+
+  void read_particle_set(const toml::table& table, std::size_t index) {
+    const std::string path = fmt::format("particles[{}]", index);
+    Reader r(diag_, spec("particles"), table, path);
+    ParticleSet set;
+    set.origin = origin(r.line(), path);
+    if (auto v = r.string("name")) {
+      set.name = *v;
+      register_body(r, set.name, true);
+    }
+    if (auto v = r.string("material")) {
+      set.material = *v;
+      check_material(r, set.material);
+    }
+    const bool has_spheres = r.has("spheres"), has_fill = r.has("fill");
+    if (has_spheres && has_fill) {
+      diag_.add(r.line("fill"), r.key_path("fill"), value_text(*r.node("fill")),
+                "a particle set gives either 'spheres' or 'fill', not both",
+                "remove 'fill' or 'spheres', or split them into two [[particles]] sets");
+    } else if (!has_spheres && !has_fill) {
+      diag_.add(r.line(), path, std::nullopt, "has neither 'spheres' nor 'fill'",
+                "add spheres = [ { center = [x, y, z], radius = R } ] or fill = { min = [...], max = [...], count = N, "
+                "diameter = [dmin, dmax] }");
+    }
+    if (const toml::array* spheres = r.table_list("spheres"); spheres != nullptr && !has_fill) {
+      set.kind = ParticleSet::Kind::list;
+      if (spheres->empty()) {
+        diag_.add(r.line("spheres"), r.key_path("spheres"), "[]", "the list has no spheres",
+                  "add at least one sphere, or remove the particle set");
+      }
+      for (std::size_t k = 0; k < spheres->size(); ++k) {
+        const toml::table& entry = *spheres->get(k)->as_table();
+        const std::string sphere_path = fmt::format("{}.spheres[{}]", path, k);
+        const std::size_t errors_before = diag_.count();
+        Reader s(diag_, spec("particles-spheres"), entry, sphere_path);
+        Sphere sphere;
+        if (auto v = s.vec3("center")) sphere.center = *v;
+        if (auto v = s.number("radius")) sphere.radius = *v;
+        if (auto v = s.vec3("velocity")) sphere.velocity = *v;
+        if (auto v = s.vec3("angular_velocity")) sphere.angular_velocity = *v;
+        if (diag_.count() == errors_before) {
+          listed_.push_back({sphere.center, sphere.radius, sphere_path, line_of(entry)});
+        }
+        set.spheres.push_back(sphere);
+      }
+    }
+    if (const toml::table* fill = r.table("fill"); fill != nullptr && !has_spheres) {
+      set.kind = ParticleSet::Kind::fill;
+      read_fill(*fill, path + ".fill", set);
+    }
+    scene_.particle_sets.push_back(std::move(set));
+  }
+
+  void read_fill(const toml::table& table, const std::string& path, ParticleSet& set) {
+    Reader f(diag_, spec("particles-fill"), table, path);
+    const std::size_t errors_before = diag_.count();
+    const auto min = f.vec3("min"), max = f.vec3("max");
+    const auto count = f.integer("count");
+    const auto diameter = f.pair("diameter");
+    if (auto v = f.integer("seed")) set.seed = static_cast<std::uint64_t>(*v);
+    if (auto v = f.vec3("velocity")) set.velocity = *v;
+    if (min && max) {
+      set.region = Aabb{*min, *max};
+      if (((*max).array() <= (*min).array()).any()) {
+        diag_.add(f.line("max"), f.key_path("max"), value_text(*f.node("max")),
+                  fmt::format("the region is empty or inverted: max must exceed min = {} on every axis",
+                              value_text(*f.node("min"))),
+                  "swap the values of min and max where max <= min");
+        return;
+      }
+    }
+    if (count) set.count = static_cast<std::size_t>(*count);
+    if (diameter) {
+      set.diameter_min = (*diameter)[0];
+      set.diameter_max = (*diameter)[1];
+      if (set.diameter_min > set.diameter_max) {
+        diag_.add(f.line("diameter"), f.key_path("diameter"), value_text(*f.node("diameter")),
+                  "the diameter range is inverted: it is [min, max] with min <= max",
+                  fmt::format("write diameter = [{}, {}]", number_literal(set.diameter_max),
+                              number_literal(set.diameter_min)));
+        return;
+      }
+    }
+    if (diag_.count() != errors_before) return;
+
+    const Vec3 extent = set.region.max - set.region.min;
+    if (extent.minCoeff() < set.diameter_max) {
+      diag_.add(f.line("max"), f.key_path("max"), value_text(*f.node("max")),
+                fmt::format("the region is {} x {} x {} m, too small for a sphere of the largest diameter {} m",
+                            number_literal(extent.x()), number_literal(extent.y()), number_literal(extent.z()),
+                            number_literal(set.diameter_max)),
+                "enlarge the region so that every side is at least the largest diameter");
+      return;
+    }
+    // Mean sphere volume for diameters uniform in [a, b]: pi/6 * E[d^3], E[d^3] = (b^4 - a^4) / (4 (b - a)).
+    const double a = set.diameter_min, b = set.diameter_max;
+    const double mean_cube = b > a ? (b * b * b * b - a * a * a * a) / (4.0 * (b - a)) : a * a * a;
+    const double solid_volume = static_cast<double>(set.count) * std::numbers::pi / 6.0 * mean_cube;
+    const double box_volume = extent.prod();
+    const double fraction = solid_volume / box_volume;
+    if (fraction > kMaxFillSolidFraction) {
+      diag_.add(f.line("count"), f.key_path("count"), std::to_string(set.count),
+                fmt::format("{} spheres fill {:.0f} % of the region's volume on average; random filling needs at "
+                            "most {:.0f} %",
+                            set.count, 100.0 * fraction, 100.0 * kMaxFillSolidFraction),
+                fmt::format("enlarge the region to at least {:.1f} m^3, lower the count or the diameters",
+                            solid_volume / kMaxFillSolidFraction));
+      return;
+    }
+  }
+
+  void read_structure(const toml::table& table, std::size_t index) {
+    const std::string path = fmt::format("structures[{}]", index);
+    Reader r(diag_, spec("structures"), table, path);
+    Structure structure;
+    structure.origin = origin(r.line(), path);
+    if (auto v = r.string("name")) {
+      structure.name = *v;
+      register_body(r, structure.name, false);
+    }
+    if (auto v = r.string("material")) {
+      structure.material = *v;
+      check_material(r, structure.material);
+    }
+    if (auto v = r.boolean("rigid")) {
+      structure.rigid = *v;
+      if (!*v) {
+        diag_.add(r.line("rigid"), r.key_path("rigid"), "false", "deformable structures are not supported yet",
+                  "set rigid = true (or remove the key)");
+      }
+    }
+    if (auto v = r.number("thickness")) structure.thickness = *v;
+    const auto shape = r.string("shape");
+    if (!shape) {
+      scene_.structures.push_back(std::move(structure));
+      return;
+    }
+    r.select(*shape);
+    Shape& s = structure.shape;
+    if (*shape == "plane") {
+      s.type = Shape::Type::plane;
+      if (auto v = r.vec3("origin")) s.origin = *v;
+      if (auto v = r.number("length")) s.length = *v;
+      if (auto v = r.number("width")) s.width = *v;
+      const auto normal = r.vec3("normal");
+      const auto direction = r.vec3("direction");
+      if (normal) {
+        if (normal->norm() == 0.0) {
+          diag_.add(r.line("normal"), r.key_path("normal"), value_text(*r.node("normal")), "the normal is zero",
+                    "give the direction the plane faces, e.g. normal = [0.0, 0.0, 1.0]");
+        } else {
+          s.normal = normal->normalized();
+          if (direction) {
+            const Vec3 in_plane = *direction - direction->dot(s.normal) * s.normal;
+            if (in_plane.norm() <= 1e-9 * direction->norm()) {
+              diag_.add(r.line("direction"), r.key_path("direction"),
+                        r.has("direction") ? value_text(*r.node("direction")) : std::string("[1.0, 0.0, 0.0]"),
+                        "the direction is zero or along the normal, so it gives no direction in the plane",
+                        "give a direction that is not parallel to the normal");
+            } else {
+              s.direction = in_plane.normalized();
+            }
+          }
+        }
+      }
+    } else if (*shape == "box") {
+      s.type = Shape::Type::box;
+      const auto min = r.vec3("min"), max = r.vec3("max");
+      if (min && max) {
+        s.box = Aabb{*min, *max};
+        if (((*max).array() <= (*min).array()).any()) {
+          diag_.add(r.line("max"), r.key_path("max"), value_text(*r.node("max")),
+                    fmt::format("the box is empty or inverted: max must exceed min = {} on every axis",
+                                value_text(*r.node("min"))),
+                    "swap the values of min and max where max <= min");
+        }
+      }
+    } else if (*shape == "chute") {
+      s.type = Shape::Type::chute;
+      if (auto v = r.vec3("origin")) s.origin = *v;
+      if (auto v = r.number("length")) s.length = *v;
+      if (auto v = r.number("width")) s.width = *v;
+      if (auto v = r.number("slope_deg")) s.slope_deg = *v;
+      if (auto v = r.number("wall_height")) s.wall_height = *v;
+      if (auto v = r.number("end_wall_height")) s.end_wall_height = *v;
+      if (auto direction = r.vec3("direction")) {
+        const double horizontal = std::hypot(direction->x(), direction->y());
+        if (horizontal == 0.0 || std::abs(direction->z()) > 1e-9 * horizontal) {
+          diag_.add(r.line("direction"), r.key_path("direction"),
+                    r.has("direction") ? value_text(*r.node("direction")) : std::string("[1.0, 0.0, 0.0]"),
+                    "a chute's direction must be horizontal (z = 0) and not zero; slope_deg sets the descent",
+                    fmt::format("write direction = [{}, {}, 0.0]", number_literal(direction->x()),
+                                number_literal(direction->y())));
+        } else {
+          s.direction = Vec3(direction->x(), direction->y(), 0.0) / horizontal;
+        }
+      }
+    } else if (*shape == "mesh") {
+      s.type = Shape::Type::mesh;
+      if (auto v = r.number("scale")) s.scale = *v;
+      if (auto v = r.vec3("translate")) s.translate = *v;
+      if (auto v = r.string("file")) s.file = resolve_mesh(r, *v);
+    }
+    if (s.type != Shape::Type::mesh) {
+      if (auto v = r.number("element_size")) s.element_size = *v;
+    }
+    scene_.structures.push_back(std::move(structure));
+  }
+
+  fs::path resolve_mesh(Reader& r, const std::string& file) {
+    const fs::path given(file);
+    const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+    const int line = r.line("file");
+    std::error_code ec;
+    if (!fs::exists(full, ec)) {
+      diag_.add(line, r.key_path("file"), quote_text(file),
+                fmt::format("file not found (looked for {})", full.string()),
+                "correct the path; it is relative to the scene file's folder");
+    } else if (!fs::is_regular_file(full, ec)) {
+      diag_.add(line, r.key_path("file"), quote_text(file), fmt::format("{} is not a regular file", full.string()),
+                "give the path of an STL file");
+    } else {
+      std::string extension = full.extension().string();
+      std::transform(extension.begin(), extension.end(), extension.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (extension != ".stl") {
+        diag_.add(line, r.key_path("file"), quote_text(file), "a mesh must be an STL file ending in .stl",
+                  "convert the mesh to STL (ASCII or binary)");
+      }
+    }
+    return fs::weakly_canonical(full, ec);
+  }
+
+  void read_solvers(Reader& root) {
+    const toml::table* table = root.table("solvers");
+    Reader solvers(diag_, spec("solvers"), table != nullptr ? *table : empty_table(), "solvers");
+    struct RoleInfo {
+      Role role;
+      const char* key;
+      bool needed;
+      const char* bodies;
+    };
+    const RoleInfo roles[] = {
+        {Role::sph, "sph", false, "fluids (SPH bodies come in a later version)"},
+        {Role::dem, "dem", has_particles_, "[[particles]]"},
+        {Role::fem, "fem", has_structures_, "[[structures]]"},
+    };
+    for (const RoleInfo& info : roles) {
+      const toml::table* role_table = solvers.table(info.key);
+      const std::string path = std::string("solvers.") + info.key;
+      if (!info.needed) {
+        if (role_table != nullptr) {
+          diag_.add(line_of(*role_table), path, std::nullopt,
+                    fmt::format("no bodies need the {}", role_name(info.role)),
+                    fmt::format("remove [{}] or add {}", path, info.bodies));
+        }
+        continue;
+      }
+      Reader r(diag_, spec("solvers-role"), role_table != nullptr ? *role_table : empty_table(), path);
+      SolverSettings solver;
+      solver.role = info.role;
+      solver.origin = origin(r.line(), path);
+      if (auto v = r.number("beta")) solver.beta = *v;
+      if (auto command = r.strings("command")) {
+        solver.command = *command;
+        check_command(r, solver);
+      }
+      scene_.solvers.push_back(std::move(solver));
+    }
+  }
+
+  void check_command(Reader& r, SolverSettings& solver) {
+    const int line = r.line("command");
+    const std::string value = value_text(*r.node("command"));
+    const std::string fallback = fmt::format("remove 'command' to run the built {}", role_name(solver.role));
+    if (solver.command.empty() || solver.command.front().empty()) {
+      diag_.add(line, r.key_path("command"), value, "the command names no program",
+                "give the program first, e.g. command = [\"/opt/solver/bin/dem\"], or " + fallback);
+      return;
+    }
+    const std::string& program = solver.command.front();
+    if (program.find('/') != std::string::npos) {
+      const fs::path given(program);
+      const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+      if (!is_executable_file(full)) {
+        diag_.add(line, r.key_path("command"), value,
+                  given.is_absolute() ? fmt::format("program '{}' does not exist or is not executable", program)
+                                      : fmt::format("program '{}' does not exist or is not executable (looked for {})",
+                                                    program, full.string()),
+                  "give an existing executable (absolute, or relative to the scene file's folder), or " + fallback);
+        return;
+      }
+      solver.command.front() = full.string();
+      return;
+    }
+    const char* path_variable = std::getenv("PATH");
+    std::stringstream directories(path_variable != nullptr ? path_variable : "");
+    std::string directory;
+    while (std::getline(directories, directory, ':')) {
+      if (!directory.empty() && is_executable_file(fs::path(directory) / program)) return;
+    }
+    diag_.add(line, r.key_path("command"), value, fmt::format("program '{}' is not found on PATH", program),
+              "give the full path of the program, add its folder to PATH, or " + fallback);
+  }
+
+  static void read_surface_contact(Reader& r, SurfaceContact& contact) {
+    if (auto v = r.number("friction")) contact.friction = *v;
+    if (auto v = r.number("penalty_scale")) contact.penalty_scale = *v;
+    if (auto v = r.number("normal_stiffness")) contact.normal_stiffness = *v;
+    if (auto v = r.number("normal_damping_ratio")) contact.normal_damping_ratio = *v;
+    if (auto v = r.number("tangential_damping_ratio")) contact.tangential_damping_ratio = *v;
+  }
+
+  void read_contact(Reader& root) {
+    const toml::table* table = root.table("contact");
+    Reader contact(diag_, spec("contact"), table != nullptr ? *table : empty_table(), "contact");
+
+    const toml::table* dem_dem = contact.table("dem_dem");
+    if (dem_dem != nullptr && !has_particles_) {
+      diag_.add(line_of(*dem_dem), "contact.dem_dem", std::nullopt,
+                "there are no particles, so no sphere-sphere contact", "remove [contact.dem_dem] or add [[particles]]");
+    }
+    Reader dd(diag_, spec("contact-dem_dem"), dem_dem != nullptr ? *dem_dem : empty_table(), "contact.dem_dem");
+    DemContact& dem = scene_.dem_contact;
+    if (auto v = dd.number("normal_damping_ratio")) dem.normal_damping_ratio = *v;
+    if (auto v = dd.number("tangential_damping_ratio")) dem.tangential_damping_ratio = *v;
+    if (auto v = dd.number("friction")) dem.friction = *v;
+    if (auto v = dd.number("rolling_friction")) dem.rolling_friction = *v;
+    if (auto v = dd.number("normal_stiffness")) dem.normal_stiffness = *v;
+    if (auto v = dd.number("normal_stiffness_scale")) dem.normal_stiffness_scale = *v;
+    if (auto v = dd.number("tangential_stiffness_ratio")) dem.tangential_stiffness_ratio = *v;
+    if (dd.has("normal_stiffness") && dd.has("normal_stiffness_scale")) {
+      diag_.add(dd.line("normal_stiffness_scale"), dd.key_path("normal_stiffness_scale"),
+                value_text(*dd.node("normal_stiffness_scale")),
+                "give either normal_stiffness or normal_stiffness_scale, not both", "remove one of the two keys");
+    }
+
+    const toml::table* dem_fem = contact.table("dem_fem");
+    if (dem_fem != nullptr && !(has_particles_ && has_structures_)) {
+      diag_.add(line_of(*dem_fem), "contact.dem_fem", std::nullopt,
+                "sphere-structure contact needs both particles and structures",
+                "remove [contact.dem_fem] or add the missing [[particles]] or [[structures]]");
+    }
+    Reader df(diag_, spec("contact-dem_fem"), dem_fem != nullptr ? *dem_fem : empty_table(), "contact.dem_fem");
+    read_surface_contact(df, scene_.dem_fem_default);
+  }
+
+  void read_interactions(Reader& root) {
+    const toml::array* interactions = root.table_list("interactions");
+    if (interactions == nullptr || interactions->empty()) return;
+    if (!(has_particles_ && has_structures_)) {
+      diag_.add(root.line("interactions"), "interactions", std::nullopt,
+                "interactions pair a particle set with a structure, but the scene lacks one of the two",
+                "remove the [[interactions]] tables or add the missing bodies");
+      return;
+    }
+    std::vector<std::string> body_names;
+    for (const auto& [name, body] : bodies_) body_names.push_back(name);
+    std::map<std::pair<std::string, std::string>, int> seen;  // (set, structure) -> line
+    for (std::size_t k = 0; k < interactions->size(); ++k) {
+      const toml::table& table = *interactions->get(k)->as_table();
+      const std::string path = fmt::format("interactions[{}]", k);
+      Reader r(diag_, spec("interactions"), table, path);
+      Interaction interaction;
+      interaction.origin = origin(r.line(), path);
+      interaction.contact = scene_.dem_fem_default;
+      read_surface_contact(r, interaction.contact);
+      if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
+      const auto pair = r.strings("pair");
+      if (!pair) continue;
+      const int line = r.line("pair");
+      const std::string value = value_text(*r.node("pair"));
+      if (pair->size() != 2) {
+        diag_.add(line, r.key_path("pair"), value, fmt::format("a pair names exactly two bodies, not {}", pair->size()),
+                  "write pair = [\"PARTICLE_SET\", \"STRUCTURE\"]");
+        continue;
+      }
+      bool known = true;
+      for (const auto& name : *pair) {
+        if (bodies_.count(name) != 0) continue;
+        known = false;
+        const auto suggestion = closest_match(name, body_names);
+        diag_.add(line, r.key_path("pair"), value,
+                  fmt::format("no particle set or structure is named {}{}", quote_text(name),
+                              suggestion ? fmt::format(". Did you mean '{}'?", *suggestion) : std::string()),
+                  fmt::format("use the names of [[particles]] and [[structures]]: {}", join(body_names)));
+      }
+      if (!known) continue;
+      const BodyName& first = bodies_.at((*pair)[0]);
+      const BodyName& second = bodies_.at((*pair)[1]);
+      if (first.is_particle_set == second.is_particle_set) {
+        diag_.add(line, r.key_path("pair"), value,
+                  fmt::format("both are {}; a pair is one particle set and one structure",
+                              first.is_particle_set ? "particle sets" : "structures"),
+                  first.is_particle_set ? "sphere-sphere contact is set in [contact.dem_dem]; pair a particle set "
+                                          "with a structure here"
+                                        : "pair a particle set with a structure");
+        continue;
+      }
+      interaction.a = first.is_particle_set ? (*pair)[0] : (*pair)[1];
+      interaction.b = first.is_particle_set ? (*pair)[1] : (*pair)[0];
+      auto [it, inserted] = seen.try_emplace({interaction.a, interaction.b}, line);
+      if (!inserted) {
+        diag_.add(line, r.key_path("pair"), value, fmt::format("this pair is already given at line {}", it->second),
+                  "merge the two [[interactions]] tables of this pair");
+        continue;
+      }
+      scene_.interactions.push_back(std::move(interaction));
+    }
+  }
+
+  void read_recording(Reader& root) {
+    const toml::table* table = root.table("recording");
+    Reader r(diag_, spec("recording"), table != nullptr ? *table : empty_table(), "recording");
+    Recording& recording = scene_.recording;
+    if (auto v = r.boolean("enabled")) recording.enabled = *v;
+    if (auto v = r.strings("fields")) recording.fields = *v;
+    if (auto v = r.integer("every")) recording.every = static_cast<std::uint64_t>(*v);
+    const auto first = r.integer("first_step");
+    const auto last = r.integer("last_step");
+    if (first) recording.first_step = static_cast<std::uint64_t>(*first);
+    if (last) recording.last_step = static_cast<std::uint64_t>(*last);
+    if (first && last && *first > *last) {
+      diag_.add(r.line("last_step"), r.key_path("last_step"), std::to_string(*last),
+                fmt::format("the last step comes before first_step = {}", *first),
+                "give last_step >= first_step, or swap the two");
+    }
+    if (auto v = r.number("flush_interval")) recording.flush_interval = *v;
+  }
+
+  // Listed spheres must not overlap: sweep along x over spheres sorted by
+  // their lowest x (deterministic order: ties broken by file order).
+  void check_overlaps() {
+    std::vector<std::size_t> order(listed_.size());
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return listed_[a].center.x() - listed_[a].radius < listed_[b].center.x() - listed_[b].radius;
+    });
+    std::size_t reported = 0, more = 0;
+    for (std::size_t i = 0; i < order.size(); ++i) {
+      const ListedSphere& a = listed_[order[i]];
+      for (std::size_t j = i + 1; j < order.size(); ++j) {
+        const ListedSphere& b = listed_[order[j]];
+        if (b.center.x() - b.radius >= a.center.x() + a.radius) break;
+        const double depth = a.radius + b.radius - (a.center - b.center).norm();
+        if (depth <= 1e-9 * (a.radius + b.radius)) continue;
+        const bool a_first = order[i] < order[j];
+        const ListedSphere& earlier = a_first ? a : b;
+        const ListedSphere& later = a_first ? b : a;
+        if (reported == kMaxOverlapReports) {
+          ++more;
+          continue;
+        }
+        ++reported;
+        diag_.add(
+            later.line, later.path,
+            fmt::format("{{ center = [{}, {}, {}], radius = {} }}", number_literal(later.center.x()),
+                        number_literal(later.center.y()), number_literal(later.center.z()),
+                        number_literal(later.radius)),
+            fmt::format("overlaps {} (line {}) by {} m", earlier.path, earlier.line, fmt::format("{:.4g}", depth)),
+            "move the spheres apart or make them smaller; initial spheres must not overlap");
+      }
+    }
+    if (more > 0) {
+      diag_.add_plain(listed_[order.front()].line, fmt::format("{} more pairs of listed spheres overlap", more),
+                      "separate every overlapping pair");
+    }
+  }
+
+  Diagnostics diag_;
+  const toml::table& document_;
+  fs::path scene_dir_;
+  Scene scene_;
+  bool has_particles_ = false, has_structures_ = false;
+  std::vector<std::string> material_names_;
+  std::map<std::string, BodyName> bodies_;
+  std::vector<ListedSphere> listed_;
+};
+
+// "FILE:LINE:COL: key 'k' = v: TOML syntax error: ..." from toml++'s error.
+std::string syntax_message(const std::string& file, const std::string& text, const toml::parse_error& error) {
+  const auto line = error.source().begin.line, column = error.source().begin.column;
+  std::string line_text;
+  {
+    std::istringstream stream(text);
+    for (std::size_t k = 0; k < line && std::getline(stream, line_text); ++k) {
+    }
+  }
+  const auto trim = [](std::string s) {
+    const auto first = s.find_first_not_of(" \t\r");
+    const auto last = s.find_last_not_of(" \t\r");
+    return first == std::string::npos ? std::string() : s.substr(first, last - first + 1);
+  };
+  std::string where;
+  const auto equals = line_text.find('=');
+  const std::string trimmed = trim(line_text);
+  if (equals != std::string::npos && !trimmed.starts_with('[') && !trimmed.starts_with('#')) {
+    where = fmt::format(" key '{}' = {}:", trim(line_text.substr(0, equals)), trim(line_text.substr(equals + 1)));
+  } else if (!trimmed.empty()) {
+    where = fmt::format(" the line reads '{}':", trimmed);
+  }
+  return fmt::format(
+      "{}:{}:{}:{} TOML syntax error: {}. Fix: correct the TOML at line {}, column {} (strings in \"quotes\", "
+      "arrays in [ ], inline tables {{ ... }} on one line; see https://toml.io).",
+      file, line, column, where, error.description(), line, column);
+}
+
+}  // namespace
+
+Scene load_scene(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (fs::is_directory(file, ec)) {
+    throw FileError(
+        fmt::format("{}: is a folder, not a scene file. Fix: give the path of a .toml file.", file.string()));
+  }
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    throw FileError(
+        fmt::format("{}: cannot open the scene file ({}). Fix: check the path.", file.string(), std::strerror(errno)));
+  }
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  toml::table document;
+  try {
+    document = toml::parse(std::string_view(text), file.string());
+  } catch (const toml::parse_error& error) {
+    throw SceneError(syntax_message(file.string(), text, error));
+  }
+  return Builder(file, document).build();
+}
+
+}  // namespace sabo::scene

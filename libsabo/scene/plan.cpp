@@ -1,0 +1,42 @@
+#include "libsabo/scene/plan.hpp"
+
+namespace sabo::scene {
+
+nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_dir) {
+  const std::filesystem::path bin = std::filesystem::absolute(bin_dir).lexically_normal();
+  nlohmann::json plan;
+  plan["scene"] = scene.file.string();
+  plan["end_time"] = scene.run.end_time;
+  plan["output_interval"] = scene.run.output_interval;
+  plan["hang_timeout"] = scene.run.hang_timeout;
+  if (scene.run.max_dt) plan["max_dt"] = *scene.run.max_dt;
+  plan["endpoint"] = scene.run.endpoint;
+
+  nlohmann::json processes = nlohmann::json::array();
+  processes.push_back({{"role", "coupler"}, {"command", {(bin / "coupler").string()}}});
+  for (const Role role : {Role::sph, Role::dem, Role::fem}) {
+    const SolverSettings* solver = scene.solver(role);
+    if (solver == nullptr) continue;
+    nlohmann::json command = nlohmann::json::array();
+    if (solver->command.empty()) {
+      command.push_back((bin / role_name(role)).string());
+    } else {
+      for (const auto& word : solver->command) command.push_back(word);
+    }
+    processes.push_back({{"role", role_name(role)}, {"command", command}, {"beta", solver->beta}});
+  }
+  plan["processes"] = processes;
+
+  std::size_t spheres = 0;
+  for (const auto& set : scene.particle_sets) {
+    spheres += set.kind == ParticleSet::Kind::list ? set.spheres.size() : set.count;
+  }
+  plan["bodies"] = {{"fluids", 0},
+                    {"particle_sets", scene.particle_sets.size()},
+                    {"spheres", spheres},
+                    {"structures", scene.structures.size()},
+                    {"materials", scene.materials.size()}};
+  return plan;
+}
+
+}  // namespace sabo::scene

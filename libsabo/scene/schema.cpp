@@ -1,0 +1,752 @@
+#include "libsabo/scene/schema.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+namespace sabo::scene::schema {
+namespace {
+
+// Fluent construction of one Key, so that the tables below read like the docs.
+class K {
+ public:
+  K(std::string name, Type type) {
+    key_.name = std::move(name);
+    key_.type = type;
+  }
+  K& required(std::string example) {
+    key_.required = true;
+    key_.example = std::move(example);
+    return *this;
+  }
+  K& def(std::string literal) {
+    key_.default_value = std::move(literal);
+    return *this;
+  }
+  K& absent(std::string meaning) {
+    key_.when_absent = std::move(meaning);
+    return *this;
+  }
+  K& example(std::string literal) {
+    key_.example = std::move(literal);
+    return *this;
+  }
+  K& unit(std::string unit) {
+    key_.unit = std::move(unit);
+    return *this;
+  }
+  K& gt(double v) { return lower(v, true); }
+  K& ge(double v) { return lower(v, false); }
+  K& lt(double v) { return upper(v, true); }
+  K& le(double v) { return upper(v, false); }
+  K& choices(std::vector<std::string> values) {
+    key_.choices = std::move(values);
+    return *this;
+  }
+  K& allowed(std::string text) {
+    key_.allowed = std::move(text);
+    return *this;
+  }
+  K& only_for(std::vector<std::string> selector_values) {
+    key_.only_for = std::move(selector_values);
+    return *this;
+  }
+  K& inside(const Table& table) {
+    key_.table = &table;
+    return *this;
+  }
+  K& doc(std::string description) {
+    key_.description = std::move(description);
+    return *this;
+  }
+  operator Key() const { return key_; }  // NOLINT(google-explicit-constructor): builder
+
+ private:
+  K& lower(double v, bool exclusive) {
+    key_.range.min = v;
+    key_.range.min_exclusive = exclusive;
+    return *this;
+  }
+  K& upper(double v, bool exclusive) {
+    key_.range.max = v;
+    key_.range.max_exclusive = exclusive;
+    return *this;
+  }
+  Key key_;
+};
+
+// All tables, built once in place (tables point at each other).
+class Schema {
+ public:
+  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, contact, dem_dem, dem_fem,
+      interaction, recording;
+
+  Schema(const Schema&) = delete;
+  Schema& operator=(const Schema&) = delete;
+
+  Schema() {
+    build_root();
+    build_run();
+    build_solvers();
+    build_materials();
+    build_particles();
+    build_structures();
+    build_contact();
+    build_interactions();
+    build_recording();
+  }
+
+  [[nodiscard]] std::vector<const Table*> ordered() const {
+    return {&root, &run,       &solvers, &solver,  &materials, &material,    &particles, &sphere,
+            &fill, &structure, &contact, &dem_dem, &dem_fem,   &interaction, &recording};
+  }
+
+ private:
+  void build_root() {
+    root.title = "Top level";
+    root.anchor = "top-level";
+    root.description =
+        "The tables a scene file may hold. Only `format_version`, `[run]` and at least one body "
+        "(`[[particles]]` or `[[structures]]`) are required. Fluids (SPH bodies) come in a later "
+        "version; a `fluids` key is an unknown key for now.";
+    root.keys = {
+        K("format_version", Type::integer)
+            .required("1")
+            .allowed("1")
+            .doc("Version of this file format. This build reads version 1."),
+        K("run", Type::table).required("{ end_time = 10.0, output_interval = 0.1 }").inside(run).doc("Run control."),
+        K("solvers", Type::table)
+            .absent("built executables, default settings")
+            .inside(solvers)
+            .doc("Per-role solver settings."),
+        K("materials", Type::named_tables).inside(material).absent("no materials").doc("Named materials."),
+        K("particles", Type::table_list).inside(particles).absent("no DEM bodies").doc("DEM sphere sets."),
+        K("structures", Type::table_list).inside(structure).absent("no FEM bodies").doc("FEM parts."),
+        K("contact", Type::table).inside(contact).absent("defaults").doc("Contact laws between kinds of bodies."),
+        K("interactions", Type::table_list)
+            .inside(interaction)
+            .absent("every pair uses `[contact.dem_fem]`")
+            .doc("Per-pair contact overrides."),
+        K("recording", Type::table).inside(recording).absent("defaults").doc("What the coupler records."),
+    };
+  }
+
+  void build_run() {
+    run.title = "[run]";
+    run.anchor = "run";
+    run.description = "Run control: how long, how often to write output, how the processes talk.";
+    run.keys = {
+        K("end_time", Type::number).required("10.0").unit("s").gt(0).doc("Simulated time at which the run ends."),
+        K("output_interval", Type::number)
+            .required("0.1")
+            .unit("s")
+            .gt(0)
+            .doc("Simulated time between two output frames (VTK, forces.csv)."),
+        K("endpoint", Type::string)
+            .def("\"ipc\"")
+            .allowed("`\"ipc\"` or `\"tcp://HOST:PORT\"`")
+            .doc("Where the coupler listens: `ipc` is a socket in the run folder; `tcp://HOST:PORT` lets solvers "
+                 "run on other hosts (port 1-65535)."),
+        K("gravity", Type::vec3).def("[0.0, 0.0, -9.81]").unit("m/s^2").doc("Gravitational acceleration (z is up)."),
+        K("hang_timeout", Type::number)
+            .def("10.0")
+            .unit("s")
+            .gt(0)
+            .doc("Wall time after which a silent process is declared hung and the run is stopped."),
+        K("max_dt", Type::number)
+            .absent("no limit")
+            .example("1e-3")
+            .unit("s")
+            .gt(0)
+            .doc("Upper bound on the coupled time step."),
+    };
+  }
+
+  void build_solvers() {
+    solvers.title = "[solvers]";
+    solvers.anchor = "solvers";
+    solvers.description =
+        "One table per solver role: `[solvers.sph]`, `[solvers.dem]`, `[solvers.fem]`. A role runs only when "
+        "the scene's bodies need it (`[[particles]]` need the dem_solver, `[[structures]]` the fem_solver; "
+        "fluids, which would need the sph_solver, come later). A table for a role that no body needs is an "
+        "error. A needed role without a table uses the built executable and `beta = 1.0`.";
+    const std::string role_doc = "Settings of this role (see below).";
+    solvers.keys = {
+        K("sph", Type::table).inside(solver).absent("defaults").doc(role_doc),
+        K("dem", Type::table).inside(solver).absent("defaults").doc(role_doc),
+        K("fem", Type::table).inside(solver).absent("defaults").doc(role_doc),
+    };
+    solver.title = "[solvers.ROLE]";
+    solver.anchor = "solvers-role";
+    solver.description =
+        "Settings of one solver process. Any program that speaks the protocol can replace the built solver.";
+    solver.keys = {
+        K("command", Type::string_list)
+            .absent("the built executable (`sph_solver`, `dem_solver`, `fem_solver`)")
+            .example("[\"/opt/my_dem/bin/dem\", \"--fast\"]")
+            .doc("Program and fixed arguments that replace the built solver; the supervisor appends "
+                 "`--scene`, `--coupler` and `--out`. The program is an absolute path, a path relative to the "
+                 "scene file's folder (when it contains a `/`), or a name found on `PATH`."),
+        K("beta", Type::number)
+            .def("1.0")
+            .gt(0)
+            .le(1)
+            .doc("Safety factor on this solver's stable time step (paper eq. 7): the coupled step is "
+                 "`min(beta_i * stable_dt_i)`."),
+    };
+  }
+
+  void build_materials() {
+    materials.title = "[materials]";
+    materials.anchor = "materials";
+    materials.description =
+        "Named materials, one table each: `[materials.granite]`. Names are letters, digits, `_` and `-`. "
+        "Material ids in the protocol are the indices of the names in sorted order.";
+    material.title = "[materials.NAME]";
+    material.anchor = "materials-name";
+    material.description = "Linear elastic constants of one material.";
+    material.keys = {
+        K("density", Type::number).required("3000.0").unit("kg/m^3").gt(0).doc("Mass density."),
+        K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
+        K("poisson_ratio", Type::number).required("0.3").ge(0).lt(0.5).doc("Poisson's ratio nu."),
+    };
+  }
+
+  void build_particles() {
+    particles.title = "[[particles]]";
+    particles.anchor = "particles";
+    particles.description =
+        "A set of DEM spheres (boulders), simulated by the dem_solver. Give exactly one of `spheres` (an "
+        "explicit list) or `fill` (a box filled with random non-overlapping spheres).";
+    particles.keys = {
+        K("name", Type::string)
+            .required("\"boulders\"")
+            .allowed("letters, digits, `_`, `-`")
+            .doc("Name of the set, unique among particle sets and structures."),
+        K("material", Type::string).required("\"granite\"").allowed("a `[materials.NAME]`").doc("Material."),
+        K("spheres", Type::table_list)
+            .inside(sphere)
+            .absent("use `fill`")
+            .example("[ { center = [0.0, 0.0, 5.0], radius = 0.5 } ]")
+            .doc("Explicit list of spheres (inline tables, see below)."),
+        K("fill", Type::table)
+            .inside(fill)
+            .absent("use `spheres`")
+            .example("{ min = [0.0, 0.0, 0.0], max = [4.0, 4.0, 4.0], count = 10, diameter = [0.5, 1.0] }")
+            .doc("Random filling of a box (inline table, see below)."),
+    };
+    sphere.title = "[[particles]] spheres = [ { ... } ]";
+    sphere.anchor = "particles-spheres";
+    sphere.description = "One sphere of an explicit list. Spheres of all lists must not overlap (touching is allowed).";
+    sphere.keys = {
+        K("center", Type::vec3).required("[0.0, 0.0, 5.0]").unit("m").doc("Centre."),
+        K("radius", Type::number).required("0.5").unit("m").gt(0).doc("Radius."),
+        K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity."),
+        K("angular_velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("rad/s").doc("Initial angular velocity."),
+    };
+    fill.title = "[[particles]] fill = { ... }";
+    fill.anchor = "particles-fill";
+    fill.description =
+        "The box `[min, max]` filled with `count` spheres that lie entirely inside it and do not overlap; "
+        "diameters are uniform in `diameter`; positions come from a random generator seeded with `seed`, so "
+        "the same scene gives the same spheres. Random filling jams when dense: the expected solid volume "
+        "(count times the mean sphere volume) must not exceed 30 % of the box volume.";
+    fill.keys = {
+        K("min", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").doc("Lower corner of the box."),
+        K("max", Type::vec3).required("[10.0, 6.0, 8.0]").unit("m").doc("Upper corner of the box."),
+        K("count", Type::integer).required("200").ge(1).doc("Number of spheres."),
+        K("diameter", Type::number_pair)
+            .required("[1.0, 2.0]")
+            .unit("m")
+            .gt(0)
+            .doc("Smallest and largest diameter `[min, max]`."),
+        K("seed", Type::integer).def("1").ge(0).doc("Seed of the random generator."),
+        K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity of every sphere."),
+    };
+  }
+
+  void build_structures() {
+    structure.title = "[[structures]]";
+    structure.anchor = "structures";
+    structure.selector = "shape";
+    structure.description =
+        "One FEM part, simulated by the fem_solver. Parts are rigid (fixed in space) in this version. The "
+        "`shape` picks the geometry; the keys marked with shapes belong only to those shapes.\n\n"
+        "* `plane`: a rectangle centred at `origin` with unit normal `normal`, `length` along `direction` "
+        "(projected onto the plane) and `width` across.\n"
+        "* `box`: the closed surface of the box `[min, max]`, normals outward.\n"
+        "* `chute`: a floor whose upper edge is centred at `origin`; it runs `length` (measured along the "
+        "floor) in the horizontal `direction`, descending at `slope_deg`, `width` wide, with side walls "
+        "`wall_height` high along both long edges and, when `end_wall_height` > 0, a wall closing the lower "
+        "end.\n"
+        "* `mesh`: a triangulated surface read from an STL file (ASCII or binary), scaled by `scale` and then "
+        "translated by `translate`.\n\n"
+        "The loader normalises `normal` and `direction` (the plane's `direction` is first projected onto the "
+        "plane) and makes the mesh path absolute.";
+    const std::vector<std::string> plane_chute{"plane", "chute"};
+    structure.keys = {
+        K("name", Type::string)
+            .required("\"chute\"")
+            .allowed("letters, digits, `_`, `-`")
+            .doc("Name of the part, unique among particle sets and structures."),
+        K("material", Type::string).required("\"concrete\"").allowed("a `[materials.NAME]`").doc("Material."),
+        K("rigid", Type::boolean)
+            .def("true")
+            .allowed("`true` (deformable parts come later)")
+            .doc("Rigid part, fixed in space."),
+        K("thickness", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .doc("Shell thickness: contact acts at half of it from the surface (paper eq. 3); 0 for a solid face."),
+        K("shape", Type::string)
+            .required("\"plane\"")
+            .choices({"plane", "box", "chute", "mesh"})
+            .doc("Kind of geometry."),
+        K("origin", Type::vec3)
+            .required("[0.0, 0.0, 0.0]")
+            .unit("m")
+            .only_for(plane_chute)
+            .doc("Plane: centre. Chute: centre of the floor's upper edge."),
+        K("normal", Type::vec3).def("[0.0, 0.0, 1.0]").only_for({"plane"}).doc("Normal, not zero."),
+        K("direction", Type::vec3)
+            .def("[1.0, 0.0, 0.0]")
+            .only_for(plane_chute)
+            .doc("Plane: direction of `length`, not along the normal. Chute: horizontal downhill direction "
+                 "(z = 0)."),
+        K("length", Type::number)
+            .required("20.0")
+            .unit("m")
+            .gt(0)
+            .only_for(plane_chute)
+            .doc("Plane: side along `direction`. Chute: floor length along the slope."),
+        K("width", Type::number).required("8.0").unit("m").gt(0).only_for(plane_chute).doc("Side across."),
+        K("slope_deg", Type::number)
+            .required("20.0")
+            .unit("degree")
+            .ge(0)
+            .lt(90)
+            .only_for({"chute"})
+            .doc("Inclination of the floor below the horizontal."),
+        K("wall_height", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"chute"})
+            .doc("Height of the side walls (0: none)."),
+        K("end_wall_height", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"chute"})
+            .doc("Height of the wall closing the lower end (0: open end)."),
+        K("min", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").only_for({"box"}).doc("Lower corner."),
+        K("max", Type::vec3)
+            .required("[1.0, 1.0, 1.0]")
+            .unit("m")
+            .only_for({"box"})
+            .doc("Upper corner, above `min` on every axis."),
+        K("element_size", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"plane", "box", "chute"})
+            .doc("Target edge length of the generated triangles (0: the coarsest mesh)."),
+        K("file", Type::string)
+            .required("\"meshes/dam.stl\"")
+            .only_for({"mesh"})
+            .allowed("an existing `.stl` file")
+            .doc("STL file, relative to the scene file's folder."),
+        K("scale", Type::number).def("1.0").gt(0).only_for({"mesh"}).doc("Scale applied to the file's coordinates."),
+        K("translate", Type::vec3)
+            .def("[0.0, 0.0, 0.0]")
+            .unit("m")
+            .only_for({"mesh"})
+            .doc("Translation applied after scaling."),
+    };
+  }
+
+  void build_contact() {
+    contact.title = "[contact]";
+    contact.anchor = "contact";
+    contact.description =
+        "Contact laws between kinds of bodies. `[contact.dem_dem]` needs particles; `[contact.dem_fem]` needs "
+        "particles and structures.";
+    contact.keys = {
+        K("dem_dem", Type::table).inside(dem_dem).absent("defaults").doc("Sphere-sphere contact (dem_solver)."),
+        K("dem_fem", Type::table)
+            .inside(dem_fem)
+            .absent("defaults")
+            .doc("Sphere-structure contact (coupler), default of every pair."),
+    };
+    dem_dem.title = "[contact.dem_dem]";
+    dem_dem.anchor = "contact-dem_dem";
+    dem_dem.description =
+        "Sphere-sphere contact in the dem_solver: linear spring-dashpot, tangential spring capped by Coulomb "
+        "friction, constant-torque rolling resistance. The defaults are the reference paper's boulders. Give "
+        "`normal_stiffness` or `normal_stiffness_scale`, not both.";
+    const std::string damping_doc = "damping as a fraction of critical damping.";
+    dem_dem.keys = {
+        K("normal_damping_ratio", Type::number).def("0.7").ge(0).lt(1).doc("Normal " + damping_doc),
+        K("tangential_damping_ratio", Type::number).def("0.4").ge(0).lt(1).doc("Tangential " + damping_doc),
+        K("friction", Type::number).def("1.0").ge(0).doc("Sliding friction coefficient."),
+        K("rolling_friction", Type::number)
+            .def("0.1")
+            .ge(0)
+            .doc("Rolling friction coefficient: torque = rolling_friction * r_eff * |F_n|."),
+        K("normal_stiffness", Type::number)
+            .absent("use `normal_stiffness_scale`")
+            .example("1e7")
+            .unit("N/m")
+            .gt(0)
+            .doc("Normal contact stiffness, the same for every pair."),
+        K("normal_stiffness_scale", Type::number)
+            .def("0.01")
+            .gt(0)
+            .doc("LS-DYNA's NormK: k_n = scale * K1 r1 K2 r2 / (K1 r1 + K2 r2), K the bulk modulus, r the radius."),
+        K("tangential_stiffness_ratio", Type::number)
+            .def("0.2857142857142857")
+            .gt(0)
+            .doc("k_t / k_n (2/7 keeps normal and tangential oscillations in step)."),
+    };
+    dem_fem.title = "[contact.dem_fem]";
+    dem_fem.anchor = "contact-dem_fem";
+    dem_fem.description =
+        "Penalty contact of spheres against structure surfaces, computed by the coupler (paper eqs. 3-6). "
+        "These are the settings of every particle-set/structure pair; `[[interactions]]` override them per "
+        "pair.";
+    dem_fem.keys = {
+        K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
+        K("penalty_scale", Type::number)
+            .def("0.1")
+            .gt(0)
+            .doc("k1 of eq. 6: k_n = k1 K s^2 / V (solid face) or k1 K s / max_diagonal (shell)."),
+        K("normal_stiffness", Type::number)
+            .absent("eq. 6")
+            .example("1e8")
+            .unit("N/m")
+            .gt(0)
+            .doc("Normal stiffness replacing eq. 6."),
+        K("normal_damping_ratio", Type::number)
+            .def("0.0")
+            .ge(0)
+            .lt(1)
+            .doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
+        K("tangential_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Tangential damping ratio."),
+    };
+  }
+
+  void build_interactions() {
+    interaction.title = "[[interactions]]";
+    interaction.anchor = "interactions";
+    interaction.description =
+        "Contact settings of one pair, a particle set and a structure (in either order), each pair at most "
+        "once. Keys left out take their value from `[contact.dem_fem]`.";
+    const std::string from_default = "as in `[contact.dem_fem]`";
+    interaction.keys = {
+        K("pair", Type::string_list)
+            .required("[\"boulders\", \"chute\"]")
+            .allowed("a particle set and a structure")
+            .doc("The two bodies."),
+        K("enabled", Type::boolean).def("true").doc("`false` switches contact of this pair off."),
+        K("friction", Type::number).absent(from_default).example("0.4").ge(0).doc("Coulomb friction coefficient."),
+        K("penalty_scale", Type::number).absent(from_default).example("0.1").gt(0).doc("k1 of eq. 6."),
+        K("normal_stiffness", Type::number)
+            .absent(from_default)
+            .example("1e8")
+            .unit("N/m")
+            .gt(0)
+            .doc("Normal stiffness replacing eq. 6."),
+        K("normal_damping_ratio", Type::number)
+            .absent(from_default)
+            .example("0.2")
+            .ge(0)
+            .lt(1)
+            .doc("Normal damping ratio."),
+        K("tangential_damping_ratio", Type::number)
+            .absent(from_default)
+            .example("0.0")
+            .ge(0)
+            .lt(1)
+            .doc("Tangential damping ratio."),
+    };
+  }
+
+  void build_recording() {
+    recording.title = "[recording]";
+    recording.anchor = "recording";
+    recording.description = "What the coupler records into `traffic.h5`, the log that replay and restart read.";
+    recording.keys = {
+        K("enabled", Type::boolean).def("true").doc("Record at all."),
+        K("fields", Type::string_list)
+            .def("[]")
+            .choices({"position", "velocity", "angular_velocity", "force", "torque", "node_position", "node_velocity",
+                      "node_force", "energies"})
+            .doc("Fields to record; empty: all."),
+        K("every", Type::integer).def("1").ge(1).doc("Record every N-th step."),
+        K("first_step", Type::integer).def("0").ge(0).doc("First recorded step."),
+        K("last_step", Type::integer)
+            .absent("to the end")
+            .example("100000")
+            .ge(0)
+            .doc("Last recorded step, not before `first_step`."),
+        K("flush_interval", Type::number)
+            .def("0.2")
+            .unit("s")
+            .gt(0)
+            .doc("Wall time between flushes to disk (the file stays readable after a crash)."),
+    };
+  }
+};
+
+const Schema& schema() {
+  static const Schema instance;
+  return instance;
+}
+
+std::string number_text(double v) {
+  return fmt::format("{}", v);
+}
+
+std::string escape_cell(std::string text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '|')
+      out += "\\|";
+    else if (c == '\n')
+      out += ' ';
+    else
+      out += c;
+  }
+  return out;
+}
+
+std::string allowed_cell(const Key& key) {
+  if (!key.allowed.empty()) return key.allowed;
+  if (!key.choices.empty()) {
+    std::string text;
+    for (const auto& choice : key.choices) {
+      if (!text.empty()) text += ", ";
+      text += "`\"" + choice + "\"`";
+    }
+    return key.type == Type::string_list ? "each of " + text : text;
+  }
+  if (!key.range.unbounded()) return key.range.text();
+  return "";
+}
+
+// A table's title as markdown text (link text, heading).
+std::string title_text(const Table& table) {
+  return &table == &schema().root ? table.title : "`" + table.title + "`";
+}
+
+std::string default_cell(const Key& key) {
+  if (key.required) {
+    if (key.only_for.empty()) return "required";
+    std::string shapes;
+    for (const auto& value : key.only_for) shapes += (shapes.empty() ? "" : ", ") + value;
+    return "required (" + shapes + ")";
+  }
+  if (!key.default_value.empty()) return "`" + key.default_value + "`";
+  return key.when_absent.empty() ? "" : "absent: " + key.when_absent;
+}
+
+}  // namespace
+
+std::string_view type_name(Type type) {
+  switch (type) {
+    case Type::boolean: return "boolean";
+    case Type::integer: return "integer";
+    case Type::number: return "number";
+    case Type::string: return "string";
+    case Type::vec3: return "[x, y, z]";
+    case Type::number_pair: return "[min, max]";
+    case Type::string_list: return "array of strings";
+    case Type::table: return "table";
+    case Type::table_list: return "array of tables";
+    case Type::named_tables: return "tables by name";
+  }
+  return "?";
+}
+
+bool Range::contains(double value) const {
+  if (min && (min_exclusive ? !(value > *min) : !(value >= *min))) return false;
+  if (max && (max_exclusive ? !(value < *max) : !(value <= *max))) return false;
+  return true;
+}
+
+std::string Range::text() const {
+  if (min && max) {
+    return fmt::format("{}{}, {}{}", min_exclusive ? "(" : "[", number_text(*min), number_text(*max),
+                       max_exclusive ? ")" : "]");
+  }
+  if (min) return fmt::format("{} {}", min_exclusive ? ">" : ">=", number_text(*min));
+  if (max) return fmt::format("{} {}", max_exclusive ? "<" : "<=", number_text(*max));
+  return "";
+}
+
+const Key* Table::find(std::string_view name) const {
+  auto it = std::find_if(keys.begin(), keys.end(), [&](const Key& key) { return key.name == name; });
+  return it == keys.end() ? nullptr : &*it;
+}
+
+std::vector<std::string> Table::key_names() const {
+  std::vector<std::string> names;
+  names.reserve(keys.size());
+  for (const auto& key : keys) names.push_back(key.name);
+  return names;
+}
+
+const Table& root() {
+  return schema().root;
+}
+
+std::vector<const Table*> tables() {
+  return schema().ordered();
+}
+
+const std::vector<std::string>& cross_checks() {
+  static const std::vector<std::string> checks{
+      "A scene has at least one body (`[[particles]]` or `[[structures]]`).",
+      "Particle sets and structures share one namespace: every name is unique among both. Names are made of "
+      "letters, digits, `_` and `-`; material names too.",
+      "`material` names a `[materials.NAME]` table.",
+      "A particle set gives exactly one of `spheres` and `fill`; a list has at least one sphere.",
+      "Spheres of lists do not overlap, within a set or across sets (touching is allowed).",
+      "A `fill` box has `min` < `max` on every axis and every side at least the largest diameter; "
+      "`diameter` is `[min, max]` with min <= max; the expected solid volume is at most 30 % of the box. Fill boxes "
+      "may overlap each other and "
+      "listed spheres: the dem_solver places filled spheres clear of the listed spheres and of earlier sets.",
+      "`[solvers.ROLE]` appears only for a role that the bodies need (`dem` for particles, `fem` for "
+      "structures; `sph` not in this version). `command`, when given, is not empty and its program exists: "
+      "an executable file (absolute, or relative to the scene file's folder when it contains a `/`) or a name "
+      "found on `PATH`.",
+      "`[contact.dem_dem]` needs particles; `[contact.dem_fem]` and `[[interactions]]` need particles and "
+      "structures. `[contact.dem_dem]` gives `normal_stiffness` or `normal_stiffness_scale`, not both.",
+      "An interaction's `pair` names one particle set and one structure; no pair appears twice.",
+      "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
+      "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
+      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` is not supported yet.",
+      "`[recording]`: `first_step` <= `last_step`.",
+      "Every number is finite (no `nan`, no `inf`).",
+  };
+  return checks;
+}
+
+std::string_view example_scene() {
+  return R"(format_version = 1
+
+[run]
+end_time = 4.0
+output_interval = 0.1
+gravity = [0.0, 0.0, -9.81]
+
+[solvers.dem]
+beta = 0.8
+
+[materials.granite]
+density = 3000.0
+youngs_modulus = 30e9
+poisson_ratio = 0.3
+
+[materials.concrete]
+density = 3000.0
+youngs_modulus = 30e9
+poisson_ratio = 0.24
+
+[[particles]]
+name = "boulders"
+material = "granite"
+fill = { min = [1.0, -1.5, 0.5], max = [6.0, 1.5, 3.5], count = 20, diameter = [0.5, 1.0], seed = 7 }
+
+[[particles]]
+name = "marker"
+material = "granite"
+spheres = [ { center = [8.0, 0.0, 1.0], radius = 0.4, velocity = [1.0, 0.0, 0.0] } ]
+
+[[structures]]
+name = "chute"
+material = "concrete"
+shape = "chute"
+origin = [0.0, 0.0, 0.0]
+direction = [1.0, 0.0, 0.0]
+length = 15.0
+width = 4.0
+slope_deg = 20.0
+wall_height = 2.0
+end_wall_height = 2.0
+element_size = 1.0
+
+[contact.dem_dem]
+friction = 1.0
+rolling_friction = 0.1
+
+[contact.dem_fem]
+friction = 0.3
+normal_damping_ratio = 0.2
+
+[[interactions]]
+pair = ["marker", "chute"]
+friction = 0.4
+
+[recording]
+fields = ["position", "force"]
+every = 10
+)";
+}
+
+std::string markdown() {
+  std::string out;
+  out +=
+      "# Scene file reference\n\n"
+      "<!-- Generated by `sabo_scene schema-doc` from libsabo/scene/schema.cpp. Do not edit by hand: a test "
+      "checks that this file equals the generated text. -->\n\n"
+      "A scene is one TOML file (`configs/*.toml`) that says everything a run simulates: materials, bodies "
+      "(particle sets, structures), how they touch, and what is recorded. What the scene does not mention is "
+      "not simulated: a scene without `[[particles]]` starts no `dem_solver`. Units are SI (m, s, kg, Pa), "
+      "angles in degrees, z points up.\n\n"
+      "`sabo_scene check SCENE` validates a file and prints the launch plan (the processes to start, as JSON). "
+      "Every value is checked when the scene is loaded. Each error names the file, the line, the key and the "
+      "value, and says how to fix it; all errors of a file are reported together, and nothing starts. Keys "
+      "are written as paths: `run.end_time`, `materials.granite.density`, `particles[0].spheres[3].radius` "
+      "(arrays count from 0). Unknown keys are errors, with the nearest allowed key as a suggestion.\n\n"
+      "Numbers may be written as integers or floats (`3000` or `3000.0`); integers must be integers.\n\n";
+
+  out += "## Contents\n\n";
+  for (const Table* table : tables()) {
+    out += fmt::format("* [{}](#{})\n", title_text(*table), table->anchor);
+  }
+  out += "* [Checks across keys](#checks-across-keys)\n* [Example](#example)\n\n";
+
+  for (const Table* table : tables()) {
+    out += fmt::format("<a id=\"{}\"></a>\n\n## {}\n\n{}\n\n", table->anchor, title_text(*table), table->description);
+    if (table->keys.empty()) continue;
+    out += "| key | type | default | unit | allowed | description |\n";
+    out += "|---|---|---|---|---|---|\n";
+    for (const Key& key : table->keys) {
+      std::string description = key.description;
+      if (!key.only_for.empty() && !key.required) {
+        std::string shapes;
+        for (const auto& value : key.only_for) shapes += (shapes.empty() ? "" : ", ") + value;
+        description = "(" + shapes + ") " + description;
+      }
+      if (key.table != nullptr)
+        description += fmt::format(" See [{}](#{}).", title_text(*key.table), key.table->anchor);
+      out += fmt::format("| `{}` | {} | {} | {} | {} | {} |\n", key.name, escape_cell(std::string(type_name(key.type))),
+                         escape_cell(default_cell(key)), escape_cell(key.unit), escape_cell(allowed_cell(key)),
+                         escape_cell(description));
+    }
+    out += "\n";
+  }
+
+  out += "<a id=\"checks-across-keys\"></a>\n\n## Checks across keys\n\n";
+  for (const auto& check : cross_checks()) out += "* " + check + "\n";
+  out += "\n<a id=\"example\"></a>\n\n## Example\n\n```toml\n";
+  out += example_scene();
+  out += "```\n";
+  return out;
+}
+
+}  // namespace sabo::scene::schema

@@ -1,0 +1,169 @@
+// Every file of tests/scenes/bad is refused with a message that names the
+// file, the line, the key and the value (and the suggestion where one
+// applies), both by load_scene and by `sabo_scene check` (exit status 2).
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/scene/loader.hpp"
+#include "scene_test_support.hpp"
+
+namespace sabo::scene {
+namespace {
+
+struct BadScene {
+  std::string file;               // in tests/scenes/bad
+  int line;                       // of the first message
+  std::string key;                // as printed: key 'KEY'
+  std::string value;              // as printed after " = " (empty: no value)
+  std::vector<std::string> also;  // further text the message must hold
+};
+
+std::filesystem::path bad_folder() {
+  return testing::source_dir() / "tests/scenes/bad";
+}
+
+const std::vector<BadScene>& bad_scenes() {
+  static const std::vector<BadScene> scenes{
+      {"syntax_error.toml", 5, "end_time", "2.0.0", {":5:15:", "TOML syntax error", "expected decimal digit"}},
+      {"unknown_key.toml", 7, "run.hang_timout", "5.0", {"unknown key. Did you mean 'hang_timeout'?"}},
+      {"unknown_table.toml", 18, "fluids", "[{ name = \"slurry\" }]", {"unknown key", "keys allowed at the top level"}},
+      {"wrong_type.toml", 9, "materials.granite.density", "\"3000\"", {"must be a number (kg/m^3), not a string"}},
+      {"negative_radius.toml", 18, "particles[0].spheres[1].radius", "-0.5", {"must be > 0 (m)", "positive radius"}},
+      {"friction_out_of_range.toml", 32, "contact.dem_fem.friction", "-0.3", {"must be >= 0"}},
+      {"damping_out_of_range.toml", 19, "contact.dem_dem.normal_damping_ratio", "1.2", {"must be in [0, 1)"}},
+      {"poisson_out_of_range.toml", 11, "materials.granite.poisson_ratio", "0.5", {"must be in [0, 0.5)"}},
+      {"missing_mesh.toml",
+       27,
+       "structures[0].file",
+       "\"meshes/no_such_dam.stl\"",
+       {"file not found", "tests/scenes/bad/meshes/no_such_dam.stl", "relative to the scene file's folder"}},
+      {"unknown_material.toml", 15, "particles[0].material", "\"granit\"", {"Did you mean 'granite'?"}},
+      {"overlapping_spheres.toml",
+       21,
+       "particles[1].spheres[0]",
+       "{ center = [0.6, 0.0, 3.0], radius = 0.5 }",
+       {"overlaps particles[0].spheres[0] (line 16) by 0.4 m"}},
+      {"negative_end_time.toml", 5, "run.end_time", "-1.0", {"must be > 0 (s)"}},
+      {"missing_solver_command.toml",
+       19,
+       "solvers.dem.command",
+       "[\"/nonexistent/sabo/my_dem\", \"--fast\"]",
+       {"does not exist or is not executable", "remove 'command' to run the built dem_solver"}},
+      {"unneeded_solver.toml", 18, "solvers.fem", "", {"no bodies need the fem_solver", "add [[structures]]"}},
+      {"no_bodies.toml", 1, "", "", {"the scene has no bodies", "add at least one [[particles]] or [[structures]]"}},
+      {"duplicate_name.toml", 24, "structures[0].name", "\"boulders\"", {"already used by particles[0] (line 19)"}},
+      {"interaction_unknown_body.toml",
+       32,
+       "interactions[0].pair",
+       "[\"bouldrs\", \"ground\"]",
+       {"no particle set or structure is named \"bouldrs\"", "Did you mean 'boulders'?"}},
+      {"interaction_same_kind.toml",
+       42,
+       "interactions[0].pair",
+       "[\"ground\", \"wall\"]",
+       {"both are structures; a pair is one particle set and one structure"}},
+      {"fill_inverted_region.toml",
+       16,
+       "particles[0].fill.max",
+       "[5.0, 5.0, 1.0]",
+       {"empty or inverted", "min = [0.0, 0.0, 5.0]"}},
+      {"fill_zero_count.toml", 16, "particles[0].fill.count", "0", {"must be >= 1"}},
+      {"fill_diameter_inverted.toml",
+       16,
+       "particles[0].fill.diameter",
+       "[2.0, 1.0]",
+       {"inverted", "write diameter = [1.0, 2.0]"}},
+      {"fill_too_dense.toml", 16, "particles[0].fill.count", "100", {"42 % of the region's volume", "at most 30 %"}},
+      {"bad_format_version.toml", 2, "format_version", "2", {"reads format_version 1 only"}},
+      {"bad_endpoint.toml", 7, "run.endpoint", "\"udp://127.0.0.1:5555\"", {"must be \"ipc\" or \"tcp://HOST:PORT\""}},
+      {"unknown_recording_field.toml",
+       19,
+       "recording.fields",
+       "[\"velocity\", \"positon\"]",
+       {"\"positon\" is not one of", "Did you mean \"position\"?"}},
+      {"recording_step_range.toml", 20, "recording.last_step", "10", {"before first_step = 100"}},
+      {"missing_required_key.toml",
+       4,
+       "run.output_interval",
+       "",
+       {"missing; it is required (s)", "add output_interval"}},
+      {"unknown_shape.toml", 26, "structures[0].shape", "\"plain\"", {"Did you mean \"plane\"?"}},
+      {"key_of_other_shape.toml",
+       30,
+       "structures[0].slope_deg",
+       "20.0",
+       {"belongs to shape = \"chute\", not to shape = \"plane\""}},
+      {"many_errors.toml",
+       5,
+       "run.end_time",
+       "0.0",
+       {":9: key 'materials.granite.density' = -3000.0: must be > 0 (kg/m^3)",
+        ":16: key 'particles[0].spheres[0].colour' = \"red\": unknown key"}},
+  };
+  return scenes;
+}
+
+// The message's first line.
+std::string first_line(const std::string& message) {
+  return message.substr(0, message.find('\n'));
+}
+
+void expect_names_everything(const BadScene& bad, const std::string& message, const std::string& file) {
+  const std::string head = first_line(message);
+  EXPECT_EQ(head.rfind(file + ":" + std::to_string(bad.line) + ":", 0), 0u) << head;
+  if (!bad.key.empty()) {
+    EXPECT_NE(head.find("key '" + bad.key + "'"), std::string::npos) << head;
+  }
+  if (!bad.value.empty()) {
+    EXPECT_NE(head.find("' = " + bad.value + ":"), std::string::npos) << head;
+  }
+  for (const auto& text : bad.also) EXPECT_NE(message.find(text), std::string::npos) << text << "\n" << message;
+  // Every line says how to fix it.
+  std::size_t start = 0;
+  while (start < message.size()) {
+    const std::size_t end = std::min(message.find('\n', start), message.size());
+    EXPECT_NE(message.substr(start, end - start).find(" Fix: "), std::string::npos) << message;
+    start = end + 1;
+  }
+}
+
+TEST(BadScenes, EveryFileIsCovered) {
+  std::set<std::string> on_disk, listed;
+  for (const auto& entry : std::filesystem::directory_iterator(bad_folder())) {
+    if (entry.path().extension() == ".toml") on_disk.insert(entry.path().filename().string());
+  }
+  for (const auto& bad : bad_scenes()) listed.insert(bad.file);
+  EXPECT_EQ(on_disk, listed);
+}
+
+TEST(BadScenes, LoaderNamesFileLineKeyValue) {
+  for (const auto& bad : bad_scenes()) {
+    SCOPED_TRACE(bad.file);
+    const std::string file = (bad_folder() / bad.file).string();
+    try {
+      (void)load_scene(file);
+      ADD_FAILURE() << "loaded without error";
+    } catch (const SceneError& error) {
+      std::cout << error.what() << "\n";
+      expect_names_everything(bad, error.what(), file);
+    }
+  }
+}
+
+TEST(BadScenes, ToolExitsWithTwoAndPrintsTheMessage) {
+  for (const auto& bad : bad_scenes()) {
+    SCOPED_TRACE(bad.file);
+    const std::string file = (bad_folder() / bad.file).string();
+    const auto result = testing::run_tool("check '" + file + "'");
+    EXPECT_EQ(result.exit_code, 2) << result.err;
+    EXPECT_TRUE(result.out.empty()) << result.out;
+    expect_names_everything(bad, result.err, file);
+  }
+}
+
+}  // namespace
+}  // namespace sabo::scene

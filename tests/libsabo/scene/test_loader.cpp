@@ -1,0 +1,512 @@
+// The scene loader: the configs load, values map onto the scene model,
+// defaults agree with scene.hpp, and the checks across keys fire.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/scene/loader.hpp"
+#include "libsabo/scene/suggest.hpp"
+#include "scene_test_support.hpp"
+
+namespace sabo::scene {
+namespace {
+
+using testing::kGround;
+using testing::kOneSphere;
+using testing::kSceneHead;
+using testing::TempFolder;
+
+Scene load_text(const std::string& text) {
+  TempFolder folder;
+  return load_scene(folder.write("scene.toml", text));
+}
+
+// The SceneError message of loading `text` (empty if it loads).
+std::string error_of(const std::string& text) {
+  TempFolder folder;
+  try {
+    (void)load_scene(folder.write("scene.toml", text));
+  } catch (const SceneError& error) {
+    return error.what();
+  }
+  return {};
+}
+
+std::size_t line_count(const std::string& text) {
+  return static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) + (text.empty() ? 0 : 1);
+}
+
+TEST(SceneLoader, EveryConfigLoads) {
+  std::size_t loaded = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(testing::source_dir() / "configs")) {
+    if (entry.path().extension() != ".toml") continue;
+    SCOPED_TRACE(entry.path().string());
+    EXPECT_NO_THROW({
+      const Scene scene = load_scene(entry.path());
+      EXPECT_FALSE(scene.solvers.empty());
+    });
+    ++loaded;
+  }
+  std::cout << "configs loaded: " << loaded << "\n";
+  EXPECT_GE(loaded, 5u);
+}
+
+TEST(SceneLoader, BouldersChuteIsThePaperSetup) {
+  const Scene scene = load_scene(testing::source_dir() / "configs/boulders_chute.toml");
+  EXPECT_TRUE(scene.file.is_absolute());
+  EXPECT_DOUBLE_EQ(scene.run.output_interval, 0.25);
+  EXPECT_GT(scene.run.end_time, 0.0);
+  ASSERT_EQ(scene.particle_sets.size(), 1u);
+  const ParticleSet& boulders = scene.particle_sets[0];
+  EXPECT_EQ(boulders.kind, ParticleSet::Kind::fill);
+  EXPECT_EQ(boulders.count, 200u);
+  EXPECT_DOUBLE_EQ(boulders.diameter_min, 1.0);
+  EXPECT_DOUBLE_EQ(boulders.diameter_max, 2.0);
+  const Material& granite = scene.materials[scene.material_index(boulders.material)];
+  EXPECT_DOUBLE_EQ(granite.density, 3000.0);
+  EXPECT_DOUBLE_EQ(granite.youngs_modulus, 30e9);
+  EXPECT_DOUBLE_EQ(granite.poisson_ratio, 0.3);
+  EXPECT_DOUBLE_EQ(scene.dem_contact.normal_damping_ratio, 0.7);
+  EXPECT_DOUBLE_EQ(scene.dem_contact.tangential_damping_ratio, 0.4);
+  EXPECT_DOUBLE_EQ(scene.dem_contact.friction, 1.0);
+  EXPECT_DOUBLE_EQ(scene.dem_contact.rolling_friction, 0.1);
+  EXPECT_DOUBLE_EQ(scene.dem_contact.normal_stiffness_scale, 0.01);
+  EXPECT_FALSE(scene.dem_contact.normal_stiffness.has_value());
+
+  ASSERT_EQ(scene.structures.size(), 1u);
+  const Structure& chute = scene.structures[0];
+  EXPECT_EQ(chute.shape.type, Shape::Type::chute);
+  EXPECT_DOUBLE_EQ(chute.shape.slope_deg, 20.0);
+  EXPECT_DOUBLE_EQ(chute.shape.length, 60.0);
+  EXPECT_DOUBLE_EQ(chute.shape.width, 8.0);
+  EXPECT_DOUBLE_EQ(chute.shape.wall_height, 4.0);
+  EXPECT_GT(chute.shape.end_wall_height, 0.0);
+  const Material& concrete = scene.materials[scene.material_index(chute.material)];
+  EXPECT_DOUBLE_EQ(concrete.poisson_ratio, 0.24);
+  EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "chute").friction, 0.3);
+
+  // The fill box lies between the side walls and above the floor's top edge.
+  EXPECT_LE(std::abs(boulders.region.min.y()), chute.shape.width / 2);
+  EXPECT_LE(std::abs(boulders.region.max.y()), chute.shape.width / 2);
+  EXPECT_GT(boulders.region.min.z(), chute.shape.origin.z());
+  ASSERT_NE(scene.solver(Role::dem), nullptr);
+  ASSERT_NE(scene.solver(Role::fem), nullptr);
+  EXPECT_FALSE(scene.needs(Role::sph));
+}
+
+TEST(SceneLoader, SphereDropIsTheBrief) {
+  const Scene scene = load_scene(testing::source_dir() / "configs/tests/sphere_drop.toml");
+  ASSERT_EQ(scene.particle_sets.size(), 1u);
+  ASSERT_EQ(scene.particle_sets[0].spheres.size(), 1u);
+  const Sphere& sphere = scene.particle_sets[0].spheres[0];
+  EXPECT_DOUBLE_EQ(sphere.radius, 0.5);
+  EXPECT_DOUBLE_EQ(sphere.center.z(), 3.0);
+  EXPECT_EQ(scene.structures.at(0).shape.type, Shape::Type::plane);
+  EXPECT_DOUBLE_EQ(scene.dem_fem_default.normal_damping_ratio, 0.3);
+  EXPECT_DOUBLE_EQ(scene.dem_fem_default.friction, 0.0);
+  EXPECT_DOUBLE_EQ(scene.run.end_time, 6.0);
+}
+
+// The schema's defaults (docs/scene.md) must be the defaults of scene.hpp.
+TEST(SceneLoader, SchemaDefaultsEqualSceneModelDefaults) {
+  const Scene scene = load_text(std::string(kSceneHead) + kOneSphere + kGround);
+  const RunSettings run_defaults;
+  EXPECT_EQ(scene.run.endpoint, run_defaults.endpoint);
+  EXPECT_EQ(scene.run.gravity, run_defaults.gravity);
+  EXPECT_EQ(scene.run.hang_timeout, run_defaults.hang_timeout);
+  EXPECT_FALSE(scene.run.max_dt.has_value());
+
+  const DemContact dem;
+  EXPECT_EQ(scene.dem_contact.normal_damping_ratio, dem.normal_damping_ratio);
+  EXPECT_EQ(scene.dem_contact.tangential_damping_ratio, dem.tangential_damping_ratio);
+  EXPECT_EQ(scene.dem_contact.friction, dem.friction);
+  EXPECT_EQ(scene.dem_contact.rolling_friction, dem.rolling_friction);
+  EXPECT_EQ(scene.dem_contact.normal_stiffness, dem.normal_stiffness);
+  EXPECT_EQ(scene.dem_contact.normal_stiffness_scale, dem.normal_stiffness_scale);
+  EXPECT_EQ(scene.dem_contact.tangential_stiffness_ratio, dem.tangential_stiffness_ratio);
+
+  const SurfaceContact surface;
+  EXPECT_EQ(scene.dem_fem_default.friction, surface.friction);
+  EXPECT_EQ(scene.dem_fem_default.penalty_scale, surface.penalty_scale);
+  EXPECT_EQ(scene.dem_fem_default.normal_stiffness, surface.normal_stiffness);
+  EXPECT_EQ(scene.dem_fem_default.normal_damping_ratio, surface.normal_damping_ratio);
+  EXPECT_EQ(scene.dem_fem_default.tangential_damping_ratio, surface.tangential_damping_ratio);
+  EXPECT_EQ(scene.dem_fem_default.enabled, surface.enabled);
+
+  const Recording recording;
+  EXPECT_EQ(scene.recording.enabled, recording.enabled);
+  EXPECT_EQ(scene.recording.fields, recording.fields);
+  EXPECT_EQ(scene.recording.every, recording.every);
+  EXPECT_EQ(scene.recording.first_step, recording.first_step);
+  EXPECT_EQ(scene.recording.last_step, recording.last_step);
+  EXPECT_EQ(scene.recording.flush_interval, recording.flush_interval);
+
+  const SolverSettings solver;
+  ASSERT_EQ(scene.solvers.size(), 2u);
+  for (const auto& s : scene.solvers) {
+    EXPECT_EQ(s.beta, solver.beta);
+    EXPECT_TRUE(s.command.empty());
+  }
+  const Sphere sphere;
+  EXPECT_EQ(scene.particle_sets[0].spheres[0].velocity, sphere.velocity);
+  EXPECT_EQ(scene.particle_sets[0].spheres[0].angular_velocity, sphere.angular_velocity);
+
+  const Structure structure_defaults;
+  const Shape shape_defaults;
+  const Structure& ground = scene.structures[0];
+  EXPECT_EQ(ground.rigid, structure_defaults.rigid);
+  EXPECT_EQ(ground.thickness, structure_defaults.thickness);
+  EXPECT_EQ(ground.shape.normal, shape_defaults.normal);
+  EXPECT_EQ(ground.shape.direction, shape_defaults.direction);
+  EXPECT_EQ(ground.shape.element_size, shape_defaults.element_size);
+
+  const Scene filled = load_text(std::string(kSceneHead) + R"(
+[[particles]]
+name = "b"
+material = "granite"
+fill = { min = [0, 0, 0], max = [4, 4, 4], count = 5, diameter = [0.5, 1.0] }
+[[structures]]
+name = "dam"
+material = "concrete"
+shape = "chute"
+origin = [0, 0, 0]
+length = 5
+width = 2
+slope_deg = 10
+)");
+  const ParticleSet set_defaults;
+  EXPECT_EQ(filled.particle_sets[0].seed, set_defaults.seed);
+  EXPECT_EQ(filled.particle_sets[0].velocity, set_defaults.velocity);
+  EXPECT_EQ(filled.structures[0].shape.wall_height, shape_defaults.wall_height);
+  EXPECT_EQ(filled.structures[0].shape.end_wall_height, shape_defaults.end_wall_height);
+  EXPECT_EQ(filled.structures[0].shape.direction, shape_defaults.direction);
+}
+
+TEST(SceneLoader, ReadsEveryShapeAndNormalisesDirections) {
+  TempFolder folder;
+  folder.write("meshes/wall.stl", "solid w\nendsolid w\n");
+  const auto file = folder.write("scene.toml", std::string(kSceneHead) + kOneSphere + R"(
+[[structures]]
+name = "slanted"
+material = "concrete"
+shape = "plane"
+origin = [0, 0, -1]
+normal = [0, 0, 2]
+direction = [3, 0, 4]
+length = 4
+width = 2
+thickness = 0.24
+[[structures]]
+name = "block"
+material = "concrete"
+shape = "box"
+min = [5, 5, 0]
+max = [6, 7, 1]
+element_size = 0.25
+[[structures]]
+name = "chute"
+material = "concrete"
+shape = "chute"
+origin = [20, 0, 0]
+direction = [0, -2, 0]
+length = 12
+width = 3
+slope_deg = 30
+wall_height = 1
+end_wall_height = 2
+[[structures]]
+name = "wall"
+material = "concrete"
+shape = "mesh"
+file = "meshes/../meshes/wall.stl"
+scale = 2.0
+translate = [1, 2, 3]
+)");
+  const Scene scene = load_scene(file);
+  ASSERT_EQ(scene.structures.size(), 4u);
+  const Shape& plane = scene.structures[0].shape;
+  EXPECT_EQ(plane.type, Shape::Type::plane);
+  EXPECT_NEAR((plane.normal - Vec3(0, 0, 1)).norm(), 0.0, 1e-15);
+  EXPECT_NEAR((plane.direction - Vec3(1, 0, 0)).norm(), 0.0, 1e-15);
+  EXPECT_DOUBLE_EQ(scene.structures[0].thickness, 0.24);
+  const Shape& box = scene.structures[1].shape;
+  EXPECT_EQ(box.type, Shape::Type::box);
+  EXPECT_EQ(box.box.min, Vec3(5, 5, 0));
+  EXPECT_EQ(box.box.max, Vec3(6, 7, 1));
+  EXPECT_DOUBLE_EQ(box.element_size, 0.25);
+  const Shape& chute = scene.structures[2].shape;
+  EXPECT_EQ(chute.type, Shape::Type::chute);
+  EXPECT_EQ(chute.direction, Vec3(0, -1, 0));
+  EXPECT_DOUBLE_EQ(chute.slope_deg, 30.0);
+  EXPECT_DOUBLE_EQ(chute.end_wall_height, 2.0);
+  const Shape& mesh = scene.structures[3].shape;
+  EXPECT_EQ(mesh.type, Shape::Type::mesh);
+  EXPECT_TRUE(mesh.file.is_absolute());
+  EXPECT_EQ(mesh.file, std::filesystem::canonical(folder.path() / "meshes/wall.stl"));
+  EXPECT_DOUBLE_EQ(mesh.scale, 2.0);
+  EXPECT_EQ(mesh.translate, Vec3(1, 2, 3));
+}
+
+TEST(SceneLoader, MaterialsAreSortedByNameAndRolesFollowBodies) {
+  const Scene scene = load_text(std::string(kSceneHead) + kOneSphere);
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_EQ(scene.materials[0].name, "concrete");
+  EXPECT_EQ(scene.materials[1].name, "granite");
+  EXPECT_EQ(scene.material_index("granite"), 1u);
+  EXPECT_GT(scene.materials[1].origin.line, 0);
+  ASSERT_EQ(scene.solvers.size(), 1u);
+  EXPECT_EQ(scene.solvers[0].role, Role::dem);
+  EXPECT_FALSE(scene.needs(Role::fem));
+
+  const Scene structures_only = load_text(std::string(kSceneHead) + kGround);
+  ASSERT_EQ(structures_only.solvers.size(), 1u);
+  EXPECT_EQ(structures_only.solvers[0].role, Role::fem);
+}
+
+TEST(SceneLoader, InteractionsOverrideTheDefaultPerPair) {
+  const Scene scene = load_text(std::string(kSceneHead) + kOneSphere + kGround + R"(
+[[structures]]
+name = "dam"
+material = "concrete"
+shape = "box"
+min = [3, -1, 0]
+max = [4, 1, 2]
+[contact.dem_fem]
+friction = 0.3
+normal_damping_ratio = 0.2
+[[interactions]]
+pair = ["dam", "boulders"]
+friction = 0.4
+[[interactions]]
+pair = ["boulders", "ground"]
+enabled = false
+)");
+  ASSERT_EQ(scene.interactions.size(), 2u);
+  EXPECT_EQ(scene.interactions[0].a, "boulders");  // the particle set comes first
+  EXPECT_EQ(scene.interactions[0].b, "dam");
+  const SurfaceContact dam = scene.surface_contact("boulders", "dam");
+  EXPECT_DOUBLE_EQ(dam.friction, 0.4);
+  EXPECT_DOUBLE_EQ(dam.normal_damping_ratio, 0.2);  // inherited from [contact.dem_fem]
+  EXPECT_TRUE(dam.enabled);
+  EXPECT_FALSE(scene.surface_contact("boulders", "ground").enabled);
+  EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "ground").friction, 0.3);
+}
+
+TEST(SceneLoader, SolverCommandsResolve) {
+  TempFolder folder;
+  const auto program = folder.write("bin/my_dem", "#!/bin/sh\nexit 0\n");
+  std::filesystem::permissions(program, std::filesystem::perms::owner_all);
+  const auto file = folder.write("scene.toml", std::string(kSceneHead) + kOneSphere + R"(
+[solvers.dem]
+command = ["./bin/my_dem", "--fast"]
+beta = 0.5
+)");
+  const Scene scene = load_scene(file);
+  const SolverSettings* dem = scene.solver(Role::dem);
+  ASSERT_NE(dem, nullptr);
+  ASSERT_EQ(dem->command.size(), 2u);
+  EXPECT_EQ(std::filesystem::path(dem->command[0]), (folder.path() / "bin/my_dem").lexically_normal());
+  EXPECT_EQ(dem->command[1], "--fast");
+  EXPECT_DOUBLE_EQ(dem->beta, 0.5);
+
+  // A bare name is looked up on PATH and kept as written.
+  const Scene on_path = load_text(std::string(kSceneHead) + kOneSphere + "[solvers.dem]\ncommand = [\"sh\"]\n");
+  EXPECT_EQ(on_path.solver(Role::dem)->command, std::vector<std::string>{"sh"});
+
+  // A file that is not executable is refused.
+  const auto plain = folder.write("bin/not_executable", "data\n");
+  std::filesystem::permissions(plain, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  const std::string message =
+      error_of(std::string(kSceneHead) + kOneSphere + "[solvers.dem]\ncommand = [\"" + plain.string() + "\"]\n");
+  EXPECT_NE(message.find("not executable"), std::string::npos) << message;
+}
+
+TEST(SceneLoader, CollectsEveryErrorSortedByLine) {
+  const std::string message = error_of(std::string(kSceneHead) + R"(
+[[particles]]
+name = "b"
+material = "granite"
+spheres = [ { center = [0, 0, 0], radius = -1.0 } ]
+[contact.dem_dem]
+friction = -1.0
+rolling_friction = -0.1
+)" + "[recording]\nevery = 0\n");
+  std::cout << message << "\n";
+  EXPECT_EQ(line_count(message), 4u);
+  const auto radius = message.find("radius"), friction = message.find("dem_dem.friction"),
+             rolling = message.find("rolling_friction"), every = message.find("recording.every");
+  ASSERT_NE(radius, std::string::npos);
+  ASSERT_NE(every, std::string::npos);
+  EXPECT_LT(radius, friction);
+  EXPECT_LT(friction, rolling);
+  EXPECT_LT(rolling, every);
+}
+
+TEST(SceneLoader, NumbersAndIntegers) {
+  // Integers are numbers; floats are not integers; nan is not finite.
+  const Scene scene = load_text(std::string(kSceneHead) +
+                                "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\n"
+                                "spheres = [ { center = [0, 0, 5], radius = 1 } ]\n");
+  EXPECT_DOUBLE_EQ(scene.particle_sets[0].spheres[0].radius, 1.0);
+
+  const std::string count = error_of(std::string(kSceneHead) +
+                                     "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\n"
+                                     "fill = { min = [0, 0, 0], max = [4, 4, 4], count = 10.0, diameter = [1, 1] }\n");
+  EXPECT_NE(count.find("key 'particles[0].fill.count' = 10.0: must be an integer, not a float"), std::string::npos)
+      << count;
+  const std::string nan = error_of(std::string(kSceneHead) + kOneSphere + "[contact.dem_dem]\nfriction = nan\n");
+  EXPECT_NE(nan.find("key 'contact.dem_dem.friction' = nan: must be a finite number"), std::string::npos) << nan;
+  const std::string vector = error_of(std::string(kSceneHead) +
+                                      "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\n"
+                                      "spheres = [ { center = [0, 0], radius = 1 } ]\n");
+  EXPECT_NE(vector.find("must be an array of 3 numbers [x, y, z] (m), not an array of 2 elements"), std::string::npos)
+      << vector;
+}
+
+TEST(SceneLoader, OverlapsWithinASetAndTouchingIsAllowed) {
+  // Touching exactly (distance = r1 + r2) loads.
+  const Scene touching = load_text(std::string(kSceneHead) +
+                                   "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\nspheres = [\n"
+                                   "  { center = [0, 0, 0], radius = 0.5 },\n"
+                                   "  { center = [1.0, 0, 0], radius = 0.5 },\n]\n");
+  EXPECT_EQ(touching.particle_sets[0].spheres.size(), 2u);
+  const std::string message = error_of(std::string(kSceneHead) +
+                                       "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\nspheres = [\n"
+                                       "  { center = [0, 0, 0], radius = 0.5 },\n"
+                                       "  { center = [5, 5, 5], radius = 0.5 },\n"
+                                       "  { center = [0, 0.9, 0], radius = 0.5 },\n]\n");
+  EXPECT_NE(message.find(":19: key 'particles[0].spheres[2]'"), std::string::npos) << message;
+  EXPECT_NE(message.find("overlaps particles[0].spheres[0] (line 17) by 0.1 m"), std::string::npos) << message;
+}
+
+TEST(SceneLoader, ManyOverlapsAreSummarised) {
+  std::string spheres;
+  for (int k = 0; k < 30; ++k) spheres += "  { center = [" + std::to_string(0.01 * k) + ", 0, 0], radius = 0.5 },\n";
+  const std::string message = error_of(
+      std::string(kSceneHead) + "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\nspheres = [\n" + spheres + "]\n");
+  EXPECT_EQ(line_count(message), 21u);
+  EXPECT_NE(message.find("415 more pairs of listed spheres overlap"), std::string::npos) << message;
+}
+
+TEST(SceneLoader, ChecksAcrossKeys) {
+  struct Case {
+    std::string text;
+    std::string expected;
+  };
+  const std::string head = kSceneHead;
+  const std::vector<Case> cases{
+      {head + kOneSphere + "[contact.dem_dem]\nnormal_stiffness = 1e7\nnormal_stiffness_scale = 0.01\n",
+       "key 'contact.dem_dem.normal_stiffness_scale' = 0.01: give either normal_stiffness or "
+       "normal_stiffness_scale, not both"},
+      {head + kGround + "[contact.dem_dem]\nfriction = 0.5\n",
+       "key 'contact.dem_dem': there are no particles, so no sphere-sphere contact"},
+      {head + kGround + "[contact.dem_fem]\nfriction = 0.5\n",
+       "key 'contact.dem_fem': sphere-structure contact needs both particles and structures"},
+      {head + kOneSphere + "[[interactions]]\npair = [\"boulders\", \"x\"]\n",
+       "key 'interactions': interactions pair a particle set with a structure, but the scene lacks one"},
+      {head + kOneSphere + kGround +
+           "[[interactions]]\npair = [\"boulders\", \"ground\"]\n[[interactions]]\npair = "
+           "[\"ground\", \"boulders\"]\n",
+       "this pair is already given at line"},
+      {head + kOneSphere + kGround + "[[interactions]]\npair = [\"boulders\"]\n",
+       "a pair names exactly two bodies, not 1"},
+      {head + kOneSphere + kGround + "rigid = false\n", "key 'structures[0].rigid' = false: deformable structures"},
+      {head + kOneSphere + kGround + "normal = [0, 0, 0]\n",
+       "key 'structures[0].normal' = [0, 0, 0]: the normal is zero"},
+      {head + kOneSphere + kGround + "direction = [0, 0, 1]\n",
+       "key 'structures[0].direction' = [0, 0, 1]: the direction is zero or along the normal"},
+      {head + kOneSphere +
+           "[[structures]]\nname = \"c\"\nmaterial = \"concrete\"\nshape = \"chute\"\norigin = [0, 0, 0]\n"
+           "direction = [1, 0, -0.3]\nlength = 5\nwidth = 2\nslope_deg = 10\n",
+       "a chute's direction must be horizontal"},
+      {head + kOneSphere +
+           "[[structures]]\nname = \"c\"\nmaterial = \"concrete\"\nshape = \"box\"\nmin = [0, 0, 0]\nmax = [1, 0, 1]\n",
+       "key 'structures[0].max' = [1, 0, 1]: the box is empty or inverted"},
+      {head + kOneSphere + "[[structures]]\nname = \"c\"\nmaterial = \"concrete\"\nshape = \"box\"\nmin = [0, 0, 0]\n",
+       "key 'structures[0].max': missing; it is required (m). Fix: add max = [1.0, 1.0, 1.0] to 'structures[0]'"},
+      {head + "[[particles]]\nname = \"my set\"\nmaterial = \"granite\"\nspheres = [ { center = [0, 0, 0], radius = 1 "
+              "} ]\n",
+       "key 'particles[0].name' = \"my set\": a name must be made of letters, digits, '_' and '-'"},
+      {head + "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\n",
+       "key 'particles[0]': has neither 'spheres' nor 'fill'"},
+      {head + "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\nspheres = [ { center = [0, 0, 0], radius = 1 } ]\n"
+              "fill = { min = [0, 0, 0], max = [4, 4, 4], count = 1, diameter = [1, 1] }\n",
+       "a particle set gives either 'spheres' or 'fill', not both"},
+      {head + "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\nspheres = []\n",
+       "key 'particles[0].spheres' = []: the list has no spheres"},
+      {head + "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\n"
+              "fill = { min = [0, 0, 0], max = [4, 4, 1.5], count = 1, diameter = [1, 2] }\n",
+       "too small for a sphere of the largest diameter 2.0 m"},
+      {head + "[[particles]]\nname = \"b\"\nmaterial = \"granite\"\n"
+              "fill = { min = [0, 0, 0], max = [4, 4, 4], count = 1, diameter = [-1, 2] }\n",
+       "key 'particles[0].fill.diameter' = [-1, 2]: every element must be > 0 (m)"},
+      {"format_version = 1\n" + std::string(kOneSphere), "key 'run': missing; it is required"},
+      {head.substr(head.find('\n') + 1) + kOneSphere, "key 'format_version': missing; it is required"},
+      {head + kOneSphere + "[materals.rock]\ndensity = 1.0\n",
+       "key 'materals' = { rock = { density = 1.0 } }: unknown key. Did you "
+       "mean 'materials'? Fix: rename it to 'materials'"},
+      {head + kOneSphere + "[solvers.dme]\nbeta = 0.5\n",
+       "key 'solvers.dme' = { beta = 0.5 }: unknown key. Did you "
+       "mean 'dem'?"},
+      {head + kOneSphere + "[solvers.sph]\nbeta = 0.5\n",
+       "key 'solvers.sph': no bodies need the sph_solver. Fix: remove [solvers.sph]"},
+      {head + kOneSphere + "[solvers.dem]\ncommand = []\n", "the command names no program"},
+      {head + kOneSphere + "[solvers.dem]\nbeta = 1.5\n", "key 'solvers.dem.beta' = 1.5: must be in (0, 1]"},
+      {head + kOneSphere + "[solvers.dem]\ncommand = [\"no_such_sabo_program_xyz\"]\n",
+       "program 'no_such_sabo_program_xyz' is not found on PATH"},
+      {head + kOneSphere + "[recording]\nevery = 0\n", "key 'recording.every' = 0: must be >= 1"},
+      {head + kOneSphere + "[run.extra]\n", "key 'run.extra' = {}: unknown key"},
+      {"format_version = 1\nparticles = { name = \"x\" }\n[run]\nend_time = 1.0\noutput_interval = 0.1\n",
+       "key 'particles' = { name = \"x\" }: must be an array of tables, not a table. Fix: start each entry with a "
+       "[[particles]] header"},
+      {"format_version = 1\n[run]\nend_time = 1.0\noutput_interval = 0.1\nparticles = []\nstructures = []\n",
+       "the scene has no bodies"},
+  };
+  for (const auto& c : cases) {
+    const std::string message = error_of(c.text);
+    EXPECT_NE(message.find(c.expected), std::string::npos) << "expected: " << c.expected << "\ngot: " << message;
+  }
+}
+
+TEST(SceneLoader, Endpoints) {
+  const auto with_endpoint = [](const char* endpoint) {
+    std::string text = kSceneHead;
+    text.insert(text.find("[materials"), std::string("endpoint = \"") + endpoint + "\"\n");
+    return text + kOneSphere;
+  };
+  for (const char* good :
+       {"ipc", "tcp://127.0.0.1:5555", "tcp://node-7.cluster:65535", "tcp://[::1]:1", "tcp://*:5555"}) {
+    EXPECT_EQ(load_text(with_endpoint(good)).run.endpoint, good);
+  }
+  for (const char* bad :
+       {"tcp://127.0.0.1", "tcp://:5555", "tcp://host:0", "tcp://host:70000", "ipc://x", "tcp://a b:1"}) {
+    const std::string message = error_of(with_endpoint(bad));
+    EXPECT_NE(message.find("must be \"ipc\" or \"tcp://HOST:PORT\""), std::string::npos) << bad << ": " << message;
+  }
+}
+
+TEST(SceneLoader, UnreadableFileIsAFileError) {
+  EXPECT_THROW((void)load_scene("/nonexistent/sabo/scene.toml"), FileError);
+  TempFolder folder;
+  EXPECT_THROW((void)load_scene(folder.path()), FileError);
+}
+
+TEST(SceneSuggest, EditDistanceAndClosestMatch) {
+  EXPECT_EQ(edit_distance("end_tme", "end_time"), 1u);
+  EXPECT_EQ(edit_distance("raduis", "radius"), 1u);  // transposition
+  EXPECT_EQ(edit_distance("Radius", "radius"), 0u);
+  EXPECT_EQ(edit_distance("", "abc"), 3u);
+  EXPECT_EQ(edit_distance("kitten", "sitting"), 3u);
+  const std::vector<std::string> keys{"end_time", "output_interval", "endpoint"};
+  EXPECT_EQ(closest_match("end_tim", keys), "end_time");
+  EXPECT_EQ(closest_match("endpont", keys), "endpoint");
+  EXPECT_FALSE(closest_match("gravity", keys).has_value());
+  EXPECT_FALSE(closest_match("abc", {"xyz"}).has_value());
+}
+
+}  // namespace
+}  // namespace sabo::scene
