@@ -1,0 +1,88 @@
+// dem_solver: DEM spheres coupled through the Sabo protocol.
+//   dem_solver --scene FILE --coupler ENDPOINT [--out DIR]
+// The physics is DemModel (dem_model.hpp); this file is the protocol side.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "dem_solver/dem_model.hpp"
+#include "dem_solver/dem_output.hpp"
+#include "libsabo/solver/driver.hpp"
+
+namespace sabo::dem {
+namespace {
+
+class DemSolver final : public solver::CoupledSolver {
+ public:
+  DemSolver(const scene::Scene& scene, const solver::SolverOptions& options)
+      : model_(scene), output_(options.out_dir, model_) {
+    spdlog::info("{} spheres in {} sets, stable dt {:.3e} s", model_.size(), scene.particle_sets.size(),
+                 model_.stable_dt());
+  }
+
+  void describe(sabo::v1::Register& registration) override {
+    registration.set_name("dem_solver " SABO_VERSION);
+    registration.set_exposes_particles(true);
+    registration.set_exposes_angular_velocity(true);
+    auto* table = registration.mutable_particles();
+    const auto n = model_.size();
+    for (std::size_t i = 0; i < n; ++i) table->add_id(i);
+    table->mutable_radius()->Assign(model_.radii().begin(), model_.radii().end());
+    table->mutable_mass()->Assign(model_.masses().begin(), model_.masses().end());
+    table->mutable_material()->Assign(model_.material_index().begin(), model_.material_index().end());
+    table->mutable_body()->Assign(model_.body_index().begin(), model_.body_index().end());
+  }
+
+  double stable_dt() override { return model_.stable_dt(); }
+
+  void fill_state(const solver::Interest& interest, sabo::v1::StepState& state) override {
+    const auto positions = model_.positions();
+    const auto velocities = model_.velocities();
+    const auto spins = model_.angular_velocities();
+    auto* index = state.mutable_index();
+    auto* x = state.mutable_position();
+    auto* v = state.mutable_velocity();
+    auto* w = state.mutable_angular_velocity();
+    index->Reserve(static_cast<int>(positions.size()));
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      if (!interest.contains(positions[i])) continue;
+      index->Add(static_cast<std::uint32_t>(i));
+      for (int c = 0; c < 3; ++c) {
+        x->Add(positions[i][c]);
+        v->Add(velocities[i][c]);
+        w->Add(spins[i][c]);
+      }
+    }
+    const Energies e = model_.energies();
+    auto* energies = state.mutable_energies();
+    energies->set_kinetic(e.kinetic);
+    energies->set_potential(e.potential);
+    energies->set_elastic(e.elastic);
+    energies->set_dissipated(e.dissipated);
+  }
+
+  void compute_internal_forces(double dt_previous) override { model_.compute_internal_forces(dt_previous); }
+
+  void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
+    model_.add_external_forces({forces.index().data(), static_cast<std::size_t>(forces.index_size())},
+                               {forces.force().data(), static_cast<std::size_t>(forces.force_size())},
+                               {forces.torque().data(), static_cast<std::size_t>(forces.torque_size())});
+  }
+
+  void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
+  void integrate(double dt_previous, double dt) override { model_.integrate(dt_previous, dt); }
+  void finish() override { output_.close(); }
+
+ private:
+  DemModel model_;
+  DemOutput output_;
+};
+
+}  // namespace
+}  // namespace sabo::dem
+
+int main(int argc, char** argv) {
+  return sabo::solver::solver_main(argc, argv, "dem_solver", sabo::v1::ROLE_DEM,
+                                   [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
+                                     return std::make_unique<sabo::dem::DemSolver>(scene, options);
+                                   });
+}

@@ -1,0 +1,25 @@
+#pragma once
+// Random non-overlapping placement of the spheres of a `fill` particle set.
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "libsabo/scene/scene.hpp"
+
+namespace sabo::dem {
+
+// Uniform double in [0, 1) from the top 53 bits of a 64-bit draw: the same bits
+// on every standard library (std::uniform_real_distribution is not portable).
+double unit_uniform(std::uint64_t bits);
+
+// Places set.count spheres (diameters uniform in [diameter_min, diameter_max],
+// drawn from std::mt19937_64 seeded with set.seed) entirely inside set.region,
+// overlapping neither each other nor `obstacles`. The largest spheres are
+// placed first, each at the first of up to `attempts_per_sphere` random
+// centres that fits; the spheres are returned in placement order with the
+// set's initial velocity. Throws SceneError (with set.origin, how many fitted
+// and the fix) when a sphere finds no place.
+std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<const scene::Sphere> obstacles,
+                                       int attempts_per_sphere = 2000);
+
+}  // namespace sabo::dem
