@@ -199,16 +199,37 @@ void Coupler::wait_for_registrations() {
       fail("coupler", fmt::format("no registration from {} within {} s", fmt::join(missing, ", "),
                                   std::chrono::duration<double>(options_.registration_timeout).count()));
     }
-    if (socket_.receive(inbound_, kPollSlice)) route(inbound_, sabo::v1::MESSAGE_TYPE_REGISTER, 0);
+    if (!socket_.receive(inbound_, kPollSlice)) continue;
+    // A solver registered early may send its first state while others still register.
+    const bool is_state = inbound_.valid() && inbound_.header.type == sabo::v1::MESSAGE_TYPE_STEP_STATE;
+    Peer* peer = route(inbound_, is_state ? sabo::v1::MESSAGE_TYPE_STEP_STATE : sabo::v1::MESSAGE_TYPE_REGISTER, 0);
+    if (peer != nullptr && is_state) accept_state(*peer, 0);
   }
 }
 
+void Coupler::accept_state(Peer& peer, std::uint64_t step) {
+  if (peer.has_state) fail(peer.role_name, fmt::format("sent two states for step {}", step));
+  try {
+    inbound_.parse(peer.state);
+  } catch (const ProtocolError& error) {
+    fail(peer.role_name, error.what());
+  }
+  if (peer.state.step() != step) {
+    fail(peer.role_name,
+         fmt::format("sent the state of step {} while the coupler is at step {}", peer.state.step(), step));
+  }
+  validate_state(peer);
+  peer.has_state = true;
+  if (recorder_) recorder_->record_state(peer.role_name, peer.state);
+}
+
 void Coupler::collect_states(std::uint64_t step) {
-  for (auto& peer : peers_) peer->has_state = false;
-  std::size_t received = 0;
+  auto pending = [&] {
+    return static_cast<std::size_t>(std::count_if(peers_.begin(), peers_.end(), [](const auto& p) { return !p->has_state; }));
+  };
   auto wait_start = Clock::now();
   const auto hang = std::chrono::duration<double>(scene_.run.hang_timeout);
-  while (received < peers_.size()) {
+  while (pending() > 0) {
     if (stop_requested()) throw StopRequested(fmt::format("stopped by signal {} at step {}", stop_signal(), step));
     if (!socket_.receive(inbound_, kPollSlice)) {
       if (Clock::now() - wait_start > hang) {
@@ -229,20 +250,7 @@ void Coupler::collect_states(std::uint64_t step) {
     const auto receive_start = Clock::now();
     Peer* peer = route(inbound_, sabo::v1::MESSAGE_TYPE_STEP_STATE, step);
     if (peer == nullptr) continue;
-    if (peer->has_state) fail(peer->role_name, fmt::format("sent two states for step {}", step));
-    try {
-      inbound_.parse(peer->state);
-    } catch (const ProtocolError& error) {
-      fail(peer->role_name, error.what());
-    }
-    if (peer->state.step() != step) {
-      fail(peer->role_name, fmt::format("sent the state of step {} while the coupler is at step {}",
-                                        peer->state.step(), step));
-    }
-    validate_state(*peer);
-    peer->has_state = true;
-    ++received;
-    if (recorder_) recorder_->record_state(peer->role_name, peer->state);
+    accept_state(*peer, step);
     messaging_seconds_ += seconds_since(receive_start);
   }
   wait_seconds_ += seconds_since(wait_start);
@@ -372,24 +380,34 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
   messaging_seconds_ += seconds_since(start);
 }
 
-void Coupler::account(double time, double dt, bool output) {
+void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
   if (forces_csv_ && surface_contact_) {
     const auto& per_part = contact_out_.part_force;  // [part] -> force from the particles, N
     for (std::size_t part = 0; part < per_part.size(); ++part) forces_csv_->add(part, 0, per_part[part], dt);
   }
   if (forces_csv_ && output) forces_csv_->write(time);
 
-  EnergySample sample;
-  sample.time = time;
-  for (const auto& peer : peers_) {
-    const auto& e = peer->state.energies();
-    sample.kinetic += e.kinetic();
-    sample.potential += e.potential();
-    sample.solver_elastic += e.elastic();
-    sample.dissipated += e.dissipated();
+  // A solver's energies in the state of step n describe step n - 1 (its kinetic
+  // energy needs v_{n-1/2}), so they are paired with the contact energy of step n - 1.
+  if (step > 0) {
+    EnergySample sample;
+    sample.time = previous_time_;
+    for (const auto& peer : peers_) {
+      const auto& e = peer->state.energies();
+      sample.kinetic += e.kinetic();
+      sample.potential += e.potential();
+      sample.solver_elastic += e.elastic();
+      sample.dissipated += e.dissipated();
+    }
+    sample.contact_elastic = previous_contact_elastic_;
+    sample.dissipated += contact_dissipated_;
+    if (energy_csv_) energy_csv_->observe(sample, previous_output_);
   }
-  if (surface_contact_) sample.contact_elastic = contact_out_.elastic_energy;
-  if (energy_csv_) energy_csv_->observe(sample, output);
+  previous_time_ = time;
+  previous_output_ = output;
+  previous_contact_elastic_ = surface_contact_ ? contact_out_.elastic_energy : 0.0;
+  // Dashpot and slip power of step n acts over dt_n.
+  if (surface_contact_) contact_dissipated_ += contact_out_.dissipated_power * dt;
 }
 
 void Coupler::progress(std::uint64_t step, double time, double dt, bool force_emit) {
@@ -574,9 +592,10 @@ int Coupler::run() {
       const double dt = coupled_dt();
       dt_min_ = std::min(dt_min_, dt);
       dt_max_ = std::max(dt_max_, dt);
-      account(time_, dt, output);
+      account(step, time_, dt, output);
       if (last) events_.emit({{"event", "stopping"}, {"reason", "end_time reached"}});
       send_forces(step, dt, output, last);
+      for (auto& peer : peers_) peer->has_state = false;
       if (recorder_) recorder_->end_step(step);
       steps_ = step + 1;
       progress(step, time_, dt, last);

@@ -50,13 +50,15 @@ class Coupler {
   Peer* route(const protocol::Inbound& inbound, sabo::v1::MessageType expected, std::uint64_t step);
   void accept_registration(const protocol::Inbound& inbound);
   void collect_states(std::uint64_t step);
+  // Parses, checks and records the state in inbound_ from `peer` for `step`.
+  void accept_state(Peer& peer, std::uint64_t step);
   void validate_state(const Peer& peer) const;
   void prepare_contacts();
   double coupled_dt() const;
   void compute_contacts(double dt_previous);
   void check_newton_third_law(std::uint64_t step);
   void send_forces(std::uint64_t step, double dt, bool output, bool stop);
-  void account(double time, double dt, bool output);
+  void account(std::uint64_t step, double time, double dt, bool output);
   void progress(std::uint64_t step, double time, double dt, bool force_emit);
   void stop_solvers(const std::string& reason);
   void wait_for_goodbyes(std::chrono::milliseconds timeout);
@@ -94,6 +96,10 @@ class Coupler {
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
   double next_output_time_ = 0;
+  double previous_time_ = 0;
+  bool previous_output_ = false;
+  double previous_contact_elastic_ = 0;
+  double contact_dissipated_ = 0;  // J, accumulated dashpot and slip work of the coupler's contacts
   std::chrono::steady_clock::time_point start_wall_;
   std::chrono::steady_clock::time_point last_progress_;
   std::string failure_;

@@ -1,2 +1,7 @@
 # Sources of libsabo/io.
-target_sources(sabo_core PRIVATE)
+target_sources(sabo_core PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/hdf5.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/stl.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/traffic.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/vtk.cpp
+)

@@ -1,0 +1,123 @@
+#pragma once
+// The structures of a scene as the FEM solver simulates them: the physics of
+// fem_solver, without the protocol.
+//
+// Step contract (explicit central difference, DESIGN.md §2). At the start of
+// step n the model holds, for every part, node positions x_n and half-step
+// velocities v_{n-1/2} (rigid parts: fixed in space, x_n = x_0, v = 0).
+//   1. The solver sends StepState{n, t_n, stable_dt(), energies()} with the
+//      surface node positions and velocities when moved() is true (rigid
+//      parts never move: nothing is sent for them after registration).
+//   2. It receives StepForces{n, dt_n, node_force f_n: 3 per surface node, N}.
+//   3. apply_node_forces(f_n) stores f_n and the resultant force and moment
+//      (about the part's centroid) on every part.
+//   4. step(dt_n) advances to t_{n+1} = t_n + dt_n. Deformable parts (a later
+//      version) integrate v_{n+1/2} = v_{n-1/2} + dt_avg M^-1 (f_n + f_ext -
+//      f_int(x_n)), x_{n+1} = x_n + dt_n v_{n+1/2}; rigid parts do nothing.
+//   5. When StepForces.output is set, write_output() writes the surface at
+//      t_n with the forces f_n (call it before step()).
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "libsabo/core/types.hpp"
+#include "libsabo/geometry/surface_mesh.hpp"
+#include "libsabo/io/vtk.hpp"
+#include "libsabo/scene/scene.hpp"
+
+namespace sabo::fem {
+
+struct Energies {
+  double kinetic = 0;     // J
+  double potential = 0;   // J, gravity relative to z = 0
+  double elastic = 0;     // J, strain energy
+  double dissipated = 0;  // J, accumulated
+};
+
+// One structure of the scene. Its surface nodes and faces are a contiguous
+// range of the model's combined surface.
+class Part {
+ public:
+  virtual ~Part() = default;
+  [[nodiscard]] virtual bool rigid() const = 0;
+  [[nodiscard]] virtual double stable_dt() const = 0;  // s; +infinity when the part sets no limit
+  [[nodiscard]] virtual Energies energies() const = 0;
+  [[nodiscard]] virtual bool moved() const = 0;  // whether the surface left its registered place
+  // Advances by dt (s) under the contact forces on its surface nodes (N, the
+  // part's range of the combined surface).
+  virtual void step(double dt, std::span<const Vec3> node_force) = 0;
+};
+
+// A structure fixed in space (the paper's MAT_RIGID channel, all DOFs fixed).
+class RigidPart final : public Part {
+ public:
+  [[nodiscard]] bool rigid() const override { return true; }
+  [[nodiscard]] double stable_dt() const override;
+  [[nodiscard]] Energies energies() const override { return {}; }
+  [[nodiscard]] bool moved() const override { return false; }
+  void step(double dt, std::span<const Vec3> node_force) override;
+};
+
+// Where a part lies in the combined surface, and the load on it.
+struct PartInfo {
+  std::string name;                          // the structure's name
+  std::size_t material = 0;                  // scene material index
+  std::size_t node_begin = 0, node_end = 0;  // its nodes in the combined surface
+  std::size_t face_begin = 0, face_end = 0;  // its faces
+  Vec3 centroid = Vec3::Zero();              // m, area-weighted centroid of its surface
+  double area = 0;                           // m^2
+  Vec3 force = Vec3::Zero();                 // N, resultant of the last applied node forces
+  Vec3 moment = Vec3::Zero();                // N m, about `centroid`
+};
+
+class FemModel {
+ public:
+  // One part per scene structure, in file order (part index = structure index).
+  // Throws SceneError for structures it cannot build (deformable structures
+  // are not supported yet), FileError for unreadable mesh files.
+  explicit FemModel(const scene::Scene& scene);
+  ~FemModel();
+  FemModel(const FemModel&) = delete;
+  FemModel& operator=(const FemModel&) = delete;
+
+  // The combined surface of every part: node ids 0..n-1, face_part = part
+  // index, face_material, face_thickness (structure thickness),
+  // face_bulk_modulus (material K), face_element_volume (0: rigid parts are
+  // shells for eq. 6).
+  [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
+  [[nodiscard]] std::size_t part_count() const { return parts_.size(); }
+  [[nodiscard]] const PartInfo& part(std::size_t index) const { return info_.at(index); }
+  [[nodiscard]] const Part& part_model(std::size_t index) const { return *parts_.at(index); }
+
+  [[nodiscard]] double stable_dt() const;              // s; minimum over parts (rigid only: +infinity)
+  [[nodiscard]] Energies energies() const;             // sum over parts (rigid: zero)
+  [[nodiscard]] bool moved() const;                    // whether any surface node moved since registration
+  [[nodiscard]] double time() const { return time_; }  // s
+
+  // node_force: 3 per surface node (N, x0 y0 z0 x1 ...); empty means zero.
+  // Throws ProtocolError for a wrong size or a non-finite value.
+  void apply_node_forces(std::span<const double> node_force);
+  [[nodiscard]] std::span<const Vec3> node_forces() const { return node_force_; }  // last applied, N
+
+  void step(double dt);  // s; see the step contract above
+
+  // Writes <run_folder>/fem/fem_<step>.vtp (the surface with node_force,
+  // node_id, and per face part, material, thickness) and adds it to
+  // <run_folder>/fem.pvd at `time` (s).
+  void write_output(const std::filesystem::path& run_folder, std::uint64_t step, double time,
+                    const io::vtk::Options& options = {});
+
+ private:
+  geometry::SurfaceMesh surface_;
+  std::vector<std::unique_ptr<Part>> parts_;
+  std::vector<PartInfo> info_;
+  std::vector<Vec3> node_force_;
+  double time_ = 0;
+  std::optional<io::vtk::TimeSeries> series_;
+};
+
+}  // namespace sabo::fem

@@ -1,0 +1,66 @@
+// fem_solver: the structures of a scene, coupled through the Sabo protocol.
+//   fem_solver --scene FILE --coupler ENDPOINT [--out DIR]
+// The physics is FemModel (fem_model.hpp); this file is the protocol side.
+#include <cassert>
+
+#include <spdlog/spdlog.h>
+
+#include "fem_solver/fem_model.hpp"
+#include "libsabo/protocol/surface_codec.hpp"
+#include "libsabo/solver/driver.hpp"
+
+namespace sabo::fem {
+namespace {
+
+class FemSolver final : public solver::CoupledSolver {
+ public:
+  FemSolver(const scene::Scene& scene, const solver::SolverOptions& options)
+      : model_(scene), out_dir_(options.out_dir) {
+    spdlog::info("{} parts, {} surface nodes, {} faces", model_.part_count(), model_.surface().node_count(),
+                 model_.surface().face_count());
+  }
+
+  void describe(sabo::v1::Register& registration) override {
+    registration.set_name("fem_solver " SABO_VERSION);
+    registration.set_exposes_surface(true);
+    protocol::surface_to_message(model_.surface(), 0, *registration.mutable_surface());
+  }
+
+  double stable_dt() override { return model_.stable_dt(); }
+
+  void fill_state(const solver::Interest& /*interest*/, sabo::v1::StepState& state) override {
+    // Rigid parts never move, so no node arrays are sent after registration
+    // (empty arrays mean "unchanged", docs/protocol.md).
+    assert(!model_.moved() && "moving surfaces need node positions and velocities in the state");
+    const Energies e = model_.energies();
+    auto* energies = state.mutable_energies();
+    energies->set_kinetic(e.kinetic);
+    energies->set_potential(e.potential);
+    energies->set_elastic(e.elastic);
+    energies->set_dissipated(e.dissipated);
+  }
+
+  void compute_internal_forces(double /*dt_previous*/) override {}
+
+  void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
+    model_.apply_node_forces({forces.node_force().data(), static_cast<std::size_t>(forces.node_force_size())});
+  }
+
+  void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }
+  void integrate(double /*dt_previous*/, double dt) override { model_.step(dt); }
+  void finish() override {}
+
+ private:
+  FemModel model_;
+  std::filesystem::path out_dir_;
+};
+
+}  // namespace
+}  // namespace sabo::fem
+
+int main(int argc, char** argv) {
+  return sabo::solver::solver_main(argc, argv, "fem_solver", sabo::v1::ROLE_FEM,
+                                   [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
+                                     return std::make_unique<sabo::fem::FemSolver>(scene, options);
+                                   });
+}

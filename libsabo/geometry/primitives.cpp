@@ -1,0 +1,225 @@
+#include "libsabo/geometry/primitives.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/geometry/node_welder.hpp"
+#include "libsabo/io/stl.hpp"
+
+namespace sabo::geometry {
+namespace {
+
+// Nodes closer than this fraction of the shape's size are one node.
+constexpr double kWeldFraction = 1e-9;
+
+[[noreturn]] void shape_error(const scene::Origin& origin, const std::string& part, const std::string& problem,
+                              const std::string& fix) {
+  const std::string where = origin.file.empty() ? fmt::format("structure '{}'", part)
+                                                : fmt::format("{}:{}: structure '{}' (key '{}')", origin.file.string(),
+                                                              origin.line, part, origin.key);
+  throw SceneError(fmt::format("{}: {}. Fix: {}", where, problem, fix));
+}
+
+// Builds one part from rectangular patches of quads split into triangles.
+class PatchBuilder {
+ public:
+  explicit PatchBuilder(double size) : welder_(kWeldFraction * size) {}
+
+  // The grid corner + u * u_levels[i] + v * v_levels[j]; triangles face `outward`.
+  void grid(const Vec3& corner, const Vec3& u, const std::vector<double>& u_levels, const Vec3& v,
+            const std::vector<double>& v_levels, const Vec3& outward) {
+    const bool flip = u.cross(v).dot(outward) < 0;
+    std::vector<std::uint32_t> nodes(u_levels.size() * v_levels.size());
+    for (std::size_t j = 0; j < v_levels.size(); ++j) {
+      for (std::size_t i = 0; i < u_levels.size(); ++i) {
+        nodes[j * u_levels.size() + i] = welder_.add(corner + u_levels[i] * u + v_levels[j] * v);
+      }
+    }
+    for (std::size_t j = 0; j + 1 < v_levels.size(); ++j) {
+      for (std::size_t i = 0; i + 1 < u_levels.size(); ++i) {
+        const std::uint32_t a = nodes[j * u_levels.size() + i];
+        const std::uint32_t b = nodes[j * u_levels.size() + i + 1];
+        const std::uint32_t c = nodes[(j + 1) * u_levels.size() + i + 1];
+        const std::uint32_t d = nodes[(j + 1) * u_levels.size() + i];
+        if (flip) {
+          triangles_.push_back({a, c, b});
+          triangles_.push_back({a, d, c});
+        } else {
+          triangles_.push_back({a, b, c});
+          triangles_.push_back({a, c, d});
+        }
+      }
+    }
+  }
+
+  SurfaceMesh finish(const std::string& part_name) {
+    SurfaceMesh mesh;
+    mesh.node_position = welder_.take_positions();
+    mesh.node_id.resize(mesh.node_position.size());
+    for (std::size_t i = 0; i < mesh.node_id.size(); ++i) mesh.node_id[i] = i;
+    mesh.triangle = std::move(triangles_);
+    const std::size_t faces = mesh.triangle.size();
+    mesh.face_part.assign(faces, 0);
+    mesh.face_material.assign(faces, 0);
+    mesh.face_thickness.assign(faces, 0.0);
+    mesh.face_bulk_modulus.assign(faces, 0.0);
+    mesh.face_element_volume.assign(faces, 0.0);
+    mesh.part_name = {part_name};
+    return mesh;
+  }
+
+ private:
+  NodeWelder welder_;
+  std::vector<std::array<std::uint32_t, 3>> triangles_;
+};
+
+// Levels of `grid_levels(height, element_size)` plus those of the other
+// wall below `height`: two walls meeting along an edge get the same nodes there.
+std::vector<double> wall_levels(double height, double other_height, double element_size) {
+  std::vector<double> levels = grid_levels(height, element_size);
+  if (other_height > 0) {
+    for (double level : grid_levels(other_height, element_size)) {
+      if (level < height) levels.push_back(level);
+    }
+  }
+  std::sort(levels.begin(), levels.end());
+  const double tolerance = 1e-12 * std::max(height, other_height);
+  levels.erase(std::unique(levels.begin(), levels.end(),
+                           [tolerance](double a, double b) { return std::abs(a - b) <= tolerance; }),
+               levels.end());
+  return levels;
+}
+
+SurfaceMesh plane(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
+  if (!(shape.length > 0) || !(shape.width > 0)) {
+    shape_error(origin, part, fmt::format("plane of length {} and width {}", shape.length, shape.width),
+                "give both a positive value (m)");
+  }
+  if (!(shape.normal.norm() > 0)) shape_error(origin, part, "plane normal is zero", "give a nonzero normal");
+  const Vec3 normal = shape.normal.normalized();
+  const Vec3 along = shape.direction - shape.direction.dot(normal) * normal;
+  if (!(along.norm() > 1e-9 * shape.direction.norm())) {
+    shape_error(origin, part, "plane direction is parallel to its normal",
+                "give a direction that lies in the plane (it orients the length)");
+  }
+  const Vec3 u = along.normalized();
+  const Vec3 v = normal.cross(u);
+  PatchBuilder builder(shape.length + shape.width);
+  builder.grid(shape.origin - 0.5 * shape.length * u - 0.5 * shape.width * v, u,
+               grid_levels(shape.length, shape.element_size), v, grid_levels(shape.width, shape.element_size), normal);
+  return builder.finish(part);
+}
+
+SurfaceMesh box(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
+  const Vec3 extent = shape.box.max - shape.box.min;
+  if (!(extent.minCoeff() > 0)) {
+    shape_error(origin, part,
+                fmt::format("box from ({}, {}, {}) to ({}, {}, {}) has no volume", shape.box.min.x(), shape.box.min.y(),
+                            shape.box.min.z(), shape.box.max.x(), shape.box.max.y(), shape.box.max.z()),
+                "give max > min on every axis");
+  }
+  std::array<std::vector<double>, 3> levels;
+  for (int axis = 0; axis < 3; ++axis) levels[axis] = grid_levels(extent[axis], shape.element_size);
+  PatchBuilder builder(extent.norm());
+  for (int axis = 0; axis < 3; ++axis) {
+    const int a = (axis + 1) % 3;
+    const int b = (axis + 2) % 3;
+    const Vec3 u = Vec3::Unit(a);
+    const Vec3 v = Vec3::Unit(b);
+    Vec3 low = shape.box.min;
+    Vec3 high = shape.box.min;
+    high[axis] = shape.box.max[axis];
+    builder.grid(low, u, levels[a], v, levels[b], -Vec3::Unit(axis));
+    builder.grid(high, u, levels[a], v, levels[b], Vec3::Unit(axis));
+  }
+  return builder.finish(part);
+}
+
+SurfaceMesh chute(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
+  if (!(shape.length > 0) || !(shape.width > 0)) {
+    shape_error(origin, part, fmt::format("chute of length {} and width {}", shape.length, shape.width),
+                "give both a positive value (m)");
+  }
+  if (!(shape.slope_deg >= 0 && shape.slope_deg < 90)) {
+    shape_error(origin, part, fmt::format("chute slope {} degrees", shape.slope_deg), "give a slope in [0, 90)");
+  }
+  if (!(shape.wall_height >= 0) || !(shape.end_wall_height >= 0)) {
+    shape_error(origin, part, fmt::format("chute wall heights {} and {}", shape.wall_height, shape.end_wall_height),
+                "give heights >= 0 (0: no wall)");
+  }
+  if (!(Vec3(shape.direction.x(), shape.direction.y(), 0).norm() > 0)) {
+    shape_error(origin, part, "chute direction has no horizontal component",
+                "give the horizontal direction the chute runs in, e.g. [1, 0, 0]");
+  }
+  const ChuteFrame frame = chute_frame(shape);
+  const double length = shape.length;
+  const double half_width = 0.5 * shape.width;
+  const double es = shape.element_size;
+  const auto along = grid_levels(length, es);
+  const auto across = grid_levels(shape.width, es);
+  PatchBuilder builder(length + shape.width + shape.wall_height + shape.end_wall_height);
+  const Vec3 right_top = shape.origin - half_width * frame.lateral;  // upper edge, right side (looking down-slope)
+  builder.grid(right_top, frame.down_slope, along, frame.lateral, across, frame.normal);
+  if (shape.wall_height > 0) {
+    const auto up = wall_levels(shape.wall_height, shape.end_wall_height, es);
+    builder.grid(right_top, frame.down_slope, along, frame.normal, up, frame.lateral);
+    builder.grid(shape.origin + half_width * frame.lateral, frame.down_slope, along, frame.normal, up, -frame.lateral);
+  }
+  if (shape.end_wall_height > 0) {
+    const auto up = wall_levels(shape.end_wall_height, shape.wall_height, es);
+    builder.grid(right_top + length * frame.down_slope, frame.lateral, across, frame.normal, up, -frame.down_slope);
+  }
+  return builder.finish(part);
+}
+
+SurfaceMesh mesh(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
+  if (!(shape.scale > 0)) {
+    shape_error(origin, part, fmt::format("mesh scale {}", shape.scale), "give a positive scale factor");
+  }
+  io::StlMesh stl = io::read_stl(shape.file);
+  SurfaceMesh result = std::move(stl.mesh);
+  for (Vec3& p : result.node_position) p = shape.scale * p + shape.translate;
+  result.part_name = {part};
+  return result;
+}
+
+}  // namespace
+
+std::vector<double> grid_levels(double length, double element_size) {
+  std::size_t count = 1;
+  if (element_size > 0 && length > element_size) {
+    // The small allowance keeps 1.0 / 0.1 at 10 cells despite rounding.
+    count = static_cast<std::size_t>(std::ceil(length / element_size * (1 - 1e-12)));
+  }
+  std::vector<double> levels(count + 1);
+  for (std::size_t i = 0; i <= count; ++i) levels[i] = length * static_cast<double>(i) / static_cast<double>(count);
+  levels.back() = length;
+  return levels;
+}
+
+ChuteFrame chute_frame(const scene::Shape& shape) {
+  const double slope = shape.slope_deg * std::numbers::pi / 180.0;
+  const Vec3 horizontal = Vec3(shape.direction.x(), shape.direction.y(), 0).normalized();
+  ChuteFrame frame;
+  frame.down_slope = std::cos(slope) * horizontal - std::sin(slope) * Vec3::UnitZ();
+  frame.lateral = Vec3::UnitZ().cross(horizontal);
+  frame.normal = frame.down_slope.cross(frame.lateral);
+  return frame;
+}
+
+SurfaceMesh triangulate(const scene::Shape& shape, const std::string& part_name, const scene::Origin& origin) {
+  switch (shape.type) {
+    case scene::Shape::Type::plane: return plane(shape, part_name, origin);
+    case scene::Shape::Type::box: return box(shape, part_name, origin);
+    case scene::Shape::Type::chute: return chute(shape, part_name, origin);
+    case scene::Shape::Type::mesh: return mesh(shape, part_name, origin);
+  }
+  shape_error(origin, part_name, "unknown shape type", "use plane, box, chute or mesh");
+}
+
+}  // namespace sabo::geometry

@@ -1,0 +1,666 @@
+#include "libsabo/io/traffic.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <map>
+#include <optional>
+#include <span>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/io/hdf5.hpp"
+
+namespace sabo::io {
+namespace {
+
+constexpr std::int64_t kFormatVersion = 1;
+constexpr const char* kFormatName = "sabo-traffic";
+// Entries per chunk of the per-message datasets (step, time, offsets, ...).
+constexpr std::uint64_t kEntryChunk = 512;
+// Values per chunk of the field datasets. A flush rewrites the partly filled
+// last chunk of every dataset it touches, so this bounds the cost of a flush.
+constexpr std::uint64_t kValueChunk = 8192;
+// Flush regardless of the interval when this much is buffered.
+constexpr std::size_t kMaxPendingBytes = std::size_t{64} << 20;
+
+constexpr std::uint8_t kFlagCheckpoint = 1;
+constexpr std::uint8_t kFlagOutput = 2;
+constexpr std::uint8_t kFlagStop = 4;
+constexpr std::uint8_t kFlagInterestAll = 8;
+
+const std::vector<std::string> kFieldNames = {"position",      "velocity",      "angular_velocity", "force",   "torque",
+                                              "node_position", "node_velocity", "node_force",       "energies"};
+
+template <class T>
+std::span<const T> span_of(const google::protobuf::RepeatedField<T>& field) {
+  return {field.data(), static_cast<std::size_t>(field.size())};
+}
+
+std::span<const std::uint8_t> bytes_of(const std::string& text) {
+  return {reinterpret_cast<const std::uint8_t*>(text.data()), text.size()};
+}
+
+// Which optional fields are recorded.
+struct Selection {
+  bool position = false, velocity = false, angular_velocity = false, force = false, torque = false;
+  bool node_position = false, node_velocity = false, node_force = false, energies = false;
+
+  explicit Selection(const std::vector<std::string>& fields) {
+    const bool all = fields.empty();
+    auto wants = [&](const char* name) { return all || std::find(fields.begin(), fields.end(), name) != fields.end(); };
+    for (const auto& field : fields) {
+      if (std::find(kFieldNames.begin(), kFieldNames.end(), field) == kFieldNames.end()) {
+        throw SceneError(fmt::format("recording.fields: unknown field '{}'. Fix: use some of {}", field,
+                                     fmt::join(kFieldNames, ", ")));
+      }
+    }
+    position = wants("position");
+    velocity = wants("velocity");
+    angular_velocity = wants("angular_velocity");
+    force = wants("force");
+    torque = wants("torque");
+    node_position = wants("node_position");
+    node_velocity = wants("node_velocity");
+    node_force = wants("node_force");
+    energies = wants("energies");
+  }
+};
+
+// Flush order: a later stage is written only after every earlier one is on disk.
+enum Stage : std::size_t { kValues = 0, kIndex = 1, kScalars = 2, kCommit = 3, kStageCount = 4 };
+
+class ColumnBase {
+ public:
+  virtual ~ColumnBase() = default;
+  virtual std::uint64_t flush() = 0;  // payload bytes written
+  [[nodiscard]] virtual std::size_t pending_bytes() const = 0;
+};
+
+using Stages = std::array<std::vector<ColumnBase*>, kStageCount>;
+
+// One dataset and the values recorded for it since the last flush. The
+// buffer keeps its capacity, so steady recording does not allocate.
+template <hdf5::Element T>
+class Column final : public ColumnBase {
+ public:
+  Column(hdf5::Group& group, const std::string& name, std::uint64_t chunk, Stages& stages, Stage stage)
+      : dataset_(group.create_dataset<T>(name, chunk)) {
+    stages[stage].push_back(this);
+  }
+  Column(const Column&) = delete;
+  Column& operator=(const Column&) = delete;
+
+  void push(T value) {
+    pending_.push_back(value);
+    ++total_;
+  }
+  void push(std::span<const T> values) {
+    pending_.insert(pending_.end(), values.begin(), values.end());
+    total_ += values.size();
+  }
+  [[nodiscard]] std::uint64_t total() const { return total_; }
+
+  std::uint64_t flush() override {
+    if (pending_.empty()) return 0;
+    dataset_.append<T>(pending_);
+    dataset_.flush();
+    const std::uint64_t bytes = pending_.size() * sizeof(T);
+    pending_.clear();
+    return bytes;
+  }
+  [[nodiscard]] std::size_t pending_bytes() const override { return pending_.size() * sizeof(T); }
+
+ private:
+  hdf5::Dataset dataset_;
+  std::vector<T> pending_;
+  std::uint64_t total_ = 0;  // values recorded, flushed or not
+};
+
+// A field with a variable number of values per message.
+template <hdf5::Element T>
+struct ArrayColumn {
+  ArrayColumn(hdf5::Group& group, const std::string& name, Stages& stages, Stage count_stage = kIndex)
+      : values(group, name, kValueChunk, stages, kValues),
+        offset(group, name + "_offset", kEntryChunk, stages, kIndex),
+        count(group, name + "_count", kEntryChunk, stages, count_stage) {}
+  void push(std::span<const T> data) {
+    offset.push(values.total());
+    count.push(data.size());
+    values.push(data);
+  }
+  Column<T> values;
+  Column<std::uint64_t> offset;
+  Column<std::uint64_t> count;
+};
+
+template <hdf5::Element T>
+using OptionalArray = std::optional<ArrayColumn<T>>;
+
+template <hdf5::Element T>
+void emplace_if(bool wanted, OptionalArray<T>& column, hdf5::Group& group, const char* name, Stages& stages) {
+  if (wanted) column.emplace(group, name, stages);
+}
+
+struct StateStream {
+  StateStream(hdf5::Group group_in, const Selection& selection, Stages& stages)
+      : group(std::move(group_in)),
+        step(group, "step", kEntryChunk, stages, kCommit),
+        time(group, "time", kEntryChunk, stages, kScalars),
+        stable_dt(group, "stable_dt", kEntryChunk, stages, kScalars),
+        timing(group, "timing", kEntryChunk * 2, stages, kScalars),
+        particle_table(group, "particle_table", stages),
+        topology(group, "topology", stages) {
+    if (selection.energies) energies.emplace(group, "energies", kEntryChunk * 4, stages, kScalars);
+    emplace_if(selection.position || selection.velocity || selection.angular_velocity, index, group, "index", stages);
+    emplace_if(selection.position, position, group, "position", stages);
+    emplace_if(selection.velocity, velocity, group, "velocity", stages);
+    emplace_if(selection.angular_velocity, angular_velocity, group, "angular_velocity", stages);
+    emplace_if(selection.node_position, node_position, group, "node_position", stages);
+    emplace_if(selection.node_velocity, node_velocity, group, "node_velocity", stages);
+  }
+
+  void record(const sabo::v1::StepState& message, std::string& scratch) {
+    step.push(message.step());
+    time.push(message.time());
+    stable_dt.push(message.stable_dt());
+    timing.push(message.compute_seconds());
+    timing.push(message.wait_seconds());
+    if (energies) {
+      const auto& e = message.energies();
+      const std::array<double, 4> values{e.kinetic(), e.potential(), e.elastic(), e.dissipated()};
+      energies->push(std::span<const double>(values));
+    }
+    if (index) index->push(span_of(message.index()));
+    if (position) position->push(span_of(message.position()));
+    if (velocity) velocity->push(span_of(message.velocity()));
+    if (angular_velocity) angular_velocity->push(span_of(message.angular_velocity()));
+    if (node_position) node_position->push(span_of(message.node_position()));
+    if (node_velocity) node_velocity->push(span_of(message.node_velocity()));
+    scratch.clear();
+    if (message.has_particle_table()) message.particle_table().SerializeToString(&scratch);
+    particle_table.push(bytes_of(scratch));
+    scratch.clear();
+    if (message.has_topology()) message.topology().SerializeToString(&scratch);
+    topology.push(bytes_of(scratch));
+  }
+
+  hdf5::Group group;
+  Column<std::uint64_t> step;
+  Column<double> time, stable_dt, timing;
+  std::optional<Column<double>> energies;
+  OptionalArray<std::uint32_t> index;
+  OptionalArray<double> position, velocity, angular_velocity, node_position, node_velocity;
+  ArrayColumn<std::uint8_t> particle_table, topology;
+};
+
+struct ForcesStream {
+  ForcesStream(hdf5::Group group_in, const Selection& selection, Stages& stages)
+      : group(std::move(group_in)),
+        step(group, "step", kEntryChunk, stages, kCommit),
+        dt(group, "dt", kEntryChunk, stages, kScalars),
+        flags(group, "flags", kEntryChunk, stages, kScalars),
+        interest(group, "interest", stages) {
+    emplace_if(selection.force || selection.torque, index, group, "index", stages);
+    emplace_if(selection.force, force, group, "force", stages);
+    emplace_if(selection.torque, torque, group, "torque", stages);
+    emplace_if(selection.node_force, node_force, group, "node_force", stages);
+  }
+
+  void record(const sabo::v1::StepForces& message, std::vector<double>& scratch) {
+    step.push(message.step());
+    dt.push(message.dt());
+    std::uint8_t bits = 0;
+    if (message.checkpoint()) bits |= kFlagCheckpoint;
+    if (message.output()) bits |= kFlagOutput;
+    if (message.stop()) bits |= kFlagStop;
+    if (message.interest_all()) bits |= kFlagInterestAll;
+    flags.push(bits);
+    if (index) index->push(span_of(message.index()));
+    if (force) force->push(span_of(message.force()));
+    if (torque) torque->push(span_of(message.torque()));
+    if (node_force) node_force->push(span_of(message.node_force()));
+    scratch.clear();
+    for (const auto& box : message.interest()) {
+      scratch.insert(scratch.end(), {box.min_x(), box.min_y(), box.min_z(), box.max_x(), box.max_y(), box.max_z()});
+    }
+    interest.push(scratch);
+  }
+
+  hdf5::Group group;
+  Column<std::uint64_t> step;
+  Column<double> dt;
+  Column<std::uint8_t> flags;
+  OptionalArray<std::uint32_t> index;
+  OptionalArray<double> force, torque, node_force;
+  ArrayColumn<double> interest;
+};
+
+struct RoleRecord {
+  RoleRecord(hdf5::Group group_in, const Selection& selection, Stages& stages)
+      : group(std::move(group_in)),
+        registration(group, "registration", stages, kCommit),
+        state(group.create_group("state"), selection, stages),
+        forces(group.create_group("forces"), selection, stages) {}
+  hdf5::Group group;
+  ArrayColumn<std::uint8_t> registration;
+  StateStream state;
+  ForcesStream forces;
+};
+
+std::string join(const std::vector<std::string>& names) {
+  return fmt::format("{}", fmt::join(names, ", "));
+}
+
+std::vector<std::string> all_roles() {
+  return {scene::role_name(scene::Role::sph), scene::role_name(scene::Role::dem), scene::role_name(scene::Role::fem)};
+}
+
+}  // namespace
+
+const std::vector<std::string>& traffic_field_names() {
+  return kFieldNames;
+}
+
+// ======================================================================== recorder
+
+struct TrafficRecorder::Impl {
+  Impl(const std::filesystem::path& file, const scene::Recording& settings_in, const std::string& scene_text,
+       const std::vector<std::string>& roles)
+      : path(file), settings(settings_in), selection(settings_in.fields) {
+    if (settings.every == 0) {
+      throw SceneError("recording.every = 0: must be at least 1. Fix: record every N-th step with N >= 1");
+    }
+    // Built under a temporary name and renamed once in SWMR mode: a file
+    // named `file` is always a consistent recording.
+    std::filesystem::path partial = file;
+    partial += ".partial";
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    hdf5_file = hdf5::File::create(partial, /*swmr=*/true);
+    hdf5_file.set_attribute("format", kFormatName);
+    hdf5_file.set_attribute("format_version", kFormatVersion);
+    hdf5_file.set_attribute("fields", settings.fields.empty() ? std::string("all") : join(settings.fields));
+    hdf5_file.set_attribute("every", static_cast<std::int64_t>(settings.every));
+    hdf5_file.set_attribute("first_step", static_cast<std::int64_t>(settings.first_step));
+    hdf5_file.set_attribute("last_step", settings.last_step >= static_cast<std::uint64_t>(INT64_MAX)
+                                             ? std::int64_t{-1}
+                                             : static_cast<std::int64_t>(settings.last_step));
+    auto scene_dataset = hdf5_file.create_dataset<std::uint8_t>(
+        "scene", std::clamp<std::uint64_t>(scene_text.size(), 1, std::uint64_t{1} << 16));
+    scene_dataset.append(bytes_of(scene_text));
+    for (const auto& role : roles) {
+      records.emplace(role, std::make_unique<RoleRecord>(hdf5_file.create_group(role), selection, stages));
+    }
+    hdf5_file.start_swmr_write();
+    std::error_code error;
+    std::filesystem::rename(partial, file, error);
+    if (error) {
+      throw FileError(fmt::format("{}: cannot rename the new recording to {}: {}", partial.string(), file.string(),
+                                  error.message()));
+    }
+    last_flush = std::chrono::steady_clock::now();
+  }
+
+  RoleRecord& record(const std::string& role) {
+    if (closed) throw Error(fmt::format("traffic recorder '{}': recording after close()", path.string()));
+    auto found = records.find(role);
+    if (found == records.end()) {
+      std::vector<std::string> names;
+      for (const auto& [name, unused] : records) names.push_back(name);
+      throw Error(
+          fmt::format("traffic recorder '{}': unknown role '{}' (the file has {})", path.string(), role, join(names)));
+    }
+    return *found->second;
+  }
+
+  void flush() {
+    for (const auto& stage : stages) {
+      for (ColumnBase* column : stage) bytes += column->flush();
+    }
+    last_flush = std::chrono::steady_clock::now();
+  }
+
+  [[nodiscard]] std::size_t pending_bytes() const {
+    std::size_t total = 0;
+    for (const auto& stage : stages) {
+      for (const ColumnBase* column : stage) total += column->pending_bytes();
+    }
+    return total;
+  }
+
+  [[nodiscard]] bool recorded(std::uint64_t step) const {
+    return step >= settings.first_step && step <= settings.last_step &&
+           (step - settings.first_step) % settings.every == 0;
+  }
+
+  void close() {
+    if (closed) return;
+    closed = true;  // even if the flush throws: do not try twice
+    flush();
+    stages = {};
+    records.clear();
+    hdf5_file.close();
+  }
+
+  std::filesystem::path path;
+  scene::Recording settings;
+  Selection selection;
+  hdf5::File hdf5_file;
+  Stages stages;
+  std::map<std::string, std::unique_ptr<RoleRecord>, std::less<>> records;
+  std::string message_scratch;
+  std::vector<double> box_scratch;
+  std::uint64_t bytes = 0;
+  std::chrono::steady_clock::time_point last_flush;
+  bool closed = false;
+};
+
+TrafficRecorder::TrafficRecorder(const std::filesystem::path& file, const scene::Recording& settings,
+                                 const std::string& scene_text)
+    : TrafficRecorder(file, settings, scene_text, all_roles()) {}
+
+TrafficRecorder::TrafficRecorder(const std::filesystem::path& file, const scene::Recording& settings,
+                                 const std::string& scene_text, const std::vector<std::string>& roles)
+    : impl_(std::make_unique<Impl>(file, settings, scene_text, roles)) {}
+
+TrafficRecorder::~TrafficRecorder() {
+  try {
+    close();
+  } catch (...) {
+    // A destructor must not throw; call close() to see the error.
+  }
+}
+
+void TrafficRecorder::record_registration(const std::string& role, const sabo::v1::Register& message) {
+  auto& column = impl_->record(role).registration;
+  message.SerializeToString(&impl_->message_scratch);
+  column.push(bytes_of(impl_->message_scratch));
+  // Rare and needed for everything after it: on disk at once, count last.
+  impl_->bytes += column.values.flush();
+  impl_->bytes += column.offset.flush();
+  impl_->bytes += column.count.flush();
+}
+
+void TrafficRecorder::record_state(const std::string& role, const sabo::v1::StepState& message) {
+  if (!impl_->recorded(message.step())) return;
+  impl_->record(role).state.record(message, impl_->message_scratch);
+}
+
+void TrafficRecorder::record_forces(const std::string& role, const sabo::v1::StepForces& message) {
+  if (!impl_->recorded(message.step())) return;
+  impl_->record(role).forces.record(message, impl_->box_scratch);
+}
+
+void TrafficRecorder::end_step(std::uint64_t /*step*/) {
+  if (impl_->closed) return;
+  const double interval = impl_->settings.flush_interval;
+  const auto elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - impl_->last_flush).count();
+  if (interval <= 0 || elapsed >= interval || impl_->pending_bytes() >= kMaxPendingBytes) impl_->flush();
+}
+
+void TrafficRecorder::flush() {
+  if (!impl_->closed) impl_->flush();
+}
+
+void TrafficRecorder::close() {
+  impl_->close();
+}
+
+bool TrafficRecorder::recorded(std::uint64_t step) const {
+  return impl_->recorded(step);
+}
+
+std::uint64_t TrafficRecorder::bytes_written() const {
+  return impl_->bytes;
+}
+
+const std::filesystem::path& TrafficRecorder::path() const {
+  return impl_->path;
+}
+
+// ======================================================================== reader
+
+namespace {
+
+// The messages of one stream (state or forces) of one role.
+class StreamReader {
+ public:
+  StreamReader(hdf5::Group group, std::string what) : group_(std::move(group)), what_(std::move(what)) {
+    // `step` is written last at every flush: its length is the number of
+    // complete messages, whatever else a crash left behind.
+    steps_ = group_.dataset("step").read_all<std::uint64_t>();
+    sorted_ = std::is_sorted(steps_.begin(), steps_.end());
+  }
+
+  [[nodiscard]] const std::vector<std::uint64_t>& steps() const { return steps_; }
+
+  // Entry of `step`; the last one if a step was recorded twice.
+  [[nodiscard]] std::uint64_t entry(std::uint64_t step) const {
+    if (sorted_) {
+      auto it = std::upper_bound(steps_.begin(), steps_.end(), step);
+      if (it != steps_.begin() && *(it - 1) == step) return static_cast<std::uint64_t>(it - steps_.begin() - 1);
+    } else {
+      for (std::size_t i = steps_.size(); i-- > 0;) {
+        if (steps_[i] == step) return i;
+      }
+    }
+    throw FileError(
+        fmt::format("{}: step {} was not recorded ({} steps recorded{}). Fix: ask for a recorded step, "
+                    "or record it (scene [recording] every, first_step, last_step)",
+                    what_, step, steps_.size(),
+                    steps_.empty() ? std::string() : fmt::format(", from {} to {}", steps_.front(), steps_.back())));
+  }
+
+  template <hdf5::Element T>
+  T scalar(const std::string& name, std::uint64_t entry, std::uint64_t per_entry = 1, std::uint64_t at = 0) const {
+    T value{};
+    dataset(name).read<T>(entry * per_entry + at, std::span<T>(&value, 1));
+    return value;
+  }
+
+  [[nodiscard]] bool has(const std::string& name) const { return group_.exists(name); }
+
+  // Reads the slice of array field `name` for `entry` into `out`; leaves it
+  // empty when the field was not recorded.
+  template <hdf5::Element T, class Out>
+  void array(const std::string& name, std::uint64_t entry, Out* out) const {
+    if (!has(name)) return;
+    const auto offset = scalar<std::uint64_t>(name + "_offset", entry);
+    const auto count = scalar<std::uint64_t>(name + "_count", entry);
+    out->Resize(static_cast<int>(count), T{});
+    dataset(name).read<T>(offset, std::span<T>(out->mutable_data(), count));
+  }
+
+  [[nodiscard]] std::string bytes(const std::string& name, std::uint64_t entry) const {
+    const auto offset = scalar<std::uint64_t>(name + "_offset", entry);
+    const auto count = scalar<std::uint64_t>(name + "_count", entry);
+    std::string text(count, '\0');
+    dataset(name).read<std::uint8_t>(offset,
+                                     std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(text.data()), count));
+    return text;
+  }
+
+  [[nodiscard]] const std::string& what() const { return what_; }
+
+ private:
+  const hdf5::Dataset& dataset(const std::string& name) const {
+    auto found = datasets_.find(name);
+    if (found == datasets_.end()) found = datasets_.emplace(name, group_.dataset(name)).first;
+    return found->second;
+  }
+
+  hdf5::Group group_;
+  std::string what_;
+  std::vector<std::uint64_t> steps_;
+  bool sorted_ = true;
+  mutable std::map<std::string, hdf5::Dataset, std::less<>> datasets_;
+};
+
+struct RoleReader {
+  RoleReader(hdf5::Group group, const std::string& file, const std::string& role)
+      : registration_count(group.dataset("registration_count").size()),
+        registration_group(group),
+        state(group.group("state"), fmt::format("{}: {} states", file, role)),
+        forces(group.group("forces"), fmt::format("{}: {} forces", file, role)) {}
+  std::uint64_t registration_count;
+  hdf5::Group registration_group;
+  StreamReader state;
+  StreamReader forces;
+};
+
+template <class Message>
+void parse(Message& message, const std::string& bytes, const std::string& what) {
+  if (!message.ParseFromString(bytes)) {
+    throw FileError(fmt::format("{}: the recorded {} does not parse. Fix: the file is damaged", what,
+                                Message::descriptor()->name()));
+  }
+}
+
+}  // namespace
+
+struct TrafficReader::Impl {
+  explicit Impl(const std::filesystem::path& file_in) : path(file_in) {
+    file = hdf5::File::open(path, hdf5::Access::swmr_read);
+    if (!file.has_attribute("format") || file.string_attribute("format") != kFormatName) {
+      throw FileError(
+          fmt::format("{}: not a sabo traffic recording (no attribute format = '{}'). Fix: open the "
+                      "traffic.h5 of a run folder",
+                      path.string(), kFormatName));
+    }
+    const auto version = file.int_attribute("format_version");
+    if (version != kFormatVersion) {
+      throw FileError(
+          fmt::format("{}: traffic format version {} but this program reads version {}. Fix: read it "
+                      "with the sabo version that wrote it",
+                      path.string(), version, kFormatVersion));
+    }
+    for (const auto& name : file.children()) {
+      if (name == "scene") continue;
+      roles.emplace(name, std::make_unique<RoleReader>(file.group(name), path.string(), name));
+    }
+  }
+
+  const RoleReader& role(const std::string& name) const {
+    auto found = roles.find(name);
+    if (found == roles.end()) {
+      std::vector<std::string> names;
+      for (const auto& [role_name, unused] : roles) names.push_back(role_name);
+      throw FileError(fmt::format("{}: no role '{}' in the recording (it has {})", path.string(), name, join(names)));
+    }
+    return *found->second;
+  }
+
+  std::filesystem::path path;
+  hdf5::File file;
+  std::map<std::string, std::unique_ptr<RoleReader>, std::less<>> roles;
+};
+
+TrafficReader::TrafficReader(const std::filesystem::path& file) : impl_(std::make_unique<Impl>(file)) {}
+
+TrafficReader::~TrafficReader() = default;
+
+std::string TrafficReader::scene_text() const {
+  const auto bytes = impl_->file.dataset("scene").read_all<std::uint8_t>();
+  return {bytes.begin(), bytes.end()};
+}
+
+std::vector<std::string> TrafficReader::roles() const {
+  std::vector<std::string> names;
+  for (const auto& [name, reader] : impl_->roles) {
+    if (reader->registration_count > 0 || !reader->state.steps().empty() || !reader->forces.steps().empty()) {
+      names.push_back(name);
+    }
+  }
+  return names;
+}
+
+std::vector<std::uint64_t> TrafficReader::steps(const std::string& role) const {
+  return impl_->role(role).state.steps();
+}
+
+std::vector<std::uint64_t> TrafficReader::force_steps(const std::string& role) const {
+  return impl_->role(role).forces.steps();
+}
+
+sabo::v1::StepState TrafficReader::state(const std::string& role, std::uint64_t step) const {
+  const StreamReader& stream = impl_->role(role).state;
+  const std::uint64_t entry = stream.entry(step);
+  sabo::v1::StepState message;
+  message.set_step(step);
+  message.set_time(stream.scalar<double>("time", entry));
+  message.set_stable_dt(stream.scalar<double>("stable_dt", entry));
+  message.set_compute_seconds(stream.scalar<double>("timing", entry, 2, 0));
+  message.set_wait_seconds(stream.scalar<double>("timing", entry, 2, 1));
+  if (stream.has("energies")) {
+    auto* energies = message.mutable_energies();
+    energies->set_kinetic(stream.scalar<double>("energies", entry, 4, 0));
+    energies->set_potential(stream.scalar<double>("energies", entry, 4, 1));
+    energies->set_elastic(stream.scalar<double>("energies", entry, 4, 2));
+    energies->set_dissipated(stream.scalar<double>("energies", entry, 4, 3));
+  }
+  stream.array<std::uint32_t>("index", entry, message.mutable_index());
+  stream.array<double>("position", entry, message.mutable_position());
+  stream.array<double>("velocity", entry, message.mutable_velocity());
+  stream.array<double>("angular_velocity", entry, message.mutable_angular_velocity());
+  stream.array<double>("node_position", entry, message.mutable_node_position());
+  stream.array<double>("node_velocity", entry, message.mutable_node_velocity());
+  const std::string table = stream.bytes("particle_table", entry);
+  if (!table.empty()) parse(*message.mutable_particle_table(), table, stream.what());
+  const std::string topology = stream.bytes("topology", entry);
+  if (!topology.empty()) parse(*message.mutable_topology(), topology, stream.what());
+  return message;
+}
+
+sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_t step) const {
+  const StreamReader& stream = impl_->role(role).forces;
+  const std::uint64_t entry = stream.entry(step);
+  sabo::v1::StepForces message;
+  message.set_step(step);
+  message.set_dt(stream.scalar<double>("dt", entry));
+  const auto bits = stream.scalar<std::uint8_t>("flags", entry);
+  message.set_checkpoint((bits & kFlagCheckpoint) != 0);
+  message.set_output((bits & kFlagOutput) != 0);
+  message.set_stop((bits & kFlagStop) != 0);
+  message.set_interest_all((bits & kFlagInterestAll) != 0);
+  stream.array<std::uint32_t>("index", entry, message.mutable_index());
+  stream.array<double>("force", entry, message.mutable_force());
+  stream.array<double>("torque", entry, message.mutable_torque());
+  stream.array<double>("node_force", entry, message.mutable_node_force());
+  google::protobuf::RepeatedField<double> boxes;
+  stream.array<double>("interest", entry, &boxes);
+  for (int i = 0; i + 6 <= boxes.size(); i += 6) {
+    auto* box = message.add_interest();
+    box->set_min_x(boxes[i]);
+    box->set_min_y(boxes[i + 1]);
+    box->set_min_z(boxes[i + 2]);
+    box->set_max_x(boxes[i + 3]);
+    box->set_max_y(boxes[i + 4]);
+    box->set_max_z(boxes[i + 5]);
+  }
+  return message;
+}
+
+sabo::v1::Register TrafficReader::registration(const std::string& role) const {
+  const RoleReader& reader = impl_->role(role);
+  const std::string what = fmt::format("{}: {} registration", impl_->path.string(), role);
+  if (reader.registration_count == 0) {
+    throw FileError(fmt::format("{}: none was recorded (the solver never registered, or the run died before)", what));
+  }
+  const std::uint64_t entry = reader.registration_count - 1;
+  const auto& group = reader.registration_group;
+  std::uint64_t offset = 0;
+  std::uint64_t count = 0;
+  group.dataset("registration_offset").read<std::uint64_t>(entry, std::span<std::uint64_t>(&offset, 1));
+  group.dataset("registration_count").read<std::uint64_t>(entry, std::span<std::uint64_t>(&count, 1));
+  std::string bytes(count, '\0');
+  group.dataset("registration")
+      .read<std::uint8_t>(offset, std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(bytes.data()), count));
+  sabo::v1::Register message;
+  parse(message, bytes, what);
+  return message;
+}
+
+}  // namespace sabo::io

@@ -1,0 +1,227 @@
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <map>
+#include <numbers>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/geometry/primitives.hpp"
+
+using sabo::Vec3;
+using sabo::geometry::SurfaceMesh;
+using sabo::scene::Shape;
+
+namespace {
+
+// How many faces use each undirected edge.
+std::map<std::pair<std::uint32_t, std::uint32_t>, int> edge_use(const SurfaceMesh& mesh) {
+  std::map<std::pair<std::uint32_t, std::uint32_t>, int> use;
+  for (const auto& t : mesh.triangle) {
+    for (int k = 0; k < 3; ++k) {
+      const auto a = t[k];
+      const auto b = t[(k + 1) % 3];
+      ++use[{std::min(a, b), std::max(a, b)}];
+    }
+  }
+  return use;
+}
+
+double total_area(const SurfaceMesh& mesh) {
+  double area = 0;
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) area += mesh.face_area(f);
+  return area;
+}
+
+Vec3 area_vector(const SurfaceMesh& mesh) {
+  Vec3 sum = Vec3::Zero();
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) sum += mesh.face_area(f) * mesh.face_normal(f);
+  return sum;
+}
+
+Vec3 centroid(const SurfaceMesh& mesh, std::size_t face) {
+  const auto& t = mesh.triangle[face];
+  return (mesh.node_position[t[0]] + mesh.node_position[t[1]] + mesh.node_position[t[2]]) / 3.0;
+}
+
+// No two nodes at the same place: every shared edge shares its nodes.
+std::size_t duplicate_positions(const SurfaceMesh& mesh, double tolerance) {
+  std::size_t duplicates = 0;
+  for (std::size_t i = 0; i < mesh.node_count(); ++i) {
+    for (std::size_t j = i + 1; j < mesh.node_count(); ++j) {
+      if ((mesh.node_position[i] - mesh.node_position[j]).norm() <= tolerance) ++duplicates;
+    }
+  }
+  return duplicates;
+}
+
+double longest_edge(const SurfaceMesh& mesh) {
+  double longest = 0;
+  for (const auto& t : mesh.triangle) {
+    for (int k = 0; k < 3; ++k) {
+      longest = std::max(longest, (mesh.node_position[t[k]] - mesh.node_position[t[(k + 1) % 3]]).norm());
+    }
+  }
+  return longest;
+}
+
+Shape chute_shape(double element_size, double end_wall) {
+  Shape shape;
+  shape.type = Shape::Type::chute;
+  shape.origin = Vec3(1, 2, 10);
+  shape.direction = Vec3(0, 1, 0);  // runs along +y
+  shape.length = 8;
+  shape.width = 2;
+  shape.slope_deg = 30;
+  shape.wall_height = 1;
+  shape.end_wall_height = end_wall;
+  shape.element_size = element_size;
+  return shape;
+}
+
+}  // namespace
+
+TEST(GridLevels, CountAndEnds) {
+  EXPECT_EQ(sabo::geometry::grid_levels(2.0, 0).size(), 2u);
+  EXPECT_EQ(sabo::geometry::grid_levels(1.0, 0.1).size(), 11u);  // 10 cells despite 1.0 / 0.1 rounding
+  EXPECT_EQ(sabo::geometry::grid_levels(1.0, 0.3).size(), 5u);
+  EXPECT_EQ(sabo::geometry::grid_levels(0.2, 0.5).size(), 2u);
+  EXPECT_EQ(sabo::geometry::grid_levels(1.0, 0.3).back(), 1.0);
+}
+
+TEST(Primitives, PlaneAreaNormalAndElementSize) {
+  Shape shape;
+  shape.type = Shape::Type::plane;
+  shape.origin = Vec3(1, 1, 1);
+  shape.normal = Vec3(0, 0, 2);
+  shape.direction = Vec3(1, 0, 1);  // projected onto the plane: +x
+  shape.length = 3;
+  shape.width = 2;
+  const SurfaceMesh coarse = sabo::geometry::triangulate(shape, "floor");
+  EXPECT_EQ(coarse.node_count(), 4u);
+  EXPECT_EQ(coarse.face_count(), 2u);
+  EXPECT_NEAR(total_area(coarse), 6.0, 1e-12);
+  for (std::size_t f = 0; f < coarse.face_count(); ++f) EXPECT_NEAR(coarse.face_normal(f).z(), 1.0, 1e-12);
+  EXPECT_NEAR(coarse.bounds().min.x(), -0.5, 1e-12);
+  EXPECT_NEAR(coarse.bounds().max.y(), 2.0, 1e-12);
+  EXPECT_NO_THROW(coarse.validate("plane"));
+
+  shape.element_size = 0.25;
+  const SurfaceMesh fine = sabo::geometry::triangulate(shape, "floor");
+  EXPECT_EQ(fine.node_count(), 13u * 9u);
+  EXPECT_EQ(fine.face_count(), 2u * 12u * 8u);
+  EXPECT_NEAR(total_area(fine), 6.0, 1e-12);
+  const double longest = longest_edge(fine);
+  std::cout << "plane, element size 0.25: longest edge " << longest << " (the quad diagonal, expected "
+            << 0.25 * std::sqrt(2.0) << ")\n";
+  EXPECT_LE(longest, 0.25 * std::sqrt(2.0) * (1 + 1e-12));
+  EXPECT_EQ(duplicate_positions(fine, 1e-9), 0u);
+}
+
+TEST(Primitives, ClosedBoxOutwardNormals) {
+  Shape shape;
+  shape.type = Shape::Type::box;
+  shape.box.min = Vec3(-1, 0, 2);
+  shape.box.max = Vec3(1, 3, 2.5);
+  shape.element_size = 0.4;
+  const SurfaceMesh mesh = sabo::geometry::triangulate(shape, "house");
+  EXPECT_NO_THROW(mesh.validate("box"));
+  const double expected_area = 2 * (2 * 3 + 3 * 0.5 + 2 * 0.5);
+  std::cout << "box area: measured " << total_area(mesh) << " expected " << expected_area << "\n";
+  EXPECT_NEAR(total_area(mesh), expected_area, 1e-10);
+  EXPECT_LT(area_vector(mesh).norm(), 1e-12);
+  const Vec3 center(0, 1.5, 2.25);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    EXPECT_GT((centroid(mesh, f) - center).dot(mesh.face_normal(f)), 0) << "face " << f << " points inward";
+  }
+  // Closed and conforming: every edge is used by exactly two faces.
+  for (const auto& [edge, count] : edge_use(mesh)) ASSERT_EQ(count, 2) << edge.first << "-" << edge.second;
+  EXPECT_EQ(duplicate_positions(mesh, 1e-9), 0u);
+  EXPECT_LE(longest_edge(mesh), 0.4 * std::sqrt(2.0) * (1 + 1e-12));
+  // Divergence theorem: the enclosed volume from the surface.
+  double volume = 0;
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    volume += centroid(mesh, f).dot(mesh.face_normal(f)) * mesh.face_area(f) / 3.0;
+  }
+  EXPECT_NEAR(volume, 2 * 3 * 0.5, 1e-10);
+}
+
+TEST(Primitives, ChuteAreaAndInwardNormals) {
+  for (double end_wall : {0.0, 0.6, 1.5}) {
+    for (double element_size : {0.0, 0.35}) {
+      const Shape shape = chute_shape(element_size, end_wall);
+      const SurfaceMesh mesh = sabo::geometry::triangulate(shape, "channel");
+      EXPECT_NO_THROW(mesh.validate("chute"));
+      const double expected = 8 * 2 + 2 * 8 * 1 + 2 * end_wall;
+      std::cout << "chute (end wall " << end_wall << ", element size " << element_size << "): area measured "
+                << total_area(mesh) << " expected " << expected << ", " << mesh.face_count() << " faces\n";
+      EXPECT_NEAR(total_area(mesh), expected, 1e-10);
+      EXPECT_EQ(duplicate_positions(mesh, 1e-9), 0u);
+      // Conforming: no edge is used by more than two faces, and edges used
+      // once lie on the open rim (top of walls, upper end, or floor ends).
+      for (const auto& [edge, count] : edge_use(mesh)) ASSERT_LE(count, 2);
+      if (element_size > 0) {
+        EXPECT_LE(longest_edge(mesh), element_size * std::sqrt(2.0) * (1 + 1e-12));
+      }
+
+      // Normals point into the channel: toward the middle of the cross
+      // section, above the floor and upstream of the end wall.
+      const auto frame = sabo::geometry::chute_frame(shape);
+      const double slope = 30 * std::numbers::pi / 180;
+      EXPECT_NEAR(frame.normal.dot(Vec3(0, std::sin(slope), std::cos(slope))), 1.0, 1e-12);
+      for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+        const double along = (centroid(mesh, f) - shape.origin).dot(frame.down_slope);
+        const Vec3 inside = shape.origin + std::clamp(along, 0.5, 7.5) * frame.down_slope + 0.5 * frame.normal;
+        EXPECT_GT((inside - centroid(mesh, f)).dot(mesh.face_normal(f)), 0) << "face " << f;
+      }
+    }
+  }
+}
+
+TEST(Primitives, ChuteWallsShareNodesWithTheFloor) {
+  // Side walls 1 m, end wall 0.6 m, element size 0.35: the walls' nodes along
+  // their common edge must coincide, so no edge is used by three faces and no
+  // T-junction leaves an edge used once inside the surface.
+  const Shape shape = chute_shape(0.35, 0.6);
+  const SurfaceMesh mesh = sabo::geometry::triangulate(shape, "channel");
+  const auto frame = sabo::geometry::chute_frame(shape);
+  int open_inside = 0;
+  for (const auto& [edge, count] : edge_use(mesh)) {
+    if (count != 1) continue;
+    const Vec3 middle = 0.5 * (mesh.node_position[edge.first] + mesh.node_position[edge.second]) - shape.origin;
+    const double along = middle.dot(frame.down_slope);
+    const double up = middle.dot(frame.normal);
+    const double lateral = std::abs(middle.dot(frame.lateral));
+    const bool on_rim = std::abs(along) < 1e-9 ||                                               // upper end
+                        (std::abs(up - 1.0) < 1e-9 && lateral > 1 - 1e-9) ||                    // side wall tops
+                        (std::abs(up - 0.6) < 1e-9 && std::abs(along - 8) < 1e-9) ||            // end wall top
+                        (std::abs(along - 8) < 1e-9 && lateral > 1 - 1e-9 && up > 0.6 - 1e-9);  // side walls' ends
+                                                                                                // above the end wall
+    if (!on_rim) ++open_inside;
+  }
+  EXPECT_EQ(open_inside, 0);
+}
+
+TEST(Primitives, RejectsImpossibleShapes) {
+  Shape shape = chute_shape(0, 0);
+  shape.slope_deg = 95;
+  sabo::scene::Origin origin{"/scenes/a.toml", 12, "structures[0].shape"};
+  try {
+    (void)sabo::geometry::triangulate(shape, "channel", origin);
+    ADD_FAILURE() << "no exception";
+  } catch (const sabo::SceneError& error) {
+    const std::string text = error.what();
+    EXPECT_NE(text.find("/scenes/a.toml:12"), std::string::npos) << text;
+    EXPECT_NE(text.find("Fix:"), std::string::npos) << text;
+  }
+  Shape flat;
+  flat.type = Shape::Type::box;
+  flat.box.min = Vec3(0, 0, 0);
+  flat.box.max = Vec3(1, 1, 0);
+  EXPECT_THROW((void)sabo::geometry::triangulate(flat, "b"), sabo::SceneError);
+  Shape plane;
+  plane.length = 1;
+  plane.width = 1;
+  plane.direction = Vec3(0, 0, 1);  // parallel to the default normal
+  EXPECT_THROW((void)sabo::geometry::triangulate(plane, "p"), sabo::SceneError);
+}
