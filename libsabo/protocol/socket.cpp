@@ -1,7 +1,6 @@
 #include "libsabo/protocol/socket.hpp"
 
 #include <array>
-#include <thread>
 
 #include <fmt/format.h>
 
@@ -38,9 +37,10 @@ zmq::message_t SendBuffer::wrap(const google::protobuf::MessageLite& message) {
     message.SerializeWithCachedSizesToArray(static_cast<std::uint8_t*>(copy.data()));
     return copy;
   }
-  // In lock-step use the previous message was delivered before its reply came
-  // back, so this wait is almost always already over.
-  while (state_->in_flight.load(std::memory_order_acquire)) std::this_thread::yield();
+  // In lock-step use over ipc or tcp the previous message was released before
+  // its reply came back. When it was not (inproc hands the buffer itself to the
+  // receiver), continue in a fresh buffer: the old one lives until released.
+  if (state_->in_flight.load(std::memory_order_acquire)) state_ = std::make_shared<State>();
   if (state_->bytes.size() < size) state_->bytes.resize(size + size / 8);
   message.SerializeWithCachedSizesToArray(state_->bytes.data());
   state_->in_flight.store(true, std::memory_order_release);
