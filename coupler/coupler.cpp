@@ -251,7 +251,7 @@ void Coupler::collect_states(std::uint64_t step) {
     Peer* peer = route(inbound_, sabo::v1::MESSAGE_TYPE_STEP_STATE, step);
     if (peer == nullptr) continue;
     accept_state(*peer, step);
-    messaging_seconds_ += seconds_since(receive_start);
+    receive_seconds_ += seconds_since(receive_start);
   }
   wait_seconds_ += seconds_since(wait_start);
 }
@@ -377,7 +377,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
     if (recorder_) recorder_->record_forces(peer->role_name, f);
     socket_.send(f, peer->buffer, peer->identity);
   }
-  messaging_seconds_ += seconds_since(start);
+  send_seconds_ += seconds_since(start);
 }
 
 void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
@@ -466,8 +466,8 @@ void Coupler::write_summary(const std::string& status) {
   const double wall = seconds_since(start_wall_);
   json processes = json::object();
   processes["coupler"] = {{"contact_seconds", contact_seconds_},
-                          {"messaging_seconds", messaging_seconds_},
-                          {"wait_seconds", wait_seconds_ - messaging_seconds_}};
+                          {"messaging_seconds", receive_seconds_ + send_seconds_},
+                          {"wait_seconds", wait_seconds_ - receive_seconds_}};
   for (const auto& peer : peers_) {
     const bool have_goodbye = peer->said_goodbye && peer->goodbye.steps() > 0;
     processes[peer->role_name] = {

@@ -89,8 +89,9 @@ class Coupler {
   double dt_min_ = std::numeric_limits<double>::infinity();
   double dt_max_ = 0;
   double contact_seconds_ = 0;
-  double messaging_seconds_ = 0;
-  double wait_seconds_ = 0;
+  double receive_seconds_ = 0;  // parsing, checking and recording the states
+  double send_seconds_ = 0;     // building, recording and sending the replies
+  double wait_seconds_ = 0;     // collecting the states, receiving included
   double critical_compute_seconds_ = 0;
   double newton_max_residual_ = 0;
   std::uint64_t newton_violations_ = 0;

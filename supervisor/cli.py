@@ -25,6 +25,7 @@ environment:
   SABO_BUILD_DIR       build folder (default: build/ in the repository)
   SABO_PLAN_OVERRIDE   JSON launch plan to use instead of the scene check (debugging)
   SABO_WATCHDOG_MIN_S  lower bound of the no-progress watchdog, seconds (default 30)
+  OMP_NUM_THREADS      threads per process (OpenMP); OMP_WAIT_POLICY defaults to passive
 """
 
 

@@ -51,6 +51,17 @@ def _child_setup_function():
     return child_setup
 
 
+def child_environment():
+    """The environment of every started process: the supervisor's own, plus
+    OMP_WAIT_POLICY=passive unless the user set it. The processes of a run take
+    turns in lock step; OpenMP threads that spin while their process waits take
+    the cores from the process whose turn it is (measured: twice the wall time
+    for configs/boulders_chute.toml on 2 cores)."""
+    environment = dict(os.environ)
+    environment.setdefault("OMP_WAIT_POLICY", "passive")
+    return environment
+
+
 class ManagedProcess:
     """One started process: its role, Popen and log file."""
 
@@ -121,7 +132,7 @@ def start_process(role, command, cwd, log_path, stdout_to_pipe):
     """
     log = open(log_path, "ab")
     try:
-        popen = subprocess.Popen(command, cwd=cwd, stdin=subprocess.DEVNULL,
+        popen = subprocess.Popen(command, cwd=cwd, stdin=subprocess.DEVNULL, env=child_environment(),
                                  stdout=subprocess.PIPE if stdout_to_pipe else log, stderr=log,
                                  start_new_session=True, preexec_fn=_child_setup_function(), close_fds=True)
     finally:

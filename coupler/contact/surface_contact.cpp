@@ -22,7 +22,7 @@ constexpr double kDegenerateAreaRatio = 1e-12;
 // Paper eq. 7's DEM factor: dt = 0.2 pi sqrt(m / k).
 constexpr double kStableStepFactor = 0.2 * std::numbers::pi;
 // Below this many particles a parallel region costs more than it saves.
-constexpr std::int64_t kParallelThreshold = 256;
+constexpr std::int64_t kParallelThreshold = 64;
 // Relative slack when comparing distances of the same point computed from different triangles.
 constexpr double kDistanceSlack = 1e-9;
 
@@ -366,7 +366,16 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     scratch.candidates.resize(surface_.triangle.size());
     std::iota(scratch.candidates.begin(), scratch.candidates.end(), 0U);
   } else {
-    grid_.candidates(Aabb{centre.array() - reach, centre.array() + reach}, scratch.candidates);
+    // Faces whose own box misses the query box are dropped before the sort, which
+    // then orders (and de-duplicates) only the few real candidates.
+    const Aabb query{centre.array() - reach, centre.array() + reach};
+    scratch.candidates.clear();
+    grid_.for_each_in(query, [&](std::uint32_t face) {
+      if (face_box_[face].overlaps(query)) scratch.candidates.push_back(face);
+    });
+    std::sort(scratch.candidates.begin(), scratch.candidates.end());
+    scratch.candidates.erase(std::unique(scratch.candidates.begin(), scratch.candidates.end()),
+                             scratch.candidates.end());
   }
   scratch.hits.clear();
   double nearest = std::numeric_limits<double>::infinity();
