@@ -245,6 +245,20 @@ class RealRunTestCase(E2eTestCase):
                     print("traffic.h5: {} holds {} recorded steps".format(name, len(steps)))
                     self.assertGreater(len(steps), 0, name)
 
+    def assertTrafficHoldsEveryStepUpTo(self, run_dir, progress_steps):
+        """Every step from 0 is recorded, without gaps, at least up to the step of the last-but-one
+        progress event (progress events come every 0.5 s, traffic.h5 is flushed every 0.2 s, so
+        that step was on disk before any failure that came after the last event)."""
+        import h5py
+        self.assertGreaterEqual(len(progress_steps), 2)
+        with h5py.File(os.path.join(run_dir, "traffic.h5"), "r", swmr=True) as traffic:
+            for role in self.solver_roles(run_dir):
+                steps = traffic["{}/state/step".format(role)][()]
+                print("traffic.h5: {} states recorded for steps 0..{}; progress reported step {}".format(
+                    role, steps[-1], progress_steps[-1]))
+                self.assertEqual(list(steps), list(range(len(steps))), "recorded steps have gaps")
+                self.assertGreaterEqual(steps[-1], progress_steps[-2])
+
     def solver_roles(self, run_dir):
         pids = read_json(os.path.join(run_dir, "pids.json"))
         return sorted(role for role in pids if role not in ("supervisor", "coupler"))

@@ -6,7 +6,11 @@ import signal
 import time
 import unittest
 
-from e2e_support import RealRunTestCase, progress_count, read_json, read_text, wait_for_events
+from e2e_support import RealRunTestCase, progress_count, read_events, read_json, read_text, wait_for_events
+
+
+def progress_steps(events):
+    return [event["step"] for event in events if event.get("event") == "progress"]
 
 SPHERE_DROP = "configs/tests/sphere_drop.toml"
 CHUTE_SMALL = "configs/tests/chute_small.toml"
@@ -56,6 +60,7 @@ class FaultTest(RealRunTestCase):
                 self.assertIn("{} (pid {}) was killed by SIGKILL".format(role, pids[role]), sabo.stderr)
                 self.assertNoProcessLeft(out)
                 self.assertTrafficReadable(out, self.solver_roles(out))
+                self.assertTrafficHoldsEveryStepUpTo(out, progress_steps(read_events(out)))
 
 
 class InterruptTest(RealRunTestCase):

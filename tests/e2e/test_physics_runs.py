@@ -1,0 +1,184 @@
+"""Physics through the real processes and sockets (`./sabo run`): a sphere bouncing on a rigid
+plane (DEM-FEM penalty contact, benchmarks.md D2) and boulders down a chute (every boulder kept, none
+through a wall, the energy never above its initial value). Each check prints measured beside expected."""
+import csv
+import math
+import os
+import tomllib
+import unittest
+
+import h5py
+import numpy as np
+
+from e2e_support import RealRunTestCase, read_json
+
+SPHERE_DROP = "configs/tests/sphere_drop.toml"
+CHUTE_SMALL = "configs/tests/chute_small.toml"
+
+
+def load_scene(path):
+    with open(path, "rb") as handle:
+        return tomllib.load(handle)
+
+
+def particle_states(run_dir):
+    """The dem_solver's recorded states: per recorded step, the indices, positions and velocities,
+    and the contact forces the coupler sent back (traffic.h5 layout: docs/traffic.md)."""
+    with h5py.File(os.path.join(run_dir, "traffic.h5"), "r", swmr=True) as traffic:
+        state = traffic["dem_solver/state"]
+        forces = traffic["dem_solver/forces"]
+        out = {
+            "step": state["step"][()],
+            "time": state["time"][()],
+            "count": state["index_count"][()],
+            "offset": state["index_offset"][()],
+            "index": state["index"][()],
+            "position": state["position"][()].reshape(-1, 3),
+            "velocity": state["velocity"][()].reshape(-1, 3),
+            "force_step": forces["step"][()],
+            "force": forces["force"][()].reshape(-1, 3),
+        }
+    return out
+
+
+class SphereDropTest(RealRunTestCase):
+    """One sphere dropped on a rigid plane bounces with the spring-dashpot restitution and comes to
+    rest at height r."""
+
+    def test_restitution_and_rest_height(self):
+        out = os.path.join(self.tmp, "drop")
+        sabo = self.run_sabo(self.scene_path(SPHERE_DROP), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        scene = load_scene(self.scene_path(SPHERE_DROP))
+        zeta = scene["contact"]["dem_fem"]["normal_damping_ratio"]
+        radius = scene["particles"][0]["spheres"][0]["radius"]
+
+        s = particle_states(out)
+        vz = s["velocity"][:, 2]
+        in_contact = np.abs(s["force"][:, 2]) > 0
+        self.assertTrue(in_contact.any(), "the sphere never touched the plane")
+        first = int(np.argmax(in_contact))
+        after = first + int(np.argmax(~in_contact[first:]))
+        e_measured = -vz[after] / vz[first]
+        e_expected = math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta))
+        print("restitution of the first bounce: measured {:.4f}, expected {:.4f} (zeta = {}), error {:+.2%}"
+              .format(e_measured, e_expected, zeta, e_measured / e_expected - 1))
+        # The contact law alone is held to 0.5% in the DEM unit tests (D2); here the coupled run adds
+        # gravity during the 5 ms contact and the first-order dashpot (v_{n-1/2}): 2%.
+        self.assertLess(abs(e_measured / e_expected - 1), 0.02)
+
+        z_final = s["position"][-1, 2]
+        v_final = np.linalg.norm(s["velocity"][-1])
+        print("rest height: measured {:.6f} m, expected r = {} m; final speed {:.2e} m/s".format(
+            z_final, radius, v_final))
+        self.assertLess(abs(z_final - radius), 1e-3 * radius)
+        self.assertLess(v_final, 1e-3)
+
+        summary = read_json(os.path.join(out, "summary.json"))
+        self.assertEqual(summary["newton_third_law"]["violations"], 0)
+        rise = summary["energies"]["max_rise_over_initial"]
+        print("largest rise of the total energy over its initial value: {:.3e} J".format(rise))
+        self.assertLessEqual(rise, 0.0)
+
+
+class ChuteTest(RealRunTestCase):
+    """Boulders down a chute closed by a wall: every boulder is kept, none passes through a wall
+    (floor, side walls, end wall), and the total energy never rises above its initial value."""
+
+    def test_boulders_stay_in_the_chute_and_energy_never_rises(self):
+        out = os.path.join(self.tmp, "chute")
+        sabo = self.run_sabo(self.scene_path(CHUTE_SMALL), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        scene = load_scene(self.scene_path(CHUTE_SMALL))
+        chute = scene["structures"][0]
+        fill = scene["particles"][0]["fill"]
+        count = fill["count"]
+        r_max = fill["diameter"][1] / 2
+
+        slope = math.radians(chute["slope_deg"])
+        down = np.array([math.cos(slope), 0.0, -math.sin(slope)])  # along the floor, direction = +x
+        normal = np.array([math.sin(slope), 0.0, math.cos(slope)])  # out of the floor
+        origin = np.array(chute["origin"], dtype=float)
+
+        s = particle_states(out)
+        # Every sphere is sent while it can touch the chute; the last state lists all of them.
+        last_count = int(s["count"][-1])
+        print("boulders in the last state: {} of {}".format(last_count, count))
+        self.assertEqual(last_count, count)
+        self.assertTrue(np.isfinite(s["position"]).all())
+
+        # Penetration of each wall over every recorded step (centre distance below r).
+        radius_by_index = self.radii(out)
+        radii = radius_by_index[s["index"]]
+        rel = s["position"] - origin
+        along = rel @ down
+        height = rel @ normal
+        lateral = rel[:, 1]
+        floor_gap = height - radii
+        side_gap = chute["width"] / 2 - np.abs(lateral) - radii
+        end_gap = chute["length"] - along - radii
+        worst = {"floor": floor_gap.min(), "side walls": side_gap.min(), "end wall": end_gap.min()}
+        for wall, gap in worst.items():
+            print("{}: deepest overlap {:.4f} m ({:.2%} of the largest radius), allowed {:.2%}".format(
+                wall, max(0.0, -gap), max(0.0, -gap) / r_max, 0.05))
+            self.assertGreater(gap, -0.05 * r_max, "a boulder went through the " + wall)
+
+        summary = read_json(os.path.join(out, "summary.json"))
+        initial = summary["energies"]["initial"]["total"]
+        rise = summary["energies"]["max_rise_over_initial"]
+        print("total energy: initial {:.6e} J, largest rise over it {:.3e} J, final {:.6e} J".format(
+            initial, rise, summary["energies"]["final"]["total"]))
+        self.assertLessEqual(rise, 0.0)
+        with open(os.path.join(out, "energy.csv")) as handle:
+            totals = [float(row["total"]) for row in csv.DictReader(handle)]
+        self.assertLessEqual(max(totals), initial)
+        self.assertEqual(summary["newton_third_law"]["violations"], 0)
+
+    def radii(self, run_dir):
+        """Sphere radii from the dem_solver's recorded registration (its particle table)."""
+        with h5py.File(os.path.join(run_dir, "traffic.h5"), "r", swmr=True) as traffic:
+            group = traffic["dem_solver"]
+            begin = int(group["registration_offset"][0])
+            end = begin + int(group["registration_count"][0])
+            blob = bytes(group["registration"][begin:end])
+        return parse_particle_radii(blob)
+
+
+def parse_particle_radii(register_bytes):
+    """The radius array of a serialized sabo.v1.Register (field 7 ParticleTable, its field 2 packed
+    doubles), decoded by hand so that the test needs no generated Python code."""
+    def fields(data):
+        i = 0
+        while i < len(data):
+            key, i = varint(data, i)
+            number, wire = key >> 3, key & 7
+            if wire == 0:
+                value, i = varint(data, i)
+            elif wire == 1:
+                value, i = data[i:i + 8], i + 8
+            elif wire == 2:
+                length, i = varint(data, i)
+                value, i = data[i:i + length], i + length
+            elif wire == 5:
+                value, i = data[i:i + 4], i + 4
+            else:
+                raise ValueError("unexpected wire type {}".format(wire))
+            yield number, value
+
+    def varint(data, i):
+        result = shift = 0
+        while True:
+            byte = data[i]
+            i += 1
+            result |= (byte & 0x7F) << shift
+            shift += 7
+            if not byte & 0x80:
+                return result, i
+
+    table = next(value for number, value in fields(register_bytes) if number == 7)
+    radius = next(value for number, value in fields(table) if number == 2)
+    return np.frombuffer(radius, dtype="<f8")
+
+
+if __name__ == "__main__":
+    unittest.main()
