@@ -53,11 +53,7 @@ class DemSolver final : public solver::CoupledSolver {
       }
     }
     const Energies e = model_.energies();
-    auto* energies = state.mutable_energies();
-    energies->set_kinetic(e.kinetic);
-    energies->set_potential(e.potential);
-    energies->set_elastic(e.elastic);
-    energies->set_dissipated(e.dissipated);
+    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.dissipated});
   }
 
   void compute_internal_forces(double dt_previous) override { model_.compute_internal_forces(dt_previous); }

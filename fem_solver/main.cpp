@@ -33,11 +33,7 @@ class FemSolver final : public solver::CoupledSolver {
     // (empty arrays mean "unchanged", docs/protocol.md).
     assert(!model_.moved() && "moving surfaces need node positions and velocities in the state");
     const Energies e = model_.energies();
-    auto* energies = state.mutable_energies();
-    energies->set_kinetic(e.kinetic);
-    energies->set_potential(e.potential);
-    energies->set_elastic(e.elastic);
-    energies->set_dissipated(e.dissipated);
+    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.dissipated});
   }
 
   void compute_internal_forces(double /*dt_previous*/) override {}

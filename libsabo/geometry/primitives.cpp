@@ -60,16 +60,8 @@ class PatchBuilder {
   SurfaceMesh finish(const std::string& part_name) {
     SurfaceMesh mesh;
     mesh.node_position = welder_.take_positions();
-    mesh.node_id.resize(mesh.node_position.size());
-    for (std::size_t i = 0; i < mesh.node_id.size(); ++i) mesh.node_id[i] = i;
     mesh.triangle = std::move(triangles_);
-    const std::size_t faces = mesh.triangle.size();
-    mesh.face_part.assign(faces, 0);
-    mesh.face_material.assign(faces, 0);
-    mesh.face_thickness.assign(faces, 0.0);
-    mesh.face_bulk_modulus.assign(faces, 0.0);
-    mesh.face_element_volume.assign(faces, 0.0);
-    mesh.part_name = {part_name};
+    mesh.make_single_part(part_name);
     return mesh;
   }
 

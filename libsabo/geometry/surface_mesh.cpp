@@ -34,6 +34,18 @@ Aabb SurfaceMesh::bounds() const {
   return box;
 }
 
+void SurfaceMesh::make_single_part(const std::string& name) {
+  node_id.resize(node_position.size());
+  for (std::size_t i = 0; i < node_id.size(); ++i) node_id[i] = i;
+  const std::size_t faces = triangle.size();
+  face_part.assign(faces, 0);
+  face_material.assign(faces, 0);
+  face_thickness.assign(faces, 0.0);
+  face_bulk_modulus.assign(faces, 0.0);
+  face_element_volume.assign(faces, 0.0);
+  part_name = {name};
+}
+
 void SurfaceMesh::append(const SurfaceMesh& other) {
   const auto node_offset = static_cast<std::uint32_t>(node_position.size());
   const auto part_offset = static_cast<std::uint32_t>(part_name.size());

@@ -26,6 +26,10 @@ struct SurfaceMesh {
   [[nodiscard]] Vec3 face_normal(std::size_t face) const;  // unit, outward
   [[nodiscard]] double face_area(std::size_t face) const;  // m^2
   [[nodiscard]] Aabb bounds() const;
+  // Given nodes and triangles: node ids 0..n-1, every face in one part named
+  // `name`, material 0, no thickness, bulk modulus and volume 0 (the FEM
+  // model sets the physical attributes).
+  void make_single_part(const std::string& name);
   // Appends `other`, offsetting node and part indices.
   void append(const SurfaceMesh& other);
   // Throws sabo::Error naming `what` if sizes disagree, an index is out of

@@ -247,15 +247,7 @@ StlMesh read_stl(const std::filesystem::path& file, const StlOptions& options) {
   for (auto& triangle : mesh.triangle) {
     for (std::uint32_t& node : triangle) node = renumber[node];
   }
-  mesh.node_id.resize(mesh.node_position.size());
-  for (std::size_t i = 0; i < mesh.node_id.size(); ++i) mesh.node_id[i] = i;
-  const std::size_t faces = mesh.triangle.size();
-  mesh.face_part.assign(faces, 0);
-  mesh.face_material.assign(faces, 0);
-  mesh.face_thickness.assign(faces, 0.0);
-  mesh.face_bulk_modulus.assign(faces, 0.0);
-  mesh.face_element_volume.assign(faces, 0.0);
-  mesh.part_name = {file.stem().string()};
+  mesh.make_single_part(file.stem().string());
   return result;
 }
 

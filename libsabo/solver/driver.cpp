@@ -41,6 +41,14 @@ bool Interest::contains(const Vec3& point) const {
   return false;
 }
 
+void set_energies(sabo::v1::StepState& state, const EnergyReport& energies) {
+  auto* e = state.mutable_energies();
+  e->set_kinetic(energies.kinetic);
+  e->set_potential(energies.potential);
+  e->set_elastic(energies.elastic);
+  e->set_dissipated(energies.dissipated);
+}
+
 std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, const std::string& program) {
   SolverOptions options;
   CLI::App app{fmt::format("{}: a Sabo solver process. Normally started by './sabo run SCENE'.", program), program};

@@ -51,6 +51,13 @@ class CoupledSolver {
   virtual void finish() = 0;
 };
 
+// Energies of the solver at the previous step (J), for the coupler's balance:
+// kinetic, gravitational potential, internal elastic, accumulated dissipation.
+struct EnergyReport {
+  double kinetic = 0, potential = 0, elastic = 0, dissipated = 0;
+};
+void set_energies(sabo::v1::StepState& state, const EnergyReport& energies);
+
 struct SolverOptions {
   std::filesystem::path scene;
   std::string coupler_endpoint;

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "tests/support/scratch.hpp"
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
@@ -20,18 +21,7 @@ using sabo::scene::Shape;
 
 namespace {
 
-// A folder of this process's files, removed when the tests end.
-fs::path scratch(const std::string& name) {
-  static const struct Folder {
-    fs::path path = fs::temp_directory_path() / ("sabo_fem_test_" + std::to_string(::getpid()));
-    Folder() { fs::create_directories(path); }
-    ~Folder() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } folder;
-  return folder.path / name;
-}
+using sabo::testing::scratch;
 
 sabo::scene::Material material(const std::string& name, double density, double youngs, double poisson) {
   sabo::scene::Material m;

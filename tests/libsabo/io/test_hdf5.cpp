@@ -5,6 +5,7 @@
 #include <functional>
 #include <vector>
 
+#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/hdf5.hpp"
 
@@ -13,18 +14,7 @@ using namespace sabo::io;
 
 namespace {
 
-// A folder of this process's files, removed when the tests end.
-fs::path scratch(const std::string& name) {
-  static const struct Folder {
-    fs::path path = fs::temp_directory_path() / ("sabo_hdf5_test_" + std::to_string(::getpid()));
-    Folder() { fs::create_directories(path); }
-    ~Folder() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } folder;
-  return folder.path / name;
-}
+using sabo::testing::scratch;
 
 std::string message_of(const std::function<void()>& action) {
   try {

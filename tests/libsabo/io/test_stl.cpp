@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 
+#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/stl.hpp"
 
@@ -14,18 +15,7 @@ using sabo::Vec3;
 
 namespace {
 
-// A folder of this process's files, removed when the tests end.
-fs::path scratch(const std::string& name) {
-  static const struct Folder {
-    fs::path path = fs::temp_directory_path() / ("sabo_stl_test_" + std::to_string(::getpid()));
-    Folder() { fs::create_directories(path); }
-    ~Folder() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } folder;
-  return folder.path / name;
-}
+using sabo::testing::scratch;
 
 using Triangle = std::array<Vec3, 3>;
 

@@ -10,6 +10,7 @@
 #include <random>
 #include <thread>
 
+#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/hdf5.hpp"
 #include "libsabo/io/traffic.hpp"
@@ -21,18 +22,7 @@ using sabo::io::TrafficRecorder;
 
 namespace {
 
-// A folder of this process's files, removed when the tests end.
-fs::path scratch(const std::string& name) {
-  static const struct Folder {
-    fs::path path = fs::temp_directory_path() / ("sabo_traffic_test_" + std::to_string(::getpid()));
-    Folder() { fs::create_directories(path); }
-    ~Folder() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } folder;
-  return folder.path / name;
-}
+using sabo::testing::scratch;
 
 // Deterministic message contents, so that a reader can check any step.
 sabo::v1::StepState make_state(std::uint64_t step, int role_salt) {

@@ -6,6 +6,7 @@
 #include <map>
 #include <sstream>
 
+#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/io/vtk.hpp"
@@ -16,18 +17,7 @@ using sabo::Vec3;
 
 namespace {
 
-// A folder of this process's files, removed when the tests end.
-fs::path scratch(const std::string& name) {
-  static const struct Folder {
-    fs::path path = fs::temp_directory_path() / ("sabo_vtk_test_" + std::to_string(::getpid()));
-    Folder() { fs::create_directories(path); }
-    ~Folder() {
-      std::error_code ignored;
-      fs::remove_all(path, ignored);
-    }
-  } folder;
-  return folder.path / name;
-}
+using sabo::testing::scratch;
 
 std::string slurp(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -77,14 +78,23 @@ TEST(SceneLoader, BouldersChuteIsThePaperSetup) {
   EXPECT_DOUBLE_EQ(scene.dem_contact.normal_stiffness_scale, 0.01);
   EXPECT_FALSE(scene.dem_contact.normal_stiffness.has_value());
 
-  ASSERT_EQ(scene.structures.size(), 1u);
+  ASSERT_EQ(scene.structures.size(), 2u);
   const Structure& chute = scene.structures[0];
   EXPECT_EQ(chute.shape.type, Shape::Type::chute);
   EXPECT_DOUBLE_EQ(chute.shape.slope_deg, 20.0);
   EXPECT_DOUBLE_EQ(chute.shape.length, 60.0);
   EXPECT_DOUBLE_EQ(chute.shape.width, 8.0);
   EXPECT_DOUBLE_EQ(chute.shape.wall_height, 4.0);
-  EXPECT_GT(chute.shape.end_wall_height, 0.0);
+  EXPECT_DOUBLE_EQ(chute.shape.end_wall_height, 0.0);  // the end wall is a part of its own
+  const Structure& wall = scene.structures[1];
+  EXPECT_EQ(wall.name, "wall");
+  EXPECT_EQ(wall.shape.type, Shape::Type::plane);
+  // The wall stands at the floor's lower end (60 m along a 20 degree slope), facing up the chute.
+  const double slope = 20.0 * std::numbers::pi / 180.0;
+  const Vec3 floor_end(60.0 * std::cos(slope), 0.0, -60.0 * std::sin(slope));
+  const Vec3 down_slope(std::cos(slope), 0.0, -std::sin(slope));
+  EXPECT_NEAR((wall.shape.origin - floor_end).dot(down_slope), 0.0, 1e-3);
+  EXPECT_NEAR(wall.shape.normal.dot(-down_slope), 1.0, 1e-6);
   const Material& concrete = scene.materials[scene.material_index(chute.material)];
   EXPECT_DOUBLE_EQ(concrete.poisson_ratio, 0.24);
   EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "chute").friction, 0.3);
@@ -108,7 +118,8 @@ TEST(SceneLoader, SphereDropIsTheBrief) {
   EXPECT_EQ(scene.structures.at(0).shape.type, Shape::Type::plane);
   EXPECT_DOUBLE_EQ(scene.dem_fem_default.normal_damping_ratio, 0.3);
   EXPECT_DOUBLE_EQ(scene.dem_fem_default.friction, 0.0);
-  EXPECT_DOUBLE_EQ(scene.run.end_time, 6.0);
+  EXPECT_DOUBLE_EQ(scene.run.end_time, 2.5);
+  EXPECT_DOUBLE_EQ(scene.structures.at(0).shape.element_size, 1.0);
 }
 
 // The schema's defaults (docs/scene.md) must be the defaults of scene.hpp.

@@ -36,10 +36,10 @@ TEST(LaunchPlan, BouldersChute) {
   EXPECT_EQ(plan["processes"][0]["command"], nlohmann::json::array({"/opt/sabo/bin/coupler"}));
   EXPECT_EQ(plan["processes"][1]["command"], nlohmann::json::array({"/opt/sabo/bin/dem_solver"}));
   EXPECT_EQ(plan["processes"][2]["command"], nlohmann::json::array({"/opt/sabo/bin/fem_solver"}));
-  EXPECT_DOUBLE_EQ(plan["processes"][1]["beta"].get<double>(), 0.8);
+  EXPECT_DOUBLE_EQ(plan["processes"][1]["beta"].get<double>(), 0.25);
   EXPECT_EQ(plan["bodies"]["spheres"], 200);
   EXPECT_EQ(plan["bodies"]["particle_sets"], 1);
-  EXPECT_EQ(plan["bodies"]["structures"], 1);
+  EXPECT_EQ(plan["bodies"]["structures"], 2);
   EXPECT_EQ(plan["bodies"]["fluids"], 0);
 }
 
