@@ -5,17 +5,17 @@
 // as a real run (Socket, SendBuffer, SolverLink). Prints one JSON line.
 //
 //   bench_coupling_overhead --entities 10000 --transport ipc --steps 2000
+#include <fmt/format.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <vector>
-
-#include <CLI/CLI.hpp>
-#include <fmt/format.h>
 
 #include "libsabo/protocol/solver_link.hpp"
 
@@ -24,13 +24,17 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-int run_coupler(const std::string& endpoint, int steps) {
+// The coupler side (the forked child). Binds `endpoint` and writes the bound
+// endpoint (the port chosen by the system for tcp) to `endpoint_pipe`.
+int run_coupler(const std::string& endpoint, int endpoint_pipe, int steps) {
   zmq::context_t context(1);
   protocol::Socket socket(context, zmq::socket_type::router);
   socket.bind(endpoint);
+  const std::string& bound = socket.endpoint();
+  if (::write(endpoint_pipe, bound.data(), bound.size()) != static_cast<ssize_t>(bound.size())) return 1;
+  ::close(endpoint_pipe);
   protocol::Inbound inbound;
-  while (!socket.receive(inbound, std::chrono::milliseconds(10000))) {
-  }
+  if (!socket.receive(inbound, std::chrono::milliseconds(20000))) return 1;  // the solver never registered
   sabo::v1::RegisterReply reply;
   reply.set_accepted(true);
   reply.set_interest_all(true);
@@ -95,7 +99,9 @@ Result run_solver(const std::string& endpoint, int entities, int steps, int warm
     if (step >= warmup) per_step.push_back(std::chrono::duration<double, std::micro>(Clock::now() - start).count());
   }
   std::sort(per_step.begin(), per_step.end());
-  const auto at = [&](double q) { return per_step[static_cast<std::size_t>(q * static_cast<double>(per_step.size() - 1))]; };
+  const auto at = [&](double q) {
+    return per_step[static_cast<std::size_t>(q * static_cast<double>(per_step.size() - 1))];
+  };
   return {at(0.5), per_step.front(), at(0.9)};
 }
 
@@ -114,21 +120,46 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   steps += warmup;
 
-  const std::string endpoint =
-      transport == "ipc" ? fmt::format("ipc:///tmp/sabo-bench-{}.sock", ::getpid()) : std::string("tcp://127.0.0.1:0");
-  std::string resolved = endpoint;
-  if (transport == "tcp") resolved = fmt::format("tcp://127.0.0.1:{}", 20000 + ::getpid() % 20000);
+  const std::string ipc_path = fmt::format("/tmp/sabo-bench-{}.sock", ::getpid());
+  const std::string endpoint = transport == "ipc" ? "ipc://" + ipc_path : std::string("tcp://127.0.0.1:*");
 
+  int endpoint_pipe[2];
+  if (::pipe(endpoint_pipe) != 0) {
+    std::perror("pipe");
+    return 1;
+  }
   const pid_t child = ::fork();
-  if (child == 0) _exit(run_coupler(resolved, steps));
-  const Result result = run_solver(resolved, entities, steps, warmup);
+  if (child == 0) {
+    ::close(endpoint_pipe[0]);
+    int code = 1;
+    try {
+      code = run_coupler(endpoint, endpoint_pipe[1], steps);
+    } catch (const std::exception& error) {
+      std::fprintf(stderr, "coupler process: %s\n", error.what());
+    }
+    _exit(code);
+  }
+  ::close(endpoint_pipe[1]);
+  std::string bound;
+  char chunk[256];
+  for (ssize_t got; (got = ::read(endpoint_pipe[0], chunk, sizeof chunk)) > 0;)
+    bound.append(chunk, static_cast<std::size_t>(got));
+  ::close(endpoint_pipe[0]);
+  if (bound.empty()) {
+    std::fprintf(stderr, "the coupler process could not bind %s\n", endpoint.c_str());
+    ::waitpid(child, nullptr, 0);
+    return 1;
+  }
+  const Result result = run_solver(bound, entities, steps, warmup);
   int status = 0;
   ::waitpid(child, &status, 0);
-  if (transport == "ipc") std::filesystem::remove(resolved.substr(6));
-  const double bytes_per_step = static_cast<double>(entities) * (4 + 3 * 8 * 3) + static_cast<double>(entities) * (4 + 2 * 3 * 8);
-  fmt::print("{{\"bench\": \"coupling_overhead\", \"transport\": \"{}\", \"entities\": {}, \"steps\": {}, "
-             "\"median_us_per_step\": {:.2f}, \"min_us_per_step\": {:.2f}, \"p90_us_per_step\": {:.2f}, "
-             "\"payload_bytes_per_step\": {:.0f}}}\n",
-             transport, entities, steps - warmup, result.median_us, result.min_us, result.p90_us, bytes_per_step);
+  if (transport == "ipc") std::filesystem::remove(ipc_path);
+  const double bytes_per_step =
+      static_cast<double>(entities) * (4 + 3 * 8 * 3) + static_cast<double>(entities) * (4 + 2 * 3 * 8);
+  fmt::print(
+      "{{\"bench\": \"coupling_overhead\", \"transport\": \"{}\", \"entities\": {}, \"steps\": {}, "
+      "\"median_us_per_step\": {:.2f}, \"min_us_per_step\": {:.2f}, \"p90_us_per_step\": {:.2f}, "
+      "\"payload_bytes_per_step\": {:.0f}}}\n",
+      transport, entities, steps - warmup, result.median_us, result.min_us, result.p90_us, bytes_per_step);
   return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1;
 }

@@ -1,10 +1,10 @@
 #include "coupler/accounting.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
-
-#include <fmt/format.h>
 
 #include "libsabo/core/error.hpp"
 
@@ -28,7 +28,9 @@ ForceHistory::ForceHistory(const std::filesystem::path& file, std::vector<std::s
   std::fputs("time,part,source,Fx,Fy,Fz,F,F_peak\n", file_);
 }
 
-ForceHistory::~ForceHistory() { close(); }
+ForceHistory::~ForceHistory() {
+  close();
+}
 
 void ForceHistory::add(std::size_t part, std::size_t source, const Vec3& force, double dt) {
   auto& acc = accumulators_[part][source];
@@ -63,7 +65,9 @@ EnergyHistory::EnergyHistory(const std::filesystem::path& file) : file_(open_for
   std::fputs("time,kinetic,potential,solver_elastic,contact_elastic,total,dissipated\n", file_);
 }
 
-EnergyHistory::~EnergyHistory() { close(); }
+EnergyHistory::~EnergyHistory() {
+  close();
+}
 
 void EnergyHistory::observe(const EnergySample& sample, bool write) {
   if (first_) {

@@ -1,12 +1,12 @@
 #include "coupler/coupler.hpp"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
-#include <spdlog/spdlog.h>
 
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
@@ -20,7 +20,9 @@ using Clock = std::chrono::steady_clock;
 using sabo::v1::MessageType;
 constexpr std::chrono::milliseconds kPollSlice{100};
 
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 bool all_finite(const google::protobuf::RepeatedField<double>& values) {
   return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
@@ -123,7 +125,8 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   }
   const auto role = registration.role();
   const std::string name = protocol::role_name(role);
-  if (registration.protocol_version() != protocol::kProtocolVersion || inbound.header.version != protocol::kProtocolVersion) {
+  if (registration.protocol_version() != protocol::kProtocolVersion ||
+      inbound.header.version != protocol::kProtocolVersion) {
     refuse(sabo::v1::Error::CODE_PROTOCOL_VERSION,
            fmt::format("{} speaks protocol version {}, this coupler speaks {}: rebuild the solver against "
                        "proto/sabo/v1 or use a matching coupler",
@@ -131,8 +134,8 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     return;
   }
   if (role != sabo::v1::ROLE_SPH && role != sabo::v1::ROLE_DEM && role != sabo::v1::ROLE_FEM) {
-    refuse(sabo::v1::Error::CODE_ROLE, fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver",
-                                                   static_cast<int>(role)));
+    refuse(sabo::v1::Error::CODE_ROLE,
+           fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver", static_cast<int>(role)));
     return;
   }
   const scene::SolverSettings* settings = nullptr;
@@ -225,7 +228,8 @@ void Coupler::accept_state(Peer& peer, std::uint64_t step) {
 
 void Coupler::collect_states(std::uint64_t step) {
   auto pending = [&] {
-    return static_cast<std::size_t>(std::count_if(peers_.begin(), peers_.end(), [](const auto& p) { return !p->has_state; }));
+    return static_cast<std::size_t>(
+        std::count_if(peers_.begin(), peers_.end(), [](const auto& p) { return !p->has_state; }));
   };
   auto wait_start = Clock::now();
   const auto hang = std::chrono::duration<double>(scene_.run.hang_timeout);
@@ -308,8 +312,9 @@ void Coupler::compute_contacts(double dt_previous) {
   const auto start = Clock::now();
   const auto& fem_state = fem_->state;
   if (fem_state.node_position_size() > 0) {
-    surface_contact_->update_nodes({fem_state.node_position().data(), static_cast<std::size_t>(fem_state.node_position_size())},
-                                   {fem_state.node_velocity().data(), static_cast<std::size_t>(fem_state.node_velocity_size())});
+    surface_contact_->update_nodes(
+        {fem_state.node_position().data(), static_cast<std::size_t>(fem_state.node_position_size())},
+        {fem_state.node_velocity().data(), static_cast<std::size_t>(fem_state.node_velocity_size())});
   }
   gather_.gather(dem_->registration.particles(), dem_->state);
   surface_contact_->compute(gather_.view(), dt_previous, contact_out_);
@@ -333,9 +338,10 @@ void Coupler::check_newton_third_law(std::uint64_t step) {
   newton_max_residual_ = std::max(newton_max_residual_, residual);
   if (residual > 1e-10) {
     if (newton_violations_ == 0) {
-      spdlog::error("Newton's third law broken at step {}: the contact forces sum to ({:.3e}, {:.3e}, {:.3e}) N, "
-                    "{:.2e} of their total",
-                    step, sum.x(), sum.y(), sum.z(), residual);
+      spdlog::error(
+          "Newton's third law broken at step {}: the contact forces sum to ({:.3e}, {:.3e}, {:.3e}) N, "
+          "{:.2e} of their total",
+          step, sum.x(), sum.y(), sum.z(), residual);
     }
     ++newton_violations_;
   }
@@ -483,9 +489,12 @@ void Coupler::write_summary(const std::string& status) {
   json energies = json::object();
   if (energy_csv_) {
     auto sample_json = [](const EnergySample& e) {
-      return json{{"time", e.time},          {"kinetic", e.kinetic},
-                  {"potential", e.potential}, {"solver_elastic", e.solver_elastic},
-                  {"contact_elastic", e.contact_elastic}, {"dissipated", e.dissipated},
+      return json{{"time", e.time},
+                  {"kinetic", e.kinetic},
+                  {"potential", e.potential},
+                  {"solver_elastic", e.solver_elastic},
+                  {"contact_elastic", e.contact_elastic},
+                  {"dissipated", e.dissipated},
                   {"total", e.total()}};
     };
     energies = {{"initial", sample_json(energy_csv_->initial())},
@@ -497,7 +506,8 @@ void Coupler::write_summary(const std::string& status) {
   if (forces_csv_) {
     for (std::size_t part = 0; part < forces_csv_->part_names().size(); ++part) {
       for (std::size_t source = 0; source < forces_csv_->sources().size(); ++source) {
-        peak_forces[forces_csv_->part_names()[part]][forces_csv_->sources()[source]] = forces_csv_->peak()[part][source];
+        peak_forces[forces_csv_->part_names()[part]][forces_csv_->sources()[source]] =
+            forces_csv_->peak()[part][source];
       }
     }
   }
@@ -566,8 +576,8 @@ int Coupler::run() {
     prepare_contacts();
     std::vector<std::string> parts;
     for (const auto& s : scene_.structures) parts.push_back(s.name);
-    forces_csv_ = std::make_unique<ForceHistory>(options_.out_dir / "forces.csv", parts,
-                                                 std::vector<std::string>{"particles"});
+    forces_csv_ =
+        std::make_unique<ForceHistory>(options_.out_dir / "forces.csv", parts, std::vector<std::string>{"particles"});
     energy_csv_ = std::make_unique<EnergyHistory>(options_.out_dir / "energy.csv");
 
     double dt_previous = 0;

@@ -24,8 +24,8 @@
 namespace sabo::coupler {
 
 struct CouplerOptions {
-  std::string endpoint;              // bound by the coupler
-  std::filesystem::path out_dir;     // run folder
+  std::string endpoint;           // bound by the coupler
+  std::filesystem::path out_dir;  // run folder
   std::chrono::milliseconds registration_timeout{30000};
 };
 

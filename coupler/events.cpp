@@ -8,7 +8,9 @@ void EventStream::emit(const nlohmann::json& event) {
   std::fflush(out_);
 }
 
-void EventStream::listening(const std::string& endpoint) { emit({{"event", "listening"}, {"endpoint", endpoint}}); }
+void EventStream::listening(const std::string& endpoint) {
+  emit({{"event", "listening"}, {"endpoint", endpoint}});
+}
 
 void EventStream::registered(const std::string& role, std::uint32_t pid, const std::string& name) {
   emit({{"event", "registered"}, {"role", role}, {"pid", pid}, {"name", name}});

@@ -2,9 +2,8 @@
 // The coupler's event stream: one JSON object per line on stdout, read by the
 // supervisor (docs/protocol.md, "Events"). Logs go to stderr, never here.
 #include <cstdio>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 namespace sabo::coupler {
 

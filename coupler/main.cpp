@@ -1,8 +1,9 @@
 // coupler: the central process of a Sabo run (DESIGN.md §1-2).
 //   coupler --scene FILE --endpoint ENDPOINT --out DIR
 // stdout carries the JSON event stream for the supervisor; logs go to stderr.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
 
 #include "coupler/coupler.hpp"
 #include "libsabo/core/log.hpp"

@@ -1,9 +1,9 @@
 // fem_solver: the structures of a scene, coupled through the Sabo protocol.
 //   fem_solver --scene FILE --coupler ENDPOINT [--out DIR]
 // The physics is FemModel (fem_model.hpp); this file is the protocol side.
-#include <cassert>
-
 #include <spdlog/spdlog.h>
+
+#include <cassert>
 
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/protocol/surface_codec.hpp"

@@ -1,9 +1,9 @@
 #pragma once
 // One logging set-up for every process: spdlog to stderr (the supervisor
 // writes it into <role>.log), with the process name in each line.
-#include <string>
-
 #include <spdlog/spdlog.h>
+
+#include <string>
 
 namespace sabo {
 

@@ -31,8 +31,7 @@ struct Aabb {
     return (p.array() >= min.array()).all() && (p.array() <= max.array()).all();
   }
   [[nodiscard]] bool overlaps(const Aabb& b) const {
-    return !empty() && !b.empty() && (min.array() <= b.max.array()).all() &&
-           (b.min.array() <= max.array()).all();
+    return !empty() && !b.empty() && (min.array() <= b.max.array()).all() && (b.min.array() <= max.array()).all();
   }
 };
 

@@ -11,14 +11,14 @@
 namespace sabo::geometry {
 
 struct SurfaceMesh {
-  std::vector<std::uint64_t> node_id;              // stable id per node
-  std::vector<Vec3> node_position;                 // m
+  std::vector<std::uint64_t> node_id;                  // stable id per node
+  std::vector<Vec3> node_position;                     // m
   std::vector<std::array<std::uint32_t, 3>> triangle;  // counter-clockwise seen from the outward normal
-  std::vector<std::uint32_t> face_part;            // index into part_name
-  std::vector<std::uint32_t> face_material;        // scene material index
-  std::vector<double> face_thickness;              // m: shell thickness, 0 for solid faces
-  std::vector<double> face_bulk_modulus;           // Pa
-  std::vector<double> face_element_volume;         // m^3: owning solid element, 0 for shells
+  std::vector<std::uint32_t> face_part;                // index into part_name
+  std::vector<std::uint32_t> face_material;            // scene material index
+  std::vector<double> face_thickness;                  // m: shell thickness, 0 for solid faces
+  std::vector<double> face_bulk_modulus;               // Pa
+  std::vector<double> face_element_volume;             // m^3: owning solid element, 0 for shells
   std::vector<std::string> part_name;
 
   [[nodiscard]] std::size_t node_count() const { return node_position.size(); }

@@ -1,8 +1,8 @@
 #include "libsabo/protocol/socket.hpp"
 
-#include <array>
-
 #include <fmt/format.h>
+
+#include <array>
 
 namespace sabo::protocol {
 

@@ -18,7 +18,8 @@ SolverLink::SolverLink(const std::string& endpoint, std::chrono::milliseconds re
 const Inbound& SolverLink::wait_for(MessageType expected, const std::string& what) {
   const auto start = std::chrono::steady_clock::now();
   for (;;) {
-    if (stop_requested()) throw StopRequested(fmt::format("stopped by signal {} while waiting for {}", stop_signal(), what));
+    if (stop_requested())
+      throw StopRequested(fmt::format("stopped by signal {} while waiting for {}", stop_signal(), what));
     if (socket_.receive(inbound_, kPollSlice)) break;
     if (std::chrono::steady_clock::now() - start > reply_timeout_) {
       throw LibraryError(fmt::format("the coupler at {} did not answer within {} s while waiting for {}",
@@ -39,8 +40,8 @@ const Inbound& SolverLink::wait_for(MessageType expected, const std::string& wha
     throw ProtocolError(fmt::format("the coupler reported an error: {}", error.message()));
   }
   if (type != expected) {
-    throw ProtocolError(fmt::format("expected {} from the coupler, got {}", message_type_name(expected),
-                                    message_type_name(type)));
+    throw ProtocolError(
+        fmt::format("expected {} from the coupler, got {}", message_type_name(expected), message_type_name(type)));
   }
   return inbound_;
 }
@@ -49,19 +50,21 @@ const sabo::v1::RegisterReply& SolverLink::register_solver(const sabo::v1::Regis
   socket_.send(registration, state_buffer_);
   wait_for(sabo::v1::MESSAGE_TYPE_REGISTER_REPLY, "the registration reply").parse(register_reply_);
   if (!register_reply_.accepted()) {
-    throw ProtocolError(fmt::format("the coupler refused the registration of {}: {}",
-                                    role_name(registration.role()), register_reply_.error()));
+    throw ProtocolError(fmt::format("the coupler refused the registration of {}: {}", role_name(registration.role()),
+                                    register_reply_.error()));
   }
   return register_reply_;
 }
 
-void SolverLink::send_state(const sabo::v1::StepState& state) { socket_.send(state, state_buffer_); }
+void SolverLink::send_state(const sabo::v1::StepState& state) {
+  socket_.send(state, state_buffer_);
+}
 
 const sabo::v1::StepForces& SolverLink::receive_forces(std::uint64_t step) {
   wait_for(sabo::v1::MESSAGE_TYPE_STEP_FORCES, fmt::format("the forces of step {}", step)).parse(forces_);
   if (forces_.step() != step) {
-    throw ProtocolError(fmt::format("the coupler sent the forces of step {} while this solver is at step {}",
-                                    forces_.step(), step));
+    throw ProtocolError(
+        fmt::format("the coupler sent the forces of step {} while this solver is at step {}", forces_.step(), step));
   }
   return forces_;
 }

@@ -35,7 +35,8 @@ geometry::SurfaceMesh surface_from_message(const sabo::v1::SurfaceTopology& topo
   mesh.node_position.resize(nodes);
   for (std::size_t i = 0; i < nodes; ++i) {
     const int k = static_cast<int>(3 * i);
-    mesh.node_position[i] = Vec3(topology.node_position(k), topology.node_position(k + 1), topology.node_position(k + 2));
+    mesh.node_position[i] =
+        Vec3(topology.node_position(k), topology.node_position(k + 1), topology.node_position(k + 2));
   }
   const auto faces = static_cast<std::size_t>(topology.face_part_size());
   mesh.triangle.resize(faces);

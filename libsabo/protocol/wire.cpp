@@ -1,8 +1,8 @@
 #include "libsabo/protocol/wire.hpp"
 
-#include <cstring>
-
 #include <fmt/format.h>
+
+#include <cstring>
 
 namespace sabo::protocol {
 
@@ -13,7 +13,9 @@ void put_u16(std::uint8_t* out, std::uint16_t value) {
   out[0] = static_cast<std::uint8_t>(value & 0xffu);
   out[1] = static_cast<std::uint8_t>(value >> 8);
 }
-std::uint16_t get_u16(const std::uint8_t* in) { return static_cast<std::uint16_t>(in[0] | (in[1] << 8)); }
+std::uint16_t get_u16(const std::uint8_t* in) {
+  return static_cast<std::uint16_t>(in[0] | (in[1] << 8));
+}
 }  // namespace
 
 void encode_header(const Header& header, std::span<std::uint8_t, kHeaderSize> out) {

@@ -31,21 +31,35 @@ std::optional<Header> decode_header(std::span<const std::uint8_t> bytes, std::st
 template <class Message>
 constexpr MessageType message_type_of();
 template <>
-constexpr MessageType message_type_of<sabo::v1::Register>() { return sabo::v1::MESSAGE_TYPE_REGISTER; }
+constexpr MessageType message_type_of<sabo::v1::Register>() {
+  return sabo::v1::MESSAGE_TYPE_REGISTER;
+}
 template <>
-constexpr MessageType message_type_of<sabo::v1::RegisterReply>() { return sabo::v1::MESSAGE_TYPE_REGISTER_REPLY; }
+constexpr MessageType message_type_of<sabo::v1::RegisterReply>() {
+  return sabo::v1::MESSAGE_TYPE_REGISTER_REPLY;
+}
 template <>
-constexpr MessageType message_type_of<sabo::v1::StepState>() { return sabo::v1::MESSAGE_TYPE_STEP_STATE; }
+constexpr MessageType message_type_of<sabo::v1::StepState>() {
+  return sabo::v1::MESSAGE_TYPE_STEP_STATE;
+}
 template <>
-constexpr MessageType message_type_of<sabo::v1::StepForces>() { return sabo::v1::MESSAGE_TYPE_STEP_FORCES; }
+constexpr MessageType message_type_of<sabo::v1::StepForces>() {
+  return sabo::v1::MESSAGE_TYPE_STEP_FORCES;
+}
 template <>
-constexpr MessageType message_type_of<sabo::v1::Error>() { return sabo::v1::MESSAGE_TYPE_ERROR; }
+constexpr MessageType message_type_of<sabo::v1::Error>() {
+  return sabo::v1::MESSAGE_TYPE_ERROR;
+}
 template <>
-constexpr MessageType message_type_of<sabo::v1::Stop>() { return sabo::v1::MESSAGE_TYPE_STOP; }
+constexpr MessageType message_type_of<sabo::v1::Stop>() {
+  return sabo::v1::MESSAGE_TYPE_STOP;
+}
 template <>
-constexpr MessageType message_type_of<sabo::v1::Goodbye>() { return sabo::v1::MESSAGE_TYPE_GOODBYE; }
+constexpr MessageType message_type_of<sabo::v1::Goodbye>() {
+  return sabo::v1::MESSAGE_TYPE_GOODBYE;
+}
 
 [[nodiscard]] sabo::v1::Role role_from_scene_name(const std::string& name);  // "dem_solver" -> ROLE_DEM
-[[nodiscard]] std::string role_name(sabo::v1::Role role);                   // ROLE_DEM -> "dem_solver"
+[[nodiscard]] std::string role_name(sabo::v1::Role role);                    // ROLE_DEM -> "dem_solver"
 
 }  // namespace sabo::protocol

@@ -14,7 +14,9 @@ const char* role_name(Role role) {
   return "unknown";
 }
 
-bool Scene::needs(Role role) const { return solver(role) != nullptr; }
+bool Scene::needs(Role role) const {
+  return solver(role) != nullptr;
+}
 
 const SolverSettings* Scene::solver(Role role) const {
   auto it = std::find_if(solvers.begin(), solvers.end(), [role](const SolverSettings& s) { return s.role == role; });

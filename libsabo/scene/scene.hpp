@@ -34,12 +34,12 @@ struct Material {
 };
 
 struct RunSettings {
-  double end_time = 0;              // s, > 0
-  double output_interval = 0;       // s, > 0
-  std::string endpoint = "ipc";     // "ipc" (socket in the run folder) or "tcp://HOST:PORT"
-  Vec3 gravity{0, 0, -9.81};        // m/s^2
-  double hang_timeout = 10.0;       // s: a solver silent this long is declared hung
-  std::optional<double> max_dt;     // s: upper bound on the coupled dt
+  double end_time = 0;           // s, > 0
+  double output_interval = 0;    // s, > 0
+  std::string endpoint = "ipc";  // "ipc" (socket in the run folder) or "tcp://HOST:PORT"
+  Vec3 gravity{0, 0, -9.81};     // m/s^2
+  double hang_timeout = 10.0;    // s: a solver silent this long is declared hung
+  std::optional<double> max_dt;  // s: upper bound on the coupled dt
 };
 
 // One solver process. `command` is the program and its fixed arguments; the
@@ -47,15 +47,15 @@ struct RunSettings {
 struct SolverSettings {
   Role role = Role::dem;
   std::vector<std::string> command;
-  double beta = 1.0;                // eq. 7 scale of this solver's stable dt, in (0, 1]
+  double beta = 1.0;  // eq. 7 scale of this solver's stable dt, in (0, 1]
   Origin origin;
 };
 
 struct Sphere {
-  Vec3 center = Vec3::Zero();           // m
-  double radius = 0;                    // m, > 0
-  Vec3 velocity = Vec3::Zero();         // m/s
-  Vec3 angular_velocity = Vec3::Zero(); // rad/s
+  Vec3 center = Vec3::Zero();            // m
+  double radius = 0;                     // m, > 0
+  Vec3 velocity = Vec3::Zero();          // m/s
+  Vec3 angular_velocity = Vec3::Zero();  // rad/s
 };
 
 // A set of DEM spheres: an explicit list, or a box filled with a seeded random
@@ -63,24 +63,24 @@ struct Sphere {
 struct ParticleSet {
   enum class Kind { list, fill };
   std::string name;
-  std::string material;       // a key of Scene::materials (checked)
+  std::string material;  // a key of Scene::materials (checked)
   Origin origin;
   Kind kind = Kind::list;
-  std::vector<Sphere> spheres;           // kind == list (checked: no overlap)
-  Aabb region;                           // kind == fill
-  std::size_t count = 0;                 // kind == fill
+  std::vector<Sphere> spheres;                // kind == list (checked: no overlap)
+  Aabb region;                                // kind == fill
+  std::size_t count = 0;                      // kind == fill
   double diameter_min = 0, diameter_max = 0;  // m, kind == fill
-  std::uint64_t seed = 1;                // kind == fill
-  Vec3 velocity = Vec3::Zero();          // m/s, initial velocity of filled spheres
+  std::uint64_t seed = 1;                     // kind == fill
+  Vec3 velocity = Vec3::Zero();               // m/s, initial velocity of filled spheres
 };
 
 // DEM-DEM contact (dem_solver): linear spring-dashpot, tangential spring with
 // a Coulomb limit, constant-torque rolling resistance.
 struct DemContact {
-  double normal_damping_ratio = 0.7;       // zeta_n in [0, 1)
-  double tangential_damping_ratio = 0.4;   // zeta_t in [0, 1)
-  double friction = 1.0;                   // sliding, >= 0
-  double rolling_friction = 0.1;           // >= 0, dimensionless (torque = mu_r * r_eff * |F_n|)
+  double normal_damping_ratio = 0.7;      // zeta_n in [0, 1)
+  double tangential_damping_ratio = 0.4;  // zeta_t in [0, 1)
+  double friction = 1.0;                  // sliding, >= 0
+  double rolling_friction = 0.1;          // >= 0, dimensionless (torque = mu_r * r_eff * |F_n|)
   // Normal stiffness: explicit (N/m), or LS-DYNA's NormK scale:
   // k_n = scale * K1 r1 K2 r2 / (K1 r1 + K2 r2), K the bulk modulus.
   std::optional<double> normal_stiffness;
@@ -117,28 +117,28 @@ struct Shape {
 
 struct Structure {
   std::string name;
-  std::string material;     // a key of Scene::materials (checked)
+  std::string material;  // a key of Scene::materials (checked)
   Origin origin;
   bool rigid = true;
-  double thickness = 0;     // m: shell thickness for the eq. 3 offset (0: solid face)
+  double thickness = 0;  // m: shell thickness for the eq. 3 offset (0: solid face)
   Shape shape;
 };
 
 // Penalty contact of particles against structure surfaces, computed by the
 // coupler (paper eqs. 3-6). Defaults for every pair; `pairs` override per pair.
 struct SurfaceContact {
-  double friction = 0.3;                  // mu >= 0
-  double penalty_scale = 0.1;             // k1 of eq. 6
-  std::optional<double> normal_stiffness; // N/m: replaces eq. 6 when given
-  double normal_damping_ratio = 0.0;      // zeta: c_n = 2 zeta sqrt(k_n m)
+  double friction = 0.3;                   // mu >= 0
+  double penalty_scale = 0.1;              // k1 of eq. 6
+  std::optional<double> normal_stiffness;  // N/m: replaces eq. 6 when given
+  double normal_damping_ratio = 0.0;       // zeta: c_n = 2 zeta sqrt(k_n m)
   double tangential_damping_ratio = 0.0;
   bool enabled = true;
 };
 
 struct Interaction {
-  std::string a, b;          // a particle set and a structure (checked)
+  std::string a, b;  // a particle set and a structure (checked)
   Origin origin;
-  SurfaceContact contact;    // defaults filled from [contact.dem_fem]
+  SurfaceContact contact;  // defaults filled from [contact.dem_fem]
 };
 
 // What the coupler records into traffic.h5.
@@ -147,14 +147,14 @@ struct Recording {
   // Fields: position, velocity, angular_velocity, force, torque,
   // node_position, node_velocity, node_force, energies. Empty = all.
   std::vector<std::string> fields;
-  std::uint64_t every = 1;           // record every N-th step
+  std::uint64_t every = 1;  // record every N-th step
   std::uint64_t first_step = 0;
   std::uint64_t last_step = UINT64_MAX;
-  double flush_interval = 0.2;       // s of wall time between flushes
+  double flush_interval = 0.2;  // s of wall time between flushes
 };
 
 struct Scene {
-  std::filesystem::path file;        // absolute path of the scene file
+  std::filesystem::path file;  // absolute path of the scene file
   int format_version = 1;
   RunSettings run;
   std::vector<SolverSettings> solvers;     // only the roles the scene needs
@@ -163,7 +163,7 @@ struct Scene {
   std::vector<Structure> structures;       // FEM parts, in file order
   DemContact dem_contact;
   SurfaceContact dem_fem_default;
-  std::vector<Interaction> interactions;   // explicit per-pair settings
+  std::vector<Interaction> interactions;  // explicit per-pair settings
   Recording recording;
 
   [[nodiscard]] bool needs(Role role) const;

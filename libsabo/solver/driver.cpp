@@ -1,11 +1,10 @@
 #include "libsabo/solver/driver.hpp"
 
+#include <fmt/format.h>
 #include <unistd.h>
 
-#include <chrono>
-
 #include <CLI/CLI.hpp>
-#include <fmt/format.h>
+#include <chrono>
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/core/log.hpp"
@@ -69,8 +68,8 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
 }
 
 int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, sabo::v1::Role role) {
-  const auto reply_timeout = std::chrono::milliseconds(
-      static_cast<long>(1000.0 * std::max(60.0, 6.0 * scene.run.hang_timeout)));
+  const auto reply_timeout =
+      std::chrono::milliseconds(static_cast<long>(1000.0 * std::max(60.0, 6.0 * scene.run.hang_timeout)));
   protocol::SolverLink link(options.coupler_endpoint, reply_timeout);
 
   sabo::v1::Register registration;
@@ -86,8 +85,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   int exit_code = 0;
   try {
     const auto& reply = link.register_solver(registration);
-    spdlog::info("registered with the coupler at {} (protocol {})", options.coupler_endpoint,
-                 reply.protocol_version());
+    spdlog::info("registered with the coupler at {} (protocol {})", options.coupler_endpoint, reply.protocol_version());
     Interest interest;
     interest.update(reply.interest(), reply.interest_all());
 

@@ -73,8 +73,7 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
 // Runs the coupled loop until the coupler says stop. Returns the process exit
 // code: 0 done, 130 stopped by signal or by the coupler's Stop, 1 on errors
 // (logged, and reported to the coupler when possible).
-int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options,
-               sabo::v1::Role role);
+int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, sabo::v1::Role role);
 
 // main() of a solver: parses the command line, sets up logging, loads the
 // scene, builds the solver with `make` and runs it. Every error becomes a log

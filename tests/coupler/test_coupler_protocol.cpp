@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
-
 #include <nlohmann/json.hpp>
 
 #include "coupler/coupler.hpp"
@@ -24,9 +23,8 @@ struct Fixture : ::testing::Test {
   std::FILE* events_file = nullptr;
 
   void SetUp() override {
-    dir = std::filesystem::temp_directory_path() /
-          ("sabo-coupler-test-" + std::to_string(::getpid()) + "-" +
-           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir = std::filesystem::temp_directory_path() / ("sabo-coupler-test-" + std::to_string(::getpid()) + "-" +
+                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     endpoint = "ipc://" + (dir / "c.sock").string();

@@ -9,10 +9,10 @@
 #include <numbers>
 #include <sstream>
 
-#include "tests/support/scratch.hpp"
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
 using sabo::Vec3;

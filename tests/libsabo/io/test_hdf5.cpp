@@ -5,9 +5,9 @@
 #include <functional>
 #include <vector>
 
-#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/hdf5.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
 using namespace sabo::io;

@@ -6,9 +6,9 @@
 #include <fstream>
 #include <map>
 
-#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/stl.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
 using sabo::Vec3;

@@ -10,10 +10,10 @@
 #include <random>
 #include <thread>
 
-#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/hdf5.hpp"
 #include "libsabo/io/traffic.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
 using google::protobuf::util::MessageDifferencer;

@@ -6,10 +6,10 @@
 #include <map>
 #include <sstream>
 
-#include "tests/support/scratch.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/io/vtk.hpp"
+#include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
 using namespace sabo::io;

@@ -1,7 +1,6 @@
 // Every message travels through a real ROUTER/DEALER pair and comes back equal.
-#include <gtest/gtest.h>
-
 #include <google/protobuf/util/message_differencer.h>
+#include <gtest/gtest.h>
 
 #include "libsabo/protocol/socket.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
