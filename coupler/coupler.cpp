@@ -110,32 +110,30 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   sabo::v1::RegisterReply reply;
   reply.set_protocol_version(protocol::kProtocolVersion);
   reply.set_end_time(scene_.run.end_time);
-  auto refuse = [&](sabo::v1::Error::Code code, const std::string& why) {
+  auto refuse = [&](const std::string& why) {
     spdlog::warn("refused a registration: {}", why);
     reply.set_accepted(false);
     reply.set_error(why);
     socket_.send(reply, inbound.peer);
-    (void)code;
   };
   try {
     inbound.parse(registration);
   } catch (const ProtocolError& error) {
-    refuse(sabo::v1::Error::CODE_MALFORMED, error.what());
+    refuse(error.what());
     return;
   }
   const auto role = registration.role();
   const std::string name = protocol::role_name(role);
   if (registration.protocol_version() != protocol::kProtocolVersion ||
       inbound.header.version != protocol::kProtocolVersion) {
-    refuse(sabo::v1::Error::CODE_PROTOCOL_VERSION,
-           fmt::format("{} speaks protocol version {}, this coupler speaks {}: rebuild the solver against "
-                       "proto/sabo/v1 or use a matching coupler",
-                       name, registration.protocol_version(), protocol::kProtocolVersion));
+    refuse(
+        fmt::format("{} speaks protocol version {}, this coupler speaks {}: rebuild the solver against "
+                    "proto/sabo/v1 or use a matching coupler",
+                    name, registration.protocol_version(), protocol::kProtocolVersion));
     return;
   }
   if (role != sabo::v1::ROLE_SPH && role != sabo::v1::ROLE_DEM && role != sabo::v1::ROLE_FEM) {
-    refuse(sabo::v1::Error::CODE_ROLE,
-           fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver", static_cast<int>(role)));
+    refuse(fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver", static_cast<int>(role)));
     return;
   }
   const scene::SolverSettings* settings = nullptr;
@@ -143,13 +141,12 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     if (protocol::role_from_scene_name(scene::role_name(s.role)) == role) settings = &s;
   }
   if (settings == nullptr) {
-    refuse(sabo::v1::Error::CODE_ROLE, fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
+    refuse(fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
     return;
   }
   for (const auto& peer : peers_) {
     if (peer->role == role) {
-      refuse(sabo::v1::Error::CODE_ROLE,
-             fmt::format("the role {} is already taken by pid {}", name, peer->registration.pid()));
+      refuse(fmt::format("the role {} is already taken by pid {}", name, peer->registration.pid()));
       return;
     }
   }
@@ -157,14 +154,14 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   const std::size_t n = static_cast<std::size_t>(table.id_size());
   if (static_cast<std::size_t>(table.radius_size()) != n || static_cast<std::size_t>(table.mass_size()) != n ||
       static_cast<std::size_t>(table.body_size()) != n) {
-    refuse(sabo::v1::Error::CODE_INVALID, fmt::format("{}: the particle table's arrays differ in length", name));
+    refuse(fmt::format("{}: the particle table's arrays differ in length", name));
     return;
   }
   if (registration.exposes_surface()) {
     const auto& surface = registration.surface();
     if (surface.node_position_size() != 3 * surface.node_id_size() || surface.triangle_size() % 3 != 0 ||
         surface.face_part_size() * 3 != surface.triangle_size()) {
-      refuse(sabo::v1::Error::CODE_INVALID, fmt::format("{}: the surface's arrays are inconsistent", name));
+      refuse(fmt::format("{}: the surface's arrays are inconsistent", name));
       return;
     }
   }
