@@ -257,12 +257,12 @@ void Coupler::collect_states(std::uint64_t step) {
   wait_seconds_ += seconds_since(wait_start);
 }
 
-void Coupler::validate_state(const Peer& peer) const {
+void Coupler::validate_state(const Peer& peer) {
   const auto& s = peer.state;
   const auto n = static_cast<std::size_t>(s.index_size());
   const auto table_size = static_cast<std::uint32_t>(peer.registration.particles().id_size());
   auto invalid = [&](const std::string& what) {
-    const_cast<Coupler*>(this)->fail(peer.role_name, fmt::format("state of step {}: {}", s.step(), what));
+    fail(peer.role_name, fmt::format("state of step {}: {}", s.step(), what));
   };
   if (static_cast<std::size_t>(s.position_size()) != 3 * n || static_cast<std::size_t>(s.velocity_size()) != 3 * n) {
     invalid(fmt::format("{} indices but {} position and {} velocity values (expected 3 per index)", n,

@@ -52,7 +52,7 @@ class Coupler {
   void collect_states(std::uint64_t step);
   // Parses, checks and records the state in inbound_ from `peer` for `step`.
   void accept_state(Peer& peer, std::uint64_t step);
-  void validate_state(const Peer& peer) const;
+  void validate_state(const Peer& peer);
   void prepare_contacts();
   double coupled_dt() const;
   void compute_contacts(double dt_previous);

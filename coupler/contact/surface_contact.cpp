@@ -162,6 +162,7 @@ void SurfaceContact::refresh_geometry() {
   face_stiffness_factor_.resize(faces);
   degenerate_.resize(faces);
   face_box_.resize(faces);
+  surface_bounds_ = surface_.bounds();
   max_thickness_ = 0;
   std::vector<double> sizes;
   sizes.reserve(faces);
@@ -275,9 +276,7 @@ void SurfaceContact::build_grid(double query_reach) {
 }
 
 Aabb SurfaceContact::interest_region(double max_radius) const {
-  Aabb box;
-  for (const Vec3& p : surface_.node_position) box.extend(p);
-  return box.inflated(max_radius * (2.0 + options_.potential_margin) + 0.5 * max_thickness_);
+  return surface_bounds_.inflated(max_radius * (2.0 + options_.potential_margin) + 0.5 * max_thickness_);
 }
 
 // ------------------------------------------------------------- per particle --

@@ -245,6 +245,7 @@ class SurfaceContact {
   std::vector<Aabb> face_box_;
   double median_face_size_ = 0;
   double max_thickness_ = 0;
+  Aabb surface_bounds_;      // of the node positions, updated with the geometry
   std::vector<Pair> pairs_;  // [source * parts + part]
 
   physics::CellList grid_;
