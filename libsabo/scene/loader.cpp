@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cctype>
 #include <cerrno>
@@ -119,6 +120,7 @@ std::string_view expected_kind(Type type) {
     case Type::string: return "a string";
     case Type::vec3: return "an array of 3 numbers [x, y, z]";
     case Type::number_pair: return "an array of 2 numbers [min, max]";
+    case Type::pair_list: return "an array of [a, b] number pairs";
     case Type::string_list: return "an array of strings";
     case Type::table: return "a table";
     case Type::table_list: return "an array of tables";
@@ -351,6 +353,22 @@ class Reader {
       return std::nullopt;
     }
     return std::array<double, 2>{(*values)[0], (*values)[1]};
+  }
+
+  // An array of [a, b] number pairs (finite); the schema's range is not applied (columns differ).
+  std::optional<std::vector<std::array<double, 2>>> pairs(std::string_view name) {
+    auto found = lookup(name, Type::pair_list);
+    if (!found) return std::nullopt;
+    const auto* array = found->node->as_array();
+    if (array == nullptr) return type_error(*found);
+    std::vector<std::array<double, 2>> rows;
+    for (const auto& element : *array) {
+      const auto values = numbers(element, 2);
+      if (!values) return type_error(*found);
+      if (!all_finite(*found, *values)) return std::nullopt;
+      rows.push_back({(*values)[0], (*values)[1]});
+    }
+    return rows;
   }
 
   std::optional<std::vector<std::string>> strings(std::string_view name) {
@@ -737,50 +755,33 @@ class Builder {
   void read_fill(const toml::table& table, const std::string& path, ParticleSet& set) {
     Reader f(diag_, spec("particles-fill"), table, path);
     const std::size_t errors_before = diag_.count();
-    const auto min = f.vec3("min"), max = f.vec3("max");
+    if (const auto distribution = f.string("distribution")) {
+      f.select(*distribution);
+      set.distribution = *distribution == "normal"  ? SizeDistribution::normal
+                         : *distribution == "sieve" ? SizeDistribution::sieve
+                                                    : SizeDistribution::uniform;
+    }
     const auto count = f.integer("count");
-    const auto diameter = f.pair("diameter");
+    if (count) set.count = static_cast<std::size_t>(*count);
     if (auto v = f.integer("seed")) set.seed = static_cast<std::uint64_t>(*v);
     if (auto v = f.vec3("velocity")) set.velocity = *v;
-    if (min && max) {
-      set.region = Aabb{*min, *max};
-      if (((*max).array() <= (*min).array()).any()) {
-        diag_.add(f.line("max"), f.key_path("max"), value_text(*f.node("max")),
-                  fmt::format("the region is empty or inverted: max must exceed min = {} on every axis",
-                              value_text(*f.node("min"))),
-                  "swap the values of min and max where max <= min");
-        return;
-      }
-    }
-    if (count) set.count = static_cast<std::size_t>(*count);
-    if (diameter) {
-      set.diameter_min = (*diameter)[0];
-      set.diameter_max = (*diameter)[1];
-      if (set.diameter_min > set.diameter_max) {
-        diag_.add(f.line("diameter"), f.key_path("diameter"), value_text(*f.node("diameter")),
-                  "the diameter range is inverted: it is [min, max] with min <= max",
-                  fmt::format("write diameter = [{}, {}]", number_literal(set.diameter_max),
-                              number_literal(set.diameter_min)));
-        return;
-      }
-    }
+    if (auto v = f.number("settle_time")) set.settle_time = *v;
+    read_fill_region(f, set);
+    read_fill_sizes(f, set);
     if (diag_.count() != errors_before) return;
 
     const Vec3 extent = set.region.max - set.region.min;
+    const char* region_key = set.polygon_xz.empty() ? "max" : "polygon_xz";
     if (extent.minCoeff() < set.diameter_max) {
-      diag_.add(f.line("max"), f.key_path("max"), value_text(*f.node("max")),
-                fmt::format("the region is {} x {} x {} m, too small for a sphere of the largest diameter {} m",
+      diag_.add(f.line(region_key), f.key_path(region_key), value_text(*f.node(region_key)),
+                fmt::format("the region spans {} x {} x {} m, too small for a sphere of the largest diameter {} m",
                             number_literal(extent.x()), number_literal(extent.y()), number_literal(extent.z()),
                             number_literal(set.diameter_max)),
-                "enlarge the region so that every side is at least the largest diameter");
+                "enlarge the region so that it spans at least the largest diameter on every axis");
       return;
     }
-    // Mean sphere volume for diameters uniform in [a, b]: pi/6 * E[d^3], E[d^3] = (b^4 - a^4) / (4 (b - a)).
-    const double a = set.diameter_min, b = set.diameter_max;
-    const double mean_cube = b > a ? (b * b * b * b - a * a * a * a) / (4.0 * (b - a)) : a * a * a;
-    const double solid_volume = static_cast<double>(set.count) * std::numbers::pi / 6.0 * mean_cube;
-    const double box_volume = extent.prod();
-    const double fraction = solid_volume / box_volume;
+    const double solid_volume = static_cast<double>(set.count) * set.mean_sphere_volume();
+    const double fraction = solid_volume / set.region_volume();
     if (fraction > kMaxFillSolidFraction) {
       diag_.add(f.line("count"), f.key_path("count"), std::to_string(set.count),
                 fmt::format("{} spheres fill {:.0f} % of the region's volume on average; random filling needs at "
@@ -788,7 +789,172 @@ class Builder {
                             set.count, 100.0 * fraction, 100.0 * kMaxFillSolidFraction),
                 fmt::format("enlarge the region to at least {:.1f} m^3, lower the count or the diameters",
                             solid_volume / kMaxFillSolidFraction));
+    }
+  }
+
+  // Whether segments [a, b] and [c, d] of the plane meet (touching counts).
+  static bool segments_meet(const std::array<double, 2>& a, const std::array<double, 2>& b,
+                            const std::array<double, 2>& c, const std::array<double, 2>& d) {
+    const auto cross = [](const std::array<double, 2>& o, const std::array<double, 2>& p,
+                          const std::array<double, 2>& q) {
+      return (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]);
+    };
+    const auto within = [](const std::array<double, 2>& p, const std::array<double, 2>& q,
+                           const std::array<double, 2>& r) {  // r on the line pq: inside the segment?
+      return std::min(p[0], q[0]) <= r[0] && r[0] <= std::max(p[0], q[0]) && std::min(p[1], q[1]) <= r[1] &&
+             r[1] <= std::max(p[1], q[1]);
+    };
+    const double d1 = cross(c, d, a), d2 = cross(c, d, b), d3 = cross(a, b, c), d4 = cross(a, b, d);
+    if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
+    return (d1 == 0 && within(c, d, a)) || (d2 == 0 && within(c, d, b)) || (d3 == 0 && within(a, b, c)) ||
+           (d4 == 0 && within(a, b, d));
+  }
+
+  void read_fill_region(Reader& f, ParticleSet& set) {
+    const bool has_box = f.has("min") || f.has("max");
+    const bool has_polygon = f.has("polygon_xz") || f.has("y_range");
+    if (has_box && has_polygon) {
+      const char* key = f.has("polygon_xz") ? "polygon_xz" : "y_range";
+      diag_.add(f.line(key), f.key_path(key), value_text(*f.node(key)),
+                "a fill region is a box (min, max) or a polygon (polygon_xz, y_range), not both",
+                "remove min and max, or polygon_xz and y_range");
       return;
+    }
+    if (!has_box && !has_polygon) {
+      diag_.add(f.line(), f.path(), std::nullopt, "the fill has no region",
+                "add min = [x, y, z] and max = [x, y, z] (a box), or polygon_xz = [[x, z], ...] and y_range = "
+                "[y_min, y_max] (a polygon extruded along y)");
+      return;
+    }
+    if (has_box) {
+      const auto min = f.vec3("min"), max = f.vec3("max");
+      for (const char* key : {"min", "max"}) {
+        if (!f.has(key)) {
+          diag_.add(f.line(), f.key_path(key), std::nullopt, "missing; a box region needs both min and max (m)",
+                    fmt::format("add {} = [x, y, z] to '{}'", key, f.path()));
+        }
+      }
+      if (!min || !max) return;
+      set.region = Aabb{*min, *max};
+      if (((*max).array() <= (*min).array()).any()) {
+        diag_.add(f.line("max"), f.key_path("max"), value_text(*f.node("max")),
+                  fmt::format("the region is empty or inverted: max must exceed min = {} on every axis",
+                              value_text(*f.node("min"))),
+                  "swap the values of min and max where max <= min");
+      }
+      return;
+    }
+    const auto polygon = f.pairs("polygon_xz");
+    const auto y_range = f.pair("y_range");
+    for (const char* key : {"polygon_xz", "y_range"}) {
+      if (!f.has(key)) {
+        diag_.add(f.line(), f.key_path(key), std::nullopt,
+                  "missing; a polygon region needs both polygon_xz and y_range",
+                  fmt::format("add {} to '{}'", std::string_view(key) == "y_range" ? "y_range = [y_min, y_max]"
+                                                                                   : "polygon_xz = [[x, z], ...]",
+                              f.path()));
+      }
+    }
+    if (!polygon || !y_range) return;
+    const int line = f.line("polygon_xz");
+    const std::string value = value_text(*f.node("polygon_xz"));
+    if ((*y_range)[0] >= (*y_range)[1]) {
+      diag_.add(f.line("y_range"), f.key_path("y_range"), value_text(*f.node("y_range")),
+                "the extrusion is empty or inverted: it is [min, max] with min < max",
+                "give y_range = [y_min, y_max] with y_min < y_max");
+      return;
+    }
+    const std::size_t n = polygon->size();
+    if (n < 3) {
+      diag_.add(line, f.key_path("polygon_xz"), value, fmt::format("a polygon has at least 3 vertices, not {}", n),
+                "list the vertices [x, z] of the region's outline in order");
+      return;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t j = i + 1; j < n; ++j) {
+        const bool adjacent = j == i + 1 || (i == 0 && j == n - 1);
+        if (adjacent) continue;
+        if (segments_meet((*polygon)[i], (*polygon)[(i + 1) % n], (*polygon)[j], (*polygon)[(j + 1) % n])) {
+          diag_.add(line, f.key_path("polygon_xz"), value,
+                    fmt::format("the polygon is not simple: edge {} (vertices {} and {}) meets edge {} (vertices {} "
+                                "and {})",
+                                i, i, (i + 1) % n, j, j, (j + 1) % n),
+                    "list the vertices in order around the outline, without crossing edges");
+          return;
+        }
+      }
+    }
+    set.polygon_xz = *polygon;
+    Vec3 low((*polygon)[0][0], (*y_range)[0], (*polygon)[0][1]);
+    Vec3 high((*polygon)[0][0], (*y_range)[1], (*polygon)[0][1]);
+    for (const auto& vertex : *polygon) {
+      low.x() = std::min(low.x(), vertex[0]);
+      high.x() = std::max(high.x(), vertex[0]);
+      low.z() = std::min(low.z(), vertex[1]);
+      high.z() = std::max(high.z(), vertex[1]);
+    }
+    set.region = Aabb{low, high};
+    if (!(set.region_volume() > 0)) {
+      diag_.add(line, f.key_path("polygon_xz"), value, "the polygon has zero area",
+                "give vertices that enclose an area (not all on one line)");
+    }
+  }
+
+  void read_fill_sizes(Reader& f, ParticleSet& set) {
+    if (set.distribution == SizeDistribution::sieve) {
+      if (auto basis = f.string("sieve_basis")) set.sieve_by_mass = *basis == "mass";
+      const auto rows = f.pairs("sieve");
+      if (!rows) return;
+      const int line = f.line("sieve");
+      const std::string value = value_text(*f.node("sieve"));
+      const auto refuse = [&](const std::string& problem) {
+        diag_.add(line, f.key_path("sieve"), value, problem,
+                  "give rows [diameter (m), fraction finer] with diameters > 0 strictly increasing and fractions "
+                  "rising from 0.0 (first row) to 1.0 (last row), e.g. sieve = [[1.0, 0.0], [1.5, 0.4], [2.0, 1.0]]");
+      };
+      if (rows->size() < 2) return refuse(fmt::format("a grading curve has at least 2 rows, not {}", rows->size()));
+      for (std::size_t k = 0; k < rows->size(); ++k) {
+        const auto& row = (*rows)[k];
+        if (!(row[0] > 0)) return refuse(fmt::format("row {}: the diameter {} m is not positive", k, row[0]));
+        if (row[1] < 0 || row[1] > 1) return refuse(fmt::format("row {}: the fraction {} is not in [0, 1]", k, row[1]));
+        if (k > 0 && !(row[0] > (*rows)[k - 1][0])) {
+          return refuse(fmt::format("row {}: the diameter {} m does not exceed the previous row's", k, row[0]));
+        }
+        if (k > 0 && row[1] < (*rows)[k - 1][1]) {
+          return refuse(fmt::format("row {}: the fraction {} is below the previous row's", k, row[1]));
+        }
+      }
+      if (rows->front()[1] != 0.0 || rows->back()[1] != 1.0) {
+        return refuse(fmt::format("the fractions run from {} to {}; a grading curve runs from 0 to 1",
+                                  rows->front()[1], rows->back()[1]));
+      }
+      set.sieve = *rows;
+      set.diameter_min = rows->front()[0];
+      set.diameter_max = rows->back()[0];
+      return;
+    }
+    const auto diameter = f.pair("diameter");
+    if (!diameter) return;
+    set.diameter_min = (*diameter)[0];
+    set.diameter_max = (*diameter)[1];
+    if (set.diameter_min > set.diameter_max) {
+      diag_.add(f.line("diameter"), f.key_path("diameter"), value_text(*f.node("diameter")),
+                "the diameter range is inverted: it is [min, max] with min <= max",
+                fmt::format("write diameter = [{}, {}]", number_literal(set.diameter_max),
+                            number_literal(set.diameter_min)));
+      return;
+    }
+    if (set.distribution != SizeDistribution::normal) return;
+    const auto mean = f.number("mean_diameter");
+    const auto deviation = f.number("std_diameter");
+    if (!mean || !deviation) return;
+    set.mean_diameter = *mean;
+    set.std_diameter = *deviation;
+    if (*mean < set.diameter_min || *mean > set.diameter_max) {
+      diag_.add(f.line("mean_diameter"), f.key_path("mean_diameter"), number_literal(*mean),
+                fmt::format("the mean lies outside the clip range diameter = [{}, {}]", number_literal(set.diameter_min),
+                            number_literal(set.diameter_max)),
+                "give a mean inside the clip range, or widen diameter");
     }
   }
 
@@ -987,11 +1153,46 @@ class Builder {
   }
 
   static void read_surface_contact(Reader& r, SurfaceContact& contact) {
+    if (auto v = r.string("model")) {
+      contact.model = *v == "hertz_mindlin" ? SurfaceContact::Model::hertz_mindlin : SurfaceContact::Model::penalty;
+    }
+    if (auto v = r.number("restitution")) contact.restitution = *v;
     if (auto v = r.number("friction")) contact.friction = *v;
     if (auto v = r.number("penalty_scale")) contact.penalty_scale = *v;
     if (auto v = r.number("normal_stiffness")) contact.normal_stiffness = *v;
     if (auto v = r.number("normal_damping_ratio")) contact.normal_damping_ratio = *v;
     if (auto v = r.number("tangential_damping_ratio")) contact.tangential_damping_ratio = *v;
+  }
+
+  // The keys of one DEM-DEM contact law ([contact.dem_dem] or one of its pairs).
+  static void read_dem_law(Reader& r, DemContactLaw& law) {
+    if (auto v = r.string("model")) law.model = *v == "hertz_mindlin" ? DemLaw::hertz_mindlin : DemLaw::linear;
+    if (auto v = r.number("normal_damping_ratio")) law.normal_damping_ratio = *v;
+    if (auto v = r.number("tangential_damping_ratio")) law.tangential_damping_ratio = *v;
+    if (auto v = r.number("restitution")) law.restitution = *v;
+    if (auto v = r.number("friction")) law.friction = *v;
+    if (auto v = r.string("rolling")) law.rolling = *v == "viscous" ? RollingModel::viscous : RollingModel::constant;
+    if (auto v = r.number("rolling_friction")) law.rolling_friction = *v;
+    if (auto v = r.number("rolling_viscosity")) law.rolling_viscosity = *v;
+  }
+
+  // Keys that the law of this table does not use are errors, not silently ignored.
+  void check_dem_law_keys(Reader& r, const DemContactLaw& law, bool any_hertz, bool any_viscous) {
+    if (r.has("restitution") && !any_hertz) {
+      diag_.add(r.line("restitution"), r.key_path("restitution"), value_text(*r.node("restitution")),
+                "restitution applies to model = \"hertz_mindlin\", and no pair uses it",
+                "remove restitution, or set model = \"hertz_mindlin\"");
+    }
+    if (r.has("rolling_viscosity") && !any_viscous) {
+      diag_.add(r.line("rolling_viscosity"), r.key_path("rolling_viscosity"), value_text(*r.node("rolling_viscosity")),
+                "rolling_viscosity applies to rolling = \"viscous\", and no pair uses it",
+                "remove rolling_viscosity, or set rolling = \"viscous\"");
+    }
+    if (law.rolling == RollingModel::viscous && !(law.rolling_viscosity > 0) && (r.has("rolling"))) {
+      diag_.add(r.line("rolling"), r.key_path("rolling"), "\"viscous\"",
+                "viscous rolling resistance needs rolling_viscosity > 0",
+                "give rolling_viscosity (s/m), e.g. rolling_viscosity = 0.05");
+    }
   }
 
   void read_contact(Reader& root) {
@@ -1005,10 +1206,7 @@ class Builder {
     }
     Reader dd(diag_, spec("contact-dem_dem"), dem_dem != nullptr ? *dem_dem : empty_table(), "contact.dem_dem");
     DemContact& dem = scene_.dem_contact;
-    if (auto v = dd.number("normal_damping_ratio")) dem.normal_damping_ratio = *v;
-    if (auto v = dd.number("tangential_damping_ratio")) dem.tangential_damping_ratio = *v;
-    if (auto v = dd.number("friction")) dem.friction = *v;
-    if (auto v = dd.number("rolling_friction")) dem.rolling_friction = *v;
+    read_dem_law(dd, dem);
     if (auto v = dd.number("normal_stiffness")) dem.normal_stiffness = *v;
     if (auto v = dd.number("normal_stiffness_scale")) dem.normal_stiffness_scale = *v;
     if (auto v = dd.number("tangential_stiffness_ratio")) dem.tangential_stiffness_ratio = *v;
@@ -1016,6 +1214,63 @@ class Builder {
       diag_.add(dd.line("normal_stiffness_scale"), dd.key_path("normal_stiffness_scale"),
                 value_text(*dd.node("normal_stiffness_scale")),
                 "give either normal_stiffness or normal_stiffness_scale, not both", "remove one of the two keys");
+    }
+    std::vector<Reader> pair_readers;
+    std::vector<DemContactLaw> pair_laws;  // of every pair table, valid or not, for the key checks
+    if (const toml::array* pairs = dd.table_list("pairs")) {
+      std::map<std::pair<std::string, std::string>, int> seen;
+      pair_readers.reserve(pairs->size());
+      for (std::size_t k = 0; k < pairs->size(); ++k) {
+        const std::string path = fmt::format("contact.dem_dem.pairs[{}]", k);
+        Reader& r = pair_readers.emplace_back(diag_, spec("contact-dem_dem-pairs"), *pairs->get(k)->as_table(), path);
+        DemPairLaw pair;
+        pair.origin = origin(r.line(), path);
+        pair.law = static_cast<const DemContactLaw&>(dem);
+        read_dem_law(r, pair.law);
+        pair_laws.push_back(pair.law);
+        const auto materials = r.strings("materials");
+        if (!materials) continue;
+        const int line = r.line("materials");
+        const std::string value = value_text(*r.node("materials"));
+        if (materials->size() != 2) {
+          diag_.add(line, r.key_path("materials"), value,
+                    fmt::format("a pair names exactly two materials, not {}", materials->size()),
+                    "write materials = [\"A\", \"B\"] (the same name twice for a material with itself)");
+          continue;
+        }
+        bool known = true;
+        for (const auto& name : *materials) {
+          if (std::find(material_names_.begin(), material_names_.end(), name) != material_names_.end()) continue;
+          known = false;
+          const auto suggestion = closest_match(name, material_names_);
+          diag_.add(line, r.key_path("materials"), value,
+                    fmt::format("no material is named {}{}", quote_text(name),
+                                suggestion ? fmt::format(". Did you mean '{}'?", *suggestion) : std::string()),
+                    fmt::format("use the names of [materials.NAME]: {}", join(material_names_)));
+        }
+        if (!known) continue;
+        pair.material_a = std::min((*materials)[0], (*materials)[1]);
+        pair.material_b = std::max((*materials)[0], (*materials)[1]);
+        auto [it, inserted] = seen.try_emplace({pair.material_a, pair.material_b}, line);
+        if (!inserted) {
+          diag_.add(line, r.key_path("materials"), value,
+                    fmt::format("this pair of materials is already given at line {}", it->second),
+                    "merge the two tables of this pair");
+          continue;
+        }
+        dem.pairs.push_back(std::move(pair));
+      }
+    }
+    bool any_hertz = dem.model == DemLaw::hertz_mindlin, any_viscous = dem.rolling == RollingModel::viscous;
+    for (const auto& pair : dem.pairs) {
+      any_hertz = any_hertz || pair.law.model == DemLaw::hertz_mindlin;
+      any_viscous = any_viscous || pair.law.rolling == RollingModel::viscous;
+    }
+    check_dem_law_keys(dd, dem, any_hertz, any_viscous);
+    for (std::size_t k = 0; k < pair_readers.size(); ++k) {
+      const DemContactLaw& law = pair_laws[k];
+      check_dem_law_keys(pair_readers[k], law, law.model == DemLaw::hertz_mindlin,
+                         law.rolling == RollingModel::viscous);
     }
 
     const toml::table* dem_fem = contact.table("dem_fem");

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cmath>
+#include <numbers>
 
 namespace sabo::scene {
 
@@ -27,6 +29,108 @@ std::size_t Scene::material_index(const std::string& name) const {
   auto it = std::find_if(materials.begin(), materials.end(), [&](const Material& m) { return m.name == name; });
   assert(it != materials.end() && "material names are checked by the loader");
   return static_cast<std::size_t>(it - materials.begin());
+}
+
+namespace {
+
+// E[d^3] for d uniform in [a, b].
+double uniform_mean_cube(double a, double b) {
+  return b > a ? (b * b * b * b - a * a * a * a) / (4.0 * (b - a)) : a * a * a;
+}
+
+// Squared distance from p to the segment [a, b] in the plane.
+double segment_distance_squared(double px, double pz, const std::array<double, 2>& a, const std::array<double, 2>& b) {
+  const double ex = b[0] - a[0], ez = b[1] - a[1];
+  const double length_squared = ex * ex + ez * ez;
+  double t = length_squared > 0 ? ((px - a[0]) * ex + (pz - a[1]) * ez) / length_squared : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  const double dx = px - (a[0] + t * ex), dz = pz - (a[1] + t * ez);
+  return dx * dx + dz * dz;
+}
+
+}  // namespace
+
+std::vector<double> ParticleSet::sieve_class_probabilities() const {
+  std::vector<double> weight(sieve.size(), 0.0);
+  double total = 0;
+  for (std::size_t k = 1; k < sieve.size(); ++k) {
+    const double share = sieve[k][1] - sieve[k - 1][1];
+    // A mass share holds share / E[d^3] spheres per unit of d^3 (uniform diameters in the class).
+    weight[k] = sieve_by_mass ? share / uniform_mean_cube(sieve[k - 1][0], sieve[k][0]) : share;
+    total += weight[k];
+  }
+  if (total > 0) {
+    for (double& w : weight) w /= total;
+  }
+  return weight;
+}
+
+double ParticleSet::mean_sphere_volume() const {
+  double mean_cube = 0;
+  switch (distribution) {
+    case SizeDistribution::uniform: mean_cube = uniform_mean_cube(diameter_min, diameter_max); break;
+    case SizeDistribution::normal: {
+      // E[d^3] of the normal density restricted to [min, max] (Simpson's rule).
+      constexpr int intervals = 400;
+      const double h = (diameter_max - diameter_min) / intervals;
+      double mass = 0, moment = 0;
+      for (int k = 0; k <= intervals; ++k) {
+        const double d = diameter_min + h * k;
+        const double z = std::max(std_diameter, 1e-300);
+        const double density = std::exp(-0.5 * ((d - mean_diameter) / z) * ((d - mean_diameter) / z));
+        const double w = (k == 0 || k == intervals) ? 1.0 : (k % 2 == 1 ? 4.0 : 2.0);
+        mass += w * density;
+        moment += w * density * d * d * d;
+      }
+      mean_cube = mass > 0 ? moment / mass : uniform_mean_cube(diameter_min, diameter_max);
+      break;
+    }
+    case SizeDistribution::sieve: {
+      const auto probability = sieve_class_probabilities();
+      for (std::size_t k = 1; k < sieve.size(); ++k) {
+        mean_cube += probability[k] * uniform_mean_cube(sieve[k - 1][0], sieve[k][0]);
+      }
+      break;
+    }
+  }
+  return std::numbers::pi / 6.0 * mean_cube;
+}
+
+double ParticleSet::region_volume() const {
+  if (polygon_xz.empty()) return (region.max - region.min).prod();
+  double twice_area = 0;
+  for (std::size_t k = 0; k < polygon_xz.size(); ++k) {
+    const auto& a = polygon_xz[k];
+    const auto& b = polygon_xz[(k + 1) % polygon_xz.size()];
+    twice_area += a[0] * b[1] - b[0] * a[1];
+  }
+  return 0.5 * std::abs(twice_area) * (region.max.y() - region.min.y());
+}
+
+bool ParticleSet::contains_sphere(const Vec3& center, double radius) const {
+  if ((center.array() - radius < region.min.array()).any() || (center.array() + radius > region.max.array()).any()) {
+    return false;
+  }
+  if (polygon_xz.empty()) return true;
+  const double x = center.x(), z = center.z();
+  bool inside = false;
+  for (std::size_t k = 0, j = polygon_xz.size() - 1; k < polygon_xz.size(); j = k++) {
+    const auto& a = polygon_xz[k];
+    const auto& b = polygon_xz[j];
+    if ((a[1] > z) != (b[1] > z) && x < (b[0] - a[0]) * (z - a[1]) / (b[1] - a[1]) + a[0]) inside = !inside;
+    if (segment_distance_squared(x, z, a, b) < radius * radius) return false;
+  }
+  return inside;
+}
+
+const DemContactLaw& DemContact::law(const std::string& material_a, const std::string& material_b) const {
+  for (const auto& pair : pairs) {
+    if ((pair.material_a == material_a && pair.material_b == material_b) ||
+        (pair.material_a == material_b && pair.material_b == material_a)) {
+      return pair.law;
+    }
+  }
+  return *this;
 }
 
 SurfaceContact Scene::surface_contact(const std::string& set, const std::string& structure) const {

@@ -3,6 +3,7 @@
 // part of the simulation from this, and nothing else. The loader
 // (scene/loader.hpp) guarantees every invariant documented here; values are SI.
 // The TOML reference is docs/scene.md, generated from scene/schema.cpp.
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -58,34 +59,90 @@ struct Sphere {
   Vec3 angular_velocity = Vec3::Zero();  // rad/s
 };
 
-// A set of DEM spheres: an explicit list, or a box filled with a seeded random
-// non-overlapping set whose diameters are uniform in [diameter_min, diameter_max].
+// How the diameters of a fill set are drawn.
+enum class SizeDistribution {
+  uniform,  // uniform in [diameter_min, diameter_max]
+  normal,   // normal(mean_diameter, std_diameter), redrawn until inside [diameter_min, diameter_max]
+  sieve,    // grading curve: sieve rows [diameter, cumulative fraction passing], uniform within a class
+};
+
+// A set of DEM spheres: an explicit list, or a region (box, or a polygon in the x-z plane
+// extruded along y) filled with a seeded random non-overlapping set of spheres whose
+// diameters follow `distribution`; optionally settled under gravity inside the region
+// before step 0.
 struct ParticleSet {
   enum class Kind { list, fill };
   std::string name;
   std::string material;  // a key of Scene::materials (checked)
   Origin origin;
   Kind kind = Kind::list;
-  std::vector<Sphere> spheres;                // kind == list (checked: no overlap)
-  Aabb region;                                // kind == fill
-  std::size_t count = 0;                      // kind == fill
-  double diameter_min = 0, diameter_max = 0;  // m, kind == fill
-  std::uint64_t seed = 1;                     // kind == fill
-  Vec3 velocity = Vec3::Zero();               // m/s, initial velocity of filled spheres
+  std::vector<Sphere> spheres;  // kind == list (checked: no overlap)
+  // kind == fill. region: the box; for a polygon, its bounding box (y from y_range).
+  Aabb region;
+  // Polygon (x, z) vertices in order, m: a simple polygon with positive area (checked). Empty: a box.
+  std::vector<std::array<double, 2>> polygon_xz;
+  std::size_t count = 0;
+  SizeDistribution distribution = SizeDistribution::uniform;
+  double diameter_min = 0, diameter_max = 0;  // m: range (uniform), clip range (normal), first/last sieve
+  double mean_diameter = 0, std_diameter = 0;  // m, normal
+  // Grading curve: rows [diameter m, fraction finer than it], diameters strictly increasing, fractions
+  // non-decreasing from 0 (first row) to 1 (last row). Class k lies between rows k-1 and k.
+  std::vector<std::array<double, 2>> sieve;
+  bool sieve_by_mass = true;     // fractions of the mass (true) or of the count (false)
+  std::uint64_t seed = 1;
+  Vec3 velocity = Vec3::Zero();  // m/s, initial velocity of filled spheres
+  double settle_time = 0;        // s: settle under gravity inside the region before step 0 (0: no)
+
+  // Probability that a drawn sphere belongs to sieve class k (k = 1 .. rows-1; entry 0 is 0).
+  [[nodiscard]] std::vector<double> sieve_class_probabilities() const;
+  // Expected volume of one sphere of the distribution, m^3.
+  [[nodiscard]] double mean_sphere_volume() const;
+  // Volume of the fill region, m^3.
+  [[nodiscard]] double region_volume() const;
+  // Whether a sphere lies entirely inside the region (polygon: at least `radius` from every edge).
+  [[nodiscard]] bool contains_sphere(const Vec3& center, double radius) const;
 };
 
-// DEM-DEM contact (dem_solver): linear spring-dashpot, tangential spring with
-// a Coulomb limit, constant-torque rolling resistance.
-struct DemContact {
-  double normal_damping_ratio = 0.7;      // zeta_n in [0, 1)
-  double tangential_damping_ratio = 0.4;  // zeta_t in [0, 1)
+enum class DemLaw { linear, hertz_mindlin };
+enum class RollingModel {
+  constant,  // elastic-plastic rolling spring capped at mu_r r_eff F_n
+  viscous,   // torque -rolling_viscosity r_eff F_n (r_eff w_rel): mu_r grows with the rolling speed
+};
+
+// The contact law of one pair of materials in the dem_solver.
+struct DemContactLaw {
+  DemLaw model = DemLaw::linear;
+  double normal_damping_ratio = 0.7;      // zeta_n in [0, 1), linear
+  double tangential_damping_ratio = 0.4;  // zeta_t in [0, 1), linear (and the rolling spring's dashpot)
+  double restitution = 0.5;               // e in (0, 1], hertz_mindlin
   double friction = 1.0;                  // sliding, >= 0
-  double rolling_friction = 0.1;          // >= 0, dimensionless (torque = mu_r * r_eff * |F_n|)
-  // Normal stiffness: explicit (N/m), or LS-DYNA's NormK scale:
+  double rolling_friction = 0.1;          // >= 0, dimensionless (torque = mu_r * r_eff * |F_n|), constant
+  RollingModel rolling = RollingModel::constant;
+  double rolling_viscosity = 0;  // s/m, viscous
+  [[nodiscard]] bool has_rolling() const {
+    return rolling == RollingModel::constant ? rolling_friction > 0 : rolling_viscosity > 0;
+  }
+};
+
+// A per-material-pair override of [contact.dem_dem].
+struct DemPairLaw {
+  std::string material_a, material_b;  // keys of Scene::materials (checked), a <= b
+  Origin origin;
+  DemContactLaw law;
+};
+
+// DEM-DEM contact (dem_solver): linear spring-dashpot or Hertz-Mindlin (no-slip),
+// tangential spring with a Coulomb limit, rolling resistance; per pair of materials.
+struct DemContact : DemContactLaw {
+  // Normal stiffness of the linear law: explicit (N/m), or LS-DYNA's NormK scale:
   // k_n = scale * K1 r1 K2 r2 / (K1 r1 + K2 r2), K the bulk modulus.
   std::optional<double> normal_stiffness;
   double normal_stiffness_scale = 0.01;
   double tangential_stiffness_ratio = 2.0 / 7.0;  // k_t = ratio * k_n
+  std::vector<DemPairLaw> pairs;                  // overrides
+
+  // The law of a pair of materials: its override, or the defaults above.
+  [[nodiscard]] const DemContactLaw& law(const std::string& material_a, const std::string& material_b) const;
 };
 
 // One structure part (FEM). Rigid in this version: fixed in space.
@@ -127,6 +184,12 @@ struct Structure {
 // Penalty contact of particles against structure surfaces, computed by the
 // coupler (paper eqs. 3-6). Defaults for every pair; `pairs` override per pair.
 struct SurfaceContact {
+  enum class Model {
+    penalty,        // paper eqs. 3-6
+    hertz_mindlin,  // Hertz-Mindlin (no-slip) against a flat face, damping from the restitution
+  };
+  Model model = Model::penalty;
+  double restitution = 0.5;                // e in (0, 1], hertz_mindlin
   double friction = 0.3;                   // mu >= 0
   double penalty_scale = 0.1;              // k1 of eq. 6
   std::optional<double> normal_stiffness;  // N/m: replaces eq. 6 when given

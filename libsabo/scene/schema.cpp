@@ -80,8 +80,8 @@ class K {
 // All tables, built once in place (tables point at each other).
 class Schema {
  public:
-  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, contact, dem_dem, dem_fem,
-      interaction, recording;
+  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, contact, dem_dem, dem_pair,
+      dem_fem, interaction, recording;
 
   Schema(const Schema&) = delete;
   Schema& operator=(const Schema&) = delete;
@@ -99,8 +99,8 @@ class Schema {
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root, &run,       &solvers, &solver,  &materials, &material,    &particles, &sphere,
-            &fill, &structure, &contact, &dem_dem, &dem_fem,   &interaction, &recording};
+    return {&root,      &run,     &solvers, &solver,   &materials, &material, &particles,   &sphere,
+            &fill,      &structure, &contact, &dem_dem, &dem_pair, &dem_fem,  &interaction, &recording};
   }
 
  private:
@@ -248,22 +248,80 @@ class Schema {
     };
     fill.title = "[[particles]] fill = { ... }";
     fill.anchor = "particles-fill";
+    fill.selector = "distribution";
     fill.description =
-        "The box `[min, max]` filled with `count` spheres that lie entirely inside it and do not overlap; "
-        "diameters are uniform in `diameter`; positions come from a random generator seeded with `seed`, so "
-        "the same scene gives the same spheres. Random filling jams when dense: the expected solid volume "
-        "(count times the mean sphere volume) must not exceed 30 % of the box volume.";
+        "A region filled with `count` spheres that lie entirely inside it and do not overlap. The region is "
+        "the box `[min, max]`, or a polygon in the vertical x-z plane (`polygon_xz`, e.g. a longitudinal "
+        "profile) extruded along y over `y_range`. Diameters follow `distribution`:\n\n"
+        "* `uniform`: uniform in `diameter = [min, max]`.\n"
+        "* `normal`: normal with `mean_diameter` and `std_diameter`, redrawn until inside `diameter = [min, "
+        "max]` (the clip range).\n"
+        "* `sieve`: a grading curve, rows `[diameter, fraction finer]` as a sieve analysis gives them: "
+        "diameters strictly increasing, fractions non-decreasing from 0 (first row) to 1 (last row). The "
+        "share between two rows is a class whose diameters are uniform between them; `sieve_basis` says "
+        "whether the fractions are of the mass (`\"mass\"`, the usual grading curve) or of the count.\n\n"
+        "Positions (and diameters) come from a random generator seeded with `seed`, so the same scene gives "
+        "the same spheres; the largest spheres are placed first. Random filling jams when dense: the "
+        "expected solid volume (count times the mean sphere volume) must not exceed 30 % of the region. "
+        "With `settle_time` > 0 the dem_solver lets the set fall under gravity inside its region (the region's "
+        "faces act as frictional walls, the set's own contact law) for that long before step 0, with the "
+        "stable step of the set; the settled positions, at rest velocities set to `velocity`, start the run "
+        "(deterministic: the same bits on any number of threads).";
+    const std::vector<std::string> ranged{"uniform", "normal"};
     fill.keys = {
-        K("min", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").doc("Lower corner of the box."),
-        K("max", Type::vec3).required("[10.0, 6.0, 8.0]").unit("m").doc("Upper corner of the box."),
+        K("min", Type::vec3).absent("use `polygon_xz`").example("[0.0, 0.0, 0.0]").unit("m").doc("Box: lower corner."),
+        K("max", Type::vec3).absent("use `polygon_xz`").example("[10.0, 6.0, 8.0]").unit("m").doc("Box: upper corner."),
+        K("polygon_xz", Type::pair_list)
+            .absent("use `min` and `max`")
+            .example("[[0.0, 0.0], [20.0, 0.0], [20.0, 4.0], [0.0, 9.0]]")
+            .unit("m")
+            .doc("Polygon region: vertices `[x, z]` in order (either orientation), at least 3, a simple polygon "
+                 "(no edge crosses another) with positive area."),
+        K("y_range", Type::number_pair)
+            .absent("required with `polygon_xz`")
+            .example("[-3.5, 3.5]")
+            .unit("m")
+            .doc("Polygon region: extent along y `[min, max]`, min < max."),
         K("count", Type::integer).required("200").ge(1).doc("Number of spheres."),
+        K("distribution", Type::string)
+            .def("\"uniform\"")
+            .choices({"uniform", "normal", "sieve"})
+            .doc("How diameters are drawn (see above)."),
         K("diameter", Type::number_pair)
             .required("[1.0, 2.0]")
             .unit("m")
             .gt(0)
-            .doc("Smallest and largest diameter `[min, max]`."),
+            .only_for(ranged)
+            .doc("Uniform: smallest and largest diameter `[min, max]`. Normal: the clip range."),
+        K("mean_diameter", Type::number)
+            .required("1.5")
+            .unit("m")
+            .gt(0)
+            .only_for({"normal"})
+            .doc("Mean of the normal distribution."),
+        K("std_diameter", Type::number)
+            .required("0.25")
+            .unit("m")
+            .ge(0)
+            .only_for({"normal"})
+            .doc("Standard deviation of the normal distribution."),
+        K("sieve", Type::pair_list)
+            .required("[[1.0, 0.0], [1.5, 0.4], [2.0, 1.0]]")
+            .only_for({"sieve"})
+            .doc("Grading curve, rows `[diameter (m), fraction finer]`, at least 2 rows."),
+        K("sieve_basis", Type::string)
+            .def("\"mass\"")
+            .choices({"mass", "count"})
+            .only_for({"sieve"})
+            .doc("The sieve fractions are of the mass or of the count."),
         K("seed", Type::integer).def("1").ge(0).doc("Seed of the random generator."),
         K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity of every sphere."),
+        K("settle_time", Type::number)
+            .def("0.0")
+            .unit("s")
+            .ge(0)
+            .doc("Simulated time the set settles under gravity inside its region before step 0 (0: no "
+                 "settling; the spheres start where they were placed)."),
     };
   }
 
@@ -384,24 +442,53 @@ class Schema {
     dem_dem.title = "[contact.dem_dem]";
     dem_dem.anchor = "contact-dem_dem";
     dem_dem.description =
-        "Sphere-sphere contact in the dem_solver: linear spring-dashpot, tangential spring capped by Coulomb "
-        "friction, constant-torque rolling resistance. The defaults are the reference paper's boulders. Give "
+        "Sphere-sphere contact in the dem_solver, the default of every pair of materials (`pairs` override it "
+        "per pair). `model` picks the law:\n\n"
+        "* `linear`: the reference paper's spring-dashpot: normal stiffness from `normal_stiffness` or "
+        "`normal_stiffness_scale`, dashpots from the damping ratios, tangential spring `tangential_stiffness_ratio` "
+        "times k_n.\n"
+        "* `hertz_mindlin`: Hertz normal spring and Mindlin no-slip tangential spring from the materials' E and "
+        "nu, dashpots from the coefficient of `restitution` (as in LIGGGHTS and EDEM).\n\n"
+        "Both: tangential spring capped by Coulomb `friction`. Rolling resistance (`rolling`): `constant`, the "
+        "torque `rolling_friction` r_eff F_n against the relative rotation (an elastic-plastic rolling spring "
+        "capped at that torque, so that a pile at rest holds), or `viscous`, the torque `rolling_viscosity` "
+        "r_eff F_n (r_eff w) that grows with the rolling speed. A scene that asks for no rolling resistance "
+        "(`rolling_friction = 0`) pays nothing for it. The defaults are the reference paper's boulders. Give "
         "`normal_stiffness` or `normal_stiffness_scale`, not both.";
-    const std::string damping_doc = "damping as a fraction of critical damping.";
+    const std::string damping_doc = "damping as a fraction of critical damping (linear).";
     dem_dem.keys = {
+        K("model", Type::string).def("\"linear\"").choices({"linear", "hertz_mindlin"}).doc("Contact law."),
         K("normal_damping_ratio", Type::number).def("0.7").ge(0).lt(1).doc("Normal " + damping_doc),
-        K("tangential_damping_ratio", Type::number).def("0.4").ge(0).lt(1).doc("Tangential " + damping_doc),
+        K("tangential_damping_ratio", Type::number)
+            .def("0.4")
+            .ge(0)
+            .lt(1)
+            .doc("Tangential " + damping_doc + " Also the rolling spring's dashpot."),
+        K("restitution", Type::number)
+            .def("0.5")
+            .gt(0)
+            .le(1)
+            .doc("Coefficient of restitution of the normal impact (hertz_mindlin); 1: no damping."),
         K("friction", Type::number).def("1.0").ge(0).doc("Sliding friction coefficient."),
+        K("rolling", Type::string)
+            .def("\"constant\"")
+            .choices({"constant", "viscous"})
+            .doc("Rolling resistance model."),
         K("rolling_friction", Type::number)
             .def("0.1")
             .ge(0)
-            .doc("Rolling friction coefficient: torque = rolling_friction * r_eff * |F_n|."),
+            .doc("Constant rolling resistance: torque = rolling_friction * r_eff * |F_n| (0: none)."),
+        K("rolling_viscosity", Type::number)
+            .def("0.0")
+            .unit("s/m")
+            .ge(0)
+            .doc("Viscous rolling resistance: torque = rolling_viscosity * r_eff * |F_n| * r_eff |w_rel|."),
         K("normal_stiffness", Type::number)
             .absent("use `normal_stiffness_scale`")
             .example("1e7")
             .unit("N/m")
             .gt(0)
-            .doc("Normal contact stiffness, the same for every pair."),
+            .doc("Linear normal contact stiffness, the same for every pair."),
         K("normal_stiffness_scale", Type::number)
             .def("0.01")
             .gt(0)
@@ -409,15 +496,52 @@ class Schema {
         K("tangential_stiffness_ratio", Type::number)
             .def("0.2857142857142857")
             .gt(0)
-            .doc("k_t / k_n (2/7 keeps normal and tangential oscillations in step)."),
+            .doc("k_t / k_n of the linear law (2/7 keeps normal and tangential oscillations in step)."),
+        K("pairs", Type::table_list)
+            .inside(dem_pair)
+            .absent("every pair uses the keys above")
+            .example("[ { materials = [\"granite\", \"sandstone\"], model = \"hertz_mindlin\" } ]")
+            .doc("Per-pair-of-materials overrides."),
+    };
+    dem_pair.title = "[[contact.dem_dem.pairs]]";
+    dem_pair.anchor = "contact-dem_dem-pairs";
+    dem_pair.description =
+        "The contact law of one pair of materials (a material with itself: the same name twice), each pair at "
+        "most once. Keys left out take their value from `[contact.dem_dem]`; the stiffness keys of the linear "
+        "law are shared by all pairs.";
+    const std::string from_dem = "as in `[contact.dem_dem]`";
+    dem_pair.keys = {
+        K("materials", Type::string_list)
+            .required("[\"granite\", \"sandstone\"]")
+            .allowed("two `[materials.NAME]`")
+            .doc("The two materials."),
+        K("model", Type::string).absent(from_dem).example("\"hertz_mindlin\"").choices({"linear", "hertz_mindlin"}).doc("Contact law."),
+        K("normal_damping_ratio", Type::number).absent(from_dem).example("0.7").ge(0).lt(1).doc("Normal " + damping_doc),
+        K("tangential_damping_ratio", Type::number).absent(from_dem).example("0.4").ge(0).lt(1).doc("Tangential " + damping_doc),
+        K("restitution", Type::number).absent(from_dem).example("0.3").gt(0).le(1).doc("Coefficient of restitution (hertz_mindlin)."),
+        K("friction", Type::number).absent(from_dem).example("0.5").ge(0).doc("Sliding friction coefficient."),
+        K("rolling", Type::string).absent(from_dem).example("\"viscous\"").choices({"constant", "viscous"}).doc("Rolling resistance model."),
+        K("rolling_friction", Type::number).absent(from_dem).example("0.1").ge(0).doc("Constant rolling resistance coefficient."),
+        K("rolling_viscosity", Type::number).absent(from_dem).example("0.05").unit("s/m").ge(0).doc("Viscous rolling resistance coefficient."),
     };
     dem_fem.title = "[contact.dem_fem]";
     dem_fem.anchor = "contact-dem_fem";
     dem_fem.description =
         "Penalty contact of spheres against structure surfaces, computed by the coupler (paper eqs. 3-6). "
         "These are the settings of every particle-set/structure pair; `[[interactions]]` override them per "
-        "pair.";
+        "pair. `model = \"hertz_mindlin\"` replaces the penalty spring by the Hertz-Mindlin (no-slip) law of a "
+        "sphere against a flat face, from the E and nu of the sphere's and the structure's materials, with "
+        "dashpots from `restitution`; the penalty and damping-ratio keys then do not apply.";
     dem_fem.keys = {
+        K("model", Type::string)
+            .def("\"penalty\"")
+            .choices({"penalty", "hertz_mindlin"})
+            .doc("Contact law: the paper's penalty (eqs. 3-6) or Hertz-Mindlin."),
+        K("restitution", Type::number)
+            .def("0.5")
+            .gt(0)
+            .le(1)
+            .doc("Coefficient of restitution (hertz_mindlin); 1: no damping."),
         K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
         K("penalty_scale", Type::number)
             .def("0.1")
@@ -451,6 +575,17 @@ class Schema {
             .allowed("a particle set and a structure")
             .doc("The two bodies."),
         K("enabled", Type::boolean).def("true").doc("`false` switches contact of this pair off."),
+        K("model", Type::string)
+            .absent(from_default)
+            .example("\"hertz_mindlin\"")
+            .choices({"penalty", "hertz_mindlin"})
+            .doc("Contact law."),
+        K("restitution", Type::number)
+            .absent(from_default)
+            .example("0.5")
+            .gt(0)
+            .le(1)
+            .doc("Coefficient of restitution (hertz_mindlin)."),
         K("friction", Type::number).absent(from_default).example("0.4").ge(0).doc("Coulomb friction coefficient."),
         K("penalty_scale", Type::number).absent(from_default).example("0.1").gt(0).doc("k1 of eq. 6."),
         K("normal_stiffness", Type::number)
@@ -563,6 +698,7 @@ std::string_view type_name(Type type) {
     case Type::string: return "string";
     case Type::vec3: return "[x, y, z]";
     case Type::number_pair: return "[min, max]";
+    case Type::pair_list: return "array of [a, b]";
     case Type::string_list: return "array of strings";
     case Type::table: return "table";
     case Type::table_list: return "array of tables";
@@ -615,10 +751,16 @@ const std::vector<std::string>& cross_checks() {
       "`material` names a `[materials.NAME]` table.",
       "A particle set gives exactly one of `spheres` and `fill`; a list has at least one sphere.",
       "Spheres of lists do not overlap, within a set or across sets (touching is allowed).",
-      "A `fill` box has `min` < `max` on every axis and every side at least the largest diameter; "
-      "`diameter` is `[min, max]` with min <= max; the expected solid volume is at most 30 % of the box. Fill boxes "
-      "may overlap each other and "
-      "listed spheres: the dem_solver places filled spheres clear of the listed spheres and of earlier sets.",
+      "A `fill` region is either a box (`min` and `max`, `min` < `max` on every axis) or a polygon (`polygon_xz` "
+      "and `y_range`): at least 3 vertices, no two edges crossing, positive area, `y_range` min < max. Every "
+      "side of the region's bounding box is at least the largest diameter; `diameter` is `[min, max]` with min "
+      "<= max; a normal distribution's mean lies in the clip range; a sieve has at least 2 rows, positive "
+      "strictly increasing diameters and fractions non-decreasing from 0 to 1. The expected solid volume is "
+      "at most 30 % of the region. Fill regions may overlap each other and listed spheres: the dem_solver "
+      "places filled spheres clear of the listed spheres and of earlier sets.",
+      "`[[contact.dem_dem.pairs]]`: `materials` names two defined materials; no pair appears twice. "
+      "`restitution` is given only where a pair uses `hertz_mindlin`, `rolling_viscosity` only where a pair uses "
+      "`rolling = \"viscous\"`, and a viscous pair has `rolling_viscosity` > 0.",
       "`[solvers.ROLE]` appears only for a role that the bodies need (`dem` for particles, `fem` for "
       "structures; `sph` not in this version). `command`, when given, is not empty and its program exists: "
       "an executable file (absolute, or relative to the scene file's folder when it contains a `/`) or a name "

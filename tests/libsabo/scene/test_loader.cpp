@@ -521,3 +521,104 @@ TEST(SceneSuggest, EditDistanceAndClosestMatch) {
 
 }  // namespace
 }  // namespace sabo::scene
+
+namespace sabo::scene {
+namespace {
+
+// A scene with the DEM contact models, size distributions and a polygon region.
+Scene testing_load_dem_scene() {
+  return load_text(std::string(testing::kSceneHead) + R"(
+[[particles]]
+name = "rocks"
+material = "granite"
+fill = { polygon_xz = [[0.0, 0.0], [10.0, 0.0], [10.0, 4.0], [0.0, 2.0]], y_range = [-1.5, 1.5], count = 20, distribution = "sieve", sieve = [[0.5, 0.0], [0.75, 0.25], [1.0, 1.0]], sieve_basis = "count", settle_time = 0.5 }
+[[particles]]
+name = "pebbles"
+material = "concrete"
+fill = { min = [20.0, 0.0, 0.0], max = [25.0, 5.0, 5.0], count = 10, distribution = "normal", diameter = [0.5, 1.1], mean_diameter = 0.8, std_diameter = 0.1 }
+[[particles]]
+name = "mass_graded"
+material = "granite"
+fill = { min = [30.0, 0.0, 0.0], max = [40.0, 10.0, 10.0], count = 10, distribution = "sieve", sieve = [[1.0, 0.0], [1.0001, 0.5], [2.0, 1.0]] }
+[[structures]]
+name = "ground"
+material = "concrete"
+shape = "plane"
+origin = [0.0, 0.0, -1.0]
+length = 100.0
+width = 100.0
+[contact.dem_dem]
+model = "hertz_mindlin"
+restitution = 0.3
+rolling = "viscous"
+rolling_viscosity = 0.05
+[[contact.dem_dem.pairs]]
+materials = ["granite", "concrete"]
+model = "linear"
+friction = 0.5
+rolling = "constant"
+[contact.dem_fem]
+model = "hertz_mindlin"
+restitution = 0.8
+[[interactions]]
+pair = ["rocks", "ground"]
+model = "penalty"
+)");
+}
+
+TEST(LoaderDem, ContactModelsPerPairAndSurfaceHertz) {
+  const Scene scene = testing_load_dem_scene();
+  const DemContact& dem = scene.dem_contact;
+  EXPECT_EQ(dem.model, DemLaw::hertz_mindlin);
+  EXPECT_DOUBLE_EQ(dem.restitution, 0.3);
+  EXPECT_EQ(dem.rolling, RollingModel::viscous);
+  EXPECT_DOUBLE_EQ(dem.rolling_viscosity, 0.05);
+  ASSERT_EQ(dem.pairs.size(), 1u);
+  EXPECT_EQ(dem.pairs[0].material_a, "concrete");  // sorted
+  EXPECT_EQ(dem.pairs[0].material_b, "granite");
+  const DemContactLaw& pair = dem.law("granite", "concrete");
+  EXPECT_EQ(pair.model, DemLaw::linear);
+  EXPECT_DOUBLE_EQ(pair.friction, 0.5);
+  EXPECT_EQ(pair.rolling, RollingModel::constant);
+  EXPECT_DOUBLE_EQ(pair.restitution, 0.3);  // inherited
+  EXPECT_EQ(&dem.law("granite", "granite"), static_cast<const DemContactLaw*>(&dem));
+  EXPECT_EQ(scene.dem_fem_default.model, SurfaceContact::Model::hertz_mindlin);
+  EXPECT_DOUBLE_EQ(scene.dem_fem_default.restitution, 0.8);
+  EXPECT_EQ(scene.surface_contact("rocks", "ground").model, SurfaceContact::Model::penalty);
+}
+
+TEST(LoaderDem, SizeDistributionsPolygonRegionAndSettling) {
+  const Scene scene = testing_load_dem_scene();
+  ASSERT_EQ(scene.particle_sets.size(), 3u);
+  const ParticleSet& graded = scene.particle_sets[0];
+  EXPECT_EQ(graded.distribution, SizeDistribution::sieve);
+  EXPECT_FALSE(graded.sieve_by_mass);
+  EXPECT_DOUBLE_EQ(graded.diameter_min, 0.5);
+  EXPECT_DOUBLE_EQ(graded.diameter_max, 1.0);
+  // Count basis: the class probabilities are the fraction steps.
+  const auto p = graded.sieve_class_probabilities();
+  EXPECT_DOUBLE_EQ(p[1], 0.25);
+  EXPECT_DOUBLE_EQ(p[2], 0.75);
+  // A profile polygon (a trapezoid 10 m long, 2 m high at x = 0 and 4 m at x = 10) over 3 m.
+  ASSERT_EQ(graded.polygon_xz.size(), 4u);
+  EXPECT_NEAR(graded.region_volume(), 10.0 * 3.0 * 3.0, 1e-12);
+  EXPECT_EQ(graded.region.min, Vec3(0, -1.5, 0));
+  EXPECT_EQ(graded.region.max, Vec3(10, 1.5, 4));
+  EXPECT_TRUE(graded.contains_sphere(Vec3(9, 0, 3), 0.5));
+  EXPECT_FALSE(graded.contains_sphere(Vec3(1, 0, 2.2), 0.5));  // pokes through the sloping top
+  EXPECT_DOUBLE_EQ(graded.settle_time, 0.5);
+  const ParticleSet& normal = scene.particle_sets[1];
+  EXPECT_EQ(normal.distribution, SizeDistribution::normal);
+  EXPECT_DOUBLE_EQ(normal.mean_diameter, 0.8);
+  EXPECT_DOUBLE_EQ(normal.std_diameter, 0.1);
+  // A narrow normal distribution: E[d^3] ~ mu^3 + 3 mu sigma^2.
+  EXPECT_NEAR(normal.mean_sphere_volume(), std::numbers::pi / 6 * (0.512 + 3 * 0.8 * 0.01), 1e-3);
+  // Mass basis: class weights share / E[d^3] in the class.
+  const ParticleSet& by_mass = scene.particle_sets[2];
+  const auto q = by_mass.sieve_class_probabilities();
+  const double w1 = 0.5 / ((std::pow(1.0001, 4) - 1.0) / (4 * 0.0001)), w2 = 0.5 / ((16.0 - 1.0) / 4.0);
+  EXPECT_NEAR(q[1], w1 / (w1 + w2), 1e-12);
+}
+
+}  // namespace
+}  // namespace sabo::scene
