@@ -145,19 +145,20 @@ int main(int argc, char** argv) {
     step();
     wall_seconds += std::chrono::duration<double>(Clock::now() - start).count();
     contact_pairs += model.contact_count();
-    for (const auto& contact : model.contact_histories()) {
-      contact_ends += (model.is_fixed(contact.a) ? 0 : 1) + (model.is_fixed(contact.b) ? 0 : 1);
-    }
   }
-  const double contacts_per_sphere = static_cast<double>(contact_ends) / (static_cast<double>(free_spheres) * steps);
+  for (const auto& contact : model.contact_histories()) {
+    contact_ends += (model.is_fixed(contact.a) ? 0 : 1) + (model.is_fixed(contact.b) ? 0 : 1);
+  }
+  const double contacts_per_sphere = static_cast<double>(contact_ends) / static_cast<double>(free_spheres);
   const double mean_pairs = static_cast<double>(contact_pairs) / steps;
   const double sphere_steps = static_cast<double>(free_spheres) * steps;
   fmt::print(
       "{{\"bench\": \"dem_throughput\", \"spheres\": {}, \"fixed_spheres\": {}, \"layers\": {}, \"steps\": {}, "
       "\"threads\": {}, \"dt_s\": {:.4e}, \"sphere_steps_per_second\": {:.0f}, \"microseconds_per_step\": {:.1f}, "
       "\"contacts_per_sphere\": {:.3f}, \"contact_pairs\": {:.0f}, \"wall_seconds\": {:.3f}, "
-      "\"setup_seconds\": {:.3f}}}\n",
+      "\"setup_seconds\": {:.3f}, \"neighbour_pairs\": {}, \"neighbour_builds\": {}}}\n",
       free_spheres, floor_count, layers, steps, omp_get_max_threads(), dt, sphere_steps / wall_seconds,
-      1e6 * wall_seconds / steps, contacts_per_sphere, mean_pairs, wall_seconds, setup_seconds);
+      1e6 * wall_seconds / steps, contacts_per_sphere, mean_pairs, wall_seconds, setup_seconds,
+      model.neighbour_pair_count(), model.neighbour_builds());
   return 0;
 }

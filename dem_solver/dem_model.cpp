@@ -23,10 +23,144 @@ std::string origin_text(const scene::ParticleSet& set) {
   return fmt::format("{}:{}: particle set '{}'", set.origin.file.string(), set.origin.line, set.name);
 }
 
+// 2 sqrt(5/6): the restitution-damping prefactor of the Hertz-Mindlin DEM form.
+const double kHertzDampingPrefactor = 2.0 * std::sqrt(5.0 / 6.0);
+
+// What one contact needs besides its law: geometry and the pair's effective inertia.
+struct ContactInput {
+  Vec3 normal;                // unit, from b to a
+  double overlap;             // m, > 0
+  Vec3 relative_velocity;     // of the contact points, a minus b, m/s
+  Vec3 relative_spin;         // w_a - w_b, rad/s
+  double effective_radius;    // m
+  double effective_mass;      // kg
+  double effective_inertia;   // kg m^2 (0: both fixed)
+  double linear_stiffness;    // N/m, the linear law's k_n
+  double tangential_ratio;    // k_t / k_n, linear
+};
+
+struct ContactOutput {
+  Vec3 force;              // on a, N
+  Vec3 rolling_torque;     // on a, N m
+  Vec3 dissipative_force;  // on a, N
+  Vec3 dissipative_torque;  // rolling part, on a, N m
+  double elastic;          // J, springs after this evaluation (normal included)
+  double spring_energy;    // J, tangential + rolling springs after this evaluation
+  double slip_release;     // J
+};
+
+// The linear law (physics::spring_dashpot_force) or Hertz-Mindlin (physics::hertz_mindlin_force), then the
+// rolling resistance (physics::rolling_spring_torque, or the viscous torque): the same formulas, with the
+// law's constants precomputed. kLaw: 0 linear, 1 hertz, 2 from law.hertz. kRolling: 0 none, 1 constant,
+// 2 viscous, 3 from law.rolling.
+template <int kLaw, int kRolling>
+inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& in, double dt_previous,
+                             Vec3& tangential, Vec3& rolling_history) {
+  const bool hertz = kLaw == 2 ? law.hertz : kLaw == 1;
+  const Vec3& n = in.normal;
+  const double normal_speed = in.relative_velocity.dot(n);
+  const Vec3 tangential_velocity = in.relative_velocity - normal_speed * n;
+  double normal_stiffness, tangential_stiffness, normal_damping, tangential_damping, elastic_normal_force;
+  double normal_elastic_energy;
+  if (hertz) {
+    const double root = std::sqrt(in.effective_radius * in.overlap);
+    normal_stiffness = 2.0 * law.effective_modulus * root;
+    tangential_stiffness = 8.0 * law.effective_shear_modulus * root;
+    normal_damping = law.damping * std::sqrt(normal_stiffness * in.effective_mass);
+    tangential_damping = law.damping * std::sqrt(tangential_stiffness * in.effective_mass);
+    elastic_normal_force = (2.0 / 3.0) * normal_stiffness * in.overlap;
+    normal_elastic_energy = 0.4 * elastic_normal_force * in.overlap;
+  } else {
+    normal_stiffness = in.linear_stiffness;
+    tangential_stiffness = in.tangential_ratio * normal_stiffness;
+    normal_damping = 2.0 * law.normal_damping_ratio * std::sqrt(normal_stiffness * in.effective_mass);
+    tangential_damping = 2.0 * law.tangential_damping_ratio * std::sqrt(tangential_stiffness * in.effective_mass);
+    elastic_normal_force = normal_stiffness * in.overlap;
+    normal_elastic_energy = 0.5 * elastic_normal_force * in.overlap;
+  }
+  const double normal_force = elastic_normal_force - normal_damping * normal_speed;
+
+  // Carry the spring over from the previous tangent plane: drop its normal part, keep its length.
+  Vec3 displacement = tangential;
+  const double length_squared = displacement.squaredNorm();
+  if (length_squared > 0) {
+    displacement -= displacement.dot(n) * n;
+    const double projected_squared = displacement.squaredNorm();
+    displacement = projected_squared > 0 ? Vec3(displacement * std::sqrt(length_squared / projected_squared))
+                                         : Vec3::Zero();
+  }
+  const double stored = 0.5 * tangential_stiffness * displacement.squaredNorm();
+  displacement += tangential_velocity * dt_previous;
+  Vec3 tangential_force = -tangential_stiffness * displacement - tangential_damping * tangential_velocity;
+  const double coulomb = law.friction * std::max(normal_force, 0.0);
+  const double trial_squared = tangential_force.squaredNorm();
+  ContactOutput out;
+  out.slip_release = 0;
+  if (trial_squared > coulomb * coulomb) {
+    tangential_force *= coulomb / std::sqrt(trial_squared);
+    const double spring_force = tangential_stiffness * displacement.norm();
+    if (spring_force > coulomb) displacement *= coulomb / spring_force;
+    out.slip_release = stored - 0.5 * tangential_stiffness * displacement.squaredNorm();
+    out.dissipative_force = -normal_damping * normal_speed * n + tangential_force;
+  } else {
+    out.dissipative_force = -normal_damping * normal_speed * n - tangential_damping * tangential_velocity;
+  }
+  tangential = displacement;
+  out.force = normal_force * n + tangential_force;
+  out.spring_energy = 0.5 * tangential_stiffness * displacement.squaredNorm();
+
+  out.rolling_torque.setZero();
+  out.dissipative_torque.setZero();
+  const int rolling = kRolling == 3 ? law.rolling : kRolling;
+  if (rolling == 1) {
+    // Elastic-plastic rolling spring capped at the constant torque (physics::rolling_spring_torque).
+    const double cap = law.rolling_friction * in.effective_radius * std::max(normal_force, 0.0);
+    const double mu_r = law.rolling_friction;
+    const double rolling_stiffness =
+        2.25 * normal_stiffness * mu_r * mu_r * in.effective_radius * in.effective_radius;
+    if (rolling_stiffness > 0) {
+      const double rolling_damping =
+          2.0 * law.rolling_damping_ratio * std::sqrt(rolling_stiffness * in.effective_inertia);
+      const double rolling_stored = 0.5 * rolling_history.squaredNorm() / rolling_stiffness;
+      Vec3 spring = rolling_history - (rolling_stiffness * dt_previous) * in.relative_spin;
+      const Vec3 dashpot = -rolling_damping * in.relative_spin;
+      Vec3 torque = spring + dashpot;
+      const double magnitude = torque.norm();
+      if (magnitude > cap) {
+        torque = magnitude > 0 ? Vec3(torque * (cap / magnitude)) : Vec3::Zero();
+        const double spring_magnitude = spring.norm();
+        if (spring_magnitude > cap) spring *= cap / spring_magnitude;
+        out.dissipative_torque = torque;
+        out.slip_release += rolling_stored - 0.5 * spring.squaredNorm() / rolling_stiffness;
+      } else {
+        out.dissipative_torque = dashpot;
+      }
+      rolling_history = spring;
+      out.rolling_torque = torque;
+      out.spring_energy += 0.5 * spring.squaredNorm() / rolling_stiffness;
+    } else {
+      rolling_history.setZero();
+    }
+  } else if (rolling == 2) {
+    out.rolling_torque = (-law.rolling_viscosity * in.effective_radius * in.effective_radius *
+                          std::max(normal_force, 0.0)) *
+                         in.relative_spin;
+    out.dissipative_torque = out.rolling_torque;
+  }
+  out.elastic = normal_elastic_energy + out.spring_energy;
+  return out;
+}
+
 }  // namespace
 
 DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gravity_(scene.run.gravity) {
-  for (const auto& material : scene.materials) material_bulk_modulus_.push_back(material.bulk_modulus());
+  for (const auto& material : scene.materials) {
+    material_names_.push_back(material.name);
+    material_bulk_modulus_.push_back(material.bulk_modulus());
+    material_youngs_.push_back(material.youngs_modulus);
+    material_poisson_.push_back(material.poisson_ratio);
+  }
+  build_law_table(scene);
 
   // Fill sets avoid every listed sphere and the spheres of earlier fill sets.
   std::vector<scene::Sphere> obstacles;
@@ -40,6 +174,8 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
     std::vector<scene::Sphere> filled;
     if (set.kind == scene::ParticleSet::Kind::fill) {
       filled = fill_region(set, obstacles);
+      if (set.settle_time > 0) settle(scene, set, filled, obstacles);
+      sort_by_cell(filled);
       obstacles.insert(obstacles.end(), filled.begin(), filled.end());
     }
     const auto& spheres = set.kind == scene::ParticleSet::Kind::fill ? filled : set.spheres;
@@ -63,6 +199,14 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
   force_.assign(size(), Vec3::Zero());
   torque_.assign(size(), Vec3::Zero());
   fixed_.assign(size(), 0);
+  inverse_mass_.resize(size());
+  inverse_inertia_.resize(size());
+  stiffness_term_.resize(size());
+  for (std::uint32_t i = 0; i < size(); ++i) {
+    update_inverse_mass(i);
+    stiffness_term_[i] = material_bulk_modulus_[material_[i]] * radius_[i];
+  }
+  skin_ = kSkinFraction * largest_radius_;
 
   // Spheres of different sets must not start overlapping (fill sets avoid the others by construction).
   if (size() > 0) {
@@ -90,8 +234,119 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
     energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm();
     energies_.potential -= mass_[i] * gravity_.dot(position_[i]);
   }
-  sphere_kinetic_.assign(size(), 0);
-  sphere_potential_.assign(size(), 0);
+  for (auto* values : {&sphere_elastic_, &sphere_released_, &sphere_kinetic_, &sphere_potential_, &sphere_dissipated_})
+    values->assign(size(), 0);
+  dissipative_force_.assign(size(), Vec3::Zero());
+  dissipative_torque_.assign(size(), Vec3::Zero());
+  sphere_contacts_.assign(size(), 0);
+  sphere_wall_contacts_.assign(size(), 0);
+}
+
+void DemModel::sort_by_cell(std::vector<scene::Sphere>& spheres) {
+  if (spheres.size() < 2) return;
+  double largest = 0;
+  Vec3 low = spheres.front().center;
+  for (const auto& sphere : spheres) {
+    largest = std::max(largest, sphere.radius);
+    low = low.cwiseMin(sphere.center);
+  }
+  const double cell = 2 * largest;
+  auto key = [&](const scene::Sphere& sphere) {
+    const Vec3 c = ((sphere.center - low) / cell).array().floor();
+    return std::array<double, 3>{c.z(), c.y(), c.x()};
+  };
+  std::stable_sort(spheres.begin(), spheres.end(),
+                   [&](const scene::Sphere& x, const scene::Sphere& y) { return key(x) < key(y); });
+}
+
+void DemModel::build_law_table(const scene::Scene& scene) {
+  material_count_ = scene.materials.size();
+  pair_law_.resize(material_count_ * material_count_);
+  bool any_linear = false, any_hertz = false;
+  bool any_none = false, any_constant = false, any_viscous = false;
+  for (std::size_t a = 0; a < material_count_; ++a) {
+    for (std::size_t b = 0; b < material_count_; ++b) {
+      const scene::DemContactLaw& source = settings_.law(material_names_[a], material_names_[b]);
+      PairLaw& law = pair_law_[a * material_count_ + b];
+      law.hertz = source.model == scene::DemLaw::hertz_mindlin;
+      law.friction = source.friction;
+      law.normal_damping_ratio = source.normal_damping_ratio;
+      law.tangential_damping_ratio = source.tangential_damping_ratio;
+      const auto& ma = scene.materials[a];
+      const auto& mb = scene.materials[b];
+      law.effective_modulus = 1.0 / ((1 - ma.poisson_ratio * ma.poisson_ratio) / ma.youngs_modulus +
+                                     (1 - mb.poisson_ratio * mb.poisson_ratio) / mb.youngs_modulus);
+      law.effective_shear_modulus = 1.0 / (2 * (2 - ma.poisson_ratio) * (1 + ma.poisson_ratio) / ma.youngs_modulus +
+                                            2 * (2 - mb.poisson_ratio) * (1 + mb.poisson_ratio) / mb.youngs_modulus);
+      const double beta = physics::restitution_damping_ratio(source.restitution);
+      law.damping = -kHertzDampingPrefactor * beta;
+      law.rolling = !source.has_rolling() ? 0 : source.rolling == scene::RollingModel::constant ? 1 : 2;
+      law.rolling_friction = source.rolling_friction;
+      law.rolling_viscosity = source.rolling_viscosity;
+      law.rolling_damping_ratio = law.hertz ? -beta : source.tangential_damping_ratio;
+      any_linear = any_linear || !law.hertz;
+      any_hertz = any_hertz || law.hertz;
+      any_none = any_none || law.rolling == 0;
+      any_constant = any_constant || law.rolling == 1;
+      any_viscous = any_viscous || law.rolling == 2;
+    }
+  }
+  law_kind_ = any_linear && any_hertz ? 2 : any_hertz ? 1 : 0;
+  const int rolling_models = int{any_none} + int{any_constant} + int{any_viscous};
+  rolling_kind_ = rolling_models > 1 ? 3 : any_constant ? 1 : any_viscous ? 2 : 0;
+}
+
+void DemModel::settle(const scene::Scene& scene, const scene::ParticleSet& set, std::vector<scene::Sphere>& spheres,
+                      std::span<const scene::Sphere> obstacles) {
+  // A model of this set alone, with the obstacles that reach into its region as fixed spheres.
+  scene::Scene local = scene;
+  local.particle_sets.clear();
+  scene::ParticleSet moving = set;
+  moving.kind = scene::ParticleSet::Kind::list;
+  moving.spheres = spheres;
+  moving.settle_time = 0;
+  for (auto& sphere : moving.spheres) sphere.velocity.setZero();
+  local.particle_sets.push_back(moving);
+  scene::ParticleSet fixed = set;
+  fixed.kind = scene::ParticleSet::Kind::list;
+  fixed.name = set.name + "-obstacles";
+  fixed.spheres.clear();
+  for (const auto& sphere : obstacles) {
+    const Vec3 low = set.region.min.array() - sphere.radius, high = set.region.max.array() + sphere.radius;
+    if ((sphere.center.array() >= low.array()).all() && (sphere.center.array() <= high.array()).all()) {
+      fixed.spheres.push_back(sphere);
+    }
+  }
+  if (!fixed.spheres.empty()) local.particle_sets.push_back(fixed);
+  DemModel model(local);
+  for (std::size_t k = spheres.size(); k < model.size(); ++k) model.set_fixed(static_cast<std::uint32_t>(k), true);
+  model.add_region_walls(set);
+  const double dt = 0.25 * model.stable_dt();
+  const auto steps = static_cast<std::int64_t>(std::ceil(set.settle_time / dt));
+  double dt_previous = 0;
+  for (std::int64_t n = 0; n < steps; ++n) {
+    model.compute_internal_forces(dt_previous);
+    model.integrate(dt_previous, dt);
+    dt_previous = dt;
+  }
+  for (std::size_t k = 0; k < spheres.size(); ++k) {
+    spheres[k].center = model.positions()[k];
+    spheres[k].velocity = set.velocity;
+    spheres[k].angular_velocity.setZero();
+    if (!set.contains_sphere(spheres[k].center, 0.5 * spheres[k].radius)) {
+      throw SceneError(fmt::format(
+          "{}: after settling for {:g} s a sphere of radius {:g} m lies at ({:g}, {:g}, {:g}), outside the region: "
+          "the settling did not stay bounded. Fix: give a longer-lived stable scene (smaller spheres' speeds), or "
+          "report this as a bug.",
+          origin_text(set), set.settle_time, spheres[k].radius, spheres[k].center.x(), spheres[k].center.y(),
+          spheres[k].center.z()));
+    }
+  }
+}
+
+void DemModel::update_inverse_mass(std::uint32_t id) {
+  inverse_mass_[id] = fixed_[id] ? 0.0 : 1.0 / mass_[id];
+  inverse_inertia_[id] = fixed_[id] ? 0.0 : 1.0 / (0.4 * mass_[id] * radius_[id] * radius_[id]);
 }
 
 void DemModel::set_fixed(std::uint32_t id, bool fixed) {
@@ -105,211 +360,418 @@ void DemModel::set_fixed(std::uint32_t id, bool fixed) {
   } else if (!fixed && fixed_[id]) {
     energies_.potential -= mass_[id] * gravity_.dot(position_[id]);
   }
+  if ((fixed_[id] != 0) != fixed) rebuild_ = true;  // pairs of two fixed spheres are left out of the list
   fixed_[id] = fixed ? 1 : 0;
+  update_inverse_mass(id);
 }
 
 double DemModel::inverse_inertia(std::uint32_t id) const {
-  return fixed_[id] ? 0.0 : 1.0 / (0.4 * mass_[id] * radius_[id] * radius_[id]);
+  return inverse_inertia_[id];
+}
+
+const scene::DemContactLaw& DemModel::law(std::uint32_t a, std::uint32_t b) const {
+  return settings_.law(material_names_[material_[a]], material_names_[material_[b]]);
 }
 
 double DemModel::normal_stiffness(std::uint32_t a, std::uint32_t b) const {
   if (settings_.normal_stiffness) return *settings_.normal_stiffness;
-  const double stiffness_a = material_bulk_modulus_[material_[a]] * radius_[a];
-  const double stiffness_b = material_bulk_modulus_[material_[b]] * radius_[b];
+  const double stiffness_a = stiffness_term_[a];
+  const double stiffness_b = stiffness_term_[b];
   return settings_.normal_stiffness_scale * stiffness_a * stiffness_b / (stiffness_a + stiffness_b);
 }
 
 physics::SpringDashpot DemModel::contact_law(std::uint32_t a, std::uint32_t b) const {
+  const PairLaw& pair = pair_law_[material_[a] * material_count_ + material_[b]];
   const double normal = normal_stiffness(a, b);
   const double tangential = settings_.tangential_stiffness_ratio * normal;
-  double effective_mass = 0;
-  if (fixed_[a] && !fixed_[b]) {
-    effective_mass = mass_[b];
-  } else if (fixed_[b] && !fixed_[a]) {
-    effective_mass = mass_[a];
-  } else if (!fixed_[a] && !fixed_[b]) {
-    effective_mass = mass_[a] * mass_[b] / (mass_[a] + mass_[b]);
-  }
+  const double inverse_mass_sum = inverse_mass_[a] + inverse_mass_[b];
+  const double effective_mass = inverse_mass_sum > 0 ? 1.0 / inverse_mass_sum : 0.0;
   return physics::SpringDashpot{
       .normal_stiffness = normal,
-      .normal_damping = physics::damping_coefficient(normal, effective_mass, settings_.normal_damping_ratio),
+      .normal_damping = physics::damping_coefficient(normal, effective_mass, pair.normal_damping_ratio),
       .tangential_stiffness = tangential,
-      .tangential_damping =
-          physics::damping_coefficient(tangential, effective_mass, settings_.tangential_damping_ratio),
-      .friction = settings_.friction,
+      .tangential_damping = physics::damping_coefficient(tangential, effective_mass, pair.tangential_damping_ratio),
+      .friction = pair.friction,
   };
 }
 
 physics::RollingSpring DemModel::rolling_law(std::uint32_t a, std::uint32_t b) const {
+  const PairLaw& pair = pair_law_[material_[a] * material_count_ + material_[b]];
   const double effective_radius = radius_[a] * radius_[b] / (radius_[a] + radius_[b]);
-  const double stiffness =
-      physics::rolling_stiffness(normal_stiffness(a, b), settings_.rolling_friction, effective_radius);
+  const double stiffness = physics::rolling_stiffness(normal_stiffness(a, b), pair.rolling_friction, effective_radius);
   const double inverse_inertia_sum = inverse_inertia(a) + inverse_inertia(b);
   const double effective_inertia = inverse_inertia_sum > 0 ? 1.0 / inverse_inertia_sum : 0.0;
   return physics::RollingSpring{
       .stiffness = stiffness,
-      .damping = physics::damping_coefficient(stiffness, effective_inertia, settings_.tangential_damping_ratio),
-      .friction = settings_.rolling_friction,
+      .damping = physics::damping_coefficient(stiffness, effective_inertia, pair.rolling_damping_ratio),
+      .friction = pair.rolling_friction,
       .effective_radius = effective_radius,
   };
 }
 
-void DemModel::find_contacts() {
-  const auto n = static_cast<std::int64_t>(size());
-  parallel_ = size() >= kParallelThreshold;
-  contact_count_.assign(size(), 0);
-  contact_offset_.assign(size() + 1, 0);
-  if (n == 0) {
-    pair_a_.clear();
-    pair_b_.clear();
+physics::HertzMindlin DemModel::hertz_law(std::uint32_t a, std::uint32_t b) const {
+  const PairLaw& pair = pair_law_[material_[a] * material_count_ + material_[b]];
+  const double inverse_mass_sum = inverse_mass_[a] + inverse_mass_[b];
+  return physics::HertzMindlin{
+      .effective_modulus = pair.effective_modulus,
+      .effective_radius = radius_[a] * radius_[b] / (radius_[a] + radius_[b]),
+      .effective_mass = inverse_mass_sum > 0 ? 1.0 / inverse_mass_sum : 0.0,
+      .effective_shear_modulus = pair.effective_shear_modulus,
+      .restitution = law(a, b).restitution,
+      .friction = pair.friction,
+  };
+}
+
+void DemModel::add_wall(const Wall& wall) {
+  walls_.push_back(wall);
+  const std::size_t slots = size() * walls_.size();
+  // Re-lay the per-sphere histories for the new wall count.
+  std::vector<Vec3> tangential(slots, Vec3::Zero()), rolling(slots, Vec3::Zero());
+  std::vector<std::uint8_t> in_contact(slots, 0);
+  std::vector<double> energy(slots, 0);
+  const std::size_t old_walls = walls_.size() - 1;
+  for (std::size_t i = 0; i < size(); ++i) {
+    for (std::size_t w = 0; w < old_walls; ++w) {
+      tangential[i * walls_.size() + w] = wall_tangential_[i * old_walls + w];
+      rolling[i * walls_.size() + w] = wall_rolling_[i * old_walls + w];
+      in_contact[i * walls_.size() + w] = wall_in_contact_[i * old_walls + w];
+      energy[i * walls_.size() + w] = wall_spring_energy_[i * old_walls + w];
+    }
+  }
+  wall_tangential_ = std::move(tangential);
+  wall_rolling_ = std::move(rolling);
+  wall_in_contact_ = std::move(in_contact);
+  wall_spring_energy_ = std::move(energy);
+}
+
+void DemModel::add_region_walls(const scene::ParticleSet& set) {
+  const Aabb& box = set.region;
+  if (set.polygon_xz.empty()) {
+    for (int axis = 0; axis < 3; ++axis) {
+      Wall low, high;
+      low.point = box.min;
+      low.normal = Vec3::Unit(axis);
+      high.point = box.max;
+      high.normal = -Vec3::Unit(axis);
+      add_wall(low);
+      add_wall(high);
+    }
     return;
   }
-  cells_.build_points(position_, 2 * largest_radius_);
-  auto touching = [this](std::uint32_t i, std::uint32_t j) {
+  for (std::size_t k = 0; k < set.polygon_xz.size(); ++k) {
+    Wall edge;
+    edge.kind = Wall::Kind::segment_xz;
+    edge.a = set.polygon_xz[k];
+    edge.b = set.polygon_xz[(k + 1) % set.polygon_xz.size()];
+    add_wall(edge);
+  }
+  Wall low, high;
+  low.point = box.min;
+  low.normal = Vec3::UnitY();
+  high.point = box.max;
+  high.normal = -Vec3::UnitY();
+  add_wall(low);
+  add_wall(high);
+}
+
+void DemModel::clear_walls() {
+  walls_.clear();
+  wall_tangential_.clear();
+  wall_rolling_.clear();
+  wall_in_contact_.clear();
+  wall_spring_energy_.clear();
+}
+
+void DemModel::build_neighbours() {
+  const auto n = static_cast<std::int64_t>(size());
+  ++neighbour_builds_;
+  rebuild_ = false;
+  build_position_.assign(position_.begin(), position_.end());
+  std::vector<std::uint32_t> old_start = std::move(start_), old_neighbour = std::move(neighbour_);
+  std::vector<Vec3> old_tangential = std::move(tangential_), old_rolling = std::move(rolling_);
+  std::vector<std::uint8_t> old_in_contact = std::move(in_contact_);
+  std::vector<double> old_energy = std::move(spring_energy_);
+  start_.assign(size() + 1, 0);
+  count_scratch_.assign(size(), 0);
+  cells_.build_points(position_, 2 * largest_radius_ + skin_);
+  auto near = [this](std::uint32_t i, std::uint32_t j) {
     if (j <= i || (fixed_[i] && fixed_[j])) return false;
-    const double reach = radius_[i] + radius_[j];
+    const double reach = radius_[i] + radius_[j] + skin_;
     return (position_[i] - position_[j]).squaredNorm() < reach * reach;
   };
-  // Two passes (count, then fill) so that the pair list is built in parallel in id order.
 #pragma omp parallel for schedule(static) if (parallel_)
   for (std::int64_t k = 0; k < n; ++k) {
     const auto i = static_cast<std::uint32_t>(k);
     std::uint32_t count = 0;
-    cells_.for_each_near(position_[i], [&](std::uint32_t j) { count += touching(i, j) ? 1 : 0; });
-    contact_count_[i] = count;
+    cells_.for_each_near(position_[i], [&](std::uint32_t j) { count += near(i, j) ? 1 : 0; });
+    count_scratch_[i] = count;
   }
-  for (std::size_t i = 0; i < size(); ++i) contact_offset_[i + 1] = contact_offset_[i] + contact_count_[i];
-  pair_a_.resize(contact_offset_.back());
-  pair_b_.resize(contact_offset_.back());
+  for (std::size_t i = 0; i < size(); ++i) start_[i + 1] = start_[i] + count_scratch_[i];
+  const std::size_t slots = start_.back();
+  neighbour_.resize(slots);
+  tangential_.assign(slots, Vec3::Zero());
+  rolling_.assign(slots, Vec3::Zero());
+  in_contact_.assign(slots, 0);
+  spring_energy_.assign(slots, 0);
+  slot_force_.resize(slots);
+  slot_torque_.resize(slots);
+  slot_dissipative_force_.resize(slots);
+  slot_dissipative_torque_.resize(slots);
+  const bool from_pending = !pending_.empty();
 #pragma omp parallel for schedule(static) if (parallel_)
   for (std::int64_t k = 0; k < n; ++k) {
     const auto i = static_cast<std::uint32_t>(k);
-    std::uint32_t slot = contact_offset_[i];
+    std::uint32_t slot = start_[i];
     cells_.for_each_near(position_[i], [&](std::uint32_t j) {
-      if (!touching(i, j)) return;
-      pair_a_[slot] = i;
-      pair_b_[slot++] = j;
+      if (near(i, j)) neighbour_[slot++] = j;
     });
-    std::sort(pair_b_.begin() + contact_offset_[i], pair_b_.begin() + contact_offset_[i + 1]);
+    std::sort(neighbour_.begin() + start_[i], neighbour_.begin() + start_[i + 1]);
+    if (from_pending) continue;
+    // Carry the histories over: both lists are sorted by neighbour. A contact dropped from the list
+    // (its spheres moved apart by more than the skin at once) releases its springs.
+    double released = 0;
+    if (!old_start.empty()) {
+      std::uint32_t s = start_[i];
+      for (std::uint32_t old = old_start[i]; old < old_start[i + 1]; ++old) {
+        if (!old_in_contact[old]) continue;
+        while (s < start_[i + 1] && neighbour_[s] < old_neighbour[old]) ++s;
+        if (s < start_[i + 1] && neighbour_[s] == old_neighbour[old]) {
+          tangential_[s] = old_tangential[old];
+          rolling_[s] = old_rolling[old];
+          in_contact_[s] = 1;
+          spring_energy_[s] = old_energy[old];
+        } else {
+          released += old_energy[old];
+        }
+      }
+    }
+    sphere_released_[i] += released;
   }
+  if (from_pending) {
+    for (const auto& [key, record] : pending_) {
+      const auto a = static_cast<std::uint32_t>(key >> 32), b = static_cast<std::uint32_t>(key & 0xffffffffU);
+      const auto first = neighbour_.begin() + start_[a], last = neighbour_.begin() + start_[a + 1];
+      const auto found = std::lower_bound(first, last, b);
+      if (found == last || *found != b) {
+        dropped_released_ += record.spring_energy;  // no longer near: the contact opened
+        continue;
+      }
+      const auto s = static_cast<std::size_t>(found - neighbour_.begin());
+      tangential_[s] = record.tangential_displacement;
+      rolling_[s] = record.rolling_torque;
+      in_contact_[s] = 1;
+      spring_energy_[s] = record.spring_energy;
+    }
+    pending_.clear();
+  }
+
+  // Reverse list, in slot order.
+  reverse_start_.assign(size() + 1, 0);
+  for (std::size_t s = 0; s < slots; ++s) ++reverse_start_[neighbour_[s] + 1];
+  for (std::size_t i = 0; i < size(); ++i) reverse_start_[i + 1] += reverse_start_[i];
+  reverse_slot_.resize(slots);
+  count_scratch_.assign(reverse_start_.begin(), reverse_start_.end() - 1);
+  for (std::size_t s = 0; s < slots; ++s) reverse_slot_[count_scratch_[neighbour_[s]]++] = static_cast<std::uint32_t>(s);
 }
 
-void DemModel::compute_pair_forces(double dt_previous) {
-  const std::size_t pairs = pair_a_.size();
-  pair_force_.resize(pairs);
-  pair_torque_a_.resize(pairs);
-  pair_torque_b_.resize(pairs);
-  pair_dissipative_torque_.resize(pairs);
-  pair_relative_spin_.resize(pairs);
-  pair_elastic_.resize(pairs);
-  pair_dissipative_force_.resize(pairs);
-  pair_relative_velocity_.resize(pairs);
-  pair_arm_a_.resize(pairs);
-  pair_arm_b_.resize(pairs);
-  pair_dissipated_power_.resize(pairs);
-  pair_slip_release_.resize(pairs);
-  pair_history_.resize(pairs);
+template <int kLaw, int kRolling>
+void DemModel::pair_forces(double dt_previous) {
+  const auto n = static_cast<std::int64_t>(size());
+  const std::size_t wall_count = walls_.size();
+  const double linear_stiffness = settings_.normal_stiffness.value_or(0);
+  const bool explicit_stiffness = settings_.normal_stiffness.has_value();
+  const double scale = settings_.normal_stiffness_scale;
+  const double tangential_ratio = settings_.tangential_stiffness_ratio;
 #pragma omp parallel for schedule(static) if (parallel_)
-  for (std::int64_t p = 0; p < static_cast<std::int64_t>(pairs); ++p) {
-    const std::uint32_t a = pair_a_[p];
-    const std::uint32_t b = pair_b_[p];
-    // The springs of a pair already in contact at the last evaluation, or new ones.
-    const std::uint64_t key = pair_key(a, b);
-    const auto found = std::lower_bound(previous_key_.begin(), previous_key_.end(), key);
-    pair_history_[p] = (found != previous_key_.end() && *found == key)
-                           ? previous_history_[static_cast<std::size_t>(found - previous_key_.begin())]
-                           : PairHistory{};
-    const Vec3 separation = position_[a] - position_[b];
-    const double distance = separation.norm();
-    const Vec3 normal = distance > 0 ? Vec3(separation / distance) : Vec3::UnitZ();  // from b to a
-    const double overlap = radius_[a] + radius_[b] - distance;
-    // Lever arms from the centres to the contact point, the middle of the overlap.
-    const Vec3 arm_a = -(radius_[a] - 0.5 * overlap) * normal;
-    const Vec3 arm_b = (radius_[b] - 0.5 * overlap) * normal;
-    const Vec3 relative_velocity = (velocity_[a] + spin_[a].cross(arm_a)) - (velocity_[b] + spin_[b].cross(arm_b));
-    const physics::ContactForce contact = physics::spring_dashpot_force(
-        contact_law(a, b), overlap, normal, relative_velocity, dt_previous, pair_history_[p].tangential);
-    const Vec3 relative_spin = spin_[a] - spin_[b];
-    physics::RollingTorque rolling;
-    if (settings_.rolling_friction > 0) {
-      rolling = physics::rolling_spring_torque(rolling_law(a, b), contact.normal_force, relative_spin, dt_previous,
-                                               pair_history_[p].rolling);
+  for (std::int64_t k = 0; k < n; ++k) {
+    const auto a = static_cast<std::uint32_t>(k);
+    const Vec3 xa = position_[a], va = velocity_[a], wa = spin_[a];
+    const double ra = radius_[a];
+    const PairLaw* laws = &pair_law_[material_[a] * material_count_];
+    Vec3 force = Vec3::Zero(), torque = Vec3::Zero(), dissipative_force = Vec3::Zero(),
+         dissipative_torque = Vec3::Zero();
+    double elastic = 0, released = 0;
+    std::uint32_t contacts = 0;
+    for (std::uint32_t s = start_[a]; s < start_[a + 1]; ++s) {
+      const std::uint32_t b = neighbour_[s];
+      const Vec3 separation = xa - position_[b];
+      const double reach = ra + radius_[b];
+      const double distance_squared = separation.squaredNorm();
+      if (distance_squared >= reach * reach) {
+        if (in_contact_[s]) {
+          // The contact opened: its springs' energy goes with it.
+          released += spring_energy_[s];
+          in_contact_[s] = 0;
+          spring_energy_[s] = 0;
+          tangential_[s].setZero();
+          if constexpr (kRolling != 0) rolling_[s].setZero();
+        }
+        continue;
+      }
+      ++contacts;
+      const double distance = std::sqrt(distance_squared);
+      ContactInput in;
+      in.normal = distance > 0 ? Vec3(separation / distance) : Vec3::UnitZ();
+      in.overlap = reach - distance;
+      const double lever_a = ra - 0.5 * in.overlap, lever_b = radius_[b] - 0.5 * in.overlap;
+      // arm_a = -lever_a n, arm_b = lever_b n.
+      const Vec3 wb = spin_[b];
+      in.relative_velocity = (va - lever_a * wa.cross(in.normal)) - (velocity_[b] + lever_b * wb.cross(in.normal));
+      in.relative_spin = wa - wb;
+      in.effective_radius = ra * radius_[b] / reach;
+      in.effective_mass = 1.0 / (inverse_mass_[a] + inverse_mass_[b]);
+      if constexpr (kRolling == 1 || kRolling == 3) {
+        const double inverse_inertia_sum = inverse_inertia_[a] + inverse_inertia_[b];
+        in.effective_inertia = 1.0 / inverse_inertia_sum;
+      } else {
+        in.effective_inertia = 0;
+      }
+      if constexpr (kLaw != 1) {
+        in.linear_stiffness = explicit_stiffness ? linear_stiffness
+                                                 : scale * stiffness_term_[a] * stiffness_term_[b] /
+                                                       (stiffness_term_[a] + stiffness_term_[b]);
+      } else {
+        in.linear_stiffness = 0;
+      }
+      in.tangential_ratio = tangential_ratio;
+      const ContactOutput out =
+          contact<kLaw, kRolling>(laws[material_[b]], in, dt_previous, tangential_[s], rolling_[s]);
+      in_contact_[s] = 1;
+      spring_energy_[s] = out.spring_energy;
+      elastic += out.elastic;
+      released += out.slip_release;
+      const Vec3 n_cross_f = in.normal.cross(out.force);
+      const Vec3 n_cross_d = in.normal.cross(out.dissipative_force);
+      force += out.force;
+      torque += out.rolling_torque - lever_a * n_cross_f;
+      dissipative_force += out.dissipative_force;
+      dissipative_torque += out.dissipative_torque - lever_a * n_cross_d;
+      slot_force_[s] = -out.force;
+      slot_torque_[s] = -lever_b * n_cross_f - out.rolling_torque;
+      slot_dissipative_force_[s] = -out.dissipative_force;
+      slot_dissipative_torque_[s] = -lever_b * n_cross_d - out.dissipative_torque;
     }
-    pair_force_[p] = contact.force;
-    pair_torque_a_[p] = arm_a.cross(contact.force) + rolling.torque;
-    pair_torque_b_[p] = arm_b.cross(Vec3(-contact.force)) - rolling.torque;
-    pair_relative_spin_[p] = relative_spin;
-    pair_elastic_[p] = contact.elastic_energy + rolling.elastic_energy;
-    pair_slip_release_[p] = contact.slip_spring_release + rolling.slip_spring_release;
-    pair_dissipative_force_[p] = contact.dissipative_force;
-    pair_dissipative_torque_[p] = rolling.dissipative_torque;
-    pair_relative_velocity_[p] = relative_velocity;
-    pair_arm_a_[p] = arm_a;
-    pair_arm_b_[p] = arm_b;
-  }
-  step_elastic_ = step_slip_release_ = 0;
-  for (std::size_t p = 0; p < pairs; ++p) {
-    step_elastic_ += pair_elastic_[p];
-    step_slip_release_ += pair_slip_release_[p];
-  }
-  // Contacts that opened since the last step take their springs' energy with them.
-  step_released_energy_ = 0;
-  for (std::size_t q = 0, p = 0; q < previous_key_.size(); ++q) {
-    const std::uint64_t key = previous_key_[q];
-    while (p < pairs && pair_key(pair_a_[p], pair_b_[p]) < key) ++p;
-    if (p < pairs && pair_key(pair_a_[p], pair_b_[p]) == key) continue;
-    const auto a = static_cast<std::uint32_t>(key >> 32), b = static_cast<std::uint32_t>(key & 0xffffffffU);
-    step_released_energy_ +=
-        0.5 * contact_law(a, b).tangential_stiffness * previous_history_[q].tangential.displacement.squaredNorm();
-    const double rolling_stiffness = rolling_law(a, b).stiffness;
-    if (rolling_stiffness > 0) {
-      step_released_energy_ += 0.5 * previous_history_[q].rolling.torque.squaredNorm() / rolling_stiffness;
+    std::uint32_t wall_contacts = 0;
+    for (std::size_t w = 0; w < wall_count; ++w) {
+      const std::size_t slot = a * wall_count + w;
+      const Wall& wall = walls_[w];
+      Vec3 normal;
+      double distance;
+      if (wall.kind == Wall::Kind::plane) {
+        normal = wall.normal;
+        distance = (xa - wall.point).dot(normal);
+      } else {
+        const double ex = wall.b[0] - wall.a[0], ez = wall.b[1] - wall.a[1];
+        const double length_squared = ex * ex + ez * ez;
+        double t = length_squared > 0 ? ((xa.x() - wall.a[0]) * ex + (xa.z() - wall.a[1]) * ez) / length_squared : 0;
+        t = std::clamp(t, 0.0, 1.0);
+        const Vec3 offset(xa.x() - (wall.a[0] + t * ex), 0.0, xa.z() - (wall.a[1] + t * ez));
+        distance = offset.norm();
+        normal = distance > 0 ? Vec3(offset / distance) : Vec3::UnitZ();
+      }
+      if (distance >= ra || fixed_[a]) {
+        if (wall_in_contact_[slot]) {
+          released += wall_spring_energy_[slot];
+          wall_in_contact_[slot] = 0;
+          wall_spring_energy_[slot] = 0;
+          wall_tangential_[slot].setZero();
+          wall_rolling_[slot].setZero();
+        }
+        continue;
+      }
+      ++wall_contacts;
+      ContactInput in;
+      in.normal = normal;
+      in.overlap = ra - distance;
+      const double lever = ra - 0.5 * in.overlap;
+      in.relative_velocity = va - lever * wa.cross(normal);
+      in.relative_spin = wa;
+      in.effective_radius = ra;
+      in.effective_mass = mass_[a];
+      in.effective_inertia = 0.4 * mass_[a] * ra * ra;
+      in.linear_stiffness = explicit_stiffness ? linear_stiffness : scale * stiffness_term_[a];
+      in.tangential_ratio = tangential_ratio;
+      // A wall of the sphere's material: the pair law (material, material) has the E* and G* of a sphere
+      // against a flat body of its own material.
+      const ContactOutput out =
+          contact<kLaw, kRolling>(laws[material_[a]], in, dt_previous, wall_tangential_[slot], wall_rolling_[slot]);
+      wall_in_contact_[slot] = 1;
+      wall_spring_energy_[slot] = out.spring_energy;
+      elastic += out.elastic;
+      released += out.slip_release;
+      force += out.force;
+      torque += out.rolling_torque - lever * normal.cross(out.force);
+      dissipative_force += out.dissipative_force;
+      dissipative_torque += out.dissipative_torque - lever * normal.cross(out.dissipative_force);
     }
+    // Fixed spheres get no gravity: their force is the load the free spheres put on them.
+    if (!fixed_[a]) force += mass_[a] * gravity_;
+    force_[a] += force;
+    torque_[a] += torque;
+    dissipative_force_[a] = dissipative_force;
+    dissipative_torque_[a] = dissipative_torque;
+    sphere_elastic_[a] = elastic;
+    sphere_released_[a] += released;
+    sphere_contacts_[a] = contacts;
+    sphere_wall_contacts_[a] = wall_contacts;
   }
-  previous_key_.resize(pairs);
-  for (std::size_t p = 0; p < pairs; ++p) previous_key_[p] = pair_key(pair_a_[p], pair_b_[p]);
-  previous_history_.assign(pair_history_.begin(), pair_history_.end());
-}
-
-void DemModel::build_adjacency() {
-  adjacency_start_.assign(size() + 1, 0);
-  for (std::size_t p = 0; p < pair_a_.size(); ++p) {
-    ++adjacency_start_[pair_a_[p] + 1];
-    ++adjacency_start_[pair_b_[p] + 1];
-  }
-  for (std::size_t i = 0; i < size(); ++i) adjacency_start_[i + 1] += adjacency_start_[i];
-  adjacency_pair_.resize(adjacency_start_.back());
-  contact_count_.assign(adjacency_start_.begin(), adjacency_start_.end() - 1);  // reused as cursors
-  for (std::size_t p = 0; p < pair_a_.size(); ++p) {
-    adjacency_pair_[contact_count_[pair_a_[p]]++] = static_cast<std::uint32_t>(p);
-    adjacency_pair_[contact_count_[pair_b_[p]]++] = static_cast<std::uint32_t>(p);
+  // Reactions, each sphere over the slots where it is b, in slot order.
+#pragma omp parallel for schedule(static) if (parallel_)
+  for (std::int64_t k = 0; k < n; ++k) {
+    const auto b = static_cast<std::uint32_t>(k);
+    Vec3 force = Vec3::Zero(), torque = Vec3::Zero(), dissipative_force = Vec3::Zero(),
+         dissipative_torque = Vec3::Zero();
+    for (std::uint32_t r = reverse_start_[b]; r < reverse_start_[b + 1]; ++r) {
+      const std::uint32_t s = reverse_slot_[r];
+      if (!in_contact_[s]) continue;
+      force += slot_force_[s];
+      torque += slot_torque_[s];
+      dissipative_force += slot_dissipative_force_[s];
+      dissipative_torque += slot_dissipative_torque_[s];
+    }
+    force_[b] += force;
+    torque_[b] += torque;
+    dissipative_force_[b] += dissipative_force;
+    dissipative_torque_[b] += dissipative_torque;
   }
 }
 
 void DemModel::compute_internal_forces(double dt_previous) {
   assert(dt_previous >= 0);
-  find_contacts();
-  compute_pair_forces(dt_previous);
-  build_adjacency();
+  parallel_ = size() >= kParallelThreshold;
   const auto n = static_cast<std::int64_t>(size());
-#pragma omp parallel for schedule(static) if (parallel_)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto i = static_cast<std::uint32_t>(k);
-    // Fixed spheres get no gravity: their force is the load the free spheres put on them.
-    Vec3 force = fixed_[i] ? Vec3::Zero() : Vec3(mass_[i] * gravity_);
-    Vec3 torque = Vec3::Zero();
-    for (std::uint32_t slot = adjacency_start_[i]; slot < adjacency_start_[i + 1]; ++slot) {
-      const std::uint32_t p = adjacency_pair_[slot];
-      if (pair_a_[p] == i) {
-        force += pair_force_[p];
-        torque += pair_torque_a_[p];
-      } else {
-        force -= pair_force_[p];
-        torque += pair_torque_b_[p];
-      }
+  // Rebuild the neighbour list once a sphere may have come within reach of one not listed.
+  if (!rebuild_ && build_position_.size() == size()) {
+    double largest_squared = 0;
+#pragma omp parallel for schedule(static) reduction(max : largest_squared) if (parallel_)
+    for (std::int64_t k = 0; k < n; ++k) {
+      largest_squared = std::max(largest_squared, (position_[k] - build_position_[k]).squaredNorm());
     }
-    force_[i] += force;
-    torque_[i] += torque;
+    if (4 * largest_squared > skin_ * skin_) rebuild_ = true;
+  } else {
+    rebuild_ = true;
+  }
+  if (size() > 0 && rebuild_) build_neighbours();
+  if (size() > 0) {
+    switch (law_kind_ * 4 + rolling_kind_) {
+      case 0: pair_forces<0, 0>(dt_previous); break;
+      case 1: pair_forces<0, 1>(dt_previous); break;
+      case 2: pair_forces<0, 2>(dt_previous); break;
+      case 3: pair_forces<0, 3>(dt_previous); break;
+      case 4: pair_forces<1, 0>(dt_previous); break;
+      case 5: pair_forces<1, 1>(dt_previous); break;
+      case 6: pair_forces<1, 2>(dt_previous); break;
+      case 7: pair_forces<1, 3>(dt_previous); break;
+      case 8: pair_forces<2, 0>(dt_previous); break;
+      case 9: pair_forces<2, 1>(dt_previous); break;
+      case 10: pair_forces<2, 2>(dt_previous); break;
+      default: pair_forces<2, 3>(dt_previous); break;
+    }
+  }
+  contact_count_ = wall_contact_count_ = 0;
+  for (std::size_t i = 0; i < size(); ++i) {
+    contact_count_ += sphere_contacts_[i];
+    wall_contact_count_ += sphere_wall_contacts_[i];
   }
   forces_ready_ = true;
 }
@@ -340,12 +802,11 @@ void DemModel::integrate(double dt_previous, double dt) {
   const double dt_update = first_step ? 0.5 * dt : 0.5 * (dt_previous + dt);
 
   const auto n = static_cast<std::int64_t>(size());
-  const auto pairs = static_cast<std::int64_t>(pair_a_.size());
 #pragma omp parallel for schedule(static) if (parallel_)
   for (std::int64_t k = 0; k < n; ++k) {
     const auto i = static_cast<std::uint32_t>(k);
     if (fixed_[i]) {
-      sphere_kinetic_[i] = sphere_potential_[i] = 0;
+      sphere_kinetic_[i] = sphere_potential_[i] = sphere_dissipated_[i] = 0;
     } else {
       const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
       const Vec3 velocity = velocity_[i] + (dt_update / mass_[i]) * force_[i];
@@ -354,6 +815,10 @@ void DemModel::integrate(double dt_previous, double dt) {
                                ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
                                : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
       sphere_potential_[i] = -mass_[i] * gravity_.dot(position_[i]);
+      // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
+      // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
+      sphere_dissipated_[i] = -0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) +
+                                      dissipative_torque_[i].dot(spin_[i] + spin));
       velocity_[i] = velocity;
       spin_[i] = spin;
       position_[i] += dt * velocity;
@@ -362,27 +827,19 @@ void DemModel::integrate(double dt_previous, double dt) {
     torque_[i].setZero();
   }
 
-  // Dissipated energy: the impulse of each dissipative force (and torque) times the
-  // mean of the relative velocities before and after it (exact for one body: dKE = J . v_mean).
-#pragma omp parallel for schedule(static) if (parallel_)
-  for (std::int64_t p = 0; p < pairs; ++p) {
-    const std::uint32_t a = pair_a_[p];
-    const std::uint32_t b = pair_b_[p];
-    const Vec3 relative_velocity =
-        (velocity_[a] + spin_[a].cross(pair_arm_a_[p])) - (velocity_[b] + spin_[b].cross(pair_arm_b_[p]));
-    const Vec3 relative_spin = spin_[a] - spin_[b];
-    pair_dissipated_power_[p] = -0.5 * (pair_dissipative_force_[p].dot(pair_relative_velocity_[p] + relative_velocity) +
-                                        pair_dissipative_torque_[p].dot(pair_relative_spin_[p] + relative_spin));
-  }
-  double dissipated_power = 0;
-  for (std::size_t p = 0; p < pair_a_.size(); ++p) dissipated_power += pair_dissipated_power_[p];
+  double dissipated_power = 0, elastic = 0, released = dropped_released_;
   energies_.kinetic = energies_.potential = 0;
   for (std::size_t i = 0; i < size(); ++i) {
     energies_.kinetic += sphere_kinetic_[i];
     energies_.potential += sphere_potential_[i];
+    dissipated_power += sphere_dissipated_[i];
+    elastic += sphere_elastic_[i];
+    released += sphere_released_[i];
+    sphere_released_[i] = 0;
   }
-  energies_.elastic = step_elastic_;
-  energies_.dissipated += dt_update * dissipated_power + step_slip_release_ + step_released_energy_;
+  dropped_released_ = 0;
+  energies_.elastic = elastic;
+  energies_.dissipated += dt_update * dissipated_power + released;
   forces_ready_ = false;
 }
 
@@ -392,29 +849,55 @@ double DemModel::stable_dt() const {
     if (!fixed_[i]) lightest = std::min(lightest, mass_[i]);
   }
   if (!std::isfinite(lightest)) return std::numeric_limits<double>::infinity();
-  double stiffest = 0;
-  if (settings_.normal_stiffness) {
-    stiffest = *settings_.normal_stiffness;
-  } else {
-    // k_n grows with both K r: the stiffest pair joins the two largest K r.
-    double largest = 0, second = 0;
-    for (std::size_t i = 0; i < size(); ++i) {
-      const double value = material_bulk_modulus_[material_[i]] * radius_[i];
-      if (value > largest) {
-        second = largest;
-        largest = value;
-      } else if (value > second) {
-        second = value;
-      }
+  double largest_rolling = 0;
+  bool any_linear = false, any_hertz = false;
+  for (std::size_t a = 0; a < material_count_; ++a) {
+    for (std::size_t b = 0; b < material_count_; ++b) {
+      const PairLaw& law = pair_law_[a * material_count_ + b];
+      if (law.rolling == 1) largest_rolling = std::max(largest_rolling, law.rolling_friction);
+      any_linear = any_linear || !law.hertz;
+      any_hertz = any_hertz || law.hertz;
     }
-    if (size() == 1) second = largest;
-    stiffest = settings_.normal_stiffness_scale * largest * second / (largest + second);
   }
-  // Tangentially the contact point of a sphere moves with inverse mass 1/m + r^2/I = 3.5/m; the
-  // rolling spring on a sphere against a much larger one has k_r / I = 5.625 mu_r^2 k_n / m.
-  const double mu_r = settings_.rolling_friction;
-  stiffest *= std::max({1.0, 3.5 * settings_.tangential_stiffness_ratio, 5.625 * mu_r * mu_r});
-  return 0.2 * std::numbers::pi * std::sqrt(lightest / stiffest);
+  // The rolling spring on a sphere against a much larger one has k_r / I = 5.625 mu_r^2 k_n / m.
+  const double rolling_factor = std::max(1.0, 5.625 * largest_rolling * largest_rolling);
+  double dt = std::numeric_limits<double>::infinity();
+  if (any_linear) {
+    double stiffest = 0;
+    if (settings_.normal_stiffness) {
+      stiffest = *settings_.normal_stiffness;
+    } else {
+      // k_n grows with both K r: the stiffest pair joins the two largest K r.
+      double largest = 0, second = 0;
+      for (std::size_t i = 0; i < size(); ++i) {
+        const double value = stiffness_term_[i];
+        if (value > largest) {
+          second = largest;
+          largest = value;
+        } else if (value > second) {
+          second = value;
+        }
+      }
+      if (size() == 1) second = largest;
+      stiffest = settings_.normal_stiffness_scale * largest * second / (largest + second);
+    }
+    // Tangentially the contact point of a sphere moves with inverse mass 1/m + r^2/I = 3.5/m.
+    stiffest *= std::max({1.0, 3.5 * settings_.tangential_stiffness_ratio, rolling_factor});
+    dt = 0.2 * std::numbers::pi * std::sqrt(lightest / stiffest);
+  }
+  if (any_hertz) {
+    // A fifth of the Rayleigh time of the smallest sphere, pi r sqrt(rho / G) / (0.1631 nu + 0.8766), the
+    // usual bound for Hertz contacts: it is independent of the impact speed.
+    for (std::size_t i = 0; i < size(); ++i) {
+      if (fixed_[i]) continue;
+      const double youngs = material_youngs_[material_[i]], nu = material_poisson_[material_[i]];
+      const double shear = youngs / (2 * (1 + nu));
+      const double density = mass_[i] / (4.0 / 3.0 * std::numbers::pi * radius_[i] * radius_[i] * radius_[i]);
+      const double rayleigh = std::numbers::pi * radius_[i] * std::sqrt(density / shear) / (0.1631 * nu + 0.8766);
+      dt = std::min(dt, 0.2 * rayleigh / std::sqrt(rolling_factor));
+    }
+  }
+  return dt;
 }
 
 Aabb DemModel::bounds() const {
@@ -427,33 +910,34 @@ Aabb DemModel::bounds() const {
 }
 
 std::vector<ContactRecord> DemModel::contact_histories() const {
-  std::vector<ContactRecord> records(previous_key_.size());
-  for (std::size_t p = 0; p < records.size(); ++p) {
-    records[p] = ContactRecord{static_cast<std::uint32_t>(previous_key_[p] >> 32),
-                               static_cast<std::uint32_t>(previous_key_[p] & 0xffffffffU),
-                               previous_history_[p].tangential.displacement, previous_history_[p].rolling.torque};
+  std::vector<ContactRecord> records;
+  if (!pending_.empty()) {
+    for (const auto& [key, record] : pending_) records.push_back(record);
+    return records;
+  }
+  for (std::uint32_t a = 0; a + 1 < start_.size(); ++a) {
+    for (std::uint32_t s = start_[a]; s < start_[a + 1]; ++s) {
+      if (!in_contact_[s]) continue;
+      records.push_back(ContactRecord{a, neighbour_[s], tangential_[s], rolling_[s], spring_energy_[s]});
+    }
   }
   return records;
 }
 
 void DemModel::restore(std::span<const ContactRecord> contacts, double dissipated_energy) {
-  std::vector<std::pair<std::uint64_t, PairHistory>> sorted;
-  sorted.reserve(contacts.size());
+  pending_.clear();
+  pending_.reserve(contacts.size());
   for (const auto& contact : contacts) {
     if (contact.a >= contact.b || contact.b >= size()) {
       throw FileError(fmt::format("DEM checkpoint: contact ({}, {}) is not a pair of sphere ids a < b < {}", contact.a,
                                   contact.b, size()));
     }
-    sorted.emplace_back(pair_key(contact.a, contact.b),
-                        PairHistory{{contact.tangential_displacement}, {contact.rolling_torque}});
+    pending_.emplace_back(pair_key(contact.a, contact.b), contact);
   }
-  std::sort(sorted.begin(), sorted.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
-  previous_key_.resize(sorted.size());
-  previous_history_.resize(sorted.size());
-  for (std::size_t p = 0; p < sorted.size(); ++p) {
-    previous_key_[p] = sorted[p].first;
-    previous_history_[p] = sorted[p].second;
-  }
+  std::sort(pending_.begin(), pending_.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  // The list is rebuilt at the next step with these histories in place of the current ones.
+  start_.clear();
+  rebuild_ = true;
   energies_.dissipated = dissipated_energy;
 }
 

@@ -19,10 +19,29 @@
 // part in contacts with infinite mass and never move.
 //
 // Ids: a sphere's index is its global id, stable for the whole run: particle
-// sets in scene order, within a set the listed order (list) or placement order
-// (fill: largest first).
+// sets in scene order, within a set the listed order (list) or, for a fill,
+// the order of the cells (z, then y, then x; cells 2 r_max wide) of the initial
+// (placed, then settled) positions, so that neighbours in space are neighbours
+// in memory.
 //
-// Rolling resistance: the constant torque mu_r r_eff F_n of the paper, as the cap
+// Contact laws, per pair of materials (scene::DemContact::law): linear
+// spring-dashpot (physics::spring_dashpot_force) or Hertz-Mindlin no-slip
+// (physics::hertz_mindlin_force); the pair kernel here computes the same forces
+// (a test compares them) with the parameters precomputed per material pair. The
+// force loop is instantiated per law and rolling model: a scene with one law pays
+// no per-pair branch on it, and one without rolling resistance pays nothing for it.
+//
+// Neighbours: a Verlet list (half list: each pair once, at the sphere with the
+// lower id, neighbours in id order) of the pairs within r_a + r_b + skin (skin =
+// kSkinFraction r_max), rebuilt from a cell list only when a sphere has moved
+// more than skin/2 since the last build. Contact histories live in the list's
+// slots and move with their pair across rebuilds (keyed by the pair).
+//
+// Walls (add_wall): planes and x-z segments extruded along y, against which the
+// spheres touch with the law of their material with itself (a wall of the same
+// material). Used to settle fill sets inside their region and by benchmarks.
+//
+// Rolling resistance (constant model): the constant torque mu_r r_eff F_n of the paper, as the cap
 // of an elastic-plastic rolling spring (physics::rolling_spring_torque, Ai et al.
 // 2011 "model C", k_r = 2.25 k_n mu_r^2 r_eff^2, dashpot with the tangential
 // damping ratio and the pair's reduced moment of inertia). While spheres roll on
@@ -31,9 +50,13 @@
 // reverses slow rotations within a step) nor creeps (a constant torque limited
 // so as not to reverse them cannot hold a sphere against a driving torque).
 //
-// Determinism: contacts are found on a cell list and computed once per pair
-// (pairs ordered by ids); each sphere sums its own contacts in pair order; all
-// reductions are serial. Same input, same bits, for any number of threads.
+// The viscous model: torque -rolling_viscosity r_eff F_n (r_eff w_rel), no spring.
+//
+// Determinism: each pair is computed once, by the thread of its lower-id sphere,
+// which sums its own pairs in list order; the other sphere takes the pair's
+// reaction in a second pass over its pairs in slot order; energies are summed per
+// sphere, then serially. Same input, same bits, for any number of threads.
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -42,6 +65,7 @@
 #include "libsabo/core/types.hpp"
 #include "libsabo/physics/cell_list.hpp"
 #include "libsabo/physics/contact_law.hpp"
+#include "libsabo/physics/hertz_mindlin.hpp"
 #include "libsabo/scene/scene.hpp"
 
 namespace sabo::dem {
@@ -61,6 +85,19 @@ struct ContactRecord {
   std::uint32_t a = 0, b = 0;
   Vec3 tangential_displacement = Vec3::Zero();  // m
   Vec3 rolling_torque = Vec3::Zero();           // N m, on a
+  double spring_energy = 0;                     // J, tangential + rolling springs at the last evaluation
+};
+
+// A rigid boundary of the spheres (see add_wall).
+struct Wall {
+  enum class Kind {
+    plane,       // through `point`, unit `normal` towards the spheres (one-sided)
+    segment_xz,  // the segment [a, b] of the x-z plane extruded along y (two-sided)
+  };
+  Kind kind = Kind::plane;
+  Vec3 point = Vec3::Zero();
+  Vec3 normal{0, 0, 1};
+  std::array<double, 2> a{0, 0}, b{0, 0};  // (x, z), m
 };
 
 class DemModel {
@@ -115,66 +152,111 @@ class DemModel {
   [[nodiscard]] Aabb bounds() const;
 
   // DEM-DEM contacts found by the last compute_internal_forces().
-  [[nodiscard]] std::size_t contact_count() const { return pair_a_.size(); }
+  [[nodiscard]] std::size_t contact_count() const { return contact_count_; }
+  // Sphere-wall contacts found by the last compute_internal_forces().
+  [[nodiscard]] std::size_t wall_contact_count() const { return wall_contact_count_; }
+  // Pairs in the Verlet list (within r_a + r_b + skin at its last build), and builds so far.
+  [[nodiscard]] std::size_t neighbour_pair_count() const { return neighbour_.size(); }
+  [[nodiscard]] std::size_t neighbour_builds() const { return neighbour_builds_; }
   // Contact histories for checkpoints, ordered by (a, b); restore before the
   // next compute_internal_forces(), together with positions and velocities.
   [[nodiscard]] std::vector<ContactRecord> contact_histories() const;
   void restore(std::span<const ContactRecord> contacts, double dissipated_energy);
 
-  // The contact laws of a pair (stiffness from the scene, damping from the ratios).
+  // Adds a rigid wall (fixed, infinite mass). Its contacts use the law of the sphere's
+  // material with itself; their histories are kept per sphere and wall.
+  void add_wall(const Wall& wall);
+  // Walls enclosing a fill set's region: 6 planes of a box, or the polygon's edges and 2 y planes.
+  void add_region_walls(const scene::ParticleSet& set);
+  void clear_walls();
+
+  // The contact laws of a pair as the physics functions take them. contact_law and rolling_law:
+  // the linear law (stiffness from the scene, damping from the ratios); hertz_law: Hertz-Mindlin.
   [[nodiscard]] physics::SpringDashpot contact_law(std::uint32_t a, std::uint32_t b) const;
   [[nodiscard]] physics::RollingSpring rolling_law(std::uint32_t a, std::uint32_t b) const;
+  [[nodiscard]] physics::HertzMindlin hertz_law(std::uint32_t a, std::uint32_t b) const;
+  [[nodiscard]] const scene::DemContactLaw& law(std::uint32_t a, std::uint32_t b) const;
+
+  // Verlet skin as a fraction of the largest radius.
+  static constexpr double kSkinFraction = 0.25;
+
+  // One pair's precomputed law (per pair of materials), public for the kernel.
+  struct PairLaw {
+    bool hertz = false;
+    double friction = 0;
+    double normal_damping_ratio = 0, tangential_damping_ratio = 0;  // linear
+    double effective_modulus = 0, effective_shear_modulus = 0;      // Pa, hertz
+    double damping = 0;         // hertz: 2 sqrt(5/6) |beta| (dashpot c = damping sqrt(S m*))
+    int rolling = 0;            // 0 none, 1 constant (spring capped), 2 viscous
+    double rolling_friction = 0, rolling_viscosity = 0;
+    double rolling_damping_ratio = 0;  // the rolling spring's dashpot
+  };
 
  private:
-  void find_contacts();
-  void compute_pair_forces(double dt_previous);
-  void build_adjacency();
+  template <int kLaw, int kRolling>
+  void pair_forces(double dt_previous);
+  void settle(const scene::Scene& scene, const scene::ParticleSet& set, std::vector<scene::Sphere>& spheres,
+              std::span<const scene::Sphere> obstacles);
+  void build_neighbours();
+  // Orders filled spheres by cell (z, y, x; cells 2 r_max wide), stable.
+  static void sort_by_cell(std::vector<scene::Sphere>& spheres);
+  void build_law_table(const scene::Scene& scene);
   [[nodiscard]] double normal_stiffness(std::uint32_t a, std::uint32_t b) const;
   [[nodiscard]] double inverse_inertia(std::uint32_t id) const;
+  void update_inverse_mass(std::uint32_t id);
 
   scene::DemContact settings_;
   Vec3 gravity_;
   std::vector<std::string> body_names_;
+  std::vector<std::string> material_names_;
   std::vector<double> material_bulk_modulus_;  // Pa, per material
+  std::vector<double> material_youngs_, material_poisson_;
+  std::size_t material_count_ = 0;
+  std::vector<PairLaw> pair_law_;  // [material_a * count + material_b]
+  int law_kind_ = 0;               // 0 all linear, 1 all hertz, 2 mixed
+  int rolling_kind_ = 0;           // 0 none, 1 all constant, 2 all viscous, 3 mixed
 
   // Per sphere.
   std::vector<Vec3> position_, velocity_, spin_, force_, torque_;
-  std::vector<double> radius_, mass_;
+  std::vector<double> radius_, mass_, inverse_mass_, inverse_inertia_, stiffness_term_;  // K r for the linear law
   std::vector<std::uint32_t> material_, body_;
   std::vector<std::uint8_t> fixed_;
   double largest_radius_ = 0;
 
-  // Per contact pair (a < b), ordered by (a, b).
+  // Verlet half list: the neighbours of sphere i are neighbour_[start_[i] .. start_[i+1]), ascending.
   physics::CellList cells_;
-  std::vector<std::uint32_t> contact_count_, contact_offset_;  // per sphere: pairs where it is a
-  std::vector<std::uint32_t> pair_a_, pair_b_;
-  struct PairHistory {
-    physics::TangentialHistory tangential;
-    physics::RollingHistory rolling;
-  };
-  std::vector<PairHistory> pair_history_;
-  std::vector<std::uint64_t> previous_key_;  // the pairs of the last force evaluation, sorted
-  std::vector<PairHistory> previous_history_;
-  std::vector<Vec3> pair_force_;                     // on a, N
-  std::vector<Vec3> pair_torque_a_, pair_torque_b_;  // N m: contact force and rolling resistance
-  std::vector<Vec3> pair_relative_spin_;             // w_a - w_b at step n (w_{n-1/2}), rad/s
-  std::vector<Vec3> pair_relative_velocity_;         // of the contact points, a minus b, m/s
-  std::vector<Vec3> pair_arm_a_, pair_arm_b_;        // centre to contact point, m
-  std::vector<Vec3> pair_dissipative_force_;         // on a, N
-  std::vector<Vec3> pair_dissipative_torque_;        // on a, N m (rolling)
-  std::vector<double> pair_elastic_, pair_dissipated_power_, pair_slip_release_;  // J, W, J
-  // Per sphere, the pairs it belongs to (as a or b), in pair order.
-  std::vector<std::uint32_t> adjacency_start_, adjacency_pair_;
+  double skin_ = 0;
+  bool rebuild_ = true;
+  std::size_t neighbour_builds_ = 0;
+  std::vector<Vec3> build_position_;  // positions at the last build
+  std::vector<std::uint32_t> start_, neighbour_, count_scratch_;
+  // Per slot: contact histories and the results the higher-id sphere takes.
+  std::vector<Vec3> tangential_, rolling_;
+  std::vector<std::uint8_t> in_contact_;
+  std::vector<double> spring_energy_;  // J, tangential + rolling springs after the last evaluation
+  std::vector<Vec3> slot_force_, slot_torque_, slot_dissipative_force_, slot_dissipative_torque_;  // on b
+  // Reverse list: the slots where sphere j is b, in slot order.
+  std::vector<std::uint32_t> reverse_start_, reverse_slot_;
+  // Restored histories waiting for the next build, sorted by key.
+  std::vector<std::pair<std::uint64_t, ContactRecord>> pending_;
+
+  // Walls and their per-sphere histories ([sphere * walls + wall]).
+  std::vector<Wall> walls_;
+  std::vector<Vec3> wall_tangential_, wall_rolling_;
+  std::vector<std::uint8_t> wall_in_contact_;
+  std::vector<double> wall_spring_energy_;
 
   // Below this many spheres the loops run serially: a parallel region costs more than the work.
   static constexpr std::size_t kParallelThreshold = 256;
   bool parallel_ = false;
 
-  // Step bookkeeping.
+  // Step bookkeeping, per sphere then summed serially.
   bool forces_ready_ = false;
-  double step_elastic_ = 0, step_slip_release_ = 0;
-  double step_released_energy_ = 0;  // J, springs of the contacts that opened
-  std::vector<double> sphere_kinetic_, sphere_potential_;
+  std::size_t contact_count_ = 0, wall_contact_count_ = 0;
+  std::vector<Vec3> dissipative_force_, dissipative_torque_;  // N, N m: on each sphere, this step
+  std::vector<double> sphere_elastic_, sphere_released_, sphere_kinetic_, sphere_potential_, sphere_dissipated_;
+  std::vector<std::uint32_t> sphere_contacts_, sphere_wall_contacts_;
+  double dropped_released_ = 0;  // J, springs of contacts dropped by a rebuild
   Energies energies_;
 };
 

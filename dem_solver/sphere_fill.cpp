@@ -92,6 +92,43 @@ double unit_uniform(std::uint64_t bits) {
   return static_cast<double>(bits >> 11) * 0x1.0p-53;
 }
 
+double draw_diameter(const scene::ParticleSet& set, std::mt19937_64& random) {
+  const double low = set.diameter_min, high = set.diameter_max;
+  switch (set.distribution) {
+    case scene::SizeDistribution::uniform: return low + (high - low) * unit_uniform(random());
+    case scene::SizeDistribution::normal: {
+      if (!(set.std_diameter > 0)) return std::clamp(set.mean_diameter, low, high);
+      // Box-Muller on our own uniform draws (std::normal_distribution is not portable), redrawn
+      // until inside the clip range; the loader keeps the mean inside it, so this ends.
+      for (;;) {
+        const double u = 1.0 - unit_uniform(random());  // (0, 1]
+        const double v = unit_uniform(random());
+        const double z = std::sqrt(-2.0 * std::log(u)) * std::cos(2.0 * std::numbers::pi * v);
+        const double d = set.mean_diameter + set.std_diameter * z;
+        if (d >= low && d <= high) return d;
+      }
+    }
+    case scene::SizeDistribution::sieve: {
+      const auto probability = set.sieve_class_probabilities();
+      const double pick = unit_uniform(random());
+      const double within = unit_uniform(random());
+      double cumulative = 0;
+      std::size_t chosen = set.sieve.size() - 1;
+      for (std::size_t k = 1; k < set.sieve.size(); ++k) {
+        cumulative += probability[k];
+        if (pick < cumulative && probability[k] > 0) {
+          chosen = k;
+          break;
+        }
+      }
+      while (chosen > 1 && !(probability[chosen] > 0)) --chosen;  // round-off at the top end
+      const double a = set.sieve[chosen - 1][0], b = set.sieve[chosen][0];
+      return a + (b - a) * within;
+    }
+  }
+  return low;
+}
+
 std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<const scene::Sphere> obstacles,
                                        int attempts_per_sphere) {
   assert(set.kind == scene::ParticleSet::Kind::fill);
@@ -99,9 +136,7 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
   std::mt19937_64 random(set.seed);
 
   std::vector<double> radii(set.count);
-  for (double& radius : radii) {
-    radius = 0.5 * (set.diameter_min + (set.diameter_max - set.diameter_min) * unit_uniform(random()));
-  }
+  for (double& radius : radii) radius = 0.5 * draw_diameter(set, random);
   // Largest first: small spheres then fill the gaps left between large ones.
   std::stable_sort(radii.begin(), radii.end(), std::greater<>());
 
@@ -120,6 +155,7 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
         for (int axis = 0; axis < 3; ++axis) {
           center[axis] = set.region.min[axis] + radius + free_extent[axis] * unit_uniform(random());
         }
+        if (!set.polygon_xz.empty() && !set.contains_sphere(center, radius)) continue;
         if (grid.fits(center, radius)) {
           grid.add(center, radius);
           placed.push_back(scene::Sphere{center, radius, set.velocity, Vec3::Zero()});
@@ -130,7 +166,7 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
     if (!found) {
       double requested_volume = 0;
       for (double r : radii) requested_volume += 4.0 / 3.0 * std::numbers::pi * r * r * r;
-      const double region_volume = extent.prod();
+      const double region_volume = set.region_volume();
       const std::string problem =
           (free_extent.array() < 0).any()
               ? fmt::format("a sphere of diameter {:g} m does not fit in the region ({:g} x {:g} x {:g} m)", 2 * radius,
@@ -142,7 +178,7 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
                     placed.size(), set.count, placed.size() + 1, 2 * radius, attempts_per_sphere,
                     100.0 * requested_volume / region_volume);
       throw SceneError(
-          fmt::format("{}:{}: particle set '{}' ({}): {}. Fix: enlarge 'region', or lower 'count' or "
+          fmt::format("{}:{}: particle set '{}' ({}): {}. Fix: enlarge the region, or lower 'count' or "
                       "the diameters.",
                       set.origin.file.string(), set.origin.line, set.name,
                       set.origin.key.empty() ? std::string("fill") : set.origin.key, problem));

@@ -93,7 +93,7 @@ TEST(SphereFill, ASetThatCannotFitNamesItsOriginAndTheFix) {
     EXPECT_NE(message.find("scene.toml:42"), std::string::npos);
     EXPECT_NE(message.find("crowd"), std::string::npos);
     EXPECT_NE(message.find("of 300 spheres"), std::string::npos);
-    EXPECT_NE(message.find("Fix: enlarge 'region'"), std::string::npos);
+    EXPECT_NE(message.find("Fix: enlarge the region"), std::string::npos);
   }
   // A sphere larger than the region.
   scene.particle_sets[0] = fill_set("big", Aabb{Vec3::Zero(), Vec3(1, 1, 0.1)}, 3, 0.2, 0.3, 1, 43);
