@@ -208,12 +208,15 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
   }
   skin_ = kSkinFraction * largest_radius_;
 
-  // Spheres of different sets must not start overlapping (fill sets avoid the others by construction).
+  // Spheres of different sets must not start overlapping (fill sets avoid the others by construction;
+  // settled sets rest on each other and on the obstacles with the overlaps of their contacts).
   if (size() > 0) {
+    std::vector<std::uint8_t> settled(size(), 0);
+    for (std::uint32_t i = 0; i < size(); ++i) settled[i] = scene.particle_sets[body_[i]].settle_time > 0 ? 1 : 0;
     cells_.build_points(position_, 2 * largest_radius_);
     for (std::uint32_t i = 0; i < size(); ++i) {
       cells_.for_each_near(position_[i], [&](std::uint32_t j) {
-        if (j <= i) return;
+        if (j <= i || settled[i] || settled[j]) return;
         const double reach = radius_[i] + radius_[j];
         if ((position_[i] - position_[j]).norm() >= reach * (1 - 1e-6))
           return;  // decimal round-off of touching spheres
@@ -321,7 +324,8 @@ void DemModel::settle(const scene::Scene& scene, const scene::ParticleSet& set, 
   DemModel model(local);
   for (std::size_t k = spheres.size(); k < model.size(); ++k) model.set_fixed(static_cast<std::uint32_t>(k), true);
   model.add_region_walls(set);
-  const double dt = 0.25 * model.stable_dt();
+  // Half the stable step (which is already a tenth of a contact period, or a fifth of the Rayleigh time).
+  const double dt = 0.5 * model.stable_dt();
   const auto steps = static_cast<std::int64_t>(std::ceil(set.settle_time / dt));
   double dt_previous = 0;
   for (std::int64_t n = 0; n < steps; ++n) {
@@ -424,6 +428,18 @@ physics::HertzMindlin DemModel::hertz_law(std::uint32_t a, std::uint32_t b) cons
 
 void DemModel::add_wall(const Wall& wall) {
   walls_.push_back(wall);
+  for (std::size_t m = 0; m < material_count_; ++m) {
+    PairLaw law = pair_law_[m * material_count_ + m];
+    if (wall.youngs_modulus > 0) {
+      const double nu = material_poisson_[m], youngs = material_youngs_[m];
+      const double wall_nu = wall.poisson_ratio, wall_youngs = wall.youngs_modulus;
+      // (1 - nu^2) / E and 2 (2 - nu)(1 + nu) / E vanish for a rigid wall (E = +infinity).
+      law.effective_modulus = 1.0 / ((1 - nu * nu) / youngs + (1 - wall_nu * wall_nu) / wall_youngs);
+      law.effective_shear_modulus =
+          1.0 / (2 * (2 - nu) * (1 + nu) / youngs + 2 * (2 - wall_nu) * (1 + wall_nu) / wall_youngs);
+    }
+    wall_law_.push_back(law);
+  }
   const std::size_t slots = size() * walls_.size();
   // Re-lay the per-sphere histories for the new wall count.
   std::vector<Vec3> tangential(slots, Vec3::Zero()), rolling(slots, Vec3::Zero());
@@ -476,6 +492,7 @@ void DemModel::add_region_walls(const scene::ParticleSet& set) {
 
 void DemModel::clear_walls() {
   walls_.clear();
+  wall_law_.clear();
   wall_tangential_.clear();
   wall_rolling_.clear();
   wall_in_contact_.clear();
@@ -691,10 +708,10 @@ void DemModel::pair_forces(double dt_previous) {
       in.effective_inertia = 0.4 * mass_[a] * ra * ra;
       in.linear_stiffness = explicit_stiffness ? linear_stiffness : scale * stiffness_term_[a];
       in.tangential_ratio = tangential_ratio;
-      // A wall of the sphere's material: the pair law (material, material) has the E* and G* of a sphere
-      // against a flat body of its own material.
-      const ContactOutput out =
-          contact<kLaw, kRolling>(laws[material_[a]], in, dt_previous, wall_tangential_[slot], wall_rolling_[slot]);
+      // The law of the sphere's material with itself (a flat body of the same material has the E* and G*
+      // of that pair), with the wall's own elastic constants where it has them.
+      const ContactOutput out = contact<kLaw, kRolling>(wall_law_[w * material_count_ + material_[a]], in, dt_previous,
+                                                        wall_tangential_[slot], wall_rolling_[slot]);
       wall_in_contact_[slot] = 1;
       wall_spring_energy_[slot] = out.spring_energy;
       elastic += out.elastic;

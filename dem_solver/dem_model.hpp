@@ -98,6 +98,10 @@ struct Wall {
   Vec3 point = Vec3::Zero();
   Vec3 normal{0, 0, 1};
   std::array<double, 2> a{0, 0}, b{0, 0};  // (x, z), m
+  // The wall's elastic constants for Hertz-Mindlin contacts: 0 takes the sphere's material (a wall of
+  // the same material); +infinity is rigid. The other constants of the law are the sphere material's.
+  double youngs_modulus = 0;  // Pa
+  double poisson_ratio = 0;
 };
 
 class DemModel {
@@ -242,6 +246,7 @@ class DemModel {
 
   // Walls and their per-sphere histories ([sphere * walls + wall]).
   std::vector<Wall> walls_;
+  std::vector<PairLaw> wall_law_;  // [wall * materials + sphere material]
   std::vector<Vec3> wall_tangential_, wall_rolling_;
   std::vector<std::uint8_t> wall_in_contact_;
   std::vector<double> wall_spring_energy_;
