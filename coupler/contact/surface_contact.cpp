@@ -6,10 +6,12 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <numeric>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/physics/hertz_mindlin.hpp"
 
 namespace sabo::coupler {
 
@@ -61,13 +63,40 @@ SurfaceContact::SurfaceContact(const scene::Scene& scene, SurfaceContactOptions 
   settings_ = [pairs_only = std::move(pairs_only)](const std::string& source, const std::string& part) {
     return pairs_only.surface_contact(source, part);
   };
+  std::map<std::string, std::array<double, 2>> elastic;  // body name -> {E, nu}
+  const auto material_of = [&scene](const std::string& name) -> const scene::Material* {
+    for (const auto& material : scene.materials) {
+      if (material.name == name) return &material;
+    }
+    return nullptr;
+  };
+  for (const auto& set : scene.particle_sets) {
+    if (const auto* material = material_of(set.material)) {
+      elastic[set.name] = {material->youngs_modulus, material->poisson_ratio};
+    }
+  }
+  for (const auto& structure : scene.structures) {
+    if (const auto* material = material_of(structure.material)) {
+      // A rigid part does not deform: it is rigid for the Hertz law too.
+      elastic[structure.name] = {structure.rigid ? std::numeric_limits<double>::infinity() : material->youngs_modulus,
+                                 material->poisson_ratio};
+    }
+  }
+  materials_ = [elastic = std::move(elastic)](const std::string& source, const std::string& part) {
+    const auto sphere = elastic.find(source), wall = elastic.find(part);
+    if (sphere == elastic.end() || wall == elastic.end()) return std::array<double, 4>{0, 0, 0, 0};
+    return std::array<double, 4>{sphere->second[0], sphere->second[1], wall->second[0], wall->second[1]};
+  };
   cos_smooth_ = std::cos(options_.smooth_angle_deg * std::numbers::pi / 180.0);
   cos_transfer_ = std::cos(options_.history_transfer_angle_deg * std::numbers::pi / 180.0);
 }
 
 SurfaceContact::SurfaceContact(std::vector<std::string> source_names, PairSettings settings,
-                               SurfaceContactOptions options)
-    : source_names_(std::move(source_names)), settings_(std::move(settings)), options_(options) {
+                               SurfaceContactOptions options, PairMaterials materials)
+    : source_names_(std::move(source_names)),
+      settings_(std::move(settings)),
+      materials_(std::move(materials)),
+      options_(options) {
   assert(settings_);
   cos_smooth_ = std::cos(options_.smooth_angle_deg * std::numbers::pi / 180.0);
   cos_transfer_ = std::cos(options_.history_transfer_angle_deg * std::numbers::pi / 180.0);
@@ -219,12 +248,32 @@ void SurfaceContact::resolve_pairs() {
       pair.explicit_stiffness = settings.normal_stiffness.value_or(0.0);
       pair.normal_damping_ratio = settings.normal_damping_ratio;
       pair.tangential_damping_ratio = settings.tangential_damping_ratio;
+      pair.hertz = settings.model == scene::SurfaceContact::Model::hertz_mindlin;
+      pair.restitution = settings.restitution;
+      if (!pair.hertz || !pair.enabled) continue;
+      const std::array<double, 4> elastic =
+          materials_ ? materials_(source_names_[s], surface_.part_name[p]) : std::array<double, 4>{0, 0, 0, 0};
+      const double sphere_youngs = elastic[0], sphere_nu = elastic[1], wall_youngs = elastic[2], wall_nu = elastic[3];
+      if (!(sphere_youngs > 0) || !(wall_youngs > 0)) {
+        throw ProtocolError(fmt::format(
+            "particle-surface contact of '{}' with part '{}': the pair asks for the Hertz-Mindlin law, but the "
+            "elastic constants of its materials are unknown. Fix: give the coupler the scene's materials, or use "
+            "model = \"penalty\" for this pair",
+            source_names_[s], surface_.part_name[p]));
+      }
+      // (1 - nu^2) / E and 2 (2 - nu)(1 + nu) / E of each body; 0 for a rigid one.
+      pair.effective_modulus =
+          1.0 / ((1 - sphere_nu * sphere_nu) / sphere_youngs + (1 - wall_nu * wall_nu) / wall_youngs);
+      pair.effective_shear_modulus = 1.0 / (2 * (2 - sphere_nu) * (1 + sphere_nu) / sphere_youngs +
+                                            2 * (2 - wall_nu) * (1 + wall_nu) / wall_youngs);
+      const double sphere_shear = sphere_youngs / (2 * (1 + sphere_nu));
+      pair.rayleigh_factor = 1.0 / (std::sqrt(sphere_shear) * (0.1631 * sphere_nu + 0.8766));
     }
   }
   for (std::size_t f = 0; f < surface_.triangle.size(); ++f) {
     if (degenerate_[f]) continue;
     for (std::size_t s = 0; s < source_names_.size(); ++s) {
-      if (!pair(static_cast<std::uint32_t>(s), f).enabled) continue;
+      if (!pair(static_cast<std::uint32_t>(s), f).enabled || pair(static_cast<std::uint32_t>(s), f).hertz) continue;
       const double k = face_stiffness(f, s);
       if (!(k > 0) || !std::isfinite(k)) {
         const std::size_t part = surface_.face_part[f];
@@ -383,8 +432,21 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     const Hit hit = evaluate(face, centre, radius);
     nearest = std::min(nearest, hit.gap.distance);
     if (hit.gap.reachable && hit.gap.overlap > radius - potential_reach) {
-      const double k = face_stiffness(face, source);
-      result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(mass / k));
+      const Pair& settings = pair(source, face);
+      if (settings.hertz) {
+        // A fifth of the particle's Rayleigh time pi r sqrt(rho / G) / (0.1631 nu + 0.8766), and a tenth of the
+        // contact period at the current overlap (fast impacts go deeper than the Rayleigh bound assumes).
+        const double density = mass / (4.0 / 3.0 * std::numbers::pi * radius * radius * radius);
+        result.stable_dt =
+            std::min(result.stable_dt, 0.2 * std::numbers::pi * radius * std::sqrt(density) * settings.rayleigh_factor);
+        if (hit.gap.overlap > 0) {
+          const double stiffness = 2.0 * settings.effective_modulus * std::sqrt(radius * hit.gap.overlap);
+          result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(mass / stiffness));
+        }
+      } else {
+        const double k = face_stiffness(face, source);
+        result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(mass / k));
+      }
     }
     scratch.hits.push_back(hit);
   }
@@ -473,13 +535,6 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     ActiveContact& contact = result.contacts[c];
     const Hit& hit = contact.hit;
     const Pair& settings = pair(source, hit.face);
-    const double k = face_stiffness(hit.face, source);
-    physics::SpringDashpot law{};
-    law.normal_stiffness = k;
-    law.normal_damping = physics::damping_coefficient(k, mass, settings.normal_damping_ratio);
-    law.tangential_stiffness = k;
-    law.tangential_damping = physics::damping_coefficient(k, mass, settings.tangential_damping_ratio);
-    law.friction = settings.friction;
 
     const Vec3& n = hit.gap.normal;
     const Vec3 lever = -radius * n;  // centre to the particle's contact point
@@ -489,10 +544,28 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
     const Vec3 relative_velocity = velocity + spin.cross(lever) - surface_velocity;
     physics::TangentialHistory spring{scratch.displacement[c]};
-    contact.law = physics::spring_dashpot_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
+    if (settings.hertz) {
+      const physics::HertzMindlin law{.effective_modulus = settings.effective_modulus,
+                                      .effective_radius = radius,
+                                      .effective_mass = mass,
+                                      .effective_shear_modulus = settings.effective_shear_modulus,
+                                      .restitution = settings.restitution,
+                                      .friction = settings.friction};
+      contact.law = physics::hertz_mindlin_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
+      contact.normal_stiffness = physics::hertz_normal_stiffness(law, hit.gap.overlap);
+    } else {
+      const double k = face_stiffness(hit.face, source);
+      physics::SpringDashpot law{};
+      law.normal_stiffness = k;
+      law.normal_damping = physics::damping_coefficient(k, mass, settings.normal_damping_ratio);
+      law.tangential_stiffness = k;
+      law.tangential_damping = physics::damping_coefficient(k, mass, settings.tangential_damping_ratio);
+      law.friction = settings.friction;
+      contact.law = physics::spring_dashpot_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
+      contact.normal_stiffness = k;
+    }
     contact.displacement = spring.displacement;
     contact.dissipated_power = -contact.law.dissipative_force.dot(relative_velocity);
-    contact.normal_stiffness = k;
     force_sum += contact.law.force;
     torque_sum += lever.cross(contact.law.force);
   }

@@ -29,7 +29,11 @@
 // Nodes at exactly the same position are merged for this bookkeeping (STL
 // meshes arrive unwelded).
 //
-// Force (on the particle) per contact: physics::spring_dashpot_force with
+// Force (on the particle) per contact, for a pair with model = "hertz_mindlin":
+// physics::hertz_mindlin_force against a flat face (R* = the sphere's radius,
+// m* = its mass), E* and G* from the sphere's and the part's materials (a rigid
+// part is rigid: E = infinity), dashpots from the pair's restitution; for the
+// paper's penalty law (the default): physics::spring_dashpot_force with
 // k_n from eq. 6 per face (shell: k1 K s / longest edge; solid: k1 K s^2 / V)
 // or the pair's explicit stiffness, k_t = k_n, c = 2 zeta sqrt(k m) with m the
 // particle's mass (the wall is taken as infinitely heavy: rigid parts are, and
@@ -132,8 +136,13 @@ class SurfaceContact {
   // DEM against FEM: sources are scene.particle_sets (ParticleView::body is
   // the set's index), settings from scene.surface_contact(set, structure).
   explicit SurfaceContact(const scene::Scene& scene, SurfaceContactOptions options = {});
-  // Any particle solver: source_names[body] names each body (forces.csv).
-  SurfaceContact(std::vector<std::string> source_names, PairSettings settings, SurfaceContactOptions options = {});
+  // Elastic constants of (source, part) for Hertz-Mindlin pairs: {E, nu} of the particle's
+  // material, then of the part's (E = +infinity: rigid), Pa.
+  using PairMaterials = std::function<std::array<double, 4>(const std::string& source, const std::string& part)>;
+  // Any particle solver: source_names[body] names each body (forces.csv). Without `materials`,
+  // a pair asking for hertz_mindlin is refused (ProtocolError from set_surface).
+  SurfaceContact(std::vector<std::string> source_names, PairSettings settings, SurfaceContactOptions options = {},
+                 PairMaterials materials = {});
 
   // (Re)sets the surface: topology, reference positions, thickness, bulk
   // modulus and volumes per face. Node velocities restart at zero. Keeps the
@@ -204,6 +213,11 @@ class SurfaceContact {
     double explicit_stiffness = 0;  // > 0: replaces eq. 6
     double normal_damping_ratio = 0;
     double tangential_damping_ratio = 0;
+    bool hertz = false;                // Hertz-Mindlin instead of the penalty spring
+    double restitution = 1;            // hertz
+    double effective_modulus = 0;      // E*, Pa (a flat face: the sphere's and the part's compliances)
+    double effective_shear_modulus = 0;  // G*, Pa
+    double rayleigh_factor = 0;        // sqrt(rho / G) / (0.1631 nu + 0.8766) of the particle, s/m per unit density
   };
   struct ParticleResult {
     std::vector<ActiveContact> contacts;
@@ -230,6 +244,7 @@ class SurfaceContact {
 
   std::vector<std::string> source_names_;
   PairSettings settings_;
+  PairMaterials materials_;
   SurfaceContactOptions options_;
   double cos_smooth_ = 1;
   double cos_transfer_ = 1;
