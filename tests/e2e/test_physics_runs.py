@@ -14,6 +14,8 @@ from e2e_support import RealRunTestCase, read_json
 
 SPHERE_DROP = "configs/tests/sphere_drop.toml"
 CHUTE_SMALL = "configs/tests/chute_small.toml"
+HERTZ_WALL = "configs/tests/hertz_wall_impact.toml"
+BOULDER_WALL = "configs/tests/boulder_wall_30ms.toml"
 
 
 def load_scene(path):
@@ -79,6 +81,68 @@ class SphereDropTest(RealRunTestCase):
         rise = summary["energies"]["max_rise_over_initial"]
         print("largest rise of the total energy over its initial value: {:.3e} J".format(rise))
         self.assertLessEqual(rise, 0.0)
+
+
+class HertzWallImpactTest(RealRunTestCase):
+    """Benchmark D1 test 2 through the coupler: an aluminium sphere strikes a rigid FEM plane with the
+    Hertz-Mindlin DEM-FEM law; peak force, largest overlap and contact time within 1%."""
+
+    def test_d1_through_the_coupler(self):
+        out = os.path.join(self.tmp, "hertz")
+        sabo = self.run_sabo(self.scene_path(HERTZ_WALL), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        scene = load_scene(self.scene_path(HERTZ_WALL))
+        radius = scene["particles"][0]["spheres"][0]["radius"]
+        s = particle_states(out)
+        time = s["time"]
+        overlap = radius - s["position"][:, 2]
+        force = s["force"][:, 2]
+        # Contact start and end interpolated on the overlap's sign changes.
+        inside = np.nonzero(overlap > 0)[0]
+        self.assertGreater(len(inside), 100, "the contact was not resolved")
+        first, last = inside[0], inside[-1]
+        self.assertLess(last + 1, len(overlap), "the sphere did not leave the wall")
+
+        def crossing(k):
+            return time[k - 1] + (time[k] - time[k - 1]) * overlap[k - 1] / (overlap[k - 1] - overlap[k])
+        contact_time = crossing(last + 1) - crossing(first)
+        checks = [("peak force (N)", force.max(), 11.47e3), ("largest overlap (m)", overlap.max(), 49.3e-6),
+                  ("contact time (s)", contact_time, 0.726e-3),
+                  ("rebound speed (m/s)", s["velocity"][-1, 2], 0.2)]
+        for name, measured, expected in checks:
+            print("D1 test 2 through the coupler, {}: measured {:.6g}, expected {:.6g}, error {:+.3%}".format(
+                name, measured, expected, measured / expected - 1))
+            self.assertLess(abs(measured / expected - 1), 0.01, name)
+
+
+class BoulderWallTest(RealRunTestCase):
+    """A boulder thrown at 30 m/s against a rigid wall (Hertz-Mindlin): no tunnelling, it bounces
+    back, and the total energy never rises above its initial value."""
+
+    def test_fast_boulder_stays_bounded(self):
+        out = os.path.join(self.tmp, "boulder")
+        sabo = self.run_sabo(self.scene_path(BOULDER_WALL), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        scene = load_scene(self.scene_path(BOULDER_WALL))
+        radius = scene["particles"][0]["spheres"][0]["radius"]
+        wall_x = scene["structures"][0]["origin"][0]
+        restitution = scene["contact"]["dem_fem"]["restitution"]
+        s = particle_states(out)
+        deepest = (s["position"][:, 0] + radius - wall_x).max()
+        print("boulder at 30 m/s: deepest overlap with the wall {:.4f} m ({:.2%} of the radius, allowed 10%)"
+              .format(deepest, deepest / radius))
+        self.assertLess(deepest, 0.1 * radius, "the boulder went (partly) through the wall")
+        rebound = -s["velocity"][-1, 0]
+        print("rebound speed: measured {:.3f} m/s, expected about e * 30 = {:.1f} m/s (restitution {})".format(
+            rebound, restitution * 30, restitution))
+        self.assertGreater(rebound, 0.5 * restitution * 30)
+        self.assertLess(rebound, 30.0)
+        summary = read_json(os.path.join(out, "summary.json"))
+        rise = summary["energies"]["max_rise_over_initial"]
+        print("largest rise of the total energy over its initial value: {:.3e} J (initial {:.6e} J)".format(
+            rise, summary["energies"]["initial"]["total"]))
+        self.assertLessEqual(rise, 0.0)
+        self.assertEqual(summary["newton_third_law"]["violations"], 0)
 
 
 class ChuteTest(RealRunTestCase):
