@@ -67,7 +67,7 @@ inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& i
     normal_stiffness = 2.0 * law.effective_modulus * root;
     tangential_stiffness = 8.0 * law.effective_shear_modulus * root;
     normal_damping = law.damping * std::sqrt(normal_stiffness * in.effective_mass);
-    tangential_damping = law.damping * std::sqrt(tangential_stiffness * in.effective_mass);
+    tangential_damping = normal_damping * law.stiffness_ratio_root;  // sqrt(S_t / S_n) = sqrt(4 G* / E*)
     elastic_normal_force = (2.0 / 3.0) * normal_stiffness * in.overlap;
     normal_elastic_energy = 0.4 * elastic_normal_force * in.overlap;
   } else {
@@ -283,6 +283,7 @@ void DemModel::build_law_table(const scene::Scene& scene) {
                                             2 * (2 - mb.poisson_ratio) * (1 + mb.poisson_ratio) / mb.youngs_modulus);
       const double beta = physics::restitution_damping_ratio(source.restitution);
       law.damping = -kHertzDampingPrefactor * beta;
+      law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
       law.rolling = !source.has_rolling() ? 0 : source.rolling == scene::RollingModel::constant ? 1 : 2;
       law.rolling_friction = source.rolling_friction;
       law.rolling_viscosity = source.rolling_viscosity;
@@ -437,6 +438,7 @@ void DemModel::add_wall(const Wall& wall) {
       law.effective_modulus = 1.0 / ((1 - nu * nu) / youngs + (1 - wall_nu * wall_nu) / wall_youngs);
       law.effective_shear_modulus =
           1.0 / (2 * (2 - nu) * (1 + nu) / youngs + 2 * (2 - wall_nu) * (1 + wall_nu) / wall_youngs);
+      law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
     }
     wall_law_.push_back(law);
   }

@@ -13,6 +13,7 @@
 #include <numbers>
 
 #include "dem_solver/dem_model.hpp"
+#include "dem_solver/dem_pile.hpp"
 #include "dem_test_scene.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
@@ -353,6 +354,30 @@ TEST(DemLawsFill, SettlingIsBoundedDeterministicAndAtRest) {
     EXPECT_TRUE(set.contains_sphere(one.positions()[i], 0.5 * one.radii()[i]));
   }
   EXPECT_EQ(std::memcmp(one.positions().data(), two.positions().data(), one.size() * sizeof(Vec3)), 0);
+}
+
+}  // namespace
+}  // namespace sabo::dem
+
+namespace sabo::dem {
+namespace {
+
+TEST(DemStability, DensePileSettlesBoundedAndAtRest) {
+  // Reduced variant of the 10 000-sphere, 10 s case in bench/dem_pile.cpp.
+  const scene::Scene scene = pile_scene(250, 1.0, 11);
+  const PileReport report = settle_pile(scene, 8.0, 1.0);
+  std::cout << "pile of 250 boulders, " << report.steps << " steps of " << report.dt
+            << " s: largest energy above the initial " << report.largest_energy_rise << " J (initial "
+            << report.initial_energy << " J, expected <= 0); escaped " << report.escaped
+            << " (expected 0); at the end largest speed " << report.final_largest_speed
+            << " m/s, overlap largest " << 100 * report.final_largest_overlap_ratio << " % mean "
+            << 100 * report.final_mean_overlap_ratio << " % of the radius (expected < 1 %), " << report.contacts
+            << " contacts\n";
+  EXPECT_LE(report.largest_energy_rise, 1e-12 * std::abs(report.initial_energy));
+  EXPECT_EQ(report.escaped, 0U);
+  EXPECT_LT(report.final_largest_speed, 0.05);
+  EXPECT_LT(report.final_largest_overlap_ratio, 0.01);
+  EXPECT_GT(report.contacts, 250U);
 }
 
 }  // namespace

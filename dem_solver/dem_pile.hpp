@@ -1,0 +1,98 @@
+#pragma once
+// A dense pile of the paper's boulders settling in a closed box: the stability case of
+// dem_solver (a reduced one in the tests, the full 10 000 spheres for 10 s in bench/).
+// Granite (rho 3000, E 30 GPa, nu 0.3), diameters uniform in [1, 2] m, Hertz-Mindlin with
+// restitution 0.3, friction 0.5, rolling friction 0.1; placed at 25 % solid fraction in a box
+// `height_over_side` times as high as wide, and left to settle under gravity inside its six walls.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <numbers>
+
+#include "dem_solver/dem_model.hpp"
+
+namespace sabo::dem {
+
+struct PileReport {
+  std::int64_t steps = 0;
+  double dt = 0;                           // s
+  double initial_energy = 0;               // J
+  double largest_energy_rise = 0;          // J, largest total energy above the initial one (<= 0: never above)
+  std::size_t escaped = 0;                 // sphere-steps with a centre outside the box (tunnelling)
+  double final_largest_speed = 0;          // m/s
+  double final_largest_overlap_ratio = 0;  // largest overlap over the smaller radius of its pair
+  double final_mean_overlap_ratio = 0;
+  std::size_t contacts = 0;
+};
+
+inline scene::Scene pile_scene(std::size_t count, double height_over_side, std::uint64_t seed) {
+  scene::Scene scene;
+  scene.file = "dem pile (built in code)";
+  scene.run.gravity = Vec3(0, 0, -9.81);
+  scene::Material granite;
+  granite.name = "granite";
+  granite.density = 3000;
+  granite.youngs_modulus = 30e9;
+  granite.poisson_ratio = 0.3;
+  scene.materials.push_back(granite);
+  scene.dem_contact.model = scene::DemLaw::hertz_mindlin;
+  scene.dem_contact.restitution = 0.3;
+  scene.dem_contact.friction = 0.5;
+  scene.dem_contact.rolling_friction = 0.1;
+  scene::ParticleSet set;
+  set.name = "pile";
+  set.material = "granite";
+  set.kind = scene::ParticleSet::Kind::fill;
+  set.count = count;
+  set.diameter_min = 1.0;
+  set.diameter_max = 2.0;
+  set.seed = seed;
+  const double volume = static_cast<double>(count) * set.mean_sphere_volume() / 0.25;
+  const double side = std::cbrt(volume / height_over_side);
+  set.region = Aabb{Vec3::Zero(), Vec3(side, side, side * height_over_side)};
+  scene.particle_sets.push_back(set);
+  return scene;
+}
+
+// Settles the pile for `duration` s at beta * stable_dt; `every_step` sees the model after each step.
+inline PileReport settle_pile(const scene::Scene& scene, double duration, double beta,
+                              const std::function<void(const DemModel&)>& every_step = {}) {
+  const scene::ParticleSet& set = scene.particle_sets.front();
+  DemModel model(scene);
+  model.add_region_walls(set);
+  PileReport report;
+  report.dt = beta * model.stable_dt();
+  report.steps = static_cast<std::int64_t>(std::ceil(duration / report.dt));
+  report.initial_energy = model.energies().total();
+  report.largest_energy_rise = -std::numeric_limits<double>::infinity();
+  double dt_previous = 0;
+  for (std::int64_t n = 0; n < report.steps; ++n) {
+    model.compute_internal_forces(dt_previous);
+    model.integrate(dt_previous, report.dt);
+    dt_previous = report.dt;
+    report.largest_energy_rise =
+        std::max(report.largest_energy_rise, model.energies().total() - report.initial_energy);
+    if (n % 100 == 0 || n + 1 == report.steps) {
+      for (std::size_t i = 0; i < model.size(); ++i) {
+        report.escaped += set.contains_sphere(model.positions()[i], 0.5 * model.radii()[i]) ? 0 : 1;
+      }
+    }
+    if (every_step) every_step(model);
+  }
+  for (const auto& v : model.velocities()) report.final_largest_speed = std::max(report.final_largest_speed, v.norm());
+  double sum = 0;
+  for (const auto& contact : model.contact_histories()) {
+    const double ra = model.radii()[contact.a], rb = model.radii()[contact.b];
+    const double overlap = ra + rb - (model.positions()[contact.a] - model.positions()[contact.b]).norm();
+    const double ratio = overlap / std::min(ra, rb);
+    report.final_largest_overlap_ratio = std::max(report.final_largest_overlap_ratio, ratio);
+    sum += ratio;
+    ++report.contacts;
+  }
+  report.final_mean_overlap_ratio = report.contacts > 0 ? sum / static_cast<double>(report.contacts) : 0;
+  return report;
+}
+
+}  // namespace sabo::dem
