@@ -34,6 +34,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 # machine, ms per step (the issue's reference figures).
 PRECICE_MS = {1000: (0.12, 0.12), 10000: (1.0, 1.3), 100000: (16.0, 21.0)}
 CHUTE_GOAL_SECONDS = 120.0
+# LIGGGHTS-PUBLIC 3.8 on the box case (Hertz-Mindlin with tangential history, 30 000 spheres of 5 mm),
+# sphere-steps per second on this kind of machine: one MPI rank, two (the issue's reference figures).
+LIGGGHTS_SPHERE_STEPS = {1: 4.9e6, 2: 9.5e6}
 
 
 def entity_label(n):
@@ -151,6 +154,74 @@ class DemThroughput(Case):
             os.path.join(bin_dir, "bench_dem_throughput"),
             "--spheres", str(self.spheres),
             "--steps", str(self.steps),
+        ]
+
+    def env(self):
+        return {"OMP_NUM_THREADS": str(self.threads)}
+
+
+class DemBox(Case):
+    """bench_dem_box: spheres settling in a box (Hertz-Mindlin). The 30 000-sphere case is LIGGGHTS'
+    reference case, timed on the settled pile; the others are timed while they settle."""
+
+    def __init__(self, spheres, threads, settle_time, steps, settled):
+        super().__init__(
+            "dem_box.{}.t{}".format(entity_label(spheres) if spheres != 30000 else "liggghts", threads),
+            "dem_box",
+            "DEM box N={} threads={} ({})".format(spheres, threads, "settled" if settled else "settling"),
+            "sphere_steps_per_second" if settled else "settling_sphere_steps_per_second",
+            "sphere-steps/s",
+            timeout_s=1800,
+        )
+        self.spheres = spheres
+        self.threads = threads
+        self.settle_time = settle_time
+        self.steps = steps
+        if settled and threads in LIGGGHTS_SPHERE_STEPS:
+            reference = LIGGGHTS_SPHERE_STEPS[threads]
+            self.goal = {"min": reference,
+                         "text": ">= {:.2g}: LIGGGHTS 3.8 with {} rank{}".format(reference, threads,
+                                                                               "s" if threads > 1 else "")}
+
+    def binaries(self, bin_dir):
+        return [os.path.join(bin_dir, "bench_dem_box")]
+
+    def command(self, bin_dir):
+        return [
+            os.path.join(bin_dir, "bench_dem_box"),
+            "--spheres", str(self.spheres),
+            "--settle-time", str(self.settle_time),
+            "--steps", str(self.steps),
+        ]
+
+    def env(self):
+        return {"OMP_NUM_THREADS": str(self.threads)}
+
+
+class DemPile(Case):
+    """bench_dem_pile: a dense pile of boulders settling in a box; stability figures and throughput."""
+
+    def __init__(self, spheres, simulated_s, threads):
+        super().__init__(
+            "dem_pile.{}.t{}".format(entity_label(spheres), threads),
+            "dem_pile",
+            "DEM pile N={} for {} s threads={}".format(spheres, simulated_s, threads),
+            "sphere_steps_per_second",
+            "sphere-steps/s",
+            timeout_s=3600,
+        )
+        self.spheres = spheres
+        self.simulated_s = simulated_s
+        self.threads = threads
+
+    def binaries(self, bin_dir):
+        return [os.path.join(bin_dir, "bench_dem_pile")]
+
+    def command(self, bin_dir):
+        return [
+            os.path.join(bin_dir, "bench_dem_pile"),
+            "--spheres", str(self.spheres),
+            "--time", str(self.simulated_s),
         ]
 
     def env(self):
@@ -283,6 +354,17 @@ def all_cases(quick, cores):
     for threads in sorted({1, cores}):
         for spheres, steps in dem:
             cases.append(DemThroughput(spheres, steps, threads))
+    box_threads = sorted({1, min(2, cores)})
+    if quick:
+        for threads in box_threads:
+            cases.append(DemBox(30000, threads, 0.05, 200, True))
+        cases.append(DemBox(10000, min(2, cores), 0.02, 50, False))
+    else:
+        for threads in box_threads:
+            cases.append(DemBox(30000, threads, 0.3, 1000, True))  # LIGGGHTS' case: settle, then time
+        for spheres in (10000, 100000):  # linear scaling while settling
+            cases.append(DemBox(spheres, min(2, cores), 0.1, 50, False))
+        cases.append(DemPile(10000, 10.0, min(2, cores)))
     cases.append(chute)
     return cases
 
@@ -380,10 +462,15 @@ def goal_columns(case, median):
     if case.goal is None:
         return "", ""
     limit = case.goal.get("max")
-    if limit is None or median is None:
+    floor = case.goal.get("min")
+    if median is None or (limit is None and floor is None):
         return case.goal["text"], ""
-    ratio = median / limit
-    verdict = "met" if ratio <= 1.0 else "NOT met"
+    if limit is not None:
+        ratio = median / limit
+        verdict = "met" if ratio <= 1.0 else "NOT met"
+    else:
+        ratio = median / floor
+        verdict = "met" if ratio >= 1.0 else "NOT met"
     return case.goal["text"], "{:.2f} {}".format(ratio, verdict)
 
 
@@ -414,6 +501,17 @@ def print_table(cases):
             extra = ["contacts/sphere {}".format(number(stats["contacts_per_sphere"]["median"])),
                      "{} us/step".format(number(stats["microseconds_per_step"]["median"])),
                      "{} spheres".format(int(stats["spheres"]["median"]))]
+        elif isinstance(case, DemBox) and stats:
+            extra = ["contacts/sphere {}".format(number(stats["contacts_per_sphere"]["median"])),
+                     "Verlet pairs/sphere {}".format(number(stats["neighbour_pairs_per_sphere"]["median"])),
+                     "settled {} sphere-steps/s".format(number(stats["sphere_steps_per_second"]["median"])),
+                     "settling {} sphere-steps/s".format(
+                         number(stats["settling_sphere_steps_per_second"]["median"]))]
+        elif isinstance(case, DemPile) and stats:
+            extra = ["energy rise {} J".format(number(stats["largest_energy_rise_J"]["max"])),
+                     "escaped {}".format(int(stats["escaped_sphere_steps"]["max"])),
+                     "final overlap/r {}".format(number(stats["final_largest_overlap_over_radius"]["max"])),
+                     "final speed {} m/s".format(number(stats["final_largest_speed_m_per_s"]["max"]))]
         elif isinstance(case, WholeRun) and stats:
             extra = ["{} steps/s".format(number(stats["steps_per_second"]["median"])),
                      "coupling overhead {} us/step".format(number(stats["coupling_overhead_us_per_step"]["median"])),
