@@ -48,7 +48,9 @@ int main(int argc, char** argv) {
   app.add_option("--dt", dt_s, "time step of the timed settled phase, s")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app.add_option("--steps", steps, "timed steps on the settled pile")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--steps", steps, "timed steps on the settled pile")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--seed", seed, "seed of the fill")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 

@@ -6,13 +6,13 @@
 // overlap over the radius, with the sphere-steps per second of the whole run.
 //
 //   bench_dem_pile --spheres 10000 --time 10
+#include "dem_solver/dem_pile.hpp"
+
 #include <fmt/format.h>
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
 #include <chrono>
-
-#include "dem_solver/dem_pile.hpp"
 
 int main(int argc, char** argv) {
   std::size_t spheres = 10000;

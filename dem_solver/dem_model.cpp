@@ -28,25 +28,25 @@ const double kHertzDampingPrefactor = 2.0 * std::sqrt(5.0 / 6.0);
 
 // What one contact needs besides its law: geometry and the pair's effective inertia.
 struct ContactInput {
-  Vec3 normal;                // unit, from b to a
-  double overlap;             // m, > 0
-  Vec3 relative_velocity;     // of the contact points, a minus b, m/s
-  Vec3 relative_spin;         // w_a - w_b, rad/s
-  double effective_radius;    // m
-  double effective_mass;      // kg
-  double effective_inertia;   // kg m^2 (0: both fixed)
-  double linear_stiffness;    // N/m, the linear law's k_n
-  double tangential_ratio;    // k_t / k_n, linear
+  Vec3 normal;               // unit, from b to a
+  double overlap;            // m, > 0
+  Vec3 relative_velocity;    // of the contact points, a minus b, m/s
+  Vec3 relative_spin;        // w_a - w_b, rad/s
+  double effective_radius;   // m
+  double effective_mass;     // kg
+  double effective_inertia;  // kg m^2 (0: both fixed)
+  double linear_stiffness;   // N/m, the linear law's k_n
+  double tangential_ratio;   // k_t / k_n, linear
 };
 
 struct ContactOutput {
-  Vec3 force;              // on a, N
-  Vec3 rolling_torque;     // on a, N m
-  Vec3 dissipative_force;  // on a, N
+  Vec3 force;               // on a, N
+  Vec3 rolling_torque;      // on a, N m
+  Vec3 dissipative_force;   // on a, N
   Vec3 dissipative_torque;  // rolling part, on a, N m
-  double elastic;          // J, springs after this evaluation (normal included)
-  double spring_energy;    // J, tangential + rolling springs after this evaluation
-  double slip_release;     // J
+  double elastic;           // J, springs after this evaluation (normal included)
+  double spring_energy;     // J, tangential + rolling springs after this evaluation
+  double slip_release;      // J
 };
 
 // The linear law (physics::spring_dashpot_force) or Hertz-Mindlin (physics::hertz_mindlin_force), then the
@@ -54,8 +54,8 @@ struct ContactOutput {
 // law's constants precomputed. kLaw: 0 linear, 1 hertz, 2 from law.hertz. kRolling: 0 none, 1 constant,
 // 2 viscous, 3 from law.rolling.
 template <int kLaw, int kRolling>
-inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& in, double dt_previous,
-                             Vec3& tangential, Vec3& rolling_history) {
+inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& in, double dt_previous, Vec3& tangential,
+                             Vec3& rolling_history) {
   const bool hertz = kLaw == 2 ? law.hertz : kLaw == 1;
   const Vec3& n = in.normal;
   const double normal_speed = in.relative_velocity.dot(n);
@@ -86,8 +86,8 @@ inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& i
   if (length_squared > 0) {
     displacement -= displacement.dot(n) * n;
     const double projected_squared = displacement.squaredNorm();
-    displacement = projected_squared > 0 ? Vec3(displacement * std::sqrt(length_squared / projected_squared))
-                                         : Vec3::Zero();
+    displacement =
+        projected_squared > 0 ? Vec3(displacement * std::sqrt(length_squared / projected_squared)) : Vec3::Zero();
   }
   const double stored = 0.5 * tangential_stiffness * displacement.squaredNorm();
   displacement += tangential_velocity * dt_previous;
@@ -116,8 +116,7 @@ inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& i
     // Elastic-plastic rolling spring capped at the constant torque (physics::rolling_spring_torque).
     const double cap = law.rolling_friction * in.effective_radius * std::max(normal_force, 0.0);
     const double mu_r = law.rolling_friction;
-    const double rolling_stiffness =
-        2.25 * normal_stiffness * mu_r * mu_r * in.effective_radius * in.effective_radius;
+    const double rolling_stiffness = 2.25 * normal_stiffness * mu_r * mu_r * in.effective_radius * in.effective_radius;
     if (rolling_stiffness > 0) {
       const double rolling_damping =
           2.0 * law.rolling_damping_ratio * std::sqrt(rolling_stiffness * in.effective_inertia);
@@ -142,9 +141,9 @@ inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& i
       rolling_history.setZero();
     }
   } else if (rolling == 2) {
-    out.rolling_torque = (-law.rolling_viscosity * in.effective_radius * in.effective_radius *
-                          std::max(normal_force, 0.0)) *
-                         in.relative_spin;
+    out.rolling_torque =
+        (-law.rolling_viscosity * in.effective_radius * in.effective_radius * std::max(normal_force, 0.0)) *
+        in.relative_spin;
     out.dissipative_torque = out.rolling_torque;
   }
   out.elastic = normal_elastic_energy + out.spring_energy;
@@ -280,7 +279,7 @@ void DemModel::build_law_table(const scene::Scene& scene) {
       law.effective_modulus = 1.0 / ((1 - ma.poisson_ratio * ma.poisson_ratio) / ma.youngs_modulus +
                                      (1 - mb.poisson_ratio * mb.poisson_ratio) / mb.youngs_modulus);
       law.effective_shear_modulus = 1.0 / (2 * (2 - ma.poisson_ratio) * (1 + ma.poisson_ratio) / ma.youngs_modulus +
-                                            2 * (2 - mb.poisson_ratio) * (1 + mb.poisson_ratio) / mb.youngs_modulus);
+                                           2 * (2 - mb.poisson_ratio) * (1 + mb.poisson_ratio) / mb.youngs_modulus);
       const double beta = physics::restitution_damping_ratio(source.restitution);
       law.damping = -kHertzDampingPrefactor * beta;
       law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
@@ -590,7 +589,8 @@ void DemModel::build_neighbours() {
   for (std::size_t i = 0; i < size(); ++i) reverse_start_[i + 1] += reverse_start_[i];
   reverse_slot_.resize(slots);
   count_scratch_.assign(reverse_start_.begin(), reverse_start_.end() - 1);
-  for (std::size_t s = 0; s < slots; ++s) reverse_slot_[count_scratch_[neighbour_[s]]++] = static_cast<std::uint32_t>(s);
+  for (std::size_t s = 0; s < slots; ++s)
+    reverse_slot_[count_scratch_[neighbour_[s]]++] = static_cast<std::uint32_t>(s);
 }
 
 template <int kLaw, int kRolling>
@@ -836,8 +836,8 @@ void DemModel::integrate(double dt_previous, double dt) {
       sphere_potential_[i] = -mass_[i] * gravity_.dot(position_[i]);
       // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
       // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
-      sphere_dissipated_[i] = -0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) +
-                                      dissipative_torque_[i].dot(spin_[i] + spin));
+      sphere_dissipated_[i] =
+          -0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
       velocity_[i] = velocity;
       spin_[i] = spin;
       position_[i] += dt * velocity;

@@ -190,9 +190,9 @@ class DemModel {
     double friction = 0;
     double normal_damping_ratio = 0, tangential_damping_ratio = 0;  // linear
     double effective_modulus = 0, effective_shear_modulus = 0;      // Pa, hertz
-    double damping = 0;         // hertz: 2 sqrt(5/6) |beta| (dashpot c = damping sqrt(S m*))
+    double damping = 0;               // hertz: 2 sqrt(5/6) |beta| (dashpot c = damping sqrt(S m*))
     double stiffness_ratio_root = 0;  // hertz: sqrt(S_t / S_n) = sqrt(4 G* / E*)
-    int rolling = 0;            // 0 none, 1 constant (spring capped), 2 viscous
+    int rolling = 0;                  // 0 none, 1 constant (spring capped), 2 viscous
     double rolling_friction = 0, rolling_viscosity = 0;
     double rolling_damping_ratio = 0;  // the rolling spring's dashpot
   };

@@ -72,8 +72,7 @@ inline PileReport settle_pile(const scene::Scene& scene, double duration, double
     model.compute_internal_forces(dt_previous);
     model.integrate(dt_previous, report.dt);
     dt_previous = report.dt;
-    report.largest_energy_rise =
-        std::max(report.largest_energy_rise, model.energies().total() - report.initial_energy);
+    report.largest_energy_rise = std::max(report.largest_energy_rise, model.energies().total() - report.initial_energy);
     if (n % 100 == 0 || n + 1 == report.steps) {
       for (std::size_t i = 0; i < model.size(); ++i) {
         report.escaped += set.contains_sphere(model.positions()[i], 0.5 * model.radii()[i]) ? 0 : 1;

@@ -213,11 +213,11 @@ class SurfaceContact {
     double explicit_stiffness = 0;  // > 0: replaces eq. 6
     double normal_damping_ratio = 0;
     double tangential_damping_ratio = 0;
-    bool hertz = false;                // Hertz-Mindlin instead of the penalty spring
-    double restitution = 1;            // hertz
-    double effective_modulus = 0;      // E*, Pa (a flat face: the sphere's and the part's compliances)
+    bool hertz = false;                  // Hertz-Mindlin instead of the penalty spring
+    double restitution = 1;              // hertz
+    double effective_modulus = 0;        // E*, Pa (a flat face: the sphere's and the part's compliances)
     double effective_shear_modulus = 0;  // G*, Pa
-    double rayleigh_factor = 0;        // sqrt(rho / G) / (0.1631 nu + 0.8766) of the particle, s/m per unit density
+    double rayleigh_factor = 0;          // sqrt(rho / G) / (0.1631 nu + 0.8766) of the particle, s/m per unit density
   };
   struct ParticleResult {
     std::vector<ActiveContact> contacts;

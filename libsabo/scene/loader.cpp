@@ -848,11 +848,11 @@ class Builder {
     const auto y_range = f.pair("y_range");
     for (const char* key : {"polygon_xz", "y_range"}) {
       if (!f.has(key)) {
-        diag_.add(f.line(), f.key_path(key), std::nullopt,
-                  "missing; a polygon region needs both polygon_xz and y_range",
-                  fmt::format("add {} to '{}'", std::string_view(key) == "y_range" ? "y_range = [y_min, y_max]"
-                                                                                   : "polygon_xz = [[x, z], ...]",
-                              f.path()));
+        diag_.add(
+            f.line(), f.key_path(key), std::nullopt, "missing; a polygon region needs both polygon_xz and y_range",
+            fmt::format("add {} to '{}'",
+                        std::string_view(key) == "y_range" ? "y_range = [y_min, y_max]" : "polygon_xz = [[x, z], ...]",
+                        f.path()));
       }
     }
     if (!polygon || !y_range) return;
@@ -925,8 +925,8 @@ class Builder {
         }
       }
       if (rows->front()[1] != 0.0 || rows->back()[1] != 1.0) {
-        return refuse(fmt::format("the fractions run from {} to {}; a grading curve runs from 0 to 1",
-                                  rows->front()[1], rows->back()[1]));
+        return refuse(fmt::format("the fractions run from {} to {}; a grading curve runs from 0 to 1", rows->front()[1],
+                                  rows->back()[1]));
       }
       set.sieve = *rows;
       set.diameter_min = rows->front()[0];
@@ -938,10 +938,10 @@ class Builder {
     set.diameter_min = (*diameter)[0];
     set.diameter_max = (*diameter)[1];
     if (set.diameter_min > set.diameter_max) {
-      diag_.add(f.line("diameter"), f.key_path("diameter"), value_text(*f.node("diameter")),
-                "the diameter range is inverted: it is [min, max] with min <= max",
-                fmt::format("write diameter = [{}, {}]", number_literal(set.diameter_max),
-                            number_literal(set.diameter_min)));
+      diag_.add(
+          f.line("diameter"), f.key_path("diameter"), value_text(*f.node("diameter")),
+          "the diameter range is inverted: it is [min, max] with min <= max",
+          fmt::format("write diameter = [{}, {}]", number_literal(set.diameter_max), number_literal(set.diameter_min)));
       return;
     }
     if (set.distribution != SizeDistribution::normal) return;
@@ -952,8 +952,8 @@ class Builder {
     set.std_diameter = *deviation;
     if (*mean < set.diameter_min || *mean > set.diameter_max) {
       diag_.add(f.line("mean_diameter"), f.key_path("mean_diameter"), number_literal(*mean),
-                fmt::format("the mean lies outside the clip range diameter = [{}, {}]", number_literal(set.diameter_min),
-                            number_literal(set.diameter_max)),
+                fmt::format("the mean lies outside the clip range diameter = [{}, {}]",
+                            number_literal(set.diameter_min), number_literal(set.diameter_max)),
                 "give a mean inside the clip range, or widen diameter");
     }
   }

@@ -83,12 +83,12 @@ struct ParticleSet {
   std::vector<std::array<double, 2>> polygon_xz;
   std::size_t count = 0;
   SizeDistribution distribution = SizeDistribution::uniform;
-  double diameter_min = 0, diameter_max = 0;  // m: range (uniform), clip range (normal), first/last sieve
+  double diameter_min = 0, diameter_max = 0;   // m: range (uniform), clip range (normal), first/last sieve
   double mean_diameter = 0, std_diameter = 0;  // m, normal
   // Grading curve: rows [diameter m, fraction finer than it], diameters strictly increasing, fractions
   // non-decreasing from 0 (first row) to 1 (last row). Class k lies between rows k-1 and k.
   std::vector<std::array<double, 2>> sieve;
-  bool sieve_by_mass = true;     // fractions of the mass (true) or of the count (false)
+  bool sieve_by_mass = true;  // fractions of the mass (true) or of the count (false)
   std::uint64_t seed = 1;
   Vec3 velocity = Vec3::Zero();  // m/s, initial velocity of filled spheres
   double settle_time = 0;        // s: settle under gravity inside the region before step 0 (0: no)

@@ -99,8 +99,8 @@ class Schema {
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root,      &run,     &solvers, &solver,   &materials, &material, &particles,   &sphere,
-            &fill,      &structure, &contact, &dem_dem, &dem_pair, &dem_fem,  &interaction, &recording};
+    return {&root, &run,       &solvers, &solver,  &materials, &material, &particles,   &sphere,
+            &fill, &structure, &contact, &dem_dem, &dem_pair,  &dem_fem,  &interaction, &recording};
   }
 
  private:
@@ -264,8 +264,9 @@ class Schema {
         "the same spheres; the largest spheres are placed first. Random filling jams when dense: the "
         "expected solid volume (count times the mean sphere volume) must not exceed 30 % of the region. "
         "With `settle_time` > 0 the dem_solver lets the set fall under gravity inside its region (the region's "
-        "faces act as frictional walls, the set's own contact law) for that long before step 0, with the "
-        "stable step of the set; the settled positions, at rest velocities set to `velocity`, start the run "
+        "faces act as frictional walls, the set's own contact law; listed spheres and earlier sets are fixed "
+        "obstacles) for that long before step 0, at half the set's stable step; the settled positions, with "
+        "velocities set to `velocity` and no spin, start the run "
         "(deterministic: the same bits on any number of threads).";
     const std::vector<std::string> ranged{"uniform", "normal"};
     fill.keys = {
@@ -515,14 +516,46 @@ class Schema {
             .required("[\"granite\", \"sandstone\"]")
             .allowed("two `[materials.NAME]`")
             .doc("The two materials."),
-        K("model", Type::string).absent(from_dem).example("\"hertz_mindlin\"").choices({"linear", "hertz_mindlin"}).doc("Contact law."),
-        K("normal_damping_ratio", Type::number).absent(from_dem).example("0.7").ge(0).lt(1).doc("Normal " + damping_doc),
-        K("tangential_damping_ratio", Type::number).absent(from_dem).example("0.4").ge(0).lt(1).doc("Tangential " + damping_doc),
-        K("restitution", Type::number).absent(from_dem).example("0.3").gt(0).le(1).doc("Coefficient of restitution (hertz_mindlin)."),
+        K("model", Type::string)
+            .absent(from_dem)
+            .example("\"hertz_mindlin\"")
+            .choices({"linear", "hertz_mindlin"})
+            .doc("Contact law."),
+        K("normal_damping_ratio", Type::number)
+            .absent(from_dem)
+            .example("0.7")
+            .ge(0)
+            .lt(1)
+            .doc("Normal " + damping_doc),
+        K("tangential_damping_ratio", Type::number)
+            .absent(from_dem)
+            .example("0.4")
+            .ge(0)
+            .lt(1)
+            .doc("Tangential " + damping_doc),
+        K("restitution", Type::number)
+            .absent(from_dem)
+            .example("0.3")
+            .gt(0)
+            .le(1)
+            .doc("Coefficient of restitution (hertz_mindlin)."),
         K("friction", Type::number).absent(from_dem).example("0.5").ge(0).doc("Sliding friction coefficient."),
-        K("rolling", Type::string).absent(from_dem).example("\"viscous\"").choices({"constant", "viscous"}).doc("Rolling resistance model."),
-        K("rolling_friction", Type::number).absent(from_dem).example("0.1").ge(0).doc("Constant rolling resistance coefficient."),
-        K("rolling_viscosity", Type::number).absent(from_dem).example("0.05").unit("s/m").ge(0).doc("Viscous rolling resistance coefficient."),
+        K("rolling", Type::string)
+            .absent(from_dem)
+            .example("\"viscous\"")
+            .choices({"constant", "viscous"})
+            .doc("Rolling resistance model."),
+        K("rolling_friction", Type::number)
+            .absent(from_dem)
+            .example("0.1")
+            .ge(0)
+            .doc("Constant rolling resistance coefficient."),
+        K("rolling_viscosity", Type::number)
+            .absent(from_dem)
+            .example("0.05")
+            .unit("s/m")
+            .ge(0)
+            .doc("Viscous rolling resistance coefficient."),
     };
     dem_fem.title = "[contact.dem_fem]";
     dem_fem.anchor = "contact-dem_fem";

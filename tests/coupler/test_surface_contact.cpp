@@ -778,9 +778,9 @@ TEST(SurfaceContact, HertzImpactOnARigidFloorIsBenchmarkD1) {
   settings.restitution = 1.0;
   settings.friction = 0.0;
   const double inf = std::numeric_limits<double>::infinity();
-  SurfaceContact contact(
-      {"sphere"}, uniform(settings), {},
-      [inf](const std::string&, const std::string&) { return std::array<double, 4>{70e9, 0.33, inf, 0.33}; });
+  SurfaceContact contact({"sphere"}, uniform(settings), {}, [inf](const std::string&, const std::string&) {
+    return std::array<double, 4>{70e9, 0.33, inf, 0.33};
+  });
   MeshBuilder builder;
   const std::uint32_t floor = builder.part("floor");
   builder.grid(Vec3(-1, -1, 0), 4, 4, 0.5, floor);

@@ -135,9 +135,8 @@ TEST(DemLawsKernel, PairForcesEqualThePhysicsFunctions) {
     const double r = 0.05;
     // b approaches a obliquely (gap 1e-5 m), spinning; the comparison runs while they touch.
     const Vec3 offset = Vec3(0.02, 0.01, 0.0858).normalized() * (1.8 * r + 1e-5);
-    scene.particle_sets.push_back(
-        spheres({scene::Sphere{Vec3(0, 0, 0), r, Vec3(0.3, 0.1, 0.5), Vec3(1, 2, 3)},
-                 scene::Sphere{offset, 0.8 * r, Vec3(-0.1, 0, -0.4), Vec3(-2, 0, 1)}}));
+    scene.particle_sets.push_back(spheres({scene::Sphere{Vec3(0, 0, 0), r, Vec3(0.3, 0.1, 0.5), Vec3(1, 2, 3)},
+                                           scene::Sphere{offset, 0.8 * r, Vec3(-0.1, 0, -0.4), Vec3(-2, 0, 1)}}));
     DemModel model(scene);
     physics::TangentialHistory history;
     double dt_previous = 0;
@@ -159,17 +158,17 @@ TEST(DemLawsKernel, PairForcesEqualThePhysicsFunctions) {
         continue;
       }
       const physics::ContactForce expected =
-          hertz ? physics::hertz_mindlin_force(model.hertz_law(0, 1), overlap, normal, relative, dt_previous, history)
-                : physics::spring_dashpot_force(model.contact_law(0, 1), overlap, normal, relative, dt_previous,
-                                                history);
+          hertz
+              ? physics::hertz_mindlin_force(model.hertz_law(0, 1), overlap, normal, relative, dt_previous, history)
+              : physics::spring_dashpot_force(model.contact_law(0, 1), overlap, normal, relative, dt_previous, history);
       model.compute_internal_forces(dt_previous);
       largest_difference = std::max(largest_difference, (model.forces()[0] - expected.force).norm());
       largest_force = std::max(largest_force, expected.force.norm());
       model.integrate(dt_previous, dt);
       dt_previous = dt;
     }
-    std::cout << (hertz ? "hertz_mindlin" : "linear") << " kernel vs library: largest difference "
-              << largest_difference << " N of forces up to " << largest_force << " N (expected round-off)\n";
+    std::cout << (hertz ? "hertz_mindlin" : "linear") << " kernel vs library: largest difference " << largest_difference
+              << " N of forces up to " << largest_force << " N (expected round-off)\n";
     EXPECT_GT(largest_force, 1.0);
     EXPECT_LT(largest_difference, 1e-9 * largest_force);
   }
@@ -369,10 +368,9 @@ TEST(DemStability, DensePileSettlesBoundedAndAtRest) {
   std::cout << "pile of 250 boulders, " << report.steps << " steps of " << report.dt
             << " s: largest energy above the initial " << report.largest_energy_rise << " J (initial "
             << report.initial_energy << " J, expected <= 0); escaped " << report.escaped
-            << " (expected 0); at the end largest speed " << report.final_largest_speed
-            << " m/s, overlap largest " << 100 * report.final_largest_overlap_ratio << " % mean "
-            << 100 * report.final_mean_overlap_ratio << " % of the radius (expected < 1 %), " << report.contacts
-            << " contacts\n";
+            << " (expected 0); at the end largest speed " << report.final_largest_speed << " m/s, overlap largest "
+            << 100 * report.final_largest_overlap_ratio << " % mean " << 100 * report.final_mean_overlap_ratio
+            << " % of the radius (expected < 1 %), " << report.contacts << " contacts\n";
   EXPECT_LE(report.largest_energy_rise, 1e-12 * std::abs(report.initial_energy));
   EXPECT_EQ(report.escaped, 0U);
   EXPECT_LT(report.final_largest_speed, 0.05);

@@ -616,7 +616,8 @@ TEST(LoaderDem, SizeDistributionsPolygonRegionAndSettling) {
   // Mass basis: class weights share / E[d^3] in the class.
   const ParticleSet& by_mass = scene.particle_sets[2];
   const auto q = by_mass.sieve_class_probabilities();
-  const double w1 = 0.5 / ((std::pow(1.0001, 4) - 1.0) / (4 * 0.0001)), w2 = 0.5 / ((16.0 - std::pow(1.0001, 4)) / (4 * 0.9999));
+  const double w1 = 0.5 / ((std::pow(1.0001, 4) - 1.0) / (4 * 0.0001)),
+               w2 = 0.5 / ((16.0 - std::pow(1.0001, 4)) / (4 * 0.9999));
   EXPECT_NEAR(q[1], w1 / (w1 + w2), 1e-12);
 }
 
