@@ -146,7 +146,9 @@ class DemModel {
   // lightest free sphere, k_max the stiffest pair the sphere sizes allow, in which
   // the tangential spring counts as 3.5 k_t (its contact point also turns the spheres) and
   // the rolling spring as 5.625 mu_r^2 k_n (the largest k_r / I relative to k_n / m).
-  // Infinity when no sphere is free.
+  // With Hertz-Mindlin pairs also at most a fifth of the Rayleigh time of the smallest free
+  // sphere, pi r sqrt(rho / G) / (0.1631 nu + 0.8766), divided by sqrt(5.625 mu_r^2) when that
+  // exceeds 1. Infinity when no sphere is free.
   [[nodiscard]] double stable_dt() const;
 
   // Energies at the step of the last integrate() (before any: the initial state).
