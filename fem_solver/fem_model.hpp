@@ -11,8 +11,8 @@
 //   2. It receives StepForces{n, dt_n, node_force f_n: 3 per surface node, N}.
 //   3. apply_node_forces(f_n) stores f_n and the resultant force and moment
 //      (about the part's centroid) on every part.
-//   4. step(dt_n) advances to t_{n+1} = t_n + dt_n. Deformable parts (a later
-//      version) integrate v_{n+1/2} = v_{n-1/2} + dt_avg M^-1 (f_n + f_ext -
+//   4. step(dt_n) advances to t_{n+1} = t_n + dt_n. Deformable parts
+//      integrate v_{n+1/2} = v_{n-1/2} + dt_avg M^-1 (f_n + f_ext -
 //      f_int(x_n)), x_{n+1} = x_n + dt_n v_{n+1/2}; rigid parts do nothing.
 //   5. When StepForces.output is set, write_output() writes the surface at
 //      t_n with the forces f_n (call it before step()).
@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "fem_solver/solid_body.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/io/vtk.hpp"
@@ -50,6 +51,40 @@ class Part {
   // Advances by dt (s) under the contact forces on its surface nodes (N, the
   // part's range of the combined surface).
   virtual void step(double dt, std::span<const Vec3> node_force) = 0;
+  // Deformable parts: stresses and internal forces at x_n (see SolidBody).
+  virtual void compute_internal_forces(double /*dt_previous*/) {}
+};
+
+// A deformable solid (rigid = false): a SolidBody of hexahedra whose exterior
+// faces (two triangles per quad) are its contact surface.
+class DeformablePart final : public Part {
+ public:
+  DeformablePart(const scene::Structure& structure, const scene::Material& material, const Vec3& gravity);
+  [[nodiscard]] bool rigid() const override { return false; }
+  [[nodiscard]] double stable_dt() const override { return body_.stable_dt(); }
+  [[nodiscard]] Energies energies() const override;
+  [[nodiscard]] bool moved() const override { return true; }
+  void step(double dt, std::span<const Vec3> node_force) override;
+  void compute_internal_forces(double dt_previous) override;
+
+  // The exterior surface of the active elements now: nodes in surface_nodes() order.
+  [[nodiscard]] geometry::SurfaceMesh surface() const;
+  [[nodiscard]] std::span<const std::uint32_t> surface_nodes() const { return surface_nodes_; }
+  // Recomputes the exterior faces after erosion; returns whether they changed.
+  bool refresh_surface();
+  [[nodiscard]] const SolidBody& body() const { return body_; }
+  [[nodiscard]] SolidBody& body() { return body_; }
+
+ private:
+  SolidBody body_;
+  double bulk_modulus_ = 0;
+  std::vector<BoundaryFace> faces_;
+  std::vector<std::uint32_t> surface_nodes_;  // body node of each surface node
+  std::vector<std::uint32_t> body_to_surface_;
+  std::uint64_t surface_revision_ = 0;
+  bool surface_built_ = false;
+  double dt_previous_ = 0;
+  std::vector<Vec3> external_;
 };
 
 // A structure fixed in space (the paper's MAT_RIGID channel, all DOFs fixed).
@@ -77,8 +112,8 @@ struct PartInfo {
 class FemModel {
  public:
   // One part per scene structure, in file order (part index = structure index).
-  // Throws SceneError for structures it cannot build (deformable structures
-  // are not supported yet), FileError for unreadable mesh files.
+  // Throws SceneError for structures it cannot build, FileError for
+  // unreadable mesh files.
   explicit FemModel(const scene::Scene& scene);
   ~FemModel();
   FemModel(const FemModel&) = delete;
@@ -92,6 +127,20 @@ class FemModel {
   [[nodiscard]] std::size_t part_count() const { return parts_.size(); }
   [[nodiscard]] const PartInfo& part(std::size_t index) const { return info_.at(index); }
   [[nodiscard]] const Part& part_model(std::size_t index) const { return *parts_.at(index); }
+
+  // Stresses and internal forces of the deformable parts at x_n, from
+  // v_{n-1/2} over dt_previous (s); erodes failed elements (the surface
+  // changes at the next update_surface()).
+  void compute_internal_forces(double dt_previous);
+  // Brings the combined surface to x_n: node positions and velocities, and a
+  // new topology when elements eroded since the last call (returns true then;
+  // the revision increases).
+  bool update_surface();
+  [[nodiscard]] std::uint64_t surface_revision() const { return surface_revision_; }
+  [[nodiscard]] std::span<const Vec3> node_velocities() const { return node_velocity_; }  // m/s, surface nodes
+  [[nodiscard]] const DeformablePart* deformable(std::size_t index) const {
+    return dynamic_cast<const DeformablePart*>(parts_.at(index).get());
+  }
 
   [[nodiscard]] double stable_dt() const;              // s; minimum over parts (rigid only: +infinity)
   [[nodiscard]] Energies energies() const;             // sum over parts (rigid: zero)
@@ -107,12 +156,21 @@ class FemModel {
 
   // Writes <run_folder>/fem/fem_<step>.vtp (the surface with node_force,
   // node_id, and per face part, material, thickness) and adds it to
-  // <run_folder>/fem.pvd at `time` (s).
+  // <run_folder>/fem.pvd at `time` (s). Each deformable part also writes
+  // <run_folder>/fem/<name>_<step>.vtu (hexahedra with displacement, velocity,
+  // stress, von Mises stress, plastic strain, eroded) in <run_folder>/fem_<name>.pvd.
   void write_output(const std::filesystem::path& run_folder, std::uint64_t step, double time,
                     const io::vtk::Options& options = {});
 
  private:
+  void rebuild_surface();
+
   geometry::SurfaceMesh surface_;
+  std::vector<geometry::SurfaceMesh> rigid_surface_;  // per part (empty for deformable parts)
+  std::vector<Vec3> node_velocity_;
+  std::uint64_t surface_revision_ = 0;
+  double dt_previous_ = 0;
+  std::vector<std::optional<io::vtk::TimeSeries>> part_series_;
   std::vector<std::unique_ptr<Part>> parts_;
   std::vector<PartInfo> info_;
   std::vector<Vec3> node_force_;

@@ -651,11 +651,59 @@ class Builder {
       if (auto v = r.number("density")) material.density = *v;
       if (auto v = r.number("youngs_modulus")) material.youngs_modulus = *v;
       if (auto v = r.number("poisson_ratio")) material.poisson_ratio = *v;
+      read_plasticity(r, material);
       scene_.materials.push_back(std::move(material));
     }
   }
 
   // Checks `name` (validity, uniqueness among bodies) and records it.
+  // Plastic kinematic keys of a material (deformable structures).
+  void read_plasticity(Reader& r, Material& material) {
+    material.yield_stress = r.number("yield_stress");
+    if (auto v = r.number("tangent_modulus")) material.tangent_modulus = *v;
+    if (auto v = r.number("hardening")) material.hardening = *v;
+    material.cowper_symonds_c = r.number("cowper_symonds_c");
+    if (auto v = r.number("cowper_symonds_p")) material.cowper_symonds_p = *v;
+    material.failure_strain = r.number("failure_strain");
+    if (!material.yield_stress) {
+      for (const char* key : {"tangent_modulus", "hardening", "cowper_symonds_c", "cowper_symonds_p"}) {
+        if (r.has(key)) {
+          diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                    "a plasticity parameter without yield_stress (the material is elastic)",
+                    "add yield_stress, or remove the key");
+        }
+      }
+    }
+    if (material.youngs_modulus > 0 && material.tangent_modulus >= material.youngs_modulus) {
+      diag_.add(r.line("tangent_modulus"), r.key_path("tangent_modulus"), value_text(*r.node("tangent_modulus")),
+                fmt::format("the tangent modulus must be below youngs_modulus = {}",
+                            number_literal(material.youngs_modulus)),
+                "give the slope after yield, a fraction of youngs_modulus");
+    }
+  }
+
+  // Deformable structures: a box meshed with hexahedra, fixed faces, initial velocity.
+  void read_deformable(Reader& r, Structure& structure, const std::optional<std::string>& shape) {
+    if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
+    if (auto v = r.vec3("velocity")) structure.velocity = *v;
+    if (structure.rigid) {
+      for (const char* key : {"fixed", "velocity"}) {
+        if (r.has(key)) {
+          diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                    "belongs to deformable structures, but this one is rigid",
+                    "remove it, or set rigid = false (shape = \"box\")");
+        }
+      }
+      return;
+    }
+    if (shape && *shape != "box") {
+      diag_.add(r.line("rigid"), r.key_path("rigid"), "false",
+                fmt::format("deformable structures are boxes meshed with hexahedra, not shape = {}",
+                            quote_text(*shape)),
+                "use shape = \"box\" with element_size, or set rigid = true");
+    }
+  }
+
   void register_body(Reader& r, const std::string& name, bool is_particle_set) {
     const int line = r.line("name");
     if (!valid_name(name)) {
@@ -805,15 +853,10 @@ class Builder {
       structure.material = *v;
       check_material(r, structure.material);
     }
-    if (auto v = r.boolean("rigid")) {
-      structure.rigid = *v;
-      if (!*v) {
-        diag_.add(r.line("rigid"), r.key_path("rigid"), "false", "deformable structures are not supported yet",
-                  "set rigid = true (or remove the key)");
-      }
-    }
+    if (auto v = r.boolean("rigid")) structure.rigid = *v;
     if (auto v = r.number("thickness")) structure.thickness = *v;
     const auto shape = r.string("shape");
+    read_deformable(r, structure, shape);
     if (!shape) {
       scene_.structures.push_back(std::move(structure));
       return;

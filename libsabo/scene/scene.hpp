@@ -29,6 +29,14 @@ struct Material {
   double density = 0;         // kg/m^3, > 0
   double youngs_modulus = 0;  // Pa, > 0
   double poisson_ratio = 0;   // in [0, 0.5)
+  // Plasticity and failure of deformable structures (LS-DYNA MAT_PLASTIC_KINEMATIC);
+  // absent: elastic, no failure.
+  std::optional<double> yield_stress;      // Pa, > 0
+  double tangent_modulus = 0;              // Pa, in [0, E)
+  double hardening = 0;                    // beta in [0, 1]: 0 kinematic, 1 isotropic
+  std::optional<double> cowper_symonds_c;  // 1/s, > 0: strain-rate factor 1 + (rate / C)^(1/p)
+  double cowper_symonds_p = 1;             // > 0
+  std::optional<double> failure_strain;    // > 0: elements erode at this maximum principal strain
   [[nodiscard]] double bulk_modulus() const { return youngs_modulus / (3.0 * (1.0 - 2.0 * poisson_ratio)); }
   [[nodiscard]] double shear_modulus() const { return youngs_modulus / (2.0 * (1.0 + poisson_ratio)); }
 };
@@ -88,7 +96,7 @@ struct DemContact {
   double tangential_stiffness_ratio = 2.0 / 7.0;  // k_t = ratio * k_n
 };
 
-// One structure part (FEM). Rigid in this version: fixed in space.
+// The geometry of one structure part (FEM).
 struct Shape {
   enum class Type { plane, box, chute, mesh };
   Type type = Type::plane;
@@ -119,7 +127,11 @@ struct Structure {
   std::string name;
   std::string material;  // a key of Scene::materials (checked)
   Origin origin;
+  // Rigid: fixed in space, any shape. Deformable (rigid = false): shape box,
+  // meshed with hexahedra of about element_size (at least one per axis).
   bool rigid = true;
+  std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
+  Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
   double thickness = 0;  // m: shell thickness for the eq. 3 offset (0: solid face)
   Shape shape;
 };

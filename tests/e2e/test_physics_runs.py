@@ -182,3 +182,52 @@ def parse_particle_radii(register_bytes):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+SPHERE_ON_BLOCK = "configs/tests/sphere_on_block.toml"
+
+
+class SphereOnDeformableBlockTest(RealRunTestCase):
+    """A sphere strikes a deformable block (fem_solver hexahedra through the coupler): the block's
+    surface moves under the node forces, the sphere rebounds without passing into the block, no
+    energy is created, and the block's volume mesh is written."""
+
+    def test_block_dents_and_sphere_rebounds(self):
+        out = os.path.join(self.tmp, "block")
+        sabo = self.run_sabo(self.scene_path(SPHERE_ON_BLOCK), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        s = particle_states(out)
+        with h5py.File(os.path.join(out, "traffic.h5"), "r", swmr=True) as traffic:
+            fem = traffic["fem_solver/state"]
+            count = fem["node_position_count"][()]
+            offset = fem["node_position_offset"][()]
+            positions = fem["node_position"][()]
+            energies = fem["energies"][()].reshape(-1, 4)
+        first = positions[offset[0]:offset[0] + count[0]].reshape(-1, 3)
+        lowest_top = 0.5
+        for o, n in zip(offset, count):
+            nodes = positions[o:o + n].reshape(-1, 3)
+            on_top = np.abs(first[:, 2] - 0.5) < 1e-9
+            lowest_top = min(lowest_top, float(nodes[on_top, 2].min()))
+        dent = 0.5 - lowest_top
+        print(f"deepest dent of the block's top: measured {dent * 1e3:.2f} mm expected > 1 mm")
+        self.assertGreater(dent, 1e-3)
+
+        radius = 0.25
+        z = s["position"][:, 2]
+        vz = s["velocity"][:, 2]
+        print(f"sphere lowest centre: measured {z.min():.4f} m, block top {lowest_top:.4f} m + r = "
+              f"{lowest_top + radius:.4f} m (penalty overlap allowed, no pass-through)")
+        self.assertGreater(z.min(), lowest_top)
+        print(f"sphere final vertical velocity: measured {vz[-1]:.3f} m/s expected > 0 and < 10")
+        self.assertGreater(vz[-1], 0.0)
+        self.assertLess(vz[-1], 10.0)
+        # The block holds what the sphere lost (kinetic, elastic, plastic): its energy is positive.
+        block_total = energies[-1].sum()
+        sphere_lost = 0.5 * 3000 * 4 / 3 * math.pi * radius ** 3 * (10.0 ** 2 - vz[-1] ** 2)
+        print(f"block energy: measured {block_total:.1f} J, sphere kinetic energy lost {sphere_lost:.1f} J")
+        self.assertGreater(block_total, 0.0)
+        self.assertLess(block_total, sphere_lost * 1.05)
+        vtu = [name for name in os.listdir(os.path.join(out, "fem")) if name.endswith(".vtu")]
+        self.assertGreaterEqual(len(vtu), 4, vtu)
+        self.assertTrue(os.path.exists(os.path.join(out, "fem_block.pvd")))
