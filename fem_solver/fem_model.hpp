@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "fem_solver/shell_body.hpp"
 #include "fem_solver/solid_body.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
@@ -55,31 +56,42 @@ class Part {
   virtual void compute_internal_forces(double /*dt_previous*/) {}
 };
 
-// A deformable solid (rigid = false): a SolidBody of hexahedra whose exterior
-// faces (two triangles per quad) are its contact surface.
+// A deformable structure (rigid = false): a SolidBody of hexahedra (a box)
+// whose exterior faces (two triangles per quad) are its contact surface, or a
+// ShellBody (a wall panel, or a thin-walled building: a box with a
+// thickness) whose active shells are two-sided faces with their thickness.
 class DeformablePart final : public Part {
  public:
-  DeformablePart(const scene::Structure& structure, const scene::Material& material, const Vec3& gravity);
+  DeformablePart(const scene::Structure& structure, const scene::Scene& scene);
   [[nodiscard]] bool rigid() const override { return false; }
-  [[nodiscard]] double stable_dt() const override { return body_.stable_dt(); }
+  [[nodiscard]] double stable_dt() const override;
   [[nodiscard]] Energies energies() const override;
+  [[nodiscard]] SolidEnergies solid_energies() const;
   [[nodiscard]] bool moved() const override { return true; }
   void step(double dt, std::span<const Vec3> node_force) override;
   void compute_internal_forces(double dt_previous) override;
 
-  // The exterior surface of the active elements now: nodes in surface_nodes() order.
+  // The contact surface of the active elements now: nodes in surface_nodes() order.
   [[nodiscard]] geometry::SurfaceMesh surface() const;
   [[nodiscard]] std::span<const std::uint32_t> surface_nodes() const { return surface_nodes_; }
-  // Recomputes the exterior faces after erosion; returns whether they changed.
+  // Recomputes the surface after erosion; returns whether it changed.
   bool refresh_surface();
-  [[nodiscard]] const SolidBody& body() const { return body_; }
-  [[nodiscard]] SolidBody& body() { return body_; }
+  [[nodiscard]] Vec3 position(std::size_t node) const;
+  [[nodiscard]] Vec3 velocity(std::size_t node) const;
+  [[nodiscard]] bool is_shell() const { return shell_ != nullptr; }
+  [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
+  [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
+  // The volume mesh (.vtu): hexahedra or quads with displacement, velocity,
+  // stress, von Mises stress, plastic strain, eroded.
+  void write_volume(const std::filesystem::path& file, const io::vtk::Options& options) const;
 
  private:
-  SolidBody body_;
-  double bulk_modulus_ = 0;
-  std::vector<BoundaryFace> faces_;
-  std::vector<std::uint32_t> surface_nodes_;  // body node of each surface node
+  std::unique_ptr<SolidBody> solid_;
+  std::unique_ptr<ShellBody> shell_;
+  std::vector<double> bulk_modulus_;           // per material of the shell mesh (solids: one)
+  std::vector<std::uint32_t> scene_material_;  // scene material index per body material
+  std::vector<BoundaryFace> faces_;            // solids: exterior faces; shells: node = the quad
+  std::vector<std::uint32_t> surface_nodes_;   // body node of each surface node
   std::vector<std::uint32_t> body_to_surface_;
   std::uint64_t surface_revision_ = 0;
   bool surface_built_ = false;

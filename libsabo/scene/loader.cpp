@@ -675,10 +675,10 @@ class Builder {
       }
     }
     if (material.youngs_modulus > 0 && material.tangent_modulus >= material.youngs_modulus) {
-      diag_.add(r.line("tangent_modulus"), r.key_path("tangent_modulus"), value_text(*r.node("tangent_modulus")),
-                fmt::format("the tangent modulus must be below youngs_modulus = {}",
-                            number_literal(material.youngs_modulus)),
-                "give the slope after yield, a fraction of youngs_modulus");
+      diag_.add(
+          r.line("tangent_modulus"), r.key_path("tangent_modulus"), value_text(*r.node("tangent_modulus")),
+          fmt::format("the tangent modulus must be below youngs_modulus = {}", number_literal(material.youngs_modulus)),
+          "give the slope after yield, a fraction of youngs_modulus");
     }
   }
 
@@ -686,8 +686,26 @@ class Builder {
   void read_deformable(Reader& r, Structure& structure, const std::optional<std::string>& shape) {
     if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
     if (auto v = r.vec3("velocity")) structure.velocity = *v;
+    const bool building_keys = shape && *shape == "box";
+    if (building_keys) {
+      if (auto v = r.integer("floors")) structure.floors = static_cast<std::size_t>(*v);
+      if (auto v = r.number("roof_thickness")) structure.roof_thickness = *v;
+      if (auto v = r.string("roof_material")) {
+        structure.roof_material = *v;
+        check_material(r, *v, "roof_material");
+      }
+      if (!structure.rigid && structure.thickness == 0) {
+        for (const char* key : {"floors", "roof_thickness", "roof_material"}) {
+          if (r.has(key)) {
+            diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                      "belongs to thin-walled buildings, but this box has no thickness (a solid)",
+                      "give the walls a thickness, or remove the key");
+          }
+        }
+      }
+    }
     if (structure.rigid) {
-      for (const char* key : {"fixed", "velocity"}) {
+      for (const char* key : {"fixed", "velocity", "floors", "roof_thickness", "roof_material"}) {
         if (r.has(key)) {
           diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                     "belongs to deformable structures, but this one is rigid",
@@ -696,11 +714,12 @@ class Builder {
       }
       return;
     }
-    if (shape && *shape != "box") {
+    if (shape && *shape != "box" && !(*shape == "plane" && structure.thickness > 0)) {
       diag_.add(r.line("rigid"), r.key_path("rigid"), "false",
-                fmt::format("deformable structures are boxes meshed with hexahedra, not shape = {}",
-                            quote_text(*shape)),
-                "use shape = \"box\" with element_size, or set rigid = true");
+                fmt::format("deformable structures are boxes (hexahedra, or shells with a thickness) or planes "
+                            "with a thickness (shells), not shape = {}{}",
+                            quote_text(*shape), *shape == "plane" ? " without a thickness" : ""),
+                "use shape = \"box\" with element_size, give the plane a thickness, or set rigid = true");
     }
   }
 
@@ -719,7 +738,7 @@ class Builder {
     }
   }
 
-  void check_material(Reader& r, const std::string& material) {
+  void check_material(Reader& r, const std::string& material, const char* key = "material") {
     if (std::find(material_names_.begin(), material_names_.end(), material) != material_names_.end()) return;
     const auto suggestion = closest_match(material, material_names_);
     std::string problem = "no material of that name";
@@ -727,7 +746,7 @@ class Builder {
     const std::string fix = material_names_.empty() ? fmt::format("add a [materials.{}] table", material)
                                                     : fmt::format("define [materials.{}] or use one of: {}", material,
                                                                   join(material_names_));
-    diag_.add(r.line("material"), r.key_path("material"), quote_text(material), problem, fix);
+    diag_.add(r.line(key), r.key_path(key), quote_text(material), problem, fix);
   }
 
   void read_particle_set(const toml::table& table, std::size_t index) {
@@ -856,12 +875,12 @@ class Builder {
     if (auto v = r.boolean("rigid")) structure.rigid = *v;
     if (auto v = r.number("thickness")) structure.thickness = *v;
     const auto shape = r.string("shape");
-    read_deformable(r, structure, shape);
     if (!shape) {
       scene_.structures.push_back(std::move(structure));
       return;
     }
     r.select(*shape);
+    read_deformable(r, structure, shape);
     Shape& s = structure.shape;
     if (*shape == "plane") {
       s.type = Shape::Type::plane;

@@ -127,12 +127,17 @@ struct Structure {
   std::string name;
   std::string material;  // a key of Scene::materials (checked)
   Origin origin;
-  // Rigid: fixed in space, any shape. Deformable (rigid = false): shape box,
-  // meshed with hexahedra of about element_size (at least one per axis).
+  // Rigid: fixed in space, any shape. Deformable (rigid = false): a box of
+  // hexahedra (thickness 0), a thin-walled building of shells (a box with a
+  // thickness: four walls, floors - 1 slabs and a roof), or a shell panel (a
+  // plane with a thickness), with elements of about element_size.
   bool rigid = true;
+  double roof_thickness = 0;             // m, building slabs (0: thickness)
+  std::string roof_material;             // building slabs (empty: material)
+  std::size_t floors = 1;                // building storeys (>= 1)
   std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
   Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
-  double thickness = 0;  // m: shell thickness for the eq. 3 offset (0: solid face)
+  double thickness = 0;                  // m: shell thickness for the eq. 3 offset (0: solid face)
   Shape shape;
 };
 

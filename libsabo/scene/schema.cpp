@@ -306,8 +306,8 @@ class Schema {
     structure.anchor = "structures";
     structure.selector = "shape";
     structure.description =
-        "One FEM part, simulated by the fem_solver: rigid (fixed in space) or, with `rigid = false` and "
-        "`shape = \"box\"`, a deformable solid of hexahedra. The "
+        "One FEM part, simulated by the fem_solver: rigid (fixed in space) or, with `rigid = false`, "
+        "deformable (a solid box of hexahedra, a shell building or a shell panel). The "
         "`shape` picks the geometry; the keys marked with shapes belong only to those shapes.\n\n"
         "* `plane`: a rectangle centred at `origin` with unit normal `normal`, `length` along `direction` "
         "(projected onto the plane) and `width` across.\n"
@@ -329,13 +329,31 @@ class Schema {
         K("material", Type::string).required("\"concrete\"").allowed("a `[materials.NAME]`").doc("Material."),
         K("rigid", Type::boolean)
             .def("true")
-            .doc("Rigid part, fixed in space. `false`: a deformable solid (shape `box` only), meshed with "
-                 "hexahedra of about `element_size` (explicit FEM, docs/physics.md)."),
+            .doc("Rigid part, fixed in space. `false`: deformable (explicit FEM, docs/physics.md): a `box` "
+                 "without thickness is a solid of hexahedra; a `box` with a `thickness` is a thin-walled "
+                 "building of shells (four walls, `floors` slabs with the roof); a `plane` with a "
+                 "`thickness` is a shell panel. Elements of about `element_size`."),
         K("fixed", Type::string_list)
             .def("[]")
             .choices({"x-", "x+", "y-", "y+", "z-", "z+"})
             .doc("Deformable: faces of the box whose nodes have every degree of freedom fixed."),
         K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Deformable: initial velocity."),
+        K("floors", Type::integer)
+            .def("1")
+            .ge(1)
+            .only_for({"box"})
+            .doc("Deformable building (box with a thickness): storeys; a slab tops each."),
+        K("roof_thickness", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"box"})
+            .doc("Deformable building: thickness of the floor and roof slabs (0: `thickness`)."),
+        K("roof_material", Type::string)
+            .absent("`material`")
+            .allowed("a `[materials.NAME]`")
+            .only_for({"box"})
+            .doc("Deformable building: material of the floor and roof slabs."),
         K("thickness", Type::number)
             .def("0.0")
             .unit("m")
@@ -668,8 +686,10 @@ const std::vector<std::string>& cross_checks() {
       "An interaction's `pair` names one particle set and one structure; no pair appears twice.",
       "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
       "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
-      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`; "
-      "`fixed` and `velocity` need `rigid = false`. Plasticity keys other than `yield_stress` and "
+      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`, or "
+      "`shape = \"plane\"` with a `thickness`; `fixed`, `velocity`, `floors`, `roof_thickness` and "
+      "`roof_material` need `rigid = false` (the last three a box with a `thickness`). Plasticity keys other than "
+      "`yield_stress` and "
       "`failure_strain` need `yield_stress`; `tangent_modulus` is below `youngs_modulus`.",
       "`[recording]`: `first_step` <= `last_step`.",
       "Every number is finite (no `nan`, no `inf`).",

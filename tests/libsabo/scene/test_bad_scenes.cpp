@@ -76,7 +76,7 @@ const std::vector<BadScene>& bad_scenes() {
        16,
        "structures[0].rigid",
        "false",
-       {"deformable structures are boxes meshed with hexahedra, not shape = \"plane\"", "use shape = \"box\""}},
+       {"not shape = \"plane\" without a thickness", "give the plane a thickness"}},
       {"plasticity_without_yield.toml",
        12,
        "materials.concrete.tangent_modulus",
