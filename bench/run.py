@@ -157,6 +157,36 @@ class DemThroughput(Case):
         return {"OMP_NUM_THREADS": str(self.threads)}
 
 
+class FemThroughput(Case):
+    def __init__(self, kind, elements, steps, threads):
+        super().__init__(
+            "fem_throughput.{}.{}.t{}".format(kind, entity_label(elements), threads),
+            "fem_throughput",
+            "FEM {} elements={} threads={}".format(kind, elements, threads),
+            "element_steps_per_second",
+            "element-steps/s",
+            timeout_s=300,
+        )
+        self.kind = kind
+        self.elements = elements
+        self.steps = steps
+        self.threads = threads
+
+    def binaries(self, bin_dir):
+        return [os.path.join(bin_dir, "bench_fem_throughput")]
+
+    def command(self, bin_dir):
+        return [
+            os.path.join(bin_dir, "bench_fem_throughput"),
+            "--kind", self.kind,
+            "--elements", str(self.elements),
+            "--steps", str(self.steps),
+        ]
+
+    def env(self):
+        return {"OMP_NUM_THREADS": str(self.threads)}
+
+
 class WholeRun(Case):
     """`./sabo run SCENE` in a temporary run folder: wall time and the run's summary.json."""
 
@@ -283,6 +313,10 @@ def all_cases(quick, cores):
     for threads in sorted({1, cores}):
         for spheres, steps in dem:
             cases.append(DemThroughput(spheres, steps, threads))
+    fem = [("hex", 4096, 50), ("shell", 4096, 50)] if quick else [("hex", 32768, 50), ("shell", 65536, 50)]
+    for threads in sorted({1, 2}):
+        for kind, elements, steps in fem:
+            cases.append(FemThroughput(kind, elements, steps, threads))
     cases.append(chute)
     return cases
 

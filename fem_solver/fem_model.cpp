@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "fem_solver/mesh/gmsh.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
 
@@ -121,7 +122,35 @@ void fix_faces(Body& body, const std::vector<std::string>& fixed, unsigned dofs)
 
 DeformablePart::DeformablePart(const scene::Structure& structure, const scene::Scene& scene) {
   const std::size_t material = scene.material_index(structure.material);
-  if (structure.thickness > 0) {
+  if (structure.shape.type == scene::Shape::Type::mesh) {
+    GmshMesh gmsh = read_gmsh(structure.shape.file);
+    for (Vec3& p : gmsh.hexahedra.node) p = structure.shape.scale * p + structure.shape.translate;
+    scene_material_ = {static_cast<std::uint32_t>(material), static_cast<std::uint32_t>(material)};
+    bulk_modulus_ = {scene.materials[material].bulk_modulus(), scene.materials[material].bulk_modulus()};
+    const MaterialParameters parameters = material_parameters(scene.materials[material]);
+    if (!gmsh.hexahedra.element.empty()) {
+      solid_ = std::make_unique<SolidBody>(std::move(gmsh.hexahedra), parameters);
+      solid_->set_gravity(scene.run.gravity);
+      fix_faces(*solid_, structure.fixed_faces, dof_all);
+      solid_->set_velocity(structure.velocity);
+    } else {
+      if (!(structure.thickness > 0)) {
+        throw SceneError(fmt::format(
+            "{}:{}: structure '{}': the mesh {} holds quadrangles (shells) but the structure has no thickness. "
+            "Fix: give thickness = the shell thickness in m",
+            structure.origin.file.string(), structure.origin.line, structure.name, structure.shape.file.string()));
+      }
+      ShellMesh shells;
+      shells.node = gmsh.hexahedra.node;
+      shells.element = gmsh.quads;
+      shells.thickness.assign(shells.element.size(), structure.thickness);
+      shells.material.assign(shells.element.size(), 0);
+      shell_ = std::make_unique<ShellBody>(std::move(shells), std::vector<MaterialParameters>{parameters});
+      shell_->set_gravity(scene.run.gravity);
+      fix_faces(*shell_, structure.fixed_faces, dof_all | rotations_all);
+      shell_->set_velocity(structure.velocity);
+    }
+  } else if (structure.thickness > 0) {
     std::size_t slab_material = material;
     if (!structure.roof_material.empty()) slab_material = scene.material_index(structure.roof_material);
     scene_material_ = {static_cast<std::uint32_t>(material), static_cast<std::uint32_t>(slab_material)};
@@ -296,7 +325,8 @@ FemModel::FemModel(const scene::Scene& scene) {
     const std::size_t material = scene.material_index(structure.material);
     if (!structure.rigid) {
       const bool shell_plane = structure.shape.type == scene::Shape::Type::plane && structure.thickness > 0;
-      if (structure.shape.type != scene::Shape::Type::box && !shell_plane) {
+      if (structure.shape.type != scene::Shape::Type::box && structure.shape.type != scene::Shape::Type::mesh &&
+          !shell_plane) {
         throw SceneError(
             fmt::format("{}:{}: structure '{}' (key '{}'): deformable structures are boxes (solid, or a thin-walled "
                         "building with a thickness) or planes with a thickness (shells). Fix: use shape = \"box\" or "

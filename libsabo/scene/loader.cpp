@@ -714,10 +714,10 @@ class Builder {
       }
       return;
     }
-    if (shape && *shape != "box" && !(*shape == "plane" && structure.thickness > 0)) {
+    if (shape && *shape != "box" && *shape != "mesh" && !(*shape == "plane" && structure.thickness > 0)) {
       diag_.add(r.line("rigid"), r.key_path("rigid"), "false",
-                fmt::format("deformable structures are boxes (hexahedra, or shells with a thickness) or planes "
-                            "with a thickness (shells), not shape = {}{}",
+                fmt::format("deformable structures are boxes (hexahedra, or shells with a thickness), planes "
+                            "with a thickness (shells) or Gmsh meshes, not shape = {}{}",
                             quote_text(*shape), *shape == "plane" ? " without a thickness" : ""),
                 "use shape = \"box\" with element_size, give the plane a thickness, or set rigid = true");
     }
@@ -944,7 +944,7 @@ class Builder {
       s.type = Shape::Type::mesh;
       if (auto v = r.number("scale")) s.scale = *v;
       if (auto v = r.vec3("translate")) s.translate = *v;
-      if (auto v = r.string("file")) s.file = resolve_mesh(r, *v);
+      if (auto v = r.string("file")) s.file = resolve_mesh(r, *v, structure.rigid);
     }
     if (s.type != Shape::Type::mesh) {
       if (auto v = r.number("element_size")) s.element_size = *v;
@@ -952,7 +952,8 @@ class Builder {
     scene_.structures.push_back(std::move(structure));
   }
 
-  fs::path resolve_mesh(Reader& r, const std::string& file) {
+  // Rigid structures take STL surfaces; deformable ones Gmsh .msh volume or shell meshes.
+  fs::path resolve_mesh(Reader& r, const std::string& file, bool rigid = true) {
     const fs::path given(file);
     const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
     const int line = r.line("file");
@@ -968,9 +969,14 @@ class Builder {
       std::string extension = full.extension().string();
       std::transform(extension.begin(), extension.end(), extension.begin(),
                      [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-      if (extension != ".stl") {
+      if (rigid && extension != ".stl") {
         diag_.add(line, r.key_path("file"), quote_text(file), "a mesh must be an STL file ending in .stl",
                   "convert the mesh to STL (ASCII or binary)");
+      }
+      if (!rigid && extension != ".msh") {
+        diag_.add(line, r.key_path("file"), quote_text(file),
+                  "a deformable structure's mesh must be a Gmsh file ending in .msh (hexahedra or quadrangles)",
+                  "export the mesh from Gmsh as msh 4.1 ASCII, or set rigid = true for an STL surface");
       }
     }
     return fs::weakly_canonical(full, ec);

@@ -415,8 +415,9 @@ class Schema {
         K("file", Type::string)
             .required("\"meshes/dam.stl\"")
             .only_for({"mesh"})
-            .allowed("an existing `.stl` file")
-            .doc("STL file, relative to the scene file's folder."),
+            .allowed("an existing `.stl` file (rigid) or `.msh` file (deformable)")
+            .doc("STL file, relative to the scene file's folder; for `rigid = false`, a Gmsh msh 4.1 ASCII file of "
+                 "8-node hexahedra (solid) or 4-node quadrangles (shells of `thickness`)."),
         K("scale", Type::number).def("1.0").gt(0).only_for({"mesh"}).doc("Scale applied to the file's coordinates."),
         K("translate", Type::vec3)
             .def("[0.0, 0.0, 0.0]")
@@ -686,8 +687,9 @@ const std::vector<std::string>& cross_checks() {
       "An interaction's `pair` names one particle set and one structure; no pair appears twice.",
       "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
       "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
-      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`, or "
-      "`shape = \"plane\"` with a `thickness`; `fixed`, `velocity`, `floors`, `roof_thickness` and "
+      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`, "
+      "`shape = \"mesh\"` with a `.msh` file, or `shape = \"plane\"` with a `thickness`; `fixed`, `velocity`, "
+      "`floors`, `roof_thickness` and "
       "`roof_material` need `rigid = false` (the last three a box with a `thickness`). Plasticity keys other than "
       "`yield_stress` and "
       "`failure_strain` need `yield_stress`; `tangent_modulus` is below `youngs_modulus`.",
