@@ -231,3 +231,35 @@ class SphereOnDeformableBlockTest(RealRunTestCase):
         vtu = [name for name in os.listdir(os.path.join(out, "fem")) if name.endswith(".vtu")]
         self.assertGreaterEqual(len(vtu), 4, vtu)
         self.assertTrue(os.path.exists(os.path.join(out, "fem_block.pvd")))
+
+
+SPHERE_BREAKS_BLOCK = "configs/tests/sphere_breaks_block.toml"
+
+
+class SphereBreaksBlockTest(RealRunTestCase):
+    """Erosion through the coupler: elements of the block fail, the fem_solver sends new surface
+    topologies mid-run, the coupler accepts them (node arrays change size) and keeps contact."""
+
+    def test_new_topologies_reach_the_coupler(self):
+        out = os.path.join(self.tmp, "breaks")
+        sabo = self.run_sabo(self.scene_path(SPHERE_BREAKS_BLOCK), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        with h5py.File(os.path.join(out, "traffic.h5"), "r", swmr=True) as traffic:
+            fem = traffic["fem_solver/state"]
+            topology_count = fem["topology_count"][()]
+            node_count = fem["node_position_count"][()] // 3
+            forces = traffic["fem_solver/forces"]
+            force_count = forces["node_force_count"][()] // 3
+        changes = int((topology_count > 0).sum())
+        print(f"surface topology changes sent: measured {changes} expected >= 1; surface nodes "
+              f"{node_count[0]} -> {node_count[-1]}")
+        self.assertGreaterEqual(changes, 1)
+        self.assertNotEqual(node_count[0], node_count[-1])
+        # Every non-empty force reply matches the node count of the state it answers.
+        sent = force_count > 0
+        self.assertTrue(sent.any(), "no contact force ever reached the block")
+        self.assertTrue(np.all(force_count[sent] == node_count[:len(force_count)][sent]))
+        s = particle_states(out)
+        print(f"sphere final vertical velocity: measured {s['velocity'][-1, 2]:.2f} m/s (started at -30)")
+        self.assertTrue(np.isfinite(s["position"]).all())
+
