@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <fstream>
 #include <limits>
 
 #include "fem_solver/mesh/gmsh.hpp"
@@ -508,6 +509,7 @@ void FemModel::write_output(const std::filesystem::path& run_folder, std::uint64
   io::vtk::write_surface(file, surface_, point_data, cell_data, options);
   if (!series_) series_.emplace(run_folder / "fem.pvd");
   series_->add(time, std::filesystem::path("fem") / file.filename());
+  write_energy_history(run_folder, time);
   for (std::size_t index = 0; index < parts_.size(); ++index) {
     const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get());
     if (part == nullptr) continue;
@@ -517,6 +519,41 @@ void FemModel::write_output(const std::filesystem::path& run_folder, std::uint64
     if (!part_series_[index]) part_series_[index].emplace(run_folder / fmt::format("fem_{}.pvd", name));
     part_series_[index]->add(time, std::filesystem::path("fem") / volume_file.filename());
   }
+}
+
+void FemModel::write_energy_history(const std::filesystem::path& run_folder, double time) {
+  bool any = false;
+  SolidEnergies total;
+  std::size_t eroded = 0;
+  for (const auto& part : parts_) {
+    const auto* deformable = dynamic_cast<const DeformablePart*>(part.get());
+    if (deformable == nullptr) continue;
+    any = true;
+    const SolidEnergies e = deformable->solid_energies();
+    total.kinetic += e.kinetic;
+    total.internal += e.internal;
+    total.plastic_work += e.plastic_work;
+    total.hourglass += e.hourglass;
+    total.eroded += e.eroded;
+    total.external_work += e.external_work;
+    if (const SolidBody* solid = deformable->solid()) {
+      for (std::size_t k = 0; k < solid->element_count(); ++k) eroded += solid->eroded(k) ? 1 : 0;
+    } else {
+      const ShellBody* shell = deformable->shell();
+      for (std::size_t k = 0; k < shell->element_count(); ++k) eroded += shell->eroded(k) ? 1 : 0;
+    }
+  }
+  if (!any) return;
+  const std::filesystem::path file = run_folder / "fem_energy.csv";
+  const bool fresh = !energy_history_started_;
+  std::ofstream out(file, fresh ? std::ios::trunc : std::ios::app);
+  if (!out) throw FileError(fmt::format("{}: cannot write the FEM energy history", file.string()));
+  if (fresh) {
+    out << "time_s,kinetic_J,internal_J,plastic_work_J,hourglass_J,eroded_J,external_work_J,eroded_elements\n";
+    energy_history_started_ = true;
+  }
+  out << fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n", time, total.kinetic, total.internal,
+                     total.plastic_work, total.hourglass, total.eroded, total.external_work, eroded);
 }
 
 }  // namespace sabo::fem

@@ -170,12 +170,17 @@ class FemModel {
   // node_id, and per face part, material, thickness) and adds it to
   // <run_folder>/fem.pvd at `time` (s). Each deformable part also writes
   // <run_folder>/fem/<name>_<step>.vtu (hexahedra with displacement, velocity,
-  // stress, von Mises stress, plastic strain, eroded) in <run_folder>/fem_<name>.pvd.
+  // stress, von Mises stress, plastic strain, eroded) in <run_folder>/fem_<name>.pvd,
+  // and the deformable parts' energy history goes to <run_folder>/fem_energy.csv
+  // (time, kinetic, internal, plastic work, hourglass, eroded, external work
+  // in J, eroded elements).
   void write_output(const std::filesystem::path& run_folder, std::uint64_t step, double time,
                     const io::vtk::Options& options = {});
 
  private:
   void rebuild_surface();
+  // Appends the deformable parts' energies at `time` to <run_folder>/fem_energy.csv.
+  void write_energy_history(const std::filesystem::path& run_folder, double time);
 
   geometry::SurfaceMesh surface_;
   std::vector<geometry::SurfaceMesh> rigid_surface_;  // per part (empty for deformable parts)
@@ -183,6 +188,7 @@ class FemModel {
   std::uint64_t surface_revision_ = 0;
   double dt_previous_ = 0;
   std::vector<std::optional<io::vtk::TimeSeries>> part_series_;
+  bool energy_history_started_ = false;
   std::vector<std::unique_ptr<Part>> parts_;
   std::vector<PartInfo> info_;
   std::vector<Vec3> node_force_;

