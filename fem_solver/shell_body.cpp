@@ -120,7 +120,7 @@ double ShellBody::total_mass() const {
 
 std::size_t ShellBody::compute_internal_forces(double dt_previous) {
   const auto elements = static_cast<std::ptrdiff_t>(mesh_.element.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (elements >= parallel_minimum_)
   for (std::ptrdiff_t signed_e = 0; signed_e < elements; ++signed_e) {
     const auto e = static_cast<std::size_t>(signed_e);
     QuadNodes force, moment;
@@ -165,7 +165,7 @@ std::size_t ShellBody::compute_internal_forces(double dt_previous) {
   }
   if (newly_eroded > 0) ++topology_revision_;
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
     const auto i = static_cast<std::size_t>(signed_i);
     Vec3 f = Vec3::Zero(), m = Vec3::Zero();
@@ -185,7 +185,7 @@ void ShellBody::integrate(double dt_previous, double dt, std::span<const Vec3> e
   const double dt_average = 0.5 * (dt_previous + dt);
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
   std::vector<double> kinetic(position_.size()), work(position_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
     const auto i = static_cast<std::size_t>(signed_i);
     if (mass_[i] <= 0) continue;

@@ -47,6 +47,10 @@ class ShellBody {
   // static solutions by dynamic relaxation; its work counts as external work.
   void set_damping(double per_second) { damping_ = per_second; }
 
+  // Loops over fewer elements or nodes than this run on one thread: for
+  // small meshes the threads' start and barrier cost more than the work.
+  void set_parallel_minimum(std::ptrdiff_t count) { parallel_minimum_ = count; }
+
   [[nodiscard]] std::span<const Vec3> positions() const { return position_; }
   [[nodiscard]] std::span<const Vec3> reference_positions() const { return mesh_.node; }
   [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }
@@ -68,6 +72,7 @@ class ShellBody {
   std::vector<MaterialParameters> materials_;
   double hourglass_scale_;
   Vec3 gravity_ = Vec3::Zero();
+  std::ptrdiff_t parallel_minimum_ = 4096;
   double damping_ = 0;
   std::vector<Vec3> position_, velocity_, angular_velocity_, internal_force_, internal_moment_;
   std::vector<double> mass_, inertia_;

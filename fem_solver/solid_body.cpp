@@ -83,7 +83,7 @@ double SolidBody::total_mass() const {
 std::size_t SolidBody::compute_internal_forces(double dt_previous) {
   const auto elements = static_cast<std::ptrdiff_t>(mesh_.element.size());
   const double wave_speed = material_.wave_speed();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (elements >= parallel_minimum_)
   for (std::ptrdiff_t signed_e = 0; signed_e < elements; ++signed_e) {
     const auto e = static_cast<std::size_t>(signed_e);
     HexNodes force;
@@ -118,7 +118,7 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
     ++topology_revision_;
   }
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
     const auto i = static_cast<std::size_t>(signed_i);
     Vec3 sum = Vec3::Zero();
@@ -135,7 +135,7 @@ void SolidBody::integrate(double dt_previous, double dt, std::span<const Vec3> e
   const double dt_average = 0.5 * (dt_previous + dt);
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
   std::vector<double> kinetic(position_.size()), work(position_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
     const auto i = static_cast<std::size_t>(signed_i);
     const Vec3 f_external = (external_force.empty() ? Vec3::Zero() : external_force[i]) + mass_[i] * gravity_;

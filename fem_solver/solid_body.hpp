@@ -54,6 +54,10 @@ class SolidBody {
   void set_node_velocity(std::size_t node, const Vec3& velocity);
   void set_gravity(const Vec3& gravity) { gravity_ = gravity; }
 
+  // Loops over fewer elements or nodes than this run on one thread: for
+  // small meshes the threads' start and barrier cost more than the work.
+  void set_parallel_minimum(std::ptrdiff_t count) { parallel_minimum_ = count; }
+
   [[nodiscard]] std::span<const Vec3> positions() const { return position_; }
   [[nodiscard]] std::span<const Vec3> reference_positions() const { return mesh_.node; }
   [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }  // v_{n-1/2} (v_{n+1/2} after integrate)
@@ -81,6 +85,7 @@ class SolidBody {
   MaterialParameters material_;
   double hourglass_scale_;
   Vec3 gravity_ = Vec3::Zero();
+  std::ptrdiff_t parallel_minimum_ = 4096;
   std::vector<Vec3> position_, velocity_, internal_force_;
   std::vector<double> mass_;
   std::vector<std::uint8_t> fixed_;  // Dof bits per node
