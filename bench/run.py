@@ -198,6 +198,36 @@ class DemBox(Case):
         return {"OMP_NUM_THREADS": str(self.threads)}
 
 
+class FemThroughput(Case):
+    def __init__(self, kind, elements, steps, threads):
+        super().__init__(
+            "fem_throughput.{}.{}.t{}".format(kind, entity_label(elements), threads),
+            "fem_throughput",
+            "FEM {} elements={} threads={}".format(kind, elements, threads),
+            "element_steps_per_second",
+            "element-steps/s",
+            timeout_s=300,
+        )
+        self.kind = kind
+        self.elements = elements
+        self.steps = steps
+        self.threads = threads
+
+    def binaries(self, bin_dir):
+        return [os.path.join(bin_dir, "bench_fem_throughput")]
+
+    def command(self, bin_dir):
+        return [
+            os.path.join(bin_dir, "bench_fem_throughput"),
+            "--kind", self.kind,
+            "--elements", str(self.elements),
+            "--steps", str(self.steps),
+        ]
+
+    def env(self):
+        return {"OMP_NUM_THREADS": str(self.threads)}
+
+
 class DemPile(Case):
     """bench_dem_pile: a dense pile of boulders settling in a box; stability figures and throughput."""
 
@@ -365,6 +395,10 @@ def all_cases(quick, cores):
         for spheres in (10000, 100000):  # linear scaling while settling
             cases.append(DemBox(spheres, min(2, cores), 0.1, 50, False))
         cases.append(DemPile(10000, 10.0, min(2, cores)))
+    fem = [("hex", 4096, 50), ("shell", 4096, 50)] if quick else [("hex", 32768, 50), ("shell", 65536, 50)]
+    for threads in sorted({1, 2}):
+        for kind, elements, steps in fem:
+            cases.append(FemThroughput(kind, elements, steps, threads))
     cases.append(chute)
     return cases
 

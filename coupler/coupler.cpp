@@ -159,6 +159,8 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   }
   if (registration.exposes_surface()) {
     const auto& surface = registration.surface();
+    fem_surface_nodes_ = surface.node_id_size();
+    fem_surface_revision_ = surface.revision();
     if (surface.node_position_size() != 3 * surface.node_id_size() || surface.triangle_size() % 3 != 0 ||
         surface.face_part_size() * 3 != surface.triangle_size()) {
       refuse(fmt::format("{}: the surface's arrays are inconsistent", name));
@@ -279,8 +281,23 @@ void Coupler::validate_state(const Peer& peer) {
   }
   if (!std::isfinite(s.stable_dt()) && !std::isinf(s.stable_dt())) invalid("stable_dt is NaN");
   if (s.stable_dt() <= 0) invalid(fmt::format("stable_dt = {} must be > 0", s.stable_dt()));
+  if (peer.registration.exposes_surface() && s.has_topology()) {
+    // Elements eroded: the surface's new topology replaces the registered one
+    // from this step on (checked like the registration's).
+    const auto& topology = s.topology();
+    if (topology.node_position_size() != 3 * topology.node_id_size() || topology.triangle_size() % 3 != 0 ||
+        topology.face_part_size() * 3 != topology.triangle_size()) {
+      invalid("the new surface topology's arrays are inconsistent");
+    }
+    if (topology.revision() <= fem_surface_revision_) {
+      invalid(fmt::format("surface topology revision {} does not follow revision {}", topology.revision(),
+                          fem_surface_revision_));
+    }
+    fem_surface_revision_ = topology.revision();
+    fem_surface_nodes_ = topology.node_id_size();
+  }
   if (peer.registration.exposes_surface() && s.node_position_size() != 0) {
-    const auto nodes = peer.registration.surface().node_id_size();
+    const auto nodes = fem_surface_nodes_;
     if (s.node_position_size() != 3 * nodes || s.node_velocity_size() != 3 * nodes) {
       invalid(fmt::format("{} node positions for {} surface nodes", s.node_position_size(), nodes));
     }
@@ -308,6 +325,11 @@ void Coupler::compute_contacts(double dt_previous) {
   if (!surface_contact_) return;
   const auto start = Clock::now();
   const auto& fem_state = fem_->state;
+  if (fem_state.has_topology()) {
+    // Faces that left (eroded elements) leave the contact; exposed faces join.
+    // Tangential springs carry over where their nodes remain (keyed by node ids).
+    surface_contact_->set_surface(protocol::surface_from_message(fem_state.topology(), "fem_solver"));
+  }
   if (fem_state.node_position_size() > 0) {
     surface_contact_->update_nodes(
         {fem_state.node_position().data(), static_cast<std::size_t>(fem_state.node_position_size())},

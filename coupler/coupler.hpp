@@ -74,6 +74,8 @@ class Coupler {
   std::vector<std::unique_ptr<Peer>> peers_;
   Peer* dem_ = nullptr;
   Peer* fem_ = nullptr;
+  int fem_surface_nodes_ = 0;               // nodes of the FEM surface now (registration or last topology)
+  std::uint64_t fem_surface_revision_ = 0;  // its topology revision
 
   std::unique_ptr<SurfaceContact> surface_contact_;
   ParticleGather gather_;

@@ -4,8 +4,10 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <fstream>
 #include <limits>
 
+#include "fem_solver/mesh/gmsh.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
 
@@ -19,30 +21,364 @@ void RigidPart::step(double /*dt*/, std::span<const Vec3> /*node_force*/) {
   // Fixed in space: the contact forces are reactions of the supports.
 }
 
+namespace {
+
+MaterialParameters material_parameters(const scene::Material& m) {
+  MaterialParameters p;
+  p.density = m.density;
+  p.youngs_modulus = m.youngs_modulus;
+  p.poisson_ratio = m.poisson_ratio;
+  if (m.yield_stress) {
+    p.yield_stress = *m.yield_stress;
+    p.tangent_modulus = m.tangent_modulus;
+    p.hardening = m.hardening;
+    if (m.cowper_symonds_c) {
+      p.cowper_symonds_c = *m.cowper_symonds_c;
+      p.cowper_symonds_p = m.cowper_symonds_p;
+    }
+  }
+  if (m.failure_strain) p.failure_principal_strain = *m.failure_strain;
+  return p;
+}
+
+HexMesh structure_mesh(const scene::Structure& structure) {
+  const Aabb& box = structure.shape.box;
+  std::array<std::size_t, 3> divisions{1, 1, 1};
+  if (structure.shape.element_size > 0) {
+    for (int d = 0; d < 3; ++d) {
+      divisions[static_cast<std::size_t>(d)] =
+          static_cast<std::size_t>(std::max(1.0, std::round((box.max(d) - box.min(d)) / structure.shape.element_size)));
+    }
+  }
+  return structured_box(box, divisions);
+}
+
+constexpr std::uint64_t kDeformableIdBase = std::uint64_t{1} << 40;
+
+}  // namespace
+
+namespace {
+
+// Shell meshes of a deformable structure with a thickness: a plane panel, or
+// a thin-walled building (the four walls of the box, the roof and floors - 1
+// intermediate slabs; body material 0 the walls, 1 the slabs).
+ShellMesh structure_shells(const scene::Structure& structure) {
+  const scene::Shape& shape = structure.shape;
+  const double size = shape.element_size;
+  const auto divisions = [&](double length) {
+    return size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / size))) : std::size_t{1};
+  };
+  ShellMesh mesh;
+  if (shape.type == scene::Shape::Type::plane) {
+    const Vec3 side = shape.normal.cross(shape.direction).normalized();
+    const Vec3 corner = shape.origin - 0.5 * shape.length * shape.direction - 0.5 * shape.width * side;
+    add_panel(mesh, corner, shape.length * shape.direction, shape.width * side, divisions(shape.length),
+              divisions(shape.width), structure.thickness, 0);
+    return mesh;
+  }
+  const Vec3 lo = shape.box.min, hi = shape.box.max;
+  const Vec3 extent = hi - lo;
+  const double slab = structure.roof_thickness > 0 ? structure.roof_thickness : structure.thickness;
+  const std::size_t nz = divisions(extent.z());
+  add_panel(mesh, lo, Vec3(extent.x(), 0, 0), Vec3(0, 0, extent.z()), divisions(extent.x()), nz, structure.thickness,
+            0);
+  add_panel(mesh, Vec3(hi.x(), lo.y(), lo.z()), Vec3(0, extent.y(), 0), Vec3(0, 0, extent.z()), divisions(extent.y()),
+            nz, structure.thickness, 0);
+  add_panel(mesh, Vec3(hi.x(), hi.y(), lo.z()), Vec3(-extent.x(), 0, 0), Vec3(0, 0, extent.z()), divisions(extent.x()),
+            nz, structure.thickness, 0);
+  add_panel(mesh, Vec3(lo.x(), hi.y(), lo.z()), Vec3(0, -extent.y(), 0), Vec3(0, 0, extent.z()), divisions(extent.y()),
+            nz, structure.thickness, 0);
+  for (std::size_t floor = 1; floor <= structure.floors; ++floor) {
+    const double z = lo.z() + extent.z() * static_cast<double>(floor) / static_cast<double>(structure.floors);
+    add_panel(mesh, Vec3(lo.x(), lo.y(), z), Vec3(extent.x(), 0, 0), Vec3(0, extent.y(), 0), divisions(extent.x()),
+              divisions(extent.y()), slab, 1);
+  }
+  weld(mesh, 1e-6 * extent.norm());
+  return mesh;
+}
+
+Aabb bounds_of(std::span<const Vec3> points) {
+  Aabb box;
+  for (const Vec3& p : points) box.extend(p);
+  return box;
+}
+
+// The nodes on the faces of the structure's bounding box named in `fixed` ("z-", ...).
+template <class Body>
+void fix_faces(Body& body, const std::vector<std::string>& fixed, unsigned dofs) {
+  const Aabb box = bounds_of(body.reference_positions());
+  const double tolerance = 1e-9 * std::max(1.0, (box.max - box.min).norm());
+  for (const std::string& face : fixed) {
+    const int axis = face[0] - 'x';
+    Aabb slab{Vec3::Constant(-std::numeric_limits<double>::infinity()),
+              Vec3::Constant(std::numeric_limits<double>::infinity())};
+    const double at = face[1] == '-' ? box.min(axis) : box.max(axis);
+    slab.min(axis) = at - tolerance;
+    slab.max(axis) = at + tolerance;
+    body.fix_in_box(slab, dofs);
+  }
+}
+
+}  // namespace
+
+DeformablePart::DeformablePart(const scene::Structure& structure, const scene::Scene& scene) {
+  const std::size_t material = scene.material_index(structure.material);
+  if (structure.shape.type == scene::Shape::Type::mesh) {
+    GmshMesh gmsh = read_gmsh(structure.shape.file);
+    for (Vec3& p : gmsh.hexahedra.node) p = structure.shape.scale * p + structure.shape.translate;
+    scene_material_ = {static_cast<std::uint32_t>(material), static_cast<std::uint32_t>(material)};
+    bulk_modulus_ = {scene.materials[material].bulk_modulus(), scene.materials[material].bulk_modulus()};
+    const MaterialParameters parameters = material_parameters(scene.materials[material]);
+    if (!gmsh.hexahedra.element.empty()) {
+      solid_ = std::make_unique<SolidBody>(std::move(gmsh.hexahedra), parameters);
+      solid_->set_gravity(scene.run.gravity);
+      fix_faces(*solid_, structure.fixed_faces, dof_all);
+      solid_->set_velocity(structure.velocity);
+    } else {
+      if (!(structure.thickness > 0)) {
+        throw SceneError(fmt::format(
+            "{}:{}: structure '{}': the mesh {} holds quadrangles (shells) but the structure has no thickness. "
+            "Fix: give thickness = the shell thickness in m",
+            structure.origin.file.string(), structure.origin.line, structure.name, structure.shape.file.string()));
+      }
+      ShellMesh shells;
+      shells.node = gmsh.hexahedra.node;
+      shells.element = gmsh.quads;
+      shells.thickness.assign(shells.element.size(), structure.thickness);
+      shells.material.assign(shells.element.size(), 0);
+      shell_ = std::make_unique<ShellBody>(std::move(shells), std::vector<MaterialParameters>{parameters});
+      shell_->set_gravity(scene.run.gravity);
+      fix_faces(*shell_, structure.fixed_faces, dof_all | rotations_all);
+      shell_->set_velocity(structure.velocity);
+    }
+  } else if (structure.thickness > 0) {
+    std::size_t slab_material = material;
+    if (!structure.roof_material.empty()) slab_material = scene.material_index(structure.roof_material);
+    scene_material_ = {static_cast<std::uint32_t>(material), static_cast<std::uint32_t>(slab_material)};
+    std::vector<MaterialParameters> parameters;
+    for (auto m : scene_material_) {
+      parameters.push_back(material_parameters(scene.materials[m]));
+      bulk_modulus_.push_back(scene.materials[m].bulk_modulus());
+    }
+    shell_ = std::make_unique<ShellBody>(structure_shells(structure), parameters);
+    shell_->set_gravity(scene.run.gravity);
+    fix_faces(*shell_, structure.fixed_faces, dof_all | rotations_all);
+    shell_->set_velocity(structure.velocity);
+  } else {
+    scene_material_ = {static_cast<std::uint32_t>(material)};
+    bulk_modulus_ = {scene.materials[material].bulk_modulus()};
+    solid_ = std::make_unique<SolidBody>(structure_mesh(structure), material_parameters(scene.materials[material]));
+    solid_->set_gravity(scene.run.gravity);
+    fix_faces(*solid_, structure.fixed_faces, dof_all);
+    solid_->set_velocity(structure.velocity);
+  }
+  refresh_surface();
+}
+
+double DeformablePart::stable_dt() const {
+  return solid_ ? solid_->stable_dt() : shell_->stable_dt();
+}
+
+SolidEnergies DeformablePart::solid_energies() const {
+  return solid_ ? solid_->energies() : shell_->energies();
+}
+
+Energies DeformablePart::energies() const {
+  const SolidEnergies e = solid_energies();
+  Energies out;
+  out.kinetic = e.kinetic;
+  out.potential = e.potential;
+  out.elastic = e.internal + e.hourglass + e.eroded - e.plastic_work;
+  out.dissipated = e.plastic_work;
+  return out;
+}
+
+void DeformablePart::compute_internal_forces(double dt_previous) {
+  if (solid_) {
+    solid_->compute_internal_forces(dt_previous);
+  } else {
+    shell_->compute_internal_forces(dt_previous);
+  }
+}
+
+void DeformablePart::step(double dt, std::span<const Vec3> node_force) {
+  external_.assign(solid_ ? solid_->node_count() : shell_->node_count(), Vec3::Zero());
+  for (std::size_t i = 0; i < node_force.size() && i < surface_nodes_.size(); ++i) {
+    external_[surface_nodes_[i]] = node_force[i];
+  }
+  if (solid_) {
+    solid_->integrate(dt_previous_, dt, external_);
+  } else {
+    shell_->integrate(dt_previous_, dt, external_);
+  }
+  dt_previous_ = dt;
+}
+
+Vec3 DeformablePart::position(std::size_t node) const {
+  return solid_ ? solid_->positions()[node] : shell_->positions()[node];
+}
+
+Vec3 DeformablePart::velocity(std::size_t node) const {
+  return solid_ ? solid_->velocities()[node] : shell_->velocities()[node];
+}
+
+bool DeformablePart::refresh_surface() {
+  const std::uint64_t revision = solid_ ? solid_->topology_revision() : shell_->topology_revision();
+  if (surface_built_ && surface_revision_ == revision) return false;
+  surface_built_ = true;
+  surface_revision_ = revision;
+  std::size_t nodes = 0;
+  if (solid_) {
+    faces_ = exterior_faces(solid_->mesh(), solid_->active());
+    nodes = solid_->node_count();
+  } else {
+    faces_.clear();
+    for (std::size_t e = 0; e < shell_->element_count(); ++e) {
+      if (!shell_->eroded(e)) faces_.push_back({shell_->mesh().element[e], static_cast<std::uint32_t>(e)});
+    }
+    nodes = shell_->node_count();
+  }
+  body_to_surface_.assign(nodes, std::numeric_limits<std::uint32_t>::max());
+  surface_nodes_.clear();
+  for (const BoundaryFace& face : faces_) {
+    for (std::uint32_t n : face.node) {
+      if (body_to_surface_[n] == std::numeric_limits<std::uint32_t>::max()) {
+        body_to_surface_[n] = static_cast<std::uint32_t>(surface_nodes_.size());
+        surface_nodes_.push_back(n);
+      }
+    }
+  }
+  return true;
+}
+
+geometry::SurfaceMesh DeformablePart::surface() const {
+  geometry::SurfaceMesh mesh;
+  for (std::uint32_t n : surface_nodes_) {
+    mesh.node_id.push_back(n);  // the model offsets ids per part
+    mesh.node_position.push_back(position(n));
+  }
+  for (const BoundaryFace& face : faces_) {
+    const auto s = [&](std::size_t k) { return body_to_surface_[face.node[k]]; };
+    std::uint32_t body_material = 0;
+    double thickness = 0, volume = 0;
+    if (solid_) {
+      volume = solid_->element_state(face.element).volume;
+    } else {
+      body_material = shell_->mesh().material[face.element];
+      thickness = shell_->mesh().thickness[face.element];
+    }
+    for (const std::array<std::uint32_t, 3>& tri :
+         {std::array<std::uint32_t, 3>{s(0), s(1), s(2)}, std::array<std::uint32_t, 3>{s(0), s(2), s(3)}}) {
+      mesh.triangle.push_back(tri);
+      mesh.face_part.push_back(0);
+      mesh.face_material.push_back(scene_material_[body_material]);
+      mesh.face_thickness.push_back(thickness);
+      mesh.face_bulk_modulus.push_back(bulk_modulus_[body_material]);
+      mesh.face_element_volume.push_back(volume);
+    }
+  }
+  return mesh;
+}
+
+void DeformablePart::write_volume(const std::filesystem::path& file, const io::vtk::Options& options) const {
+  const std::size_t elements = solid_ ? solid_->element_count() : shell_->element_count();
+  const std::span<const Vec3> positions = solid_ ? solid_->positions() : shell_->positions();
+  const std::span<const Vec3> reference = solid_ ? solid_->reference_positions() : shell_->reference_positions();
+  const std::span<const Vec3> velocities = solid_ ? solid_->velocities() : shell_->velocities();
+  std::vector<std::int64_t> connectivity, offsets;
+  std::vector<io::vtk::CellType> types(elements, solid_ ? io::vtk::CellType::hexahedron : io::vtk::CellType::quad);
+  std::vector<double> stress(6 * elements), mises(elements), plastic(elements);
+  std::vector<std::uint8_t> eroded(elements);
+  for (std::size_t e = 0; e < elements; ++e) {
+    const MaterialPoint* point = nullptr;
+    if (solid_) {
+      for (auto n : solid_->mesh().element[e]) connectivity.push_back(n);
+      point = &solid_->element_state(e).point;
+      eroded[e] = solid_->eroded(e) ? 1 : 0;
+    } else {
+      for (auto n : shell_->mesh().element[e]) connectivity.push_back(n);
+      // The outer fibre (largest von Mises stress of the two surfaces).
+      const auto& points = shell_->element_state(e).point;
+      point = von_mises(points.front().stress) >= von_mises(points.back().stress) ? &points.front() : &points.back();
+      eroded[e] = shell_->eroded(e) ? 1 : 0;
+    }
+    offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
+    const Mat3& sigma = point->stress;
+    const double values[6] = {sigma(0, 0), sigma(1, 1), sigma(2, 2), sigma(0, 1), sigma(1, 2), sigma(0, 2)};
+    for (std::size_t k = 0; k < 6; ++k) stress[6 * e + k] = values[k];
+    mises[e] = von_mises(sigma);
+    plastic[e] = point->plastic_strain;
+  }
+  std::vector<Vec3> displacement(positions.size());
+  for (std::size_t i = 0; i < positions.size(); ++i) displacement[i] = positions[i] - reference[i];
+  const std::vector<io::vtk::Array> points{io::vtk::Array::vectors("displacement", displacement),
+                                           io::vtk::Array::vectors("velocity", velocities)};
+  const std::vector<io::vtk::Array> cells{
+      io::vtk::Array::of<double>("stress", stress, 6), io::vtk::Array::scalars("von_mises", mises),
+      io::vtk::Array::scalars("plastic_strain", plastic), io::vtk::Array::of<std::uint8_t>("eroded", eroded)};
+  io::vtk::write_unstructured(file, positions, connectivity, offsets, types, points, cells, options);
+}
+
 FemModel::FemModel(const scene::Scene& scene) {
+  std::uint64_t rigid_id = 0;
   for (std::size_t index = 0; index < scene.structures.size(); ++index) {
     const scene::Structure& structure = scene.structures[index];
+    const std::size_t material = scene.material_index(structure.material);
     if (!structure.rigid) {
-      throw SceneError(
-          fmt::format("{}:{}: structure '{}' (key '{}'): rigid = false, but deformable structures are "
-                      "not supported yet. Fix: set rigid = true",
-                      structure.origin.file.string(), structure.origin.line, structure.name, structure.origin.key));
+      const bool shell_plane = structure.shape.type == scene::Shape::Type::plane && structure.thickness > 0;
+      if (structure.shape.type != scene::Shape::Type::box && structure.shape.type != scene::Shape::Type::mesh &&
+          !shell_plane) {
+        throw SceneError(
+            fmt::format("{}:{}: structure '{}' (key '{}'): deformable structures are boxes (solid, or a thin-walled "
+                        "building with a thickness) or planes with a thickness (shells). Fix: use shape = \"box\" or "
+                        "rigid = true",
+                        structure.origin.file.string(), structure.origin.line, structure.name, structure.origin.key));
+      }
+      parts_.push_back(std::make_unique<DeformablePart>(structure, scene));
+      rigid_surface_.emplace_back();
+      PartInfo info;
+      info.name = structure.name;
+      info.material = material;
+      info_.push_back(info);
+      continue;
     }
     geometry::SurfaceMesh part_surface = geometry::triangulate(structure.shape, structure.name, structure.origin);
-    const std::size_t material = scene.material_index(structure.material);
     const double bulk_modulus = scene.materials[material].bulk_modulus();
     const std::size_t faces = part_surface.face_count();
     part_surface.face_material.assign(faces, static_cast<std::uint32_t>(material));
     part_surface.face_thickness.assign(faces, structure.thickness);
     part_surface.face_bulk_modulus.assign(faces, bulk_modulus);
     part_surface.face_element_volume.assign(faces, 0.0);
-
+    for (auto& id : part_surface.node_id) id = rigid_id++;
     PartInfo info;
     info.name = structure.name;
     info.material = material;
+    info_.push_back(info);
+    rigid_surface_.push_back(std::move(part_surface));
+    parts_.push_back(std::make_unique<RigidPart>());
+  }
+  part_series_.resize(parts_.size());
+  rebuild_surface();
+}
+
+void FemModel::rebuild_surface() {
+  surface_ = geometry::SurfaceMesh{};
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    PartInfo& info = info_[index];
+    geometry::SurfaceMesh part_surface;
+    if (const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get())) {
+      part_surface = part->surface();
+      for (auto& id : part_surface.node_id) id += kDeformableIdBase * (index + 1);
+    } else {
+      part_surface = rigid_surface_[index];
+    }
+    part_surface.part_name = {info.name};
+    part_surface.face_part.assign(part_surface.face_count(), 0);
     info.node_begin = surface_.node_count();
     info.face_begin = surface_.face_count();
-    for (std::size_t f = 0; f < faces; ++f) {
+    info.area = 0;
+    info.centroid.setZero();
+    for (std::size_t f = 0; f < part_surface.face_count(); ++f) {
       const auto& t = part_surface.triangle[f];
       const Vec3 center =
           (part_surface.node_position[t[0]] + part_surface.node_position[t[1]] + part_surface.node_position[t[2]]) /
@@ -55,13 +391,39 @@ FemModel::FemModel(const scene::Scene& scene) {
     surface_.append(part_surface);
     info.node_end = surface_.node_count();
     info.face_end = surface_.face_count();
-    info_.push_back(info);
-    parts_.push_back(std::make_unique<RigidPart>());
   }
-  // Node ids: unique over the whole surface.
-  for (std::size_t i = 0; i < surface_.node_id.size(); ++i) surface_.node_id[i] = i;
   surface_.validate("fem_solver surface");
   node_force_.assign(surface_.node_count(), Vec3::Zero());
+  node_velocity_.assign(surface_.node_count(), Vec3::Zero());
+  update_surface();
+}
+
+void FemModel::compute_internal_forces(double dt_previous) {
+  for (auto& part : parts_) part->compute_internal_forces(dt_previous);
+}
+
+bool FemModel::update_surface() {
+  bool changed = false;
+  for (auto& part : parts_) {
+    if (auto* deformable = dynamic_cast<DeformablePart*>(part.get()))
+      changed = deformable->refresh_surface() || changed;
+  }
+  if (changed) {
+    ++surface_revision_;
+    rebuild_surface();
+    return true;
+  }
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get());
+    if (part == nullptr) continue;
+    const auto nodes = part->surface_nodes();
+    const std::size_t begin = info_[index].node_begin;
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      surface_.node_position[begin + i] = part->position(nodes[i]);
+      node_velocity_[begin + i] = part->velocity(nodes[i]);
+    }
+  }
+  return false;
 }
 
 FemModel::~FemModel() = default;
@@ -122,6 +484,7 @@ void FemModel::apply_node_forces(std::span<const double> node_force) {
 }
 
 void FemModel::step(double dt) {
+  dt_previous_ = dt;
   for (std::size_t p = 0; p < parts_.size(); ++p) {
     const PartInfo& info = info_[p];
     parts_[p]->step(dt, std::span<const Vec3>(node_force_).subspan(info.node_begin, info.node_end - info.node_begin));
@@ -146,6 +509,51 @@ void FemModel::write_output(const std::filesystem::path& run_folder, std::uint64
   io::vtk::write_surface(file, surface_, point_data, cell_data, options);
   if (!series_) series_.emplace(run_folder / "fem.pvd");
   series_->add(time, std::filesystem::path("fem") / file.filename());
+  write_energy_history(run_folder, time);
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get());
+    if (part == nullptr) continue;
+    const std::string name = info_[index].name;
+    const std::filesystem::path volume_file = folder / fmt::format("{}_{:08}.vtu", name, step);
+    part->write_volume(volume_file, options);
+    if (!part_series_[index]) part_series_[index].emplace(run_folder / fmt::format("fem_{}.pvd", name));
+    part_series_[index]->add(time, std::filesystem::path("fem") / volume_file.filename());
+  }
+}
+
+void FemModel::write_energy_history(const std::filesystem::path& run_folder, double time) {
+  bool any = false;
+  SolidEnergies total;
+  std::size_t eroded = 0;
+  for (const auto& part : parts_) {
+    const auto* deformable = dynamic_cast<const DeformablePart*>(part.get());
+    if (deformable == nullptr) continue;
+    any = true;
+    const SolidEnergies e = deformable->solid_energies();
+    total.kinetic += e.kinetic;
+    total.internal += e.internal;
+    total.plastic_work += e.plastic_work;
+    total.hourglass += e.hourglass;
+    total.eroded += e.eroded;
+    total.external_work += e.external_work;
+    if (const SolidBody* solid = deformable->solid()) {
+      for (std::size_t k = 0; k < solid->element_count(); ++k) eroded += solid->eroded(k) ? 1 : 0;
+    } else {
+      const ShellBody* shell = deformable->shell();
+      for (std::size_t k = 0; k < shell->element_count(); ++k) eroded += shell->eroded(k) ? 1 : 0;
+    }
+  }
+  if (!any) return;
+  const std::filesystem::path file = run_folder / "fem_energy.csv";
+  const bool fresh = !energy_history_started_;
+  std::ofstream out(file, fresh ? std::ios::trunc : std::ios::app);
+  if (!out) throw FileError(fmt::format("{}: cannot write the FEM energy history", file.string()));
+  if (fresh) {
+    out << "time_s,kinetic_J,internal_J,plastic_work_J,hourglass_J,eroded_J,external_work_J,eroded_elements\n";
+    energy_history_started_ = true;
+  }
+  out << fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n", time, total.kinetic, total.internal,
+                     total.plastic_work, total.hourglass, total.eroded, total.external_work, eroded);
 }
 
 }  // namespace sabo::fem

@@ -11,8 +11,8 @@
 //   2. It receives StepForces{n, dt_n, node_force f_n: 3 per surface node, N}.
 //   3. apply_node_forces(f_n) stores f_n and the resultant force and moment
 //      (about the part's centroid) on every part.
-//   4. step(dt_n) advances to t_{n+1} = t_n + dt_n. Deformable parts (a later
-//      version) integrate v_{n+1/2} = v_{n-1/2} + dt_avg M^-1 (f_n + f_ext -
+//   4. step(dt_n) advances to t_{n+1} = t_n + dt_n. Deformable parts
+//      integrate v_{n+1/2} = v_{n-1/2} + dt_avg M^-1 (f_n + f_ext -
 //      f_int(x_n)), x_{n+1} = x_n + dt_n v_{n+1/2}; rigid parts do nothing.
 //   5. When StepForces.output is set, write_output() writes the surface at
 //      t_n with the forces f_n (call it before step()).
@@ -24,6 +24,8 @@
 #include <string>
 #include <vector>
 
+#include "fem_solver/shell_body.hpp"
+#include "fem_solver/solid_body.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/io/vtk.hpp"
@@ -50,6 +52,51 @@ class Part {
   // Advances by dt (s) under the contact forces on its surface nodes (N, the
   // part's range of the combined surface).
   virtual void step(double dt, std::span<const Vec3> node_force) = 0;
+  // Deformable parts: stresses and internal forces at x_n (see SolidBody).
+  virtual void compute_internal_forces(double /*dt_previous*/) {}
+};
+
+// A deformable structure (rigid = false): a SolidBody of hexahedra (a box)
+// whose exterior faces (two triangles per quad) are its contact surface, or a
+// ShellBody (a wall panel, or a thin-walled building: a box with a
+// thickness) whose active shells are two-sided faces with their thickness.
+class DeformablePart final : public Part {
+ public:
+  DeformablePart(const scene::Structure& structure, const scene::Scene& scene);
+  [[nodiscard]] bool rigid() const override { return false; }
+  [[nodiscard]] double stable_dt() const override;
+  [[nodiscard]] Energies energies() const override;
+  [[nodiscard]] SolidEnergies solid_energies() const;
+  [[nodiscard]] bool moved() const override { return true; }
+  void step(double dt, std::span<const Vec3> node_force) override;
+  void compute_internal_forces(double dt_previous) override;
+
+  // The contact surface of the active elements now: nodes in surface_nodes() order.
+  [[nodiscard]] geometry::SurfaceMesh surface() const;
+  [[nodiscard]] std::span<const std::uint32_t> surface_nodes() const { return surface_nodes_; }
+  // Recomputes the surface after erosion; returns whether it changed.
+  bool refresh_surface();
+  [[nodiscard]] Vec3 position(std::size_t node) const;
+  [[nodiscard]] Vec3 velocity(std::size_t node) const;
+  [[nodiscard]] bool is_shell() const { return shell_ != nullptr; }
+  [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
+  [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
+  // The volume mesh (.vtu): hexahedra or quads with displacement, velocity,
+  // stress, von Mises stress, plastic strain, eroded.
+  void write_volume(const std::filesystem::path& file, const io::vtk::Options& options) const;
+
+ private:
+  std::unique_ptr<SolidBody> solid_;
+  std::unique_ptr<ShellBody> shell_;
+  std::vector<double> bulk_modulus_;           // per material of the shell mesh (solids: one)
+  std::vector<std::uint32_t> scene_material_;  // scene material index per body material
+  std::vector<BoundaryFace> faces_;            // solids: exterior faces; shells: node = the quad
+  std::vector<std::uint32_t> surface_nodes_;   // body node of each surface node
+  std::vector<std::uint32_t> body_to_surface_;
+  std::uint64_t surface_revision_ = 0;
+  bool surface_built_ = false;
+  double dt_previous_ = 0;
+  std::vector<Vec3> external_;
 };
 
 // A structure fixed in space (the paper's MAT_RIGID channel, all DOFs fixed).
@@ -77,8 +124,8 @@ struct PartInfo {
 class FemModel {
  public:
   // One part per scene structure, in file order (part index = structure index).
-  // Throws SceneError for structures it cannot build (deformable structures
-  // are not supported yet), FileError for unreadable mesh files.
+  // Throws SceneError for structures it cannot build, FileError for
+  // unreadable mesh files.
   explicit FemModel(const scene::Scene& scene);
   ~FemModel();
   FemModel(const FemModel&) = delete;
@@ -92,6 +139,20 @@ class FemModel {
   [[nodiscard]] std::size_t part_count() const { return parts_.size(); }
   [[nodiscard]] const PartInfo& part(std::size_t index) const { return info_.at(index); }
   [[nodiscard]] const Part& part_model(std::size_t index) const { return *parts_.at(index); }
+
+  // Stresses and internal forces of the deformable parts at x_n, from
+  // v_{n-1/2} over dt_previous (s); erodes failed elements (the surface
+  // changes at the next update_surface()).
+  void compute_internal_forces(double dt_previous);
+  // Brings the combined surface to x_n: node positions and velocities, and a
+  // new topology when elements eroded since the last call (returns true then;
+  // the revision increases).
+  bool update_surface();
+  [[nodiscard]] std::uint64_t surface_revision() const { return surface_revision_; }
+  [[nodiscard]] std::span<const Vec3> node_velocities() const { return node_velocity_; }  // m/s, surface nodes
+  [[nodiscard]] const DeformablePart* deformable(std::size_t index) const {
+    return dynamic_cast<const DeformablePart*>(parts_.at(index).get());
+  }
 
   [[nodiscard]] double stable_dt() const;              // s; minimum over parts (rigid only: +infinity)
   [[nodiscard]] Energies energies() const;             // sum over parts (rigid: zero)
@@ -107,12 +168,27 @@ class FemModel {
 
   // Writes <run_folder>/fem/fem_<step>.vtp (the surface with node_force,
   // node_id, and per face part, material, thickness) and adds it to
-  // <run_folder>/fem.pvd at `time` (s).
+  // <run_folder>/fem.pvd at `time` (s). Each deformable part also writes
+  // <run_folder>/fem/<name>_<step>.vtu (hexahedra with displacement, velocity,
+  // stress, von Mises stress, plastic strain, eroded) in <run_folder>/fem_<name>.pvd,
+  // and the deformable parts' energy history goes to <run_folder>/fem_energy.csv
+  // (time, kinetic, internal, plastic work, hourglass, eroded, external work
+  // in J, eroded elements).
   void write_output(const std::filesystem::path& run_folder, std::uint64_t step, double time,
                     const io::vtk::Options& options = {});
 
  private:
+  void rebuild_surface();
+  // Appends the deformable parts' energies at `time` to <run_folder>/fem_energy.csv.
+  void write_energy_history(const std::filesystem::path& run_folder, double time);
+
   geometry::SurfaceMesh surface_;
+  std::vector<geometry::SurfaceMesh> rigid_surface_;  // per part (empty for deformable parts)
+  std::vector<Vec3> node_velocity_;
+  std::uint64_t surface_revision_ = 0;
+  double dt_previous_ = 0;
+  std::vector<std::optional<io::vtk::TimeSeries>> part_series_;
+  bool energy_history_started_ = false;
   std::vector<std::unique_ptr<Part>> parts_;
   std::vector<PartInfo> info_;
   std::vector<Vec3> node_force_;

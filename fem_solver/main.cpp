@@ -3,8 +3,6 @@
 // The physics is FemModel (fem_model.hpp); this file is the protocol side.
 #include <spdlog/spdlog.h>
 
-#include <cassert>
-
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/solver/driver.hpp"
@@ -29,14 +27,33 @@ class FemSolver final : public solver::CoupledSolver {
   double stable_dt() override { return model_.stable_dt(); }
 
   void fill_state(const solver::Interest& /*interest*/, sabo::v1::StepState& state) override {
-    // Rigid parts never move, so no node arrays are sent after registration
-    // (empty arrays mean "unchanged", docs/protocol.md).
-    assert(!model_.moved() && "moving surfaces need node positions and velocities in the state");
+    // A new topology (elements eroded) goes out before the nodes that use it.
+    if (model_.update_surface()) {
+      protocol::surface_to_message(model_.surface(), model_.surface_revision(), *state.mutable_topology());
+      spdlog::info("surface changed (revision {}): {} nodes, {} faces", model_.surface_revision(),
+                   model_.surface().node_count(), model_.surface().face_count());
+    }
+    // Rigid parts never move: with only those, no node arrays are sent after
+    // registration (empty arrays mean "unchanged", docs/protocol.md).
+    if (model_.moved()) {
+      const auto& positions = model_.surface().node_position;
+      const auto velocities = model_.node_velocities();
+      auto* p = state.mutable_node_position();
+      auto* v = state.mutable_node_velocity();
+      p->Resize(static_cast<int>(3 * positions.size()), 0.0);
+      v->Resize(static_cast<int>(3 * positions.size()), 0.0);
+      for (std::size_t i = 0; i < positions.size(); ++i) {
+        for (int d = 0; d < 3; ++d) {
+          p->Set(static_cast<int>(3 * i) + d, positions[i](d));
+          v->Set(static_cast<int>(3 * i) + d, velocities[i](d));
+        }
+      }
+    }
     const Energies e = model_.energies();
     solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.dissipated});
   }
 
-  void compute_internal_forces(double /*dt_previous*/) override {}
+  void compute_internal_forces(double dt_previous) override { model_.compute_internal_forces(dt_previous); }
 
   void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
     model_.apply_node_forces({forces.node_force().data(), static_cast<std::size_t>(forces.node_force_size())});
@@ -44,7 +61,18 @@ class FemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }
   void integrate(double /*dt_previous*/, double dt) override { model_.step(dt); }
-  void finish() override {}
+  void finish() override {
+    for (std::size_t index = 0; index < model_.part_count(); ++index) {
+      const DeformablePart* part = model_.deformable(index);
+      if (part == nullptr) continue;
+      const SolidEnergies e = part->solid_energies();
+      spdlog::info(
+          "part '{}': kinetic {:.4g} J, internal {:.4g} J, plastic work {:.4g} J, hourglass {:.4g} J ({:.1f}% of "
+          "internal), eroded {:.4g} J, external work {:.4g} J",
+          model_.part(index).name, e.kinetic, e.internal, e.plastic_work, e.hourglass,
+          e.internal > 0 ? 100.0 * e.hourglass / e.internal : 0.0, e.eroded, e.external_work);
+    }
+  }
 
  private:
   FemModel model_;

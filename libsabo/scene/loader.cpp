@@ -669,11 +669,78 @@ class Builder {
       if (auto v = r.number("density")) material.density = *v;
       if (auto v = r.number("youngs_modulus")) material.youngs_modulus = *v;
       if (auto v = r.number("poisson_ratio")) material.poisson_ratio = *v;
+      read_plasticity(r, material);
       scene_.materials.push_back(std::move(material));
     }
   }
 
   // Checks `name` (validity, uniqueness among bodies) and records it.
+  // Plastic kinematic keys of a material (deformable structures).
+  void read_plasticity(Reader& r, Material& material) {
+    material.yield_stress = r.number("yield_stress");
+    if (auto v = r.number("tangent_modulus")) material.tangent_modulus = *v;
+    if (auto v = r.number("hardening")) material.hardening = *v;
+    material.cowper_symonds_c = r.number("cowper_symonds_c");
+    if (auto v = r.number("cowper_symonds_p")) material.cowper_symonds_p = *v;
+    material.failure_strain = r.number("failure_strain");
+    if (!material.yield_stress) {
+      for (const char* key : {"tangent_modulus", "hardening", "cowper_symonds_c", "cowper_symonds_p"}) {
+        if (r.has(key)) {
+          diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                    "a plasticity parameter without yield_stress (the material is elastic)",
+                    "add yield_stress, or remove the key");
+        }
+      }
+    }
+    if (material.youngs_modulus > 0 && material.tangent_modulus >= material.youngs_modulus) {
+      diag_.add(
+          r.line("tangent_modulus"), r.key_path("tangent_modulus"), value_text(*r.node("tangent_modulus")),
+          fmt::format("the tangent modulus must be below youngs_modulus = {}", number_literal(material.youngs_modulus)),
+          "give the slope after yield, a fraction of youngs_modulus");
+    }
+  }
+
+  // Deformable structures: a box meshed with hexahedra, fixed faces, initial velocity.
+  void read_deformable(Reader& r, Structure& structure, const std::optional<std::string>& shape) {
+    if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
+    if (auto v = r.vec3("velocity")) structure.velocity = *v;
+    const bool building_keys = shape && *shape == "box";
+    if (building_keys) {
+      if (auto v = r.integer("floors")) structure.floors = static_cast<std::size_t>(*v);
+      if (auto v = r.number("roof_thickness")) structure.roof_thickness = *v;
+      if (auto v = r.string("roof_material")) {
+        structure.roof_material = *v;
+        check_material(r, *v, "roof_material");
+      }
+      if (!structure.rigid && structure.thickness == 0) {
+        for (const char* key : {"floors", "roof_thickness", "roof_material"}) {
+          if (r.has(key)) {
+            diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                      "belongs to thin-walled buildings, but this box has no thickness (a solid)",
+                      "give the walls a thickness, or remove the key");
+          }
+        }
+      }
+    }
+    if (structure.rigid) {
+      for (const char* key : {"fixed", "velocity", "floors", "roof_thickness", "roof_material"}) {
+        if (r.has(key)) {
+          diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                    "belongs to deformable structures, but this one is rigid",
+                    "remove it, or set rigid = false (shape = \"box\")");
+        }
+      }
+      return;
+    }
+    if (shape && *shape != "box" && *shape != "mesh" && !(*shape == "plane" && structure.thickness > 0)) {
+      diag_.add(r.line("rigid"), r.key_path("rigid"), "false",
+                fmt::format("deformable structures are boxes (hexahedra, or shells with a thickness), planes "
+                            "with a thickness (shells) or Gmsh meshes, not shape = {}{}",
+                            quote_text(*shape), *shape == "plane" ? " without a thickness" : ""),
+                "use shape = \"box\" with element_size, give the plane a thickness, or set rigid = true");
+    }
+  }
+
   void register_body(Reader& r, const std::string& name, bool is_particle_set) {
     const int line = r.line("name");
     if (!valid_name(name)) {
@@ -689,7 +756,7 @@ class Builder {
     }
   }
 
-  void check_material(Reader& r, const std::string& material) {
+  void check_material(Reader& r, const std::string& material, const char* key = "material") {
     if (std::find(material_names_.begin(), material_names_.end(), material) != material_names_.end()) return;
     const auto suggestion = closest_match(material, material_names_);
     std::string problem = "no material of that name";
@@ -697,7 +764,7 @@ class Builder {
     const std::string fix = material_names_.empty() ? fmt::format("add a [materials.{}] table", material)
                                                     : fmt::format("define [materials.{}] or use one of: {}", material,
                                                                   join(material_names_));
-    diag_.add(r.line("material"), r.key_path("material"), quote_text(material), problem, fix);
+    diag_.add(r.line(key), r.key_path(key), quote_text(material), problem, fix);
   }
 
   void read_particle_set(const toml::table& table, std::size_t index) {
@@ -971,13 +1038,7 @@ class Builder {
       structure.material = *v;
       check_material(r, structure.material);
     }
-    if (auto v = r.boolean("rigid")) {
-      structure.rigid = *v;
-      if (!*v) {
-        diag_.add(r.line("rigid"), r.key_path("rigid"), "false", "deformable structures are not supported yet",
-                  "set rigid = true (or remove the key)");
-      }
-    }
+    if (auto v = r.boolean("rigid")) structure.rigid = *v;
     if (auto v = r.number("thickness")) structure.thickness = *v;
     const auto shape = r.string("shape");
     if (!shape) {
@@ -985,6 +1046,7 @@ class Builder {
       return;
     }
     r.select(*shape);
+    read_deformable(r, structure, shape);
     Shape& s = structure.shape;
     if (*shape == "plane") {
       s.type = Shape::Type::plane;
@@ -1048,7 +1110,7 @@ class Builder {
       s.type = Shape::Type::mesh;
       if (auto v = r.number("scale")) s.scale = *v;
       if (auto v = r.vec3("translate")) s.translate = *v;
-      if (auto v = r.string("file")) s.file = resolve_mesh(r, *v);
+      if (auto v = r.string("file")) s.file = resolve_mesh(r, *v, structure.rigid);
     }
     if (s.type != Shape::Type::mesh) {
       if (auto v = r.number("element_size")) s.element_size = *v;
@@ -1056,7 +1118,8 @@ class Builder {
     scene_.structures.push_back(std::move(structure));
   }
 
-  fs::path resolve_mesh(Reader& r, const std::string& file) {
+  // Rigid structures take STL surfaces; deformable ones Gmsh .msh volume or shell meshes.
+  fs::path resolve_mesh(Reader& r, const std::string& file, bool rigid = true) {
     const fs::path given(file);
     const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
     const int line = r.line("file");
@@ -1072,9 +1135,14 @@ class Builder {
       std::string extension = full.extension().string();
       std::transform(extension.begin(), extension.end(), extension.begin(),
                      [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-      if (extension != ".stl") {
+      if (rigid && extension != ".stl") {
         diag_.add(line, r.key_path("file"), quote_text(file), "a mesh must be an STL file ending in .stl",
                   "convert the mesh to STL (ASCII or binary)");
+      }
+      if (!rigid && extension != ".msh") {
+        diag_.add(line, r.key_path("file"), quote_text(file),
+                  "a deformable structure's mesh must be a Gmsh file ending in .msh (hexahedra or quadrangles)",
+                  "export the mesh from Gmsh as msh 4.1 ASCII, or set rigid = true for an STL surface");
       }
     }
     return fs::weakly_canonical(full, ec);

@@ -30,6 +30,14 @@ struct Material {
   double density = 0;         // kg/m^3, > 0
   double youngs_modulus = 0;  // Pa, > 0
   double poisson_ratio = 0;   // in [0, 0.5)
+  // Plasticity and failure of deformable structures (LS-DYNA MAT_PLASTIC_KINEMATIC);
+  // absent: elastic, no failure.
+  std::optional<double> yield_stress;      // Pa, > 0
+  double tangent_modulus = 0;              // Pa, in [0, E)
+  double hardening = 0;                    // beta in [0, 1]: 0 kinematic, 1 isotropic
+  std::optional<double> cowper_symonds_c;  // 1/s, > 0: strain-rate factor 1 + (rate / C)^(1/p)
+  double cowper_symonds_p = 1;             // > 0
+  std::optional<double> failure_strain;    // > 0: elements erode at this maximum principal strain
   [[nodiscard]] double bulk_modulus() const { return youngs_modulus / (3.0 * (1.0 - 2.0 * poisson_ratio)); }
   [[nodiscard]] double shear_modulus() const { return youngs_modulus / (2.0 * (1.0 + poisson_ratio)); }
 };
@@ -145,7 +153,7 @@ struct DemContact : DemContactLaw {
   [[nodiscard]] const DemContactLaw& law(const std::string& material_a, const std::string& material_b) const;
 };
 
-// One structure part (FEM). Rigid in this version: fixed in space.
+// The geometry of one structure part (FEM).
 struct Shape {
   enum class Type { plane, box, chute, mesh };
   Type type = Type::plane;
@@ -176,8 +184,17 @@ struct Structure {
   std::string name;
   std::string material;  // a key of Scene::materials (checked)
   Origin origin;
+  // Rigid: fixed in space, any shape. Deformable (rigid = false): a box of
+  // hexahedra (thickness 0), a thin-walled building of shells (a box with a
+  // thickness: four walls, floors - 1 slabs and a roof), or a shell panel (a
+  // plane with a thickness), with elements of about element_size.
   bool rigid = true;
-  double thickness = 0;  // m: shell thickness for the eq. 3 offset (0: solid face)
+  double roof_thickness = 0;             // m, building slabs (0: thickness)
+  std::string roof_material;             // building slabs (empty: material)
+  std::size_t floors = 1;                // building storeys (>= 1)
+  std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
+  Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
+  double thickness = 0;                  // m: shell thickness for the eq. 3 offset (0: solid face)
   Shape shape;
 };
 

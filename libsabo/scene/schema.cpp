@@ -212,6 +212,40 @@ class Schema {
         K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
         K("poisson_ratio", Type::number).required("0.3").ge(0).lt(0.5).doc("Poisson's ratio nu."),
     };
+    add_plasticity_keys();
+  }
+
+  // Plastic kinematic material and failure (deformable structures, fem_solver).
+  void add_plasticity_keys() {
+    material.description +=
+        " Deformable structures may add plasticity and failure (LS-DYNA MAT_PLASTIC_KINEMATIC): bilinear "
+        "von Mises plasticity from `yield_stress` with `tangent_modulus`, hardening mixed between kinematic "
+        "(`hardening` = 0) and isotropic (1), an optional Cowper-Symonds rate factor 1 + (rate / C)^(1/p), "
+        "and erosion of elements whose maximum principal strain reaches `failure_strain`.";
+    material.keys.push_back(
+        K("yield_stress", Type::number).absent("elastic").unit("Pa").gt(0).doc("Initial yield stress sigma_0."));
+    material.keys.push_back(K("tangent_modulus", Type::number)
+                                .def("0.0")
+                                .unit("Pa")
+                                .ge(0)
+                                .allowed(">= 0 and < youngs_modulus")
+                                .doc("Slope of the stress-strain curve after yield (needs `yield_stress`)."));
+    material.keys.push_back(K("hardening", Type::number)
+                                .def("0.0")
+                                .ge(0)
+                                .le(1)
+                                .doc("beta: 0 kinematic, 1 isotropic hardening (needs `yield_stress`)."));
+    material.keys.push_back(K("cowper_symonds_c", Type::number)
+                                .absent("no strain-rate effect")
+                                .unit("1/s")
+                                .gt(0)
+                                .doc("Cowper-Symonds C (needs `yield_stress`)."));
+    material.keys.push_back(
+        K("cowper_symonds_p", Type::number).def("1.0").gt(0).doc("Cowper-Symonds exponent p (with C)."));
+    material.keys.push_back(K("failure_strain", Type::number)
+                                .absent("no failure")
+                                .gt(0)
+                                .doc("Maximum principal strain at which an element erodes (deformable structures)."));
   }
 
   void build_particles() {
@@ -331,7 +365,8 @@ class Schema {
     structure.anchor = "structures";
     structure.selector = "shape";
     structure.description =
-        "One FEM part, simulated by the fem_solver. Parts are rigid (fixed in space) in this version. The "
+        "One FEM part, simulated by the fem_solver: rigid (fixed in space) or, with `rigid = false`, "
+        "deformable (a solid box of hexahedra, a shell building or a shell panel). The "
         "`shape` picks the geometry; the keys marked with shapes belong only to those shapes.\n\n"
         "* `plane`: a rectangle centred at `origin` with unit normal `normal`, `length` along `direction` "
         "(projected onto the plane) and `width` across.\n"
@@ -353,8 +388,31 @@ class Schema {
         K("material", Type::string).required("\"concrete\"").allowed("a `[materials.NAME]`").doc("Material."),
         K("rigid", Type::boolean)
             .def("true")
-            .allowed("`true` (deformable parts come later)")
-            .doc("Rigid part, fixed in space."),
+            .doc("Rigid part, fixed in space. `false`: deformable (explicit FEM, docs/physics.md): a `box` "
+                 "without thickness is a solid of hexahedra; a `box` with a `thickness` is a thin-walled "
+                 "building of shells (four walls, `floors` slabs with the roof); a `plane` with a "
+                 "`thickness` is a shell panel. Elements of about `element_size`."),
+        K("fixed", Type::string_list)
+            .def("[]")
+            .choices({"x-", "x+", "y-", "y+", "z-", "z+"})
+            .doc("Deformable: faces of the box whose nodes have every degree of freedom fixed."),
+        K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Deformable: initial velocity."),
+        K("floors", Type::integer)
+            .def("1")
+            .ge(1)
+            .only_for({"box"})
+            .doc("Deformable building (box with a thickness): storeys; a slab tops each."),
+        K("roof_thickness", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"box"})
+            .doc("Deformable building: thickness of the floor and roof slabs (0: `thickness`)."),
+        K("roof_material", Type::string)
+            .absent("`material`")
+            .allowed("a `[materials.NAME]`")
+            .only_for({"box"})
+            .doc("Deformable building: material of the floor and roof slabs."),
         K("thickness", Type::number)
             .def("0.0")
             .unit("m")
@@ -416,8 +474,9 @@ class Schema {
         K("file", Type::string)
             .required("\"meshes/dam.stl\"")
             .only_for({"mesh"})
-            .allowed("an existing `.stl` file")
-            .doc("STL file, relative to the scene file's folder."),
+            .allowed("an existing `.stl` file (rigid) or `.msh` file (deformable)")
+            .doc("STL file, relative to the scene file's folder; for `rigid = false`, a Gmsh msh 4.1 ASCII file of "
+                 "8-node hexahedra (solid) or 4-node quadrangles (shells of `thickness`)."),
         K("scale", Type::number).def("1.0").gt(0).only_for({"mesh"}).doc("Scale applied to the file's coordinates."),
         K("translate", Type::vec3)
             .def("[0.0, 0.0, 0.0]")
@@ -803,7 +862,12 @@ const std::vector<std::string>& cross_checks() {
       "An interaction's `pair` names one particle set and one structure; no pair appears twice.",
       "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
       "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
-      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` is not supported yet.",
+      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`, "
+      "`shape = \"mesh\"` with a `.msh` file, or `shape = \"plane\"` with a `thickness`; `fixed`, `velocity`, "
+      "`floors`, `roof_thickness` and "
+      "`roof_material` need `rigid = false` (the last three a box with a `thickness`). Plasticity keys other than "
+      "`yield_stress` and "
+      "`failure_strain` need `yield_stress`; `tangent_modulus` is below `youngs_modulus`.",
       "`[recording]`: `first_step` <= `last_step`.",
       "Every number is finite (no `nan`, no `inf`).",
   };

@@ -34,7 +34,12 @@ struct Fixture : ::testing::Test {
     scene.run.output_interval = 0.005;
     scene.run.hang_timeout = 1.0;
     scene.recording.enabled = false;
-    scene.materials.push_back({"rock", {}, 3000, 30e9, 0.3});
+    sabo::scene::Material rock;
+    rock.name = "rock";
+    rock.density = 3000;
+    rock.youngs_modulus = 30e9;
+    rock.poisson_ratio = 0.3;
+    scene.materials.push_back(rock);
     scene::ParticleSet set;
     set.name = "boulders";
     set.material = "rock";

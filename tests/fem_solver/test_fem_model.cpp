@@ -271,16 +271,17 @@ TEST(FemModel, ResultantForceAndMomentPerPart) {
   EXPECT_FALSE(model.moved());
 }
 
-TEST(FemModel, DeformableStructuresAreRefused) {
+TEST(FemModel, DeformableStructuresOtherThanBoxesAreRefused) {
   auto scene = test_scene();
   scene.structures[1].rigid = false;
+  scene.structures[1].shape = chute_shape();
   try {
     FemModel model(scene);
     ADD_FAILURE() << "no exception";
   } catch (const sabo::SceneError& error) {
     const std::string text = error.what();
     EXPECT_NE(text.find("/scenes/test.toml:10: structure 'house'"), std::string::npos) << text;
-    EXPECT_NE(text.find("Fix: set rigid = true"), std::string::npos) << text;
+    EXPECT_NE(text.find("Fix: use shape = \"box\" or rigid = true"), std::string::npos) << text;
   }
 }
 

@@ -1,0 +1,196 @@
+#include "fem_solver/elements/hex8.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace sabo::fem {
+namespace {
+
+constexpr std::array<std::array<double, 3>, 8> kNatural{
+    {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}, {-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}}};
+
+// Hourglass vectors h1 = eta zeta, h2 = xi zeta, h3 = xi eta, h4 = xi eta zeta at the nodes.
+constexpr double hourglass_vector(int alpha, int node) {
+  const auto& n = kNatural[static_cast<std::size_t>(node)];
+  switch (alpha) {
+    case 0: return n[1] * n[2];
+    case 1: return n[0] * n[2];
+    case 2: return n[0] * n[1];
+    default: return n[0] * n[1] * n[2];
+  }
+}
+
+// Faces as node quadruples, outward.
+constexpr std::array<std::array<int, 4>, 6> kFaces{
+    {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}}};
+
+struct Geometry {
+  Mat3 jacobian;                 // column j: d x / d xi_j at the centre (half-length vectors)
+  std::array<Vec3, 8> gradient;  // grad N_a at the centre
+  double volume = 0;
+};
+
+bool geometry(const HexNodes& x, Geometry& g) {
+  g.jacobian.setZero();
+  for (int a = 0; a < 8; ++a) {
+    const auto& n = kNatural[static_cast<std::size_t>(a)];
+    for (int j = 0; j < 3; ++j)
+      g.jacobian.col(j) += x[static_cast<std::size_t>(a)] * (n[static_cast<std::size_t>(j)] / 8.0);
+  }
+  const double det = g.jacobian.determinant();
+  g.volume = 8.0 * det;
+  if (!(det > 0)) return false;
+  const Mat3 inverse_transpose = g.jacobian.inverse().transpose();
+  for (int a = 0; a < 8; ++a) {
+    const auto& n = kNatural[static_cast<std::size_t>(a)];
+    g.gradient[static_cast<std::size_t>(a)] = inverse_transpose * Vec3(n[0], n[1], n[2]) / 8.0;
+  }
+  return true;
+}
+
+}  // namespace
+
+double hex8_volume(const HexNodes& x) {
+  Geometry g;
+  geometry(x, g);
+  return g.volume;
+}
+
+double hex8_characteristic_length(const HexNodes& x) {
+  double largest_area = 0;
+  for (const auto& face : kFaces) {
+    const Vec3 d1 = x[static_cast<std::size_t>(face[2])] - x[static_cast<std::size_t>(face[0])];
+    const Vec3 d2 = x[static_cast<std::size_t>(face[3])] - x[static_cast<std::size_t>(face[1])];
+    largest_area = std::max(largest_area, 0.5 * d1.cross(d2).norm());
+  }
+  const double volume = hex8_volume(x);
+  return largest_area > 0 && volume > 0 ? volume / largest_area : 0.0;
+}
+
+bool hex8_internal_force(const MaterialParameters& material, double hourglass_scale, const HexNodes& x,
+                         const HexNodes& velocity, double dt_previous, Hex8State& state, HexNodes& force) {
+  for (auto& f : force) f.setZero();
+  Geometry g;
+  if (dt_previous > 0) {
+    HexNodes mid;
+    for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt_previous * velocity[a];
+    Geometry gm;
+    if (!geometry(mid, gm)) return false;
+    Mat3 velocity_gradient = Mat3::Zero();
+    for (std::size_t a = 0; a < 8; ++a) velocity_gradient += velocity[a] * gm.gradient[a].transpose();
+    const Mat3 rate = 0.5 * (velocity_gradient + velocity_gradient.transpose());
+    const Mat3 spin = 0.5 * (velocity_gradient - velocity_gradient.transpose());
+    const Mat3 old_stress = state.point.stress;
+    const MaterialUpdate update = update_stress(material, rate, spin, dt_previous, state.point);
+    state.internal_energy += dt_previous * gm.volume * 0.5 * (old_stress + state.point.stress).cwiseProduct(rate).sum();
+    state.plastic_work += gm.volume * update.plastic_work_density;
+  }
+  if (!geometry(x, g)) return false;
+  state.volume = g.volume;
+  for (std::size_t a = 0; a < 8; ++a) force[a] = g.volume * (state.point.stress * g.gradient[a]);
+
+  // Hourglass: co-rotational frame from the natural axes (Gram-Schmidt).
+  Mat3 frame;
+  Vec3 half_length;
+  for (int j = 0; j < 3; ++j) half_length(j) = g.jacobian.col(j).norm();
+  frame.col(0) = g.jacobian.col(0) / half_length(0);
+  const Vec3 second = g.jacobian.col(1) - frame.col(0).dot(g.jacobian.col(1)) * frame.col(0);
+  frame.col(1) = second.normalized();
+  frame.col(2) = frame.col(0).cross(frame.col(1));
+
+  std::array<std::array<double, 8>, 4> gamma{};
+  for (int alpha = 0; alpha < 4; ++alpha) {
+    Vec3 projection = Vec3::Zero();  // h_alpha . x_j for j = x, y, z
+    for (std::size_t a = 0; a < 8; ++a) projection += hourglass_vector(alpha, static_cast<int>(a)) * x[a];
+    for (std::size_t a = 0; a < 8; ++a) {
+      gamma[static_cast<std::size_t>(alpha)][a] =
+          hourglass_vector(alpha, static_cast<int>(a)) - projection.dot(g.gradient[a]);
+    }
+  }
+  // Generalised hourglass rates q_dot[i][alpha] = gamma_alpha . v_i / 8 (local components).
+  std::array<std::array<double, 4>, 3> rate{};
+  for (int i = 0; i < 3; ++i) {
+    for (int alpha = 0; alpha < 4; ++alpha) {
+      double sum = 0;
+      for (std::size_t a = 0; a < 8; ++a)
+        sum += gamma[static_cast<std::size_t>(alpha)][a] * frame.col(i).dot(velocity[a]);
+      rate[static_cast<std::size_t>(i)][static_cast<std::size_t>(alpha)] = sum / 8.0;
+    }
+  }
+  if (dt_previous > 0) {
+    const double youngs = hourglass_scale * material.youngs_modulus;
+    const double shear = hourglass_scale * material.shear_modulus();
+    const double nu = material.poisson_ratio;
+    const double plane_modulus = youngs / (1 - nu * nu);
+    const double v3 = g.volume / 3.0;
+    std::array<std::array<double, 4>, 3> increment{};
+    for (std::size_t i = 0; i < 3; ++i) {
+      // Warping mode (no normal strain): its two shears with G.
+      double sum = 0;
+      for (std::size_t j = 0; j < 3; ++j) {
+        if (j != i)
+          sum += 1.0 / (half_length(static_cast<Eigen::Index>(j)) * half_length(static_cast<Eigen::Index>(j)));
+      }
+      increment[i][i] = shear * v3 * sum * rate[i][i];
+      // xi eta zeta mode: uniaxial normal strain varying as the product of the other two coordinates.
+      const double li = half_length(static_cast<Eigen::Index>(i));
+      increment[i][3] = youngs * g.volume / 9.0 / (li * li) * rate[i][3];
+    }
+    // Bending modes: for each natural coordinate k, the normal strains of the two
+    // other axes varying linearly in k, in plane stress (sigma_kk = 0).
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::size_t a = (k + 1) % 3, b = (k + 2) % 3;
+      const double la = half_length(static_cast<Eigen::Index>(a)), lb = half_length(static_cast<Eigen::Index>(b));
+      const double strain_a = rate[a][b] / la, strain_b = rate[b][a] / lb;
+      increment[a][b] = plane_modulus * v3 * (strain_a + nu * strain_b) / la;
+      increment[b][a] = plane_modulus * v3 * (strain_b + nu * strain_a) / lb;
+    }
+    // Plastic materials: the stress variation a mode stands for cannot exceed
+    // the current yield stress (shear modes: yield / sqrt 3); the generalised
+    // force is capped at that level, like a radial return per mode.
+    std::array<std::array<double, 4>, 3> limit{};
+    for (auto& row : limit) row.fill(std::numeric_limits<double>::infinity());
+    if (material.plastic()) {
+      const double hardening_modulus = material.tangent_modulus > 0
+                                           ? material.youngs_modulus * material.tangent_modulus /
+                                                 (material.youngs_modulus - material.tangent_modulus)
+                                           : 0.0;
+      const double yield = material.yield_stress + material.hardening * hardening_modulus * state.point.plastic_strain;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const double li = half_length(static_cast<Eigen::Index>(i));
+        double sum = 0;
+        for (std::size_t j = 0; j < 3; ++j) {
+          if (j != i)
+            sum += 1.0 / (half_length(static_cast<Eigen::Index>(j)) * half_length(static_cast<Eigen::Index>(j)));
+        }
+        for (std::size_t alpha = 0; alpha < 3; ++alpha) {
+          limit[i][alpha] = alpha == i ? yield / std::sqrt(3.0) * v3 * std::sqrt(sum) : yield * v3 / li;
+        }
+        limit[i][3] = yield * g.volume / 9.0 / li;
+      }
+    }
+    for (std::size_t i = 0; i < 3; ++i) {
+      for (std::size_t alpha = 0; alpha < 4; ++alpha) {
+        double& q_force = state.hourglass[i * 4 + alpha];
+        const double old = q_force;
+        q_force = std::clamp(q_force + increment[i][alpha] * dt_previous, -limit[i][alpha], limit[i][alpha]);
+        state.hourglass_energy += 0.5 * (old + q_force) * rate[i][alpha] * dt_previous;
+      }
+    }
+  }
+  std::array<Vec3, 8> local_force;
+  for (auto& f : local_force) f.setZero();
+  for (std::size_t i = 0; i < 3; ++i) {
+    for (std::size_t alpha = 0; alpha < 4; ++alpha) {
+      const double q_force = state.hourglass[i * 4 + alpha];
+      for (std::size_t a = 0; a < 8; ++a)
+        local_force[a](static_cast<Eigen::Index>(i)) += q_force * gamma[alpha][a] / 8.0;
+    }
+  }
+  for (std::size_t a = 0; a < 8; ++a) force[a] += frame * local_force[a];
+  return true;
+}
+
+}  // namespace sabo::fem

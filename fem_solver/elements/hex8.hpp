@@ -1,0 +1,58 @@
+#pragma once
+// The 8-node hexahedron with one-point integration (uniform strain at the
+// centre) and physical hourglass stabilisation (docs/physics.md "FEM solids").
+//
+// Node order: 0..3 the face zeta = -1 counter-clockwise seen from outside...
+// precisely, natural coordinates (xi, eta, zeta) of the nodes:
+//   0 (-,-,-) 1 (+,-,-) 2 (+,+,-) 3 (-,+,-) 4 (-,-,+) 5 (+,-,+) 6 (+,+,+) 7 (-,+,+)
+//
+// Stress: Jaumann-rate hypoelastic/plastic update (materials/) with the rate
+// of deformation at the mid-step geometry x_{n-1/2}; forces f_a = V sigma
+// grad N_a at x_n.
+//
+// Hourglass: the Flanagan-Belytschko base vectors gamma_alpha = h_alpha -
+// sum_j (h_alpha . x_j) grad_j N (orthogonal to every linear field), in a
+// co-rotational frame from the element's natural axes, with generalised
+// stiffnesses from an assumed strain field (after Belytschko & Bindeman 1993,
+// "assumed strain stabilization of the eight node hexahedral element"): the
+// bending modes carry normal strains varying linearly across the element; the
+// two that vary along the same natural coordinate k are coupled in plane stress
+// (sigma_kk = 0, modulus E / (1 - nu^2), Poisson coupling), so pure bending of
+// a beam is exact with one element through the depth and there is no volumetric
+// locking; their parasitic shear is dropped (no shear locking). The warping
+// modes keep their two shears with G, and the xi*eta*zeta mode has E V / (9
+// a_i^2) (a_i: half-lengths along the element axes). Forces are incremental (objective,
+// rotated with the frame). `hourglass_scale` multiplies every stiffness.
+#include <array>
+
+#include "fem_solver/materials/plastic_kinematic.hpp"
+#include "libsabo/core/types.hpp"
+
+namespace sabo::fem {
+
+using HexNodes = std::array<Vec3, 8>;
+
+struct Hex8State {
+  MaterialPoint point;
+  std::array<double, 12> hourglass{};  // generalised hourglass forces Q[i * 4 + alpha], local frame, N
+  double volume = 0;                   // m^3 at x_n
+  double internal_energy = 0;          // J, work of the stress (elastic + plastic)
+  double hourglass_energy = 0;         // J, work of the hourglass forces
+  double plastic_work = 0;             // J
+};
+
+// Volume at the element centre, 8 det J, m^3 (exact for parallelepipeds).
+[[nodiscard]] double hex8_volume(const HexNodes& x);
+
+// Characteristic length for the explicit step: volume / largest face area, m.
+[[nodiscard]] double hex8_characteristic_length(const HexNodes& x);
+
+// Advances the stress with v_{n-1/2} over dt_previous (nothing at dt_previous
+// = 0), then computes the internal force on each node at x_n (N; the
+// acceleration is M^-1 (f_ext - f_int)). Returns false when the element is
+// inverted (non-positive volume at x_n or at mid-step); the state is then
+// unchanged and force is zero.
+bool hex8_internal_force(const MaterialParameters& material, double hourglass_scale, const HexNodes& x,
+                         const HexNodes& velocity, double dt_previous, Hex8State& state, HexNodes& force);
+
+}  // namespace sabo::fem

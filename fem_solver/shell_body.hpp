@@ -1,0 +1,91 @@
+#pragma once
+// Thin-walled structures of 4-node Belytschko-Lin-Tsay shells (houses:
+// walls, floors, roof), each panel with its thickness and material: lumped
+// translational masses rho t A / 4 and rotational inertias, fixed DOFs,
+// gravity, explicit central difference and erosion, as SolidBody
+// (solid_body.hpp, the same step contract). Nodes carry 6 DOFs: velocity and
+// angular velocity (the shell frame is rebuilt from the geometry every step,
+// so no rotation needs integrating). Rotational inertia per node is scaled to
+// m (t^2 + A) / 12, the usual explicit practice that keeps the bending modes
+// from limiting the step; it slows rotations, not the static response.
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "fem_solver/elements/shell4.hpp"
+#include "fem_solver/solid_body.hpp"
+
+namespace sabo::fem {
+
+struct ShellMesh {
+  std::vector<Vec3> node;                             // m
+  std::vector<std::array<std::uint32_t, 4>> element;  // counter-clockwise seen from the outer side
+  std::vector<double> thickness;                      // m, per element
+  std::vector<std::uint32_t> material;                // index into the body's materials, per element
+};
+
+// A flat rectangular panel: origin corner, two edge vectors, n1 x n2 elements.
+void add_panel(ShellMesh& mesh, const Vec3& origin, const Vec3& edge1, const Vec3& edge2, std::size_t n1,
+               std::size_t n2, double thickness, std::uint32_t material);
+// Merges nodes closer than `tolerance` (m): panels sharing edges become one structure.
+void weld(ShellMesh& mesh, double tolerance);
+
+class ShellBody {
+ public:
+  ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, double hourglass_scale = 1.0);
+
+  [[nodiscard]] std::size_t node_count() const { return position_.size(); }
+  [[nodiscard]] std::size_t element_count() const { return mesh_.element.size(); }
+  [[nodiscard]] const ShellMesh& mesh() const { return mesh_; }
+  [[nodiscard]] const MaterialParameters& material(std::size_t e) const { return materials_[mesh_.material[e]]; }
+  // dofs: Dof bits for translations, and rotations in bits 3..5 (dof_all | rotations_all fixes all six).
+  void fix(std::size_t node, unsigned dofs);
+  std::size_t fix_in_box(const Aabb& box, unsigned dofs);
+  void set_velocity(const Vec3& velocity);
+  void set_gravity(const Vec3& gravity) { gravity_ = gravity; }
+  // Mass-proportional damping (1/s) on velocities and angular velocities, for
+  // static solutions by dynamic relaxation; its work counts as external work.
+  void set_damping(double per_second) { damping_ = per_second; }
+
+  // Loops over fewer elements or nodes than this run on one thread: for
+  // small meshes the threads' start and barrier cost more than the work.
+  void set_parallel_minimum(std::ptrdiff_t count) { parallel_minimum_ = count; }
+
+  [[nodiscard]] std::span<const Vec3> positions() const { return position_; }
+  [[nodiscard]] std::span<const Vec3> reference_positions() const { return mesh_.node; }
+  [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }
+  [[nodiscard]] std::span<const Vec3> angular_velocities() const { return angular_velocity_; }
+  [[nodiscard]] std::span<const double> masses() const { return mass_; }
+  [[nodiscard]] const Shell4State& element_state(std::size_t e) const { return state_[e]; }
+  [[nodiscard]] bool eroded(std::size_t e) const { return active_[e] == 0; }
+  [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }
+  [[nodiscard]] double total_mass() const;
+
+  std::size_t compute_internal_forces(double dt_previous);
+  void integrate(double dt_previous, double dt, std::span<const Vec3> external_force = {});
+  [[nodiscard]] double stable_dt() const { return stable_dt_; }
+  [[nodiscard]] SolidEnergies energies() const;
+  [[nodiscard]] std::uint64_t topology_revision() const { return topology_revision_; }
+
+ private:
+  ShellMesh mesh_;
+  std::vector<MaterialParameters> materials_;
+  double hourglass_scale_;
+  Vec3 gravity_ = Vec3::Zero();
+  std::ptrdiff_t parallel_minimum_ = 4096;
+  double damping_ = 0;
+  std::vector<Vec3> position_, velocity_, angular_velocity_, internal_force_, internal_moment_;
+  std::vector<double> mass_, inertia_;
+  std::vector<std::uint8_t> fixed_;
+  std::vector<Shell4State> state_;
+  std::vector<std::uint8_t> active_, element_failed_;
+  std::vector<Vec3> element_force_, element_moment_;  // 4 per element
+  std::vector<double> element_dt_;
+  std::vector<std::uint32_t> node_slot_start_, node_slots_;
+  double stable_dt_ = 0, kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
+  std::uint64_t topology_revision_ = 0;
+};
+
+inline constexpr unsigned rotation_x = 8, rotation_y = 16, rotation_z = 32, rotations_all = 56;
+
+}  // namespace sabo::fem

@@ -1,0 +1,179 @@
+#include "fem_solver/solid_body.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <limits>
+
+namespace sabo::fem {
+
+SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double hourglass_scale)
+    : mesh_(std::move(mesh)), material_(material), hourglass_scale_(hourglass_scale) {
+  const std::size_t nodes = mesh_.node.size();
+  const std::size_t elements = mesh_.element.size();
+  position_ = mesh_.node;
+  velocity_.assign(nodes, Vec3::Zero());
+  internal_force_.assign(nodes, Vec3::Zero());
+  mass_.assign(nodes, 0.0);
+  fixed_.assign(nodes, 0);
+  state_.assign(elements, Hex8State{});
+  eroded_.assign(elements, 0);
+  active_.assign(elements, 1);
+  element_force_.assign(8 * elements, Vec3::Zero());
+  element_dt_.assign(elements, std::numeric_limits<double>::infinity());
+  element_failed_.assign(elements, 0);
+  std::vector<std::uint32_t> count(nodes + 1, 0);
+  for (std::size_t e = 0; e < elements; ++e) {
+    HexNodes x;
+    for (std::size_t a = 0; a < 8; ++a) x[a] = mesh_.node[mesh_.element[e][a]];
+    const double volume = hex8_volume(x);
+    state_[e].volume = volume;
+    for (std::size_t a = 0; a < 8; ++a) {
+      mass_[mesh_.element[e][a]] += material_.density * volume / 8.0;
+      ++count[mesh_.element[e][a] + 1];
+    }
+  }
+  for (std::size_t i = 0; i < nodes; ++i) count[i + 1] += count[i];
+  node_slot_start_ = count;
+  node_slots_.resize(8 * elements);
+  std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
+  for (std::size_t e = 0; e < elements; ++e) {
+    for (std::size_t a = 0; a < 8; ++a)
+      node_slots_[fill[mesh_.element[e][a]]++] = static_cast<std::uint32_t>(8 * e + a);
+  }
+  compute_internal_forces(0.0);
+}
+
+void SolidBody::fix(std::size_t node, unsigned dofs) {
+  fixed_.at(node) = static_cast<std::uint8_t>(fixed_[node] | dofs);
+  for (int d = 0; d < 3; ++d) {
+    if ((dofs & (1u << d)) != 0) velocity_[node](d) = 0;
+  }
+}
+
+std::size_t SolidBody::fix_in_box(const Aabb& box, unsigned dofs) {
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < position_.size(); ++i) {
+    if (box.contains(position_[i])) {
+      fix(i, dofs);
+      ++count;
+    }
+  }
+  return count;
+}
+
+void SolidBody::set_node_velocity(std::size_t node, const Vec3& velocity) {
+  velocity_.at(node) = velocity;
+  for (int d = 0; d < 3; ++d) {
+    if ((fixed_[node] & (1u << d)) != 0) velocity_[node](d) = 0;
+  }
+}
+
+void SolidBody::set_velocity(const Vec3& velocity) {
+  for (std::size_t i = 0; i < velocity_.size(); ++i) set_node_velocity(i, velocity);
+  kinetic_ = 0;
+  for (std::size_t i = 0; i < velocity_.size(); ++i) kinetic_ += 0.5 * mass_[i] * velocity_[i].squaredNorm();
+}
+
+double SolidBody::total_mass() const {
+  double sum = 0;
+  for (double m : mass_) sum += m;
+  return sum;
+}
+
+std::size_t SolidBody::compute_internal_forces(double dt_previous) {
+  const auto elements = static_cast<std::ptrdiff_t>(mesh_.element.size());
+  const double wave_speed = material_.wave_speed();
+#pragma omp parallel for schedule(static) if (elements >= parallel_minimum_)
+  for (std::ptrdiff_t signed_e = 0; signed_e < elements; ++signed_e) {
+    const auto e = static_cast<std::size_t>(signed_e);
+    HexNodes force;
+    if (active_[e] == 0) {
+      for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a].setZero();
+      element_dt_[e] = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    HexNodes x, v;
+    for (std::size_t a = 0; a < 8; ++a) {
+      x[a] = position_[mesh_.element[e][a]];
+      v[a] = velocity_[mesh_.element[e][a]];
+    }
+    const bool ok = hex8_internal_force(material_, hourglass_scale_, x, v, dt_previous, state_[e], force);
+    // An inverted element has failed too: it can carry no stress.
+    element_failed_[e] = (!ok || (material_.erodes() && failed(material_, state_[e].point))) ? 1 : 0;
+    for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a] = force[a];
+    element_dt_[e] = ok ? hex8_characteristic_length(x) / wave_speed : std::numeric_limits<double>::infinity();
+  }
+  std::size_t newly_eroded = 0;
+  for (std::size_t e = 0; e < mesh_.element.size(); ++e) {
+    if (element_failed_[e] == 0 || active_[e] == 0) continue;
+    active_[e] = 0;
+    eroded_[e] = 1;
+    eroded_energy_ += state_[e].internal_energy + state_[e].hourglass_energy;
+    for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a].setZero();
+    element_dt_[e] = std::numeric_limits<double>::infinity();
+    ++newly_eroded;
+  }
+  if (newly_eroded > 0) {
+    eroded_count_ += newly_eroded;
+    ++topology_revision_;
+  }
+  const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
+#pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
+  for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
+    const auto i = static_cast<std::size_t>(signed_i);
+    Vec3 sum = Vec3::Zero();
+    for (std::uint32_t s = node_slot_start_[i]; s < node_slot_start_[i + 1]; ++s) sum += element_force_[node_slots_[s]];
+    internal_force_[i] = sum;
+  }
+  stable_dt_ = std::numeric_limits<double>::infinity();
+  for (double dt : element_dt_) stable_dt_ = std::min(stable_dt_, dt);
+  return newly_eroded;
+}
+
+void SolidBody::integrate(double dt_previous, double dt, std::span<const Vec3> external_force) {
+  assert(external_force.empty() || external_force.size() == position_.size());
+  const double dt_average = 0.5 * (dt_previous + dt);
+  const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
+  std::vector<double> kinetic(position_.size()), work(position_.size());
+#pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
+  for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
+    const auto i = static_cast<std::size_t>(signed_i);
+    const Vec3 f_external = (external_force.empty() ? Vec3::Zero() : external_force[i]) + mass_[i] * gravity_;
+    Vec3 acceleration = (f_external - internal_force_[i]) / mass_[i];
+    for (int d = 0; d < 3; ++d) {
+      if ((fixed_[i] & (1u << d)) != 0) acceleration(d) = 0;
+    }
+    const Vec3 old_velocity = velocity_[i];
+    velocity_[i] += dt_average * acceleration;
+    const Vec3 mid_velocity = 0.5 * (old_velocity + velocity_[i]);
+    kinetic[i] = 0.5 * mass_[i] * mid_velocity.squaredNorm();
+    Vec3 f_working = f_external;
+    for (int d = 0; d < 3; ++d) {
+      if ((fixed_[i] & (1u << d)) != 0) f_working(d) = 0;
+    }
+    work[i] = dt_average * f_working.dot(mid_velocity);
+    position_[i] += dt * velocity_[i];
+  }
+  kinetic_ = 0;
+  for (std::size_t i = 0; i < kinetic.size(); ++i) {
+    kinetic_ += kinetic[i];
+    external_work_ += work[i];
+  }
+}
+
+SolidEnergies SolidBody::energies() const {
+  SolidEnergies e;
+  e.kinetic = kinetic_;
+  for (std::size_t k = 0; k < state_.size(); ++k) {
+    e.plastic_work += state_[k].plastic_work;
+    if (active_[k] == 0) continue;
+    e.internal += state_[k].internal_energy;
+    e.hourglass += state_[k].hourglass_energy;
+  }
+  e.eroded = eroded_energy_;
+  e.external_work = external_work_;
+  for (std::size_t i = 0; i < position_.size(); ++i) e.potential -= mass_[i] * gravity_.dot(position_[i]);
+  return e;
+}
+
+}  // namespace sabo::fem

@@ -1,0 +1,104 @@
+#pragma once
+// A deformable solid: hexahedra of one material, lumped nodal masses, fixed
+// degrees of freedom, gravity, explicit central-difference integration and
+// element erosion (docs/physics.md "FEM solids").
+//
+// Step n (the CoupledSolver contract, DESIGN.md §2): the body holds x_n and
+// v_{n-1/2}.
+//   compute_internal_forces(dt_{n-1}): stresses advanced with v_{n-1/2} over
+//     dt_{n-1} at the mid-step geometry, then f_int(x_n); failed elements are
+//     eroded (their forces vanish from now on, their nodes keep their mass).
+//   integrate(dt_{n-1}, dt_n, f_contact): a_n = M^-1 (f_contact + M g - f_int),
+//     fixed DOFs held at zero velocity,
+//     v_{n+1/2} = v_{n-1/2} + (dt_{n-1} + dt_n)/2 a_n, x_{n+1} = x_n + dt_n v_{n+1/2}.
+// Parallel (OpenMP) over elements, each writing its own 8 nodal forces; nodes
+// gather them in a fixed order: the same bits on any number of threads.
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "fem_solver/elements/hex8.hpp"
+#include "fem_solver/materials/plastic_kinematic.hpp"
+#include "fem_solver/mesh/hex_mesh.hpp"
+
+namespace sabo::fem {
+
+struct SolidEnergies {
+  double kinetic = 0;        // J, with v_n = (v_{n-1/2} + v_{n+1/2}) / 2 after integrate()
+  double internal = 0;       // J, stress work of the active elements (elastic + plastic)
+  double plastic_work = 0;   // J, of every element, eroded included
+  double hourglass = 0;      // J, active elements
+  double eroded = 0;         // J, internal + hourglass energy of eroded elements when they failed
+  double external_work = 0;  // J, of gravity and the contact forces
+  double potential = 0;      // J, -sum m g . x
+  // Kinetic + internal + hourglass + eroded - external work - initial kinetic: zero for a perfect balance.
+  [[nodiscard]] double total() const { return kinetic + internal + hourglass + eroded - external_work; }
+};
+
+enum Dof : unsigned { dof_x = 1, dof_y = 2, dof_z = 4, dof_all = 7 };
+
+class SolidBody {
+ public:
+  SolidBody(HexMesh mesh, const MaterialParameters& material, double hourglass_scale = 1.0);
+
+  [[nodiscard]] std::size_t node_count() const { return position_.size(); }
+  [[nodiscard]] std::size_t element_count() const { return mesh_.element.size(); }
+  [[nodiscard]] const HexMesh& mesh() const { return mesh_; }
+  [[nodiscard]] const MaterialParameters& material() const { return material_; }
+
+  // Fixes the DOFs in `dofs` (Dof bits) of a node; its velocity there stays zero.
+  void fix(std::size_t node, unsigned dofs);
+  // Fixes the DOFs of every node inside `box`; returns how many nodes.
+  std::size_t fix_in_box(const Aabb& box, unsigned dofs);
+  void set_velocity(const Vec3& velocity);  // m/s, every node (fixed DOFs stay zero)
+  void set_node_velocity(std::size_t node, const Vec3& velocity);
+  void set_gravity(const Vec3& gravity) { gravity_ = gravity; }
+
+  // Loops over fewer elements or nodes than this run on one thread: for
+  // small meshes the threads' start and barrier cost more than the work.
+  void set_parallel_minimum(std::ptrdiff_t count) { parallel_minimum_ = count; }
+
+  [[nodiscard]] std::span<const Vec3> positions() const { return position_; }
+  [[nodiscard]] std::span<const Vec3> reference_positions() const { return mesh_.node; }
+  [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }  // v_{n-1/2} (v_{n+1/2} after integrate)
+  [[nodiscard]] std::span<const double> masses() const { return mass_; }
+  [[nodiscard]] std::span<const Vec3> internal_forces() const { return internal_force_; }
+  [[nodiscard]] const Hex8State& element_state(std::size_t e) const { return state_[e]; }
+  [[nodiscard]] bool eroded(std::size_t e) const { return eroded_[e] != 0; }
+  [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }  // 1: not eroded
+  [[nodiscard]] double total_mass() const;
+
+  // See the class comment. Returns the number of elements eroded now.
+  std::size_t compute_internal_forces(double dt_previous);
+  // external_force: per node (N), or empty for none.
+  void integrate(double dt_previous, double dt, std::span<const Vec3> external_force = {});
+
+  // Smallest element's L / c (eq. 7's FEM term without beta), s; after compute_internal_forces.
+  [[nodiscard]] double stable_dt() const { return stable_dt_; }
+  [[nodiscard]] SolidEnergies energies() const;
+  // Incremented whenever elements erode (the exterior surface changed).
+  [[nodiscard]] std::uint64_t topology_revision() const { return topology_revision_; }
+  [[nodiscard]] std::size_t eroded_count() const { return eroded_count_; }
+
+ private:
+  HexMesh mesh_;
+  MaterialParameters material_;
+  double hourglass_scale_;
+  Vec3 gravity_ = Vec3::Zero();
+  std::ptrdiff_t parallel_minimum_ = 4096;
+  std::vector<Vec3> position_, velocity_, internal_force_;
+  std::vector<double> mass_;
+  std::vector<std::uint8_t> fixed_;  // Dof bits per node
+  std::vector<Hex8State> state_;
+  std::vector<std::uint8_t> eroded_, active_;
+  std::vector<Vec3> element_force_;  // 8 per element
+  std::vector<double> element_dt_;   // per element
+  std::vector<std::uint8_t> element_failed_;
+  std::vector<std::uint32_t> node_slot_start_, node_slots_;  // node -> element slots (e * 8 + a), CSR
+  double stable_dt_ = 0;
+  double kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
+  std::uint64_t topology_revision_ = 0;
+  std::size_t eroded_count_ = 0;
+};
+
+}  // namespace sabo::fem
