@@ -3,7 +3,8 @@
 #include <algorithm>
 #include <cassert>
 #include <limits>
-#include <map>
+
+#include "libsabo/geometry/node_welder.hpp"
 
 namespace sabo::fem {
 
@@ -27,21 +28,13 @@ void add_panel(ShellMesh& mesh, const Vec3& origin, const Vec3& edge1, const Vec
 }
 
 void weld(ShellMesh& mesh, double tolerance) {
-  // Quantised positions: nodes within `tolerance` on a grid of that size merge (first one kept).
-  std::map<std::array<long long, 3>, std::uint32_t> seen;
+  geometry::NodeWelder welder(tolerance);
   std::vector<std::uint32_t> renumber(mesh.node.size());
-  std::vector<Vec3> kept;
-  for (std::size_t i = 0; i < mesh.node.size(); ++i) {
-    std::array<long long, 3> key{};
-    for (int d = 0; d < 3; ++d) key[static_cast<std::size_t>(d)] = std::llround(mesh.node[i](d) / tolerance);
-    const auto [it, inserted] = seen.emplace(key, static_cast<std::uint32_t>(kept.size()));
-    if (inserted) kept.push_back(mesh.node[i]);
-    renumber[i] = it->second;
-  }
+  for (std::size_t i = 0; i < mesh.node.size(); ++i) renumber[i] = welder.add(mesh.node[i]);
   for (auto& element : mesh.element) {
     for (auto& n : element) n = renumber[n];
   }
-  mesh.node = std::move(kept);
+  mesh.node = welder.take_positions();
 }
 
 ShellBody::ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, double hourglass_scale)
@@ -62,7 +55,6 @@ ShellBody::ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, 
   element_force_.assign(4 * elements, Vec3::Zero());
   element_moment_.assign(4 * elements, Vec3::Zero());
   element_dt_.assign(elements, std::numeric_limits<double>::infinity());
-  std::vector<std::uint32_t> count(nodes + 1, 0);
   for (std::size_t e = 0; e < elements; ++e) {
     QuadNodes x;
     for (std::size_t a = 0; a < 4; ++a) x[a] = mesh_.node[mesh_.element[e][a]];
@@ -71,17 +63,9 @@ ShellBody::ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, 
     for (std::size_t a = 0; a < 4; ++a) {
       mass_[mesh_.element[e][a]] += m;
       inertia_[mesh_.element[e][a]] += m * (t * t + area) / 12.0;
-      ++count[mesh_.element[e][a] + 1];
     }
   }
-  for (std::size_t i = 0; i < nodes; ++i) count[i + 1] += count[i];
-  node_slot_start_ = count;
-  node_slots_.resize(4 * elements);
-  std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
-  for (std::size_t e = 0; e < elements; ++e) {
-    for (std::size_t a = 0; a < 4; ++a)
-      node_slots_[fill[mesh_.element[e][a]]++] = static_cast<std::uint32_t>(4 * e + a);
-  }
+  gather_ = NodeGather(nodes, mesh_.element);
   compute_internal_forces(0.0);
 }
 
@@ -168,13 +152,8 @@ std::size_t ShellBody::compute_internal_forces(double dt_previous) {
 #pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
     const auto i = static_cast<std::size_t>(signed_i);
-    Vec3 f = Vec3::Zero(), m = Vec3::Zero();
-    for (std::uint32_t s = node_slot_start_[i]; s < node_slot_start_[i + 1]; ++s) {
-      f += element_force_[node_slots_[s]];
-      m += element_moment_[node_slots_[s]];
-    }
-    internal_force_[i] = f;
-    internal_moment_[i] = m;
+    internal_force_[i] = gather_.sum(i, element_force_);
+    internal_moment_[i] = gather_.sum(i, element_moment_);
   }
   stable_dt_ = std::numeric_limits<double>::infinity();
   for (double dt : element_dt_) stable_dt_ = std::min(stable_dt_, dt);

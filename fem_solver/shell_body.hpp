@@ -81,7 +81,7 @@ class ShellBody {
   std::vector<std::uint8_t> active_, element_failed_;
   std::vector<Vec3> element_force_, element_moment_;  // 4 per element
   std::vector<double> element_dt_;
-  std::vector<std::uint32_t> node_slot_start_, node_slots_;
+  NodeGather gather_;
   double stable_dt_ = 0, kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
   std::uint64_t topology_revision_ = 0;
 };

@@ -21,25 +21,14 @@ SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double ho
   element_force_.assign(8 * elements, Vec3::Zero());
   element_dt_.assign(elements, std::numeric_limits<double>::infinity());
   element_failed_.assign(elements, 0);
-  std::vector<std::uint32_t> count(nodes + 1, 0);
   for (std::size_t e = 0; e < elements; ++e) {
     HexNodes x;
     for (std::size_t a = 0; a < 8; ++a) x[a] = mesh_.node[mesh_.element[e][a]];
     const double volume = hex8_volume(x);
     state_[e].volume = volume;
-    for (std::size_t a = 0; a < 8; ++a) {
-      mass_[mesh_.element[e][a]] += material_.density * volume / 8.0;
-      ++count[mesh_.element[e][a] + 1];
-    }
+    for (std::size_t a = 0; a < 8; ++a) mass_[mesh_.element[e][a]] += material_.density * volume / 8.0;
   }
-  for (std::size_t i = 0; i < nodes; ++i) count[i + 1] += count[i];
-  node_slot_start_ = count;
-  node_slots_.resize(8 * elements);
-  std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
-  for (std::size_t e = 0; e < elements; ++e) {
-    for (std::size_t a = 0; a < 8; ++a)
-      node_slots_[fill[mesh_.element[e][a]]++] = static_cast<std::uint32_t>(8 * e + a);
-  }
+  gather_ = NodeGather(nodes, mesh_.element);
   compute_internal_forces(0.0);
 }
 
@@ -121,9 +110,7 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
 #pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
     const auto i = static_cast<std::size_t>(signed_i);
-    Vec3 sum = Vec3::Zero();
-    for (std::uint32_t s = node_slot_start_[i]; s < node_slot_start_[i + 1]; ++s) sum += element_force_[node_slots_[s]];
-    internal_force_[i] = sum;
+    internal_force_[i] = gather_.sum(i, element_force_);
   }
   stable_dt_ = std::numeric_limits<double>::infinity();
   for (double dt : element_dt_) stable_dt_ = std::min(stable_dt_, dt);

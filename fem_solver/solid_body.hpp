@@ -20,6 +20,7 @@
 #include "fem_solver/elements/hex8.hpp"
 #include "fem_solver/materials/plastic_kinematic.hpp"
 #include "fem_solver/mesh/hex_mesh.hpp"
+#include "fem_solver/node_gather.hpp"
 
 namespace sabo::fem {
 
@@ -94,7 +95,7 @@ class SolidBody {
   std::vector<Vec3> element_force_;  // 8 per element
   std::vector<double> element_dt_;   // per element
   std::vector<std::uint8_t> element_failed_;
-  std::vector<std::uint32_t> node_slot_start_, node_slots_;  // node -> element slots (e * 8 + a), CSR
+  NodeGather gather_;
   double stable_dt_ = 0;
   double kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
   std::uint64_t topology_revision_ = 0;
