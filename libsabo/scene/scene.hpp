@@ -136,9 +136,33 @@ struct SurfaceContact {
 };
 
 struct Interaction {
-  std::string a, b;  // a particle set and a structure (checked)
+  std::string a, b;  // a particle set or a fluid body, and a structure (checked)
   Origin origin;
   SurfaceContact contact;  // defaults filled from [contact.dem_fem]
+};
+
+// Weakly compressible SPH (sph_solver). The loader fills these from [sph]
+// and [[fluids]]; the sph_solver helper owns their keys and may add fields.
+// The coupler reads particle_spacing, smoothing_ratio, kernel and wall_model to
+// sample FEM surfaces as boundary particles (wall_model == boundary_particles:
+// ceil(kernel_support / particle_spacing) layers behind each wall surface).
+struct SphSettings {
+  enum class Kernel { wendland_c2, cubic_spline };
+  enum class WallModel { penalty, boundary_particles };
+  double particle_spacing = 0;   // m: initial particle spacing dx, > 0
+  double smoothing_ratio = 1.3;  // h / dx
+  Kernel kernel = Kernel::wendland_c2;
+  WallModel wall_model = WallModel::boundary_particles;
+  [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
+  [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
+};
+
+// One body of slurry: the sph_solver helper defines its shape keys (box,
+// extruded polygon) and initial state.
+struct FluidBody {
+  std::string name;
+  std::string material;  // a key of Scene::materials (checked)
+  Origin origin;
 };
 
 // What the coupler records into traffic.h5.
@@ -161,8 +185,11 @@ struct Scene {
   std::vector<Material> materials;         // sorted by name; index = material id
   std::vector<ParticleSet> particle_sets;  // DEM bodies, in file order
   std::vector<Structure> structures;       // FEM parts, in file order
+  std::vector<FluidBody> fluids;           // SPH bodies, in file order
+  SphSettings sph;
   DemContact dem_contact;
   SurfaceContact dem_fem_default;
+  SurfaceContact sph_fem_default;  // SPH particles against FEM surfaces (wall_model == penalty)
   std::vector<Interaction> interactions;  // explicit per-pair settings
   Recording recording;
 
