@@ -17,6 +17,7 @@ enum class Type {
   string,
   vec3,          // [x, y, z], numbers
   number_pair,   // [a, b], numbers
+  pair_list,     // [[a, b], [c, d], ...], numbers (polygon profiles)
   string_list,   // [ "a", "b" ]
   table,         // [name] or inline { ... }
   table_list,    // [[name]] or [ { ... }, { ... } ]

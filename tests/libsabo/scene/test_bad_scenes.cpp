@@ -30,7 +30,7 @@ const std::vector<BadScene>& bad_scenes() {
   static const std::vector<BadScene> scenes{
       {"syntax_error.toml", 5, "end_time", "2.0.0", {":5:15:", "TOML syntax error", "expected decimal digit"}},
       {"unknown_key.toml", 7, "run.hang_timout", "5.0", {"unknown key. Did you mean 'hang_timeout'?"}},
-      {"unknown_table.toml", 18, "fluids", "[{ name = \"slurry\" }]", {"unknown key", "keys allowed at the top level"}},
+      {"unknown_table.toml", 18, "gases", "[{ name = \"slurry\" }]", {"unknown key", "keys allowed at the top level"}},
       {"wrong_type.toml", 9, "materials.granite.density", "\"3000\"", {"must be a number (kg/m^3), not a string"}},
       {"negative_radius.toml", 18, "particles[0].spheres[1].radius", "-0.5", {"must be > 0 (m)", "positive radius"}},
       {"friction_out_of_range.toml", 32, "contact.dem_fem.friction", "-0.3", {"must be >= 0"}},
@@ -54,7 +54,7 @@ const std::vector<BadScene>& bad_scenes() {
        "[\"/nonexistent/sabo/my_dem\", \"--fast\"]",
        {"does not exist or is not executable", "remove 'command' to run the built dem_solver"}},
       {"unneeded_solver.toml", 18, "solvers.fem", "", {"no bodies need the fem_solver", "add [[structures]]"}},
-      {"no_bodies.toml", 1, "", "", {"the scene has no bodies", "add at least one [[particles]] or [[structures]]"}},
+      {"no_bodies.toml", 1, "", "", {"the scene has no bodies", "add at least one [[fluids]], [[particles]] or [[structures]]"}},
       {"duplicate_name.toml", 24, "structures[0].name", "\"boulders\"", {"already used by particles[0] (line 19)"}},
       {"interaction_unknown_body.toml",
        32,
