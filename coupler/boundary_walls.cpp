@@ -20,6 +20,7 @@ void BoundaryWalls::set_surface(const geometry::SurfaceMesh& surface) {
   previous_node_velocity_ = node_velocity_;
   node_acceleration_ = node_velocity_;
   selection_.clear();
+  previous_selection_.clear();
   selected_.resize(0);
   place_all();
 }
@@ -51,18 +52,21 @@ void BoundaryWalls::update_nodes(std::span<const double> position, std::span<con
   place_all();
 }
 
-void BoundaryWalls::spread(std::span<const double> boundary_force, std::vector<double>& node_force,
-                           std::vector<Vec3>& part_force) const {
-  if (boundary_force.size() != 3 * selection_.size()) {
-    throw ProtocolError(fmt::format(
-        "{} boundary_force values for the {} boundary particles sent in the previous step (expected 3 each)",
-        boundary_force.size(), selection_.size()));
-  }
+void BoundaryWalls::spread(std::span<const double> boundary_force, std::size_t steps_back,
+                           std::vector<double>& node_force, std::vector<Vec3>& part_force) const {
+  const auto& sent = selection(steps_back);
   node_force.assign(3 * surface_.node_count(), 0.0);
   part_force.assign(surface_.part_name.size(), Vec3::Zero());
-  geometry::spread_boundary_forces(surface_, sampling_, selection_, boundary_force, node_force);
-  for (std::size_t s = 0; s < selection_.size(); ++s) {
-    part_force[surface_.face_part[sampling_.face[selection_[s]]]] +=
+  if (boundary_force.empty()) return;
+  if (boundary_force.size() != 3 * sent.size()) {
+    throw ProtocolError(
+        fmt::format("{} boundary_force values for the {} boundary particles sent {} step(s) before "
+                    "(expected 3 each)",
+                    boundary_force.size(), sent.size(), steps_back));
+  }
+  geometry::spread_boundary_forces(surface_, sampling_, sent, boundary_force, node_force);
+  for (std::size_t s = 0; s < sent.size(); ++s) {
+    part_force[surface_.face_part[sampling_.face[sent[s]]]] +=
         Vec3(boundary_force[3 * s], boundary_force[3 * s + 1], boundary_force[3 * s + 2]);
   }
 }
@@ -73,6 +77,7 @@ void BoundaryWalls::select_near(std::span<const double> fluid_position) {
   for (std::size_t i = 0; i < n; ++i) {
     fluid_[i] = Vec3(fluid_position[3 * i], fluid_position[3 * i + 1], fluid_position[3 * i + 2]);
   }
+  previous_selection_.swap(selection_);
   selection_.clear();
   if (n > 0) {
     grid_.build_points(fluid_, support_);

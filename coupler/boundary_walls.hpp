@@ -30,18 +30,22 @@ class BoundaryWalls {
   // velocities over dt_previous (s; 0: none).
   void update_nodes(std::span<const double> position, std::span<const double> velocity, double dt_previous);
 
-  // Spreads the forces the fluid put on the particles of the last selection
-  // (3 doubles each, in that order) onto the nodes: node_force gets 3 doubles
-  // per node (overwritten), part_force the sum per structure part (N).
-  // Throws ProtocolError when the count does not match the last selection.
-  void spread(std::span<const double> boundary_force, std::vector<double>& node_force,
+  // Spreads the forces the fluid put on the particles of a past selection
+  // (3 doubles each, in its order; steps_back 1: the last selection, 2: the
+  // one before) onto the nodes: node_force gets 3 doubles per node
+  // (overwritten), part_force the sum per structure part (N). Throws
+  // ProtocolError when the count does not match that selection.
+  void spread(std::span<const double> boundary_force, std::size_t steps_back, std::vector<double>& node_force,
               std::vector<Vec3>& part_force) const;
   // Selects the particles within the kernel support of any fluid particle
   // (positions: 3 doubles each) and places them; becomes the last selection.
   void select_near(std::span<const double> fluid_position);
 
   [[nodiscard]] const physics::BoundaryParticles& selected() const { return selected_; }
-  [[nodiscard]] const std::vector<std::uint32_t>& selection() const { return selection_; }
+  // The last selection (steps_back 1) or the one before (2), as sample indices.
+  [[nodiscard]] const std::vector<std::uint32_t>& selection(std::size_t steps_back = 1) const {
+    return steps_back == 2 ? previous_selection_ : selection_;
+  }
   [[nodiscard]] const geometry::SurfaceSampling& sampling() const { return sampling_; }
   [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
   [[nodiscard]] std::size_t layers() const { return layers_; }
@@ -60,7 +64,7 @@ class BoundaryWalls {
   std::vector<Vec3> node_velocity_, previous_node_velocity_, node_acceleration_;
   std::vector<Vec3> all_position_;  // every sampled particle, m
   Aabb bounds_;                     // of all_position_
-  std::vector<std::uint32_t> selection_;
+  std::vector<std::uint32_t> selection_, previous_selection_;
   physics::BoundaryParticles selected_;
   std::vector<Vec3> fluid_;
   physics::CellList grid_;

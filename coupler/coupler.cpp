@@ -280,13 +280,19 @@ void Coupler::validate_state(const Peer& peer) {
   }
   if (!std::isfinite(s.stable_dt()) && !std::isinf(s.stable_dt())) invalid("stable_dt is NaN");
   if (s.stable_dt() <= 0) invalid(fmt::format("stable_dt = {} must be > 0", s.stable_dt()));
-  if (s.boundary_force_size() != 0 || (&peer == sph_ && walls_)) {
-    const std::size_t sent = walls_ && &peer == sph_ ? walls_->selection().size() : 0;
-    if (static_cast<std::size_t>(s.boundary_force_size()) != 3 * sent) {
+  if (s.boundary_force_size() != 0 || s.has_boundary_step() || (&peer == sph_ && walls_)) {
+    const std::uint64_t steps_back = s.has_boundary_step() ? s.step() - s.boundary_step() : 1;
+    if (s.has_boundary_step() && (s.boundary_step() >= s.step() || steps_back > 2)) {
+      invalid(fmt::format("boundary_step = {} must be step - 1 or step - 2", s.boundary_step()));
+    }
+    const std::size_t sent = walls_ && &peer == sph_ ? walls_->selection(steps_back).size() : 0;
+    const bool may_be_empty = s.step() <= 1;
+    if (static_cast<std::size_t>(s.boundary_force_size()) != 3 * sent &&
+        !(may_be_empty && s.boundary_force_size() == 0)) {
       invalid(
-          fmt::format("{} boundary_force values for the {} boundary particles the coupler sent at the previous "
-                      "step (expected 3 each, in that order)",
-                      s.boundary_force_size(), sent));
+          fmt::format("{} boundary_force values for the {} boundary particles the coupler sent at step {} "
+                      "(expected 3 each, in that order; boundary_step names the step)",
+                      s.boundary_force_size(), sent, s.step() - steps_back));
     }
     if (!all_finite(s.boundary_force())) invalid("non-finite boundary_force");
   }
@@ -384,7 +390,10 @@ void Coupler::compute_contacts(double dt_previous) {
   if (walls_) {
     if (moved) walls_->update_nodes(node_position, node_velocity, dt_previous);
     const auto& returned = sph_->state.boundary_force();
-    walls_->spread({returned.data(), static_cast<std::size_t>(returned.size())}, walls_node_force_, walls_part_force_);
+    const std::size_t steps_back =
+        sph_->state.has_boundary_step() ? sph_->state.step() - sph_->state.boundary_step() : 1;
+    walls_->spread({returned.data(), static_cast<std::size_t>(returned.size())}, steps_back, walls_node_force_,
+                   walls_part_force_);
     if (!returned.empty()) {
       fem_node_force_nonzero_ = true;
       for (std::size_t i = 0; i < fem_node_force_.size(); ++i) fem_node_force_[i] += walls_node_force_[i];

@@ -116,6 +116,8 @@ struct SphFixture : ::testing::Test {
     return rows;
   }
 
+  void run_boundary_exchange(std::uint64_t steps_back);
+
   static sabo::v1::Register sph_registration(const std::vector<Vec3>& particles) {
     sabo::v1::Register r;
     r.set_protocol_version(protocol::kProtocolVersion);
@@ -233,12 +235,16 @@ TEST_F(SphFixture, PenaltyWallPushesSphParticlesWithFrictionAndTheFloorFeelsTheR
   EXPECT_TRUE(listed);
 }
 
-TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
+// steps_back: 1, the fake answers for the boundary particles it just received
+// (boundary_step absent); 2, for those of the reply before (boundary_step = n - 2).
+void SphFixture::run_boundary_exchange(std::uint64_t steps_back) {
   scene.sph.wall_model = scene::SphSettings::WallModel::boundary_particles;
   scene.run.end_time = 0.005;
   auto coupler = start_coupler();
-  // One fluid particle dx/2 above the floor's centre, one far above (no wall near it).
-  const std::vector<Vec3> particles{{0.0, 0.0, 0.05}, {0.0, 0.0, 5.0}};
+  // One fluid particle dx/2 above the floor, moving from its edge (x = -0.5 m)
+  // towards its centre by dx per step, so that the set of wall particles near
+  // it grows; one far above (no wall near it).
+  std::vector<Vec3> particles{{-0.5, 0.0, 0.05}, {0.0, 0.0, 5.0}};
   protocol::SolverLink sph(endpoint, 5000ms), fem(endpoint, 5000ms);
   fem.register_solver(fem_registration());
   sph.register_solver(sph_registration(particles));
@@ -247,19 +253,45 @@ TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
   const auto mesh = floor_mesh();
   const double support = scene.sph.kernel_support();
   const auto sampling = geometry::sample_surface(mesh, kDx, 3);
-  std::vector<Vec3> expected;
-  for (std::size_t k = 0; k < sampling.size(); ++k) {
-    const Vec3 x = geometry::boundary_particle_position(mesh, sampling, k);
-    if ((x - particles[0]).norm() <= support) expected.push_back(x);
-  }
+  auto expected_near = [&](const Vec3& fluid) {
+    std::vector<Vec3> near;
+    for (std::size_t k = 0; k < sampling.size(); ++k) {
+      const Vec3 x = geometry::boundary_particle_position(mesh, sampling, k);
+      if ((x - fluid).norm() <= support) near.push_back(x);
+    }
+    return near;
+  };
 
   sabo::v1::StepState sph_state, fem_state;
   double time = 0;
-  std::vector<double> returned;  // boundary_force of the next state
+  // The fake's answer for the particles of step k: a pressure-like push down
+  // and a shear, different per particle and step.
+  auto answer = [](std::size_t n, std::uint64_t k) {
+    std::vector<double> f(3 * n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      f[3 * i] = 0.01 * static_cast<double>(i);
+      f[3 * i + 2] = -1.0 - 0.1 * static_cast<double>(i % 4) - static_cast<double>(k);
+    }
+    return f;
+  };
+  std::vector<std::size_t> received;  // boundary particle count of each step's reply
+  std::vector<double> returned;
   Vec3 returned_sum = Vec3::Zero();
   std::uint64_t steps = 0;
   for (std::uint64_t step = 0;; ++step) {
+    particles[0].x() = -0.5 + kDx * static_cast<double>(step);
+    const auto expected = expected_near(particles[0]);
     fill_sph_state(sph_state, step, time, particles, Vec3::Zero());
+    returned.clear();
+    returned_sum.setZero();
+    if (step >= steps_back) {
+      const std::uint64_t k = step - steps_back;
+      returned = answer(received[k], k);
+      for (std::size_t i = 0; i < received[k]; ++i) {
+        returned_sum += Vec3(returned[3 * i], returned[3 * i + 1], returned[3 * i + 2]);
+      }
+      if (steps_back == 2) sph_state.set_boundary_step(k);
+    }
     sph_state.mutable_boundary_force()->Assign(returned.begin(), returned.end());
     fill_fem_state(fem_state, step, time);
     sph.send_state(sph_state);
@@ -270,6 +302,7 @@ TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
     ASSERT_EQ(forces.force_size(), 6);
     for (double f : forces.force()) EXPECT_EQ(f, 0.0);
     const auto n = static_cast<std::size_t>(forces.boundary_volume_size());
+    received.push_back(n);
     ASSERT_EQ(n, expected.size()) << "step " << step;
     ASSERT_EQ(forces.boundary_position_size(), static_cast<int>(3 * n));
     ASSERT_EQ(forces.boundary_velocity_size(), static_cast<int>(3 * n));
@@ -282,10 +315,10 @@ TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
       EXPECT_EQ(forces.boundary_normal(3 * k + 2), 1.0);
       EXPECT_DOUBLE_EQ(forces.boundary_volume(k), kDx * kDx * kDx);
     }
-    // The floor feels exactly what the fluid put on the boundary particles of the previous step.
+    // The floor feels exactly what the fluid put on the boundary particles of step n - steps_back.
     const Vec3 on_floor = sum3(fem_forces.node_force());
-    std::cout << "step " << step << ": " << n << " boundary particles sent (expected " << expected.size()
-              << "); floor force " << on_floor.transpose() << " N, returned boundary forces "
+    std::cout << "steps back " << steps_back << ", step " << step << ": " << n << " boundary particles sent (expected "
+              << expected.size() << "); floor force " << on_floor.transpose() << " N, returned boundary forces "
               << returned_sum.transpose() << " N\n";
     EXPECT_LT((on_floor - returned_sum).norm(), 1e-12 * (1 + returned_sum.norm()));
     ASSERT_FALSE(forces.interest_all());
@@ -294,14 +327,6 @@ TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
     steps = step + 1;
     if (forces.stop()) break;
     time += forces.dt();
-    // The fluid's answer: a pressure-like push down and a shear, different per particle.
-    returned.assign(3 * n, 0.0);
-    returned_sum.setZero();
-    for (std::size_t k = 0; k < n; ++k) {
-      returned[3 * k] = 0.01 * static_cast<double>(k);
-      returned[3 * k + 2] = -1.0 - 0.1 * static_cast<double>(k % 4) - static_cast<double>(step);
-      returned_sum += Vec3(returned[3 * k], returned[3 * k + 1], returned[3 * k + 2]);
-    }
   }
   sabo::v1::Goodbye goodbye;
   goodbye.set_steps(steps);
@@ -318,6 +343,14 @@ TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
   bool listed = false;
   for (const auto& e : s["active_effects"]) listed = listed || e["effect"] == "sph_fem_boundary_particles";
   EXPECT_TRUE(listed);
+}
+
+TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
+  run_boundary_exchange(1);
+}
+
+TEST_F(SphFixture, BoundaryForcesMayAnswerTheReplyBeforeTheLast) {
+  run_boundary_exchange(2);
 }
 
 TEST_F(SphFixture, WrongBoundaryForceCountEndsTheRunNamingTheSphSolver) {
