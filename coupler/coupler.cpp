@@ -400,7 +400,7 @@ void Coupler::compute_contacts(double dt_previous) {
     }
     const auto& fluid = sph_->state.position();
     walls_->select_near({fluid.data(), static_cast<std::size_t>(fluid.size())});
-    contacts += walls_->selection().size();
+    max_boundary_sent_ = std::max(max_boundary_sent_, walls_->selection().size());
   }
   max_contacts_ = std::max(max_contacts_, contacts);
   contact_seconds_ += seconds_since(start);
@@ -652,6 +652,7 @@ void Coupler::write_summary(const std::string& status) {
                        {"process", "coupler"},
                        {"seconds", contact_seconds_},
                        {"boundary_particles", walls_->sampling().size()},
+                       {"max_sent_per_step", max_boundary_sent_},
                        {"layers", walls_->layers()}});
   }
   if (recorder_) effects.push_back({{"effect", "traffic_recording"}, {"process", "coupler"}});

@@ -112,6 +112,7 @@ class Coupler {
   double newton_max_residual_ = 0;
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
+  std::size_t max_boundary_sent_ = 0;  // most boundary particles sent to the sph_solver in one step
   double next_output_time_ = 0;
   double previous_time_ = 0;
   bool previous_output_ = false;
