@@ -66,8 +66,13 @@ void BoundaryWalls::spread(std::span<const double> boundary_force, std::size_t s
   }
   geometry::spread_boundary_forces(surface_, sampling_, sent, boundary_force, node_force);
   for (std::size_t s = 0; s < sent.size(); ++s) {
-    part_force[surface_.face_part[sampling_.face[sent[s]]]] +=
-        Vec3(boundary_force[3 * s], boundary_force[3 * s + 1], boundary_force[3 * s + 2]);
+    const std::uint32_t k = sent[s];
+    const auto shares = geometry::split_boundary_force(
+        surface_, sampling_, k, Vec3(boundary_force[3 * s], boundary_force[3 * s + 1], boundary_force[3 * s + 2]));
+    part_force[surface_.face_part[sampling_.face[k]]] += shares[0];
+    if (sampling_.partner_face[k] != geometry::kNoFace) {
+      part_force[surface_.face_part[sampling_.partner_face[k]]] += shares[1];
+    }
   }
 }
 

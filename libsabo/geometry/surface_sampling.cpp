@@ -239,7 +239,13 @@ class Sampler {
         for (std::size_t k = 0; k < layers_; ++k) {
           const double depth = 0.5 * p.thickness + (static_cast<double>(k) + 0.5) * dx_;
           const Vec3 x = q - depth * p.n;
-          if (!keep(a, x, cell.anchor, {true, cell.distance > 0, depth})) continue;
+          std::size_t partner = 0;
+          if (!keep(a, x, cell.anchor, {true, cell.distance > 0, depth}, partner)) continue;
+          std::uint32_t partner_face = kNoFace;
+          std::array<double, 3> partner_weight{};
+          if (partner < patches_.size()) nearest_face(partner, x, partner_face, partner_weight);
+          out.partner_face.push_back(partner_face);
+          out.partner_weight.push_back(partner_weight);
           const Vec3 d = x - cell.anchor;
           out.face.push_back(cell.face);
           out.weight.push_back(cell.weight);
@@ -261,8 +267,12 @@ class Sampler {
     return overshoot(other, anchor) <= tolerance;
   }
 
-  [[nodiscard]] bool keep(std::size_t a, const Vec3& x, const Vec3& anchor, const Claim& own) const {
-    bool shared = false;
+  // Whether patch a keeps particle x; for a corner fill, `partner` becomes the
+  // nearest patch it fills the corner with (its force is shared with it).
+  [[nodiscard]] bool keep(std::size_t a, const Vec3& x, const Vec3& anchor, const Claim& own,
+                          std::size_t& partner) const {
+    partner = patches_.size();
+    double partner_depth = std::numeric_limits<double>::infinity();
     for (std::size_t b = 0; b < patches_.size(); ++b) {
       if (b == a) continue;
       const Patch& other = patches_[b];
@@ -272,10 +282,25 @@ class Sampler {
       if (own.extension && crossed(other, x, reach_ + other.thickness)) return false;
       const Claim c = claim(other, x);
       if (!c.valid) continue;
-      if (own.extension && fills_corner_with(other, a, anchor)) shared = true;
+      if (own.extension && c.depth < partner_depth && fills_corner_with(other, a, anchor)) {
+        partner = b;
+        partner_depth = c.depth;
+      }
       if (!wins(own, a, c, b)) return false;
     }
-    return !own.extension || shared;
+    return !own.extension || partner < patches_.size();
+  }
+
+  // The face of patch b nearest to x and the barycentric weights of the nearest point.
+  void nearest_face(std::size_t b, const Vec3& x, std::uint32_t& face, std::array<double, 3>& weight) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (auto f : patches_[b].faces) {
+      const auto& t = mesh_.triangle[f];
+      const auto c =
+          closest_on_triangle(x, mesh_.node_position[t[0]], mesh_.node_position[t[1]], mesh_.node_position[t[2]]);
+      const double d = (c.point - x).squaredNorm();
+      if (d < best) best = d, face = f, weight = c.weight;
+    }
   }
 
   const SurfaceMesh& mesh_;
@@ -329,6 +354,36 @@ void place_boundary_particles(const SurfaceMesh& mesh, const SurfaceSampling& sa
   }
 }
 
+std::array<Vec3, 2> split_boundary_force(const SurfaceMesh& mesh, const SurfaceSampling& sampling, std::size_t k,
+                                         const Vec3& force) {
+  const std::uint32_t partner = sampling.partner_face[k];
+  if (partner == kNoFace) return {force, Vec3::Zero()};
+  // force = alpha n_a + beta n_b + along the corner's edge; each face takes its
+  // normal part and half of the rest.
+  const Vec3 na = mesh.face_normal(sampling.face[k]), nb = mesh.face_normal(partner);
+  const double c = na.dot(nb);
+  const double det = 1 - c * c;
+  if (det < 1e-6) return {force, Vec3::Zero()};
+  const double fa = force.dot(na), fb = force.dot(nb);
+  const double alpha = (fa - c * fb) / det, beta = (fb - c * fa) / det;
+  const Vec3 rest = force - alpha * na - beta * nb;
+  const Vec3 on_a = alpha * na + 0.5 * rest;
+  return {on_a, force - on_a};
+}
+
+namespace {
+void add_to_face(const SurfaceMesh& mesh, std::uint32_t face, const std::array<double, 3>& w, const Vec3& force,
+                 std::span<double> node_force) {
+  const auto& t = mesh.triangle[face];
+  for (int c = 0; c < 3; ++c) {
+    const double f0 = w[0] * force[c], f1 = w[1] * force[c];
+    node_force[3 * t[0] + static_cast<std::size_t>(c)] += f0;
+    node_force[3 * t[1] + static_cast<std::size_t>(c)] += f1;
+    node_force[3 * t[2] + static_cast<std::size_t>(c)] += force[c] - f0 - f1;
+  }
+}
+}  // namespace
+
 void spread_boundary_forces(const SurfaceMesh& mesh, const SurfaceSampling& sampling,
                             std::span<const std::uint32_t> selection, std::span<const double> boundary_force,
                             std::span<double> node_force) {
@@ -336,14 +391,11 @@ void spread_boundary_forces(const SurfaceMesh& mesh, const SurfaceSampling& samp
   assert(node_force.size() == 3 * mesh.node_count());
   for (std::size_t s = 0; s < selection.size(); ++s) {
     const std::uint32_t k = selection[s];
-    const auto& t = mesh.triangle[sampling.face[k]];
-    const auto& w = sampling.weight[k];
-    for (std::size_t c = 0; c < 3; ++c) {
-      const double force = boundary_force[3 * s + c];
-      const double f0 = w[0] * force, f1 = w[1] * force;
-      node_force[3 * t[0] + c] += f0;
-      node_force[3 * t[1] + c] += f1;
-      node_force[3 * t[2] + c] += force - f0 - f1;
+    const Vec3 force(boundary_force[3 * s], boundary_force[3 * s + 1], boundary_force[3 * s + 2]);
+    const auto parts = split_boundary_force(mesh, sampling, k, force);
+    add_to_face(mesh, sampling.face[k], sampling.weight[k], parts[0], node_force);
+    if (sampling.partner_face[k] != kNoFace) {
+      add_to_face(mesh, sampling.partner_face[k], sampling.partner_weight[k], parts[1], node_force);
     }
   }
 }

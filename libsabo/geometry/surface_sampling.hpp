@@ -38,7 +38,11 @@
 // (barycentric interpolation of the nodes'); its normal is the face's.
 // Forces. A force on a particle goes to its triangle's three nodes with the
 // anchor's weights, the third node taking the remainder, so that the node
-// forces sum to the particle forces to round-off.
+// forces sum to the particle forces to round-off. A corner fill shares its
+// force with the face it fills the corner with, each face taking the part
+// along its own normal (the fluid pushing into a floor-wall corner loads the
+// floor with the vertical part and the wall with the horizontal part, not
+// whichever face's lattice the particle came from).
 #include <array>
 #include <cstdint>
 #include <span>
@@ -50,6 +54,8 @@
 
 namespace sabo::geometry {
 
+inline constexpr std::uint32_t kNoFace = UINT32_MAX;
+
 struct SurfaceSampling {
   double spacing = 0;                         // m, dx
   std::size_t layers = 0;                     // particles per lattice point, into the solid
@@ -58,6 +64,10 @@ struct SurfaceSampling {
   std::vector<Vec3> offset;                   // particle - anchor in the face frame (e1, e2, n), m
   std::vector<double> depth;                  // m behind the face's plane at sampling time
   std::vector<char> extension;                // 1: anchored beyond the patch's edge (concave corner fill)
+  // Corner fills only (else kNoFace): the face of the patch it fills the
+  // corner with, and the weights of the particle's nearest point on it.
+  std::vector<std::uint32_t> partner_face;
+  std::vector<std::array<double, 3>> partner_weight;
   [[nodiscard]] std::size_t size() const { return face.size(); }
   [[nodiscard]] double particle_volume() const { return spacing * spacing * spacing; }  // m^3
 };
@@ -77,8 +87,17 @@ void place_boundary_particles(const SurfaceMesh& mesh, const SurfaceSampling& sa
                               std::span<const Vec3> node_velocity, std::span<const Vec3> node_acceleration,
                               std::span<const std::uint32_t> selection, physics::BoundaryParticles& out);
 
+// The share of `force` (N, on particle k) that goes to its own face [0] and
+// to its corner partner's face [1]: each face takes the part along its normal
+// (force = alpha n_a + beta n_b + a part along the corner's edge, which is
+// halved); everything to [0] for particles that are no corner fill. The two
+// sum to `force` exactly.
+[[nodiscard]] std::array<Vec3, 2> split_boundary_force(const SurfaceMesh& mesh, const SurfaceSampling& sampling,
+                                                       std::size_t k, const Vec3& force);
+
 // Adds force k (N, 3 doubles each, in `selection` order) of each selected
-// particle onto its triangle's nodes: node_force has 3 doubles per node.
+// particle onto its triangle's nodes (split with its corner partner's, see
+// split_boundary_force): node_force has 3 doubles per node.
 void spread_boundary_forces(const SurfaceMesh& mesh, const SurfaceSampling& sampling,
                             std::span<const std::uint32_t> selection, std::span<const double> boundary_force,
                             std::span<double> node_force);

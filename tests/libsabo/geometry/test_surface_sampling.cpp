@@ -221,7 +221,8 @@ TEST(SurfaceSampling, ParticlesFollowTheNodesRigidly) {
 }
 
 TEST(SurfaceSampling, SpreadForcesSumExactlyToTheBoundaryForces) {
-  const auto mesh = box({0, 0, 0}, {1, 1, 1}, 0.25);
+  // The tank: corner fills split their force between two faces.
+  const auto mesh = tank(0.25);
   const auto s = sabo::geometry::sample_surface(mesh, 0.1, 3);
   std::vector<std::uint32_t> selection;
   for (std::uint32_t k = 0; k < s.size(); k += 2) selection.push_back(k);
@@ -244,9 +245,12 @@ TEST(SurfaceSampling, SpreadForcesSumExactlyToTheBoundaryForces) {
   std::cout << "force spreading: sum over nodes " << sum_nodes.transpose() << ", over particles "
             << sum_particles.transpose() << ", relative residual " << residual << " (expected < 1e-14)\n";
   EXPECT_LT(residual, 1e-14);
-  // Each particle's force stays on its own triangle's nodes.
+  // A particle's force stays on its own triangle's nodes.
   std::vector<double> one(3 * mesh.node_count(), 0.0);
-  const std::vector<std::uint32_t> first{selection[3]};
+  // (A particle that is no corner fill.)
+  std::uint32_t plain = 0;
+  while (s.extension[plain] != 0) ++plain;
+  const std::vector<std::uint32_t> first{plain};
   const std::vector<double> f{1.0, 2.0, 3.0};
   sabo::geometry::spread_boundary_forces(mesh, s, first, f, one);
   const auto& t = mesh.triangle[s.face[first[0]]];
@@ -256,6 +260,56 @@ TEST(SurfaceSampling, SpreadForcesSumExactlyToTheBoundaryForces) {
       EXPECT_EQ(Vec3(one[3 * n], one[3 * n + 1], one[3 * n + 2]), Vec3::Zero());
     }
   }
+}
+
+TEST(SurfaceSampling, CornerFillsShareTheirForceWithTheFaceTheyFillTheCornerWith) {
+  const auto mesh = tank(0.5);
+  const auto s = sabo::geometry::sample_surface(mesh, 0.1, 3);
+  std::size_t fills = 0, checked = 0;
+  for (std::size_t k = 0; k < s.size(); ++k) {
+    if (s.extension[k] == 0) {
+      EXPECT_EQ(s.partner_face[k], sabo::geometry::kNoFace);
+      continue;
+    }
+    ++fills;
+    ASSERT_NE(s.partner_face[k], sabo::geometry::kNoFace);
+    const Vec3 na = mesh.face_normal(s.face[k]), nb = mesh.face_normal(s.partner_face[k]);
+    // Tank faces meet at right angles: each takes the force along its own normal, and half the rest.
+    ASSERT_NEAR(na.dot(nb), 0.0, 1e-12);
+    const Vec3 force(-1.0, 0.5, -2.0);
+    const auto shares = sabo::geometry::split_boundary_force(mesh, s, k, force);
+    const Vec3 edge = na.cross(nb);
+    const Vec3 expected_a = force.dot(na) * na + 0.5 * force.dot(edge) * edge;
+    EXPECT_LT((shares[0] - expected_a).norm(), 1e-12);
+    EXPECT_EQ(shares[0] + shares[1], force);
+    ++checked;
+  }
+  std::cout << "tank: " << fills << " corner fills, each sharing its force with its partner face\n";
+  EXPECT_GT(fills, 0u);
+  EXPECT_EQ(checked, fills);
+  // The floor-wall corner under the x = 0 wall: a push (-1, 0, -1) N loads the floor with
+  // (0, 0, -1) and the wall with (-1, 0, 0).
+  std::vector<std::uint32_t> selection;
+  for (std::uint32_t k = 0; k < s.size(); ++k) {
+    const Vec3 x = sabo::geometry::boundary_particle_position(mesh, s, k);
+    if (x.x() < 0 && x.z() < 0 && x.y() > 0.2 && x.y() < 0.8) selection.push_back(k);
+  }
+  ASSERT_FALSE(selection.empty());
+  std::vector<double> force;
+  for (std::size_t i = 0; i < selection.size(); ++i) force.insert(force.end(), {-1.0, 0.0, -1.0});
+  std::vector<double> node_force(3 * mesh.node_count(), 0.0);
+  sabo::geometry::spread_boundary_forces(mesh, s, selection, force, node_force);
+  Vec3 on_floor = Vec3::Zero(), on_wall = Vec3::Zero();
+  for (std::size_t n = 0; n < mesh.node_count(); ++n) {
+    const Vec3 f(node_force[3 * n], node_force[3 * n + 1], node_force[3 * n + 2]);
+    // tank(): the floor's nodes come first (9 for element size 0.5), then the x = 0 wall's.
+    (n < 9 ? on_floor : on_wall) += f;
+  }
+  const double count = static_cast<double>(selection.size());
+  std::cout << "corner under the x = 0 wall: floor gets " << on_floor.transpose() / count << " N, wall "
+            << on_wall.transpose() / count << " N per particle (expected 0 0 -1 and -1 0 0)\n";
+  EXPECT_LT((on_floor - Vec3(0, 0, -count)).norm(), 1e-9);
+  EXPECT_LT((on_wall - Vec3(-count, 0, 0)).norm(), 1e-9);
 }
 
 TEST(SurfaceSampling, RefusesBadArguments) {
