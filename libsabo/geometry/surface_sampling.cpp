@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/physics/cell_list.hpp"
 
 namespace sabo::geometry {
 
@@ -97,10 +98,42 @@ class Sampler {
     out.spacing = dx_;
     out.layers = layers_;
     for (std::size_t a = 0; a < patches_.size(); ++a) sample_patch(a, out);
+    drop_near_doubles(out);
     return out;
   }
 
  private:
+  // Where two patches' lattices meet along a bisector without coinciding, a
+  // particle of one can come arbitrarily close to one of the other: of two
+  // particles of different patches closer than dx/2, the later is dropped.
+  void drop_near_doubles(SurfaceSampling& out) const {
+    physics::CellList grid;
+    grid.build_points(position_, 0.5 * dx_);
+    const double limit2 = 0.25 * dx_ * dx_ * (1 - 1e-9);
+    std::vector<char> kept(out.size(), 1);
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      grid.for_each_near(position_[k], [&](std::uint32_t j) {
+        if (j < k && kept[j] && patch_of_[j] != patch_of_[k] && (position_[j] - position_[k]).squaredNorm() < limit2) {
+          kept[k] = 0;
+        }
+      });
+    }
+    std::size_t n = 0;
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      if (!kept[k]) continue;
+      out.face[n] = out.face[k];
+      out.weight[n] = out.weight[k];
+      out.offset[n] = out.offset[k];
+      out.depth[n] = out.depth[k];
+      out.extension[n] = out.extension[k];
+      out.partner_face[n] = out.partner_face[k];
+      out.partner_weight[n] = out.partner_weight[k];
+      ++n;
+    }
+    out.face.resize(n), out.weight.resize(n), out.offset.resize(n), out.depth.resize(n);
+    out.extension.resize(n), out.partner_face.resize(n), out.partner_weight.resize(n);
+  }
+
   void build_patches() {
     const double scale = std::max(1.0, mesh_.bounds().inflated(0).max.cwiseAbs().maxCoeff());
     for (std::uint32_t f = 0; f < mesh_.face_count(); ++f) {
@@ -191,7 +224,7 @@ class Sampler {
     return a_index < b_index;
   }
 
-  void sample_patch(std::size_t a, SurfaceSampling& out) const {
+  void sample_patch(std::size_t a, SurfaceSampling& out) {
     const Patch& p = patches_[a];
     const auto before = static_cast<long>(layers_);
     const auto nu = static_cast<long>(std::ceil((p.u_max - p.u_min) / dx_ - 1e-9)) + 2 * before;
@@ -252,6 +285,8 @@ class Sampler {
           out.offset.emplace_back(d.dot(frame.e1), d.dot(frame.e2), d.dot(frame.n));
           out.depth.push_back(depth);
           out.extension.push_back(cell.distance > 0 ? 1 : 0);
+          patch_of_.push_back(static_cast<std::uint32_t>(a));
+          position_.push_back(x);
         }
       }
     }
@@ -308,6 +343,9 @@ class Sampler {
   std::size_t layers_;
   double reach_;  // m: layers * dx
   std::vector<Patch> patches_;
+  // Per sampled particle, until the near doubles are dropped.
+  std::vector<std::uint32_t> patch_of_;
+  std::vector<Vec3> position_;
 };
 
 }  // namespace

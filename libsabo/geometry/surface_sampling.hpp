@@ -27,9 +27,10 @@
 //  * a particle that would lie in front of another face of the mesh, closer
 //    to it than its own depth (the layers of a solid thinner than the layers
 //    come out of its far side) is dropped.
-// Particles on two different lattices meet along a bisector, where the local
-// spacing departs from dx by up to dx/2; the kernel sums tolerate that (the
-// error is confined to one support around edges and corners).
+// Particles on two different lattices meet along a bisector, where one of
+// two particles closer than dx/2 is dropped (the later in sampling order): the
+// local spacing there lies between dx/2 and about 1.5 dx; the kernel sums
+// tolerate that (the error is confined to one support around the edge).
 //
 // Motion. Each particle keeps its triangle, the barycentric weights of its
 // anchor point on it, and its offset from the anchor in the triangle's frame

@@ -117,6 +117,7 @@ struct SphFixture : ::testing::Test {
   }
 
   void run_boundary_exchange(std::uint64_t steps_back);
+  void run_penalty_slide(sabo::v1::StepForces& last_sph);
 
   static sabo::v1::Register sph_registration(const std::vector<Vec3>& particles) {
     sabo::v1::Register r;
@@ -171,7 +172,8 @@ Vec3 sum3(const google::protobuf::RepeatedField<double>& values) {
 
 }  // namespace
 
-TEST_F(SphFixture, PenaltyWallPushesSphParticlesWithFrictionAndTheFloorFeelsTheReaction) {
+// Drives four sliding SPH particles 1 cm into the floor to the end; last_sph: the last forces on them.
+void SphFixture::run_penalty_slide(sabo::v1::StepForces& last_sph) {
   scene.sph.wall_model = scene::SphSettings::WallModel::penalty;
   auto coupler = start_coupler();
   // Four particles of contact radius dx/2 = 0.05 m, 1 cm into the floor, sliding at 1 m/s.
@@ -183,7 +185,7 @@ TEST_F(SphFixture, PenaltyWallPushesSphParticlesWithFrictionAndTheFloorFeelsTheR
   sph.register_solver(sph_registration(particles));
   sabo::v1::StepState sph_state, fem_state;
   double time = 0;
-  sabo::v1::StepForces last_sph, last_fem;
+  sabo::v1::StepForces last_fem;
   std::uint64_t steps = 0;
   for (std::uint64_t step = 0;; ++step) {
     fill_sph_state(sph_state, step, time, particles, sliding);
@@ -210,7 +212,11 @@ TEST_F(SphFixture, PenaltyWallPushesSphParticlesWithFrictionAndTheFloorFeelsTheR
   sph.send_goodbye(goodbye);
   fem.send_goodbye(goodbye);
   EXPECT_EQ(coupler.get(), coupler::kCompleted);
+}
 
+TEST_F(SphFixture, PenaltyWallPushesSphParticlesWithFrictionAndTheFloorFeelsTheReaction) {
+  sabo::v1::StepForces last_sph;
+  run_penalty_slide(last_sph);
   // Normal: k delta = 1e4 N/m * 0.01 m = 100 N per particle; after 20 steps of
   // 1 mm the tangential spring (k_t = k_n) would exceed mu F_n: sliding at 30 N.
   for (int i = 0; i < 4; ++i) {
@@ -351,6 +357,21 @@ TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {
 
 TEST_F(SphFixture, BoundaryForcesMayAnswerTheReplyBeforeTheLast) {
   run_boundary_exchange(2);
+}
+
+TEST_F(SphFixture, PenaltyPairTakesTheInteractionNamingTheFluid) {
+  scene::Interaction interaction;
+  interaction.a = "floor";  // either order
+  interaction.b = "water";
+  interaction.fluid = true;
+  interaction.contact = scene.sph_fem_default;
+  interaction.contact.friction = 0.1;
+  scene.interactions.push_back(interaction);
+  sabo::v1::StepForces last_sph;
+  run_penalty_slide(last_sph);
+  std::cout << "tangential force with the interaction's mu = 0.1: measured " << last_sph.force(0)
+            << " N expected -10\n";
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(last_sph.force(3 * i), -0.1 * kStiffness * 0.01, 1e-9);
 }
 
 TEST_F(SphFixture, WrongBoundaryForceCountEndsTheRunNamingTheSphSolver) {

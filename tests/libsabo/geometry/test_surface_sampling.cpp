@@ -312,6 +312,39 @@ TEST(SurfaceSampling, CornerFillsShareTheirForceWithTheFaceTheyFillTheCornerWith
   EXPECT_LT((on_wall - Vec3(-count, 0, 0)).norm(), 1e-9);
 }
 
+TEST(SurfaceSampling, SlopedChuteWithEndWallIsSampledBehindItsFacesWithoutDoubles) {
+  Shape shape;
+  shape.type = Shape::Type::chute;
+  shape.origin = Vec3(0, 0, 2);
+  shape.direction = Vec3(1, 0, 0);
+  shape.length = 2;
+  shape.width = 0.6;
+  shape.slope_deg = 25;
+  shape.wall_height = 0.4;
+  shape.end_wall_height = 0.4;
+  shape.element_size = 0.5;
+  const auto mesh = sabo::geometry::triangulate(shape, "chute");
+  const double dx = 0.05;
+  const auto s = sabo::geometry::sample_surface(mesh, dx, 3);
+  const auto x = positions(mesh, s);
+  // Inside the channel: in front of the floor, between the side walls, before the end wall.
+  const auto frame = sabo::geometry::chute_frame(shape);
+  std::size_t inside = 0;
+  for (const auto& p : x) {
+    const Vec3 d = p - shape.origin;
+    const double along = d.dot(frame.down_slope), across = d.dot(frame.lateral), up = d.dot(frame.normal);
+    if (up > 1e-9 && std::abs(across) < 0.5 * shape.width - 1e-9 && along < shape.length - 1e-9 && along > 0 &&
+        up < shape.wall_height) {
+      ++inside;
+    }
+  }
+  const double spacing = min_pair_distance(x, dx);
+  std::cout << "chute: " << s.size() << " particles, " << inside << " inside the channel (expected 0), nearest "
+            << spacing << " m (dx " << dx << ")\n";
+  EXPECT_EQ(inside, 0u);
+  EXPECT_GE(spacing, 0.5 * dx - 1e-12);
+}
+
 TEST(SurfaceSampling, RefusesBadArguments) {
   const auto mesh = box({0, 0, 0}, {1, 1, 1}, 0);
   EXPECT_THROW((void)sabo::geometry::sample_surface(mesh, 0.0, 3), sabo::Error);
