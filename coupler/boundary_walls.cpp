@@ -32,6 +32,7 @@ void BoundaryWalls::place_all() {
     all_position_[k] = geometry::boundary_particle_position(surface_, sampling_, k);
     bounds_.extend(all_position_[k]);
   }
+  grid_valid_ = false;
 }
 
 void BoundaryWalls::update_nodes(std::span<const double> position, std::span<const double> velocity,
@@ -77,23 +78,27 @@ void BoundaryWalls::spread(std::span<const double> boundary_force, std::size_t s
 }
 
 void BoundaryWalls::select_near(std::span<const double> fluid_position) {
+  // Visit the wall particles around each fluid particle (the wall grid is
+  // rebuilt only when the nodes move): the cost follows the fluid near the
+  // walls, not the whole sampled surface.
+  if (!grid_valid_) {
+    grid_.build_points(all_position_, support_);
+    grid_valid_ = true;
+  }
   const std::size_t n = fluid_position.size() / 3;
-  fluid_.resize(n);
+  near_.assign(all_position_.size(), 0);
+  const double reach2 = support_ * support_;
   for (std::size_t i = 0; i < n; ++i) {
-    fluid_[i] = Vec3(fluid_position[3 * i], fluid_position[3 * i + 1], fluid_position[3 * i + 2]);
+    const Vec3 x(fluid_position[3 * i], fluid_position[3 * i + 1], fluid_position[3 * i + 2]);
+    if (!x.allFinite()) continue;
+    grid_.for_each_near(x, [&](std::uint32_t k) {
+      if (!near_[k] && (all_position_[k] - x).squaredNorm() <= reach2) near_[k] = 1;
+    });
   }
   previous_selection_.swap(selection_);
   selection_.clear();
-  if (n > 0) {
-    grid_.build_points(fluid_, support_);
-    const double reach2 = support_ * support_;
-    for (std::size_t k = 0; k < all_position_.size(); ++k) {
-      bool near = false;
-      grid_.for_each_near(all_position_[k], [&](std::uint32_t i) {
-        near = near || (fluid_[i] - all_position_[k]).squaredNorm() <= reach2;
-      });
-      if (near) selection_.push_back(static_cast<std::uint32_t>(k));
-    }
+  for (std::size_t k = 0; k < near_.size(); ++k) {
+    if (near_[k]) selection_.push_back(static_cast<std::uint32_t>(k));
   }
   geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
 }

@@ -66,8 +66,9 @@ class BoundaryWalls {
   Aabb bounds_;                     // of all_position_
   std::vector<std::uint32_t> selection_, previous_selection_;
   physics::BoundaryParticles selected_;
-  std::vector<Vec3> fluid_;
-  physics::CellList grid_;
+  std::vector<char> near_;  // per sampled particle: within the support of a fluid particle
+  physics::CellList grid_;  // of all_position_, cell = support
+  bool grid_valid_ = false;
 };
 
 }  // namespace sabo::coupler
