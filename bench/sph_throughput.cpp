@@ -3,10 +3,10 @@
 // boundary-particle walls, the neighbour count per particle and the memory per
 // particle. Threads: OMP_NUM_THREADS.
 //   bench_sph_throughput [--spacing DX] [--steps N] [--kernel wendland_c2|cubic_spline] [--ratio H_OVER_DX]
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <fstream>
 
@@ -30,7 +30,8 @@ int main(int argc, char** argv) {
   std::string kernel = "wendland_c2";
   app.add_option("--spacing", dx, "particle spacing, m (0.009: about 170 000 particles)");
   app.add_option("--steps", steps, "timed steps");
-  app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
+  app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")
+      ->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
   app.add_option("--ratio", ratio, "h / dx");
   CLI11_PARSE(app, argc, argv);
 
@@ -45,8 +46,8 @@ int main(int argc, char** argv) {
   s.materials.push_back(water);
   s.sph.particle_spacing = dx;
   s.sph.smoothing_ratio = ratio;
-  s.sph.kernel = kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline
-                                          : scene::SphSettings::Kernel::wendland_c2;
+  s.sph.kernel =
+      kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
   s.sph.sound_speed = 10.0 * std::sqrt(2 * 9.81 * 2 * a);
   scene::FluidBody column;
   column.name = "column";
@@ -91,6 +92,7 @@ int main(int argc, char** argv) {
              kernel, ratio);
   fmt::print("particle_steps_per_second {:.4g}\n", n * steps / seconds);
   fmt::print("neighbours_per_particle {:.1f}\n", model.mean_neighbours());
-  fmt::print("bytes_per_particle {:.0f}\n", (memory_after - memory_before) * 1e6 / (n + static_cast<double>(walls.size())));
+  fmt::print("bytes_per_particle {:.0f}\n",
+             (memory_after - memory_before) * 1e6 / (n + static_cast<double>(walls.size())));
   return 0;
 }

@@ -27,8 +27,8 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
   }
   std::vector<Vec3> out(count);
   for (std::size_t k = 0; k < count; ++k) {
-    out[k] = Vec3(values[static_cast<int>(3 * k)], values[static_cast<int>(3 * k + 1)],
-                  values[static_cast<int>(3 * k + 2)]);
+    out[k] =
+        Vec3(values[static_cast<int>(3 * k)], values[static_cast<int>(3 * k + 1)], values[static_cast<int>(3 * k + 2)]);
   }
   return out;
 }
@@ -115,8 +115,8 @@ class SphSolver final : public solver::CoupledSolver {
     const std::size_t lost_before = model_.lost_count();
     model_.integrate(dt_previous, dt);
     if (model_.lost_count() != lost_before) {
-      spdlog::warn("{} SPH particles left the domain and were taken out ({} in all)",
-                   model_.lost_count() - lost_before, model_.lost_count());
+      spdlog::warn("{} SPH particles left the domain and were taken out ({} in all)", model_.lost_count() - lost_before,
+                   model_.lost_count());
     }
   }
 

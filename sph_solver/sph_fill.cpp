@@ -81,9 +81,10 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
     }
     const std::size_t count = fill.position.size() - first;
     if (count == 0) {
-      throw SceneError(fmt::format("{}:{}: fluids[{}] ('{}') holds no particle at the spacing dx = {} m. Fix: make "
-                                   "the body larger than dx on every axis or lower sph.particle_spacing.",
-                                   body.origin.file.string(), body.origin.line, b, body.name, dx));
+      throw SceneError(
+          fmt::format("{}:{}: fluids[{}] ('{}') holds no particle at the spacing dx = {} m. Fix: make "
+                      "the body larger than dx on every axis or lower sph.particle_spacing.",
+                      body.origin.file.string(), body.origin.line, b, body.name, dx));
     }
     // Hydrostatic state: pressure of the column of this body above each particle.
     const FluidMaterial& material = materials[body_material[b]];

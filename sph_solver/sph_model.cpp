@@ -112,10 +112,10 @@ void SphModel::set_boundary(const physics::BoundaryParticles& boundary) {
   const std::size_t n = boundary.size();
   if (boundary.velocity.size() != n || boundary.normal.size() != n || boundary.acceleration.size() != n ||
       boundary.volume.size() != n) {
-    throw ProtocolError(fmt::format("boundary particles: {} positions but {} velocities, {} normals, {} "
-                                    "accelerations, {} volumes; every array needs one entry per particle",
-                                    n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(),
-                                    boundary.volume.size()));
+    throw ProtocolError(fmt::format(
+        "boundary particles: {} positions but {} velocities, {} normals, {} "
+        "accelerations, {} volumes; every array needs one entry per particle",
+        n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(), boundary.volume.size()));
   }
   boundary_ = boundary;
 }
@@ -139,10 +139,11 @@ void SphModel::build_grid() {
   ny_ = static_cast<std::int64_t>(extent.y() / cell) + 2;
   nz_ = static_cast<std::int64_t>(extent.z() / cell) + 2;
   if (nx_ * ny_ * nz_ > kMaxCells) {
-    throw Error(fmt::format("sph_solver: the particles span {:.1f} x {:.1f} x {:.1f} m, {} cells of {:.3g} m; "
-                            "a particle has probably run away. Fix: give sph.domain_min/domain_max so that particles "
-                            "leaving the domain are taken out, or close the walls.",
-                            extent.x(), extent.y(), extent.z(), nx_ * ny_ * nz_, cell));
+    throw Error(
+        fmt::format("sph_solver: the particles span {:.1f} x {:.1f} x {:.1f} m, {} cells of {:.3g} m; "
+                    "a particle has probably run away. Fix: give sph.domain_min/domain_max so that particles "
+                    "leaving the domain are taken out, or close the walls.",
+                    extent.x(), extent.y(), extent.z(), nx_ * ny_ * nz_, cell));
   }
   const std::size_t cells = static_cast<std::size_t>(nx_ * ny_ * nz_);
   const double inverse_cell = 1.0 / cell;
@@ -224,10 +225,9 @@ void SphModel::gather() {
   }
 }
 
-
 void SphModel::compute_boundary_state() {
   const std::size_t nb = b_order_.size();
-    const double support2 = kernel_.support() * kernel_.support();
+  const double support2 = kernel_.support() * kernel_.support();
   const auto count = static_cast<std::int64_t>(nb);
   boundary_pressure_.assign(boundary_.size(), 0.0);
 #pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
@@ -280,7 +280,7 @@ void SphModel::compute_velocity_gradients() {
   const std::size_t n = f_order_.size();
   fgrad_.assign(9 * n, 0.0);
   if (!any_gradient_) return;
-    const double support2 = kernel_.support() * kernel_.support();
+  const double support2 = kernel_.support() * kernel_.support();
   const auto count = static_cast<std::int64_t>(n);
 #pragma omp parallel for schedule(static) if (n > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
@@ -289,7 +289,8 @@ void SphModel::compute_velocity_gradients() {
     if (!material.needs_velocity_gradient()) continue;
     const double x = fx_[i], y = fy_[i], z = fz_[i];
     double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-    const auto add = [&](double rx, double ry, double rz, double r2, double dvx, double dvy, double dvz, double volume) {
+    const auto add = [&](double rx, double ry, double rz, double r2, double dvx, double dvy, double dvz,
+                         double volume) {
       const double f = kernel_.gradient_factor(std::sqrt(r2)) * volume;
       const double g[3] = {f * rx, f * ry, f * rz};
       const double dv[3] = {dvx, dvy, dvz};
@@ -301,7 +302,8 @@ void SphModel::compute_velocity_gradients() {
       if (j == i) return;
       const double rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
       const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 < support2) add(rx, ry, rz, r2, fvx_[j] - fvx_[i], fvy_[j] - fvy_[i], fvz_[j] - fvz_[i], fm_[j] / frho_[j]);
+      if (r2 < support2)
+        add(rx, ry, rz, r2, fvx_[j] - fvx_[i], fvy_[j] - fvy_[i], fvz_[j] - fvz_[i], fm_[j] / frho_[j]);
     });
     for_neighbours(x, y, z, b_cell_start_, [&](std::uint32_t j) {
       const double rx = x - bx_[j], ry = y - by_[j], rz = z - bz_[j];
@@ -334,7 +336,7 @@ void SphModel::compute_velocity_gradients() {
 
 void SphModel::compute_fluid_forces() {
   const std::size_t n = f_order_.size();
-    const double support2 = kernel_.support() * kernel_.support();
+  const double support2 = kernel_.support() * kernel_.support();
   const double h = kernel_.h, c = sound_speed_, eta2 = eta_squared_;
   const double alpha_hc = settings_.artificial_viscosity * h * c;
   const bool diffusion = settings_.density_diffusion != scene::SphSettings::DensityDiffusion::none;
@@ -435,7 +437,7 @@ void SphModel::compute_fluid_forces() {
 
 void SphModel::compute_boundary_forces() {
   const std::size_t nb = b_order_.size();
-    const double support2 = kernel_.support() * kernel_.support();
+  const double support2 = kernel_.support() * kernel_.support();
   const double h = kernel_.h, c = sound_speed_, eta2 = eta_squared_;
   const double alpha_hc = settings_.artificial_viscosity * h * c;
   const auto count = static_cast<std::int64_t>(nb);
@@ -540,8 +542,8 @@ void SphModel::scatter_and_stable_dt() {
   for (std::size_t m = 0; m < materials_.size(); ++m) {
     if (materials_[m].rheology != Rheology::elastic_plastic) continue;
     // Elastic waves: c_eff^2 = c^2 + 4 G / (3 rho0).
-    const double c_eff =
-        std::sqrt(sound_speed_ * sound_speed_ + 4.0 * materials_[m].shear_modulus / (3.0 * materials_[m].eos.rest_density));
+    const double c_eff = std::sqrt(sound_speed_ * sound_speed_ +
+                                   4.0 * materials_[m].shear_modulus / (3.0 * materials_[m].eos.rest_density));
     dt_cv = std::min(dt_cv, h / c_eff);
   }
   mean_neighbours_ = n > 0 ? neighbour_sum / static_cast<double>(n) : 0.0;
@@ -591,8 +593,8 @@ void SphModel::compute_internal_forces(double dt_previous) {
 void SphModel::add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force) {
   if (force.size() != 3 * index.size()) {
     throw ProtocolError(
-        fmt::format("sph_solver: {} particle indices but {} force values; 3 values per particle expected",
-                    index.size(), force.size()));
+        fmt::format("sph_solver: {} particle indices but {} force values; 3 values per particle expected", index.size(),
+                    force.size()));
   }
   for (std::size_t k = 0; k < index.size(); ++k) {
     const std::uint32_t i = index[k];
@@ -626,8 +628,8 @@ void SphModel::integrate(double dt_previous, double dt) {
     particle_elastic[i] = mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
     const Vec3 a = acceleration_[i] + external_force_[i] / mass_[i];
     const Vec3 velocity = velocity_[i] + dt_update * a;
-    particle_kinetic_[i] = first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm()
-                                      : 0.5 * mass_[i] * velocity_[i].dot(velocity);
+    particle_kinetic_[i] =
+        first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
     velocity_[i] = velocity;
     external_force_[i].setZero();
   }
@@ -656,9 +658,10 @@ void SphModel::integrate(double dt_previous, double dt) {
   for (std::size_t i = 0; i < size(); ++i) {
     if (!active_[i]) continue;
     if (!std::isfinite(position_[i].x() + position_[i].y() + position_[i].z() + density_[i])) {
-      throw Error(fmt::format("sph_solver: particle {} is no longer finite (position {} {} {}, density {}) after a "
-                              "step of {:.3e} s. Fix: lower [solvers.sph] beta or sph.cfl.",
-                              i, position_[i].x(), position_[i].y(), position_[i].z(), density_[i], dt));
+      throw Error(
+          fmt::format("sph_solver: particle {} is no longer finite (position {} {} {}, density {}) after a "
+                      "step of {:.3e} s. Fix: lower [solvers.sph] beta or sph.cfl.",
+                      i, position_[i].x(), position_[i].y(), position_[i].z(), density_[i], dt));
     }
     kinetic += particle_kinetic_[i];
     potential += particle_potential[i];

@@ -186,7 +186,7 @@ class SphModel {
   std::vector<double> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_, fp_, fm_;
   std::vector<std::uint32_t> fmat_;
   std::vector<double> bx_, by_, bz_, bvx_, bvy_, bvz_, bvol_, bp_, brho_;  // bv: wall velocity for viscosity
-  std::vector<double> bwx_, bwy_, bwz_;                                   // prescribed wall velocity
+  std::vector<double> bwx_, bwy_, bwz_;                                    // prescribed wall velocity
   std::vector<double> fgrad_;    // 9 per sorted fluid particle: velocity gradient L = dv/dx
   std::vector<double> fstress_;  // 6 per sorted fluid particle
   std::vector<double> feta_;     // effective viscosity per sorted fluid particle, Pa s

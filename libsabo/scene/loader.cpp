@@ -730,8 +730,7 @@ class Builder {
       sph.kernel = *v == "cubic_spline" ? SphSettings::Kernel::cubic_spline : SphSettings::Kernel::wendland_c2;
     }
     if (auto v = r.string("wall_model")) {
-      sph.wall_model =
-          *v == "penalty" ? SphSettings::WallModel::penalty : SphSettings::WallModel::boundary_particles;
+      sph.wall_model = *v == "penalty" ? SphSettings::WallModel::penalty : SphSettings::WallModel::boundary_particles;
     }
     if (auto v = r.number("sound_speed")) sph.sound_speed = *v;
     if (auto v = r.number("cfl")) sph.cfl = *v;
@@ -803,9 +802,10 @@ class Builder {
       if (auto v = r.number("width")) {
         body.width = *v;
         if (body.width < dx) {
-          diag_.add(r.line("width"), r.key_path("width"), number_literal(body.width),
-                    fmt::format("narrower than the particle spacing {} m: the body holds no particle", number_literal(dx)),
-                    "widen the body or lower sph.particle_spacing");
+          diag_.add(
+              r.line("width"), r.key_path("width"), number_literal(body.width),
+              fmt::format("narrower than the particle spacing {} m: the body holds no particle", number_literal(dx)),
+              "widen the body or lower sph.particle_spacing");
         }
       }
       if (auto v = r.vec3("direction")) {
@@ -829,10 +829,10 @@ class Builder {
     }
     if (scene_.sph.domain && !bounds.empty() &&
         !(scene_.sph.domain->contains(bounds.min) && scene_.sph.domain->contains(bounds.max))) {
-      diag_.add(r.line(), path, std::nullopt,
-                fmt::format("the body reaches outside the SPH domain (sph.domain_min/domain_max, line {})",
-                            domain_line_),
-                "enlarge the domain or move the body into it");
+      diag_.add(
+          r.line(), path, std::nullopt,
+          fmt::format("the body reaches outside the SPH domain (sph.domain_min/domain_max, line {})", domain_line_),
+          "enlarge the domain or move the body into it");
     }
     scene_.fluids.push_back(std::move(body));
   }

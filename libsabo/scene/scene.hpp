@@ -40,7 +40,7 @@ struct Material {
   //               stiffness is the artificial sound speed's while the shape of the curve is kept.
   enum class Eos { tait, polynomial };
   Eos eos = Eos::tait;
-  double tait_exponent = 7.0;                       // gamma, >= 1
+  double tait_exponent = 7.0;                             // gamma, >= 1
   double eos_c0 = 0, eos_c1 = 0, eos_c2 = 0, eos_c3 = 0;  // Pa (polynomial; C1 > 0)
   // Rheology: only the terms a material asks for are computed.
   //   inviscid:        no physical viscosity (artificial viscosity only)
@@ -51,10 +51,10 @@ struct Material {
   //                    von Mises yield `yield_stress`, radial return (LS-DYNA MAT_ELASTIC_PLASTIC_HYDRO)
   enum class Rheology { inviscid, newtonian, bingham, elastic_plastic };
   Rheology rheology = Rheology::inviscid;
-  double viscosity = 0;           // Pa s (newtonian: dynamic; bingham: plastic)
-  double yield_stress = 0;        // Pa (bingham: tau_y; elastic_plastic: von Mises sigma_y)
-  double yield_shear_rate = 1.0;  // 1/s (bingham regularisation)
-  double fluid_shear_modulus = 0; // Pa (elastic_plastic; 0: shear_modulus() from E and nu)
+  double viscosity = 0;            // Pa s (newtonian: dynamic; bingham: plastic)
+  double yield_stress = 0;         // Pa (bingham: tau_y; elastic_plastic: von Mises sigma_y)
+  double yield_shear_rate = 1.0;   // 1/s (bingham regularisation)
+  double fluid_shear_modulus = 0;  // Pa (elastic_plastic; 0: shear_modulus() from E and nu)
 };
 
 struct RunSettings {
@@ -160,7 +160,7 @@ struct SurfaceContact {
 };
 
 struct Interaction {
-  std::string a, b;  // a particle set or a fluid body, and a structure (checked)
+  std::string a, b;    // a particle set or a fluid body, and a structure (checked)
   bool fluid = false;  // a is a fluid body (defaults from [contact.sph_fem])
   Origin origin;
   SurfaceContact contact;  // defaults filled from [contact.dem_fem]
@@ -178,13 +178,13 @@ struct SphSettings {
   double smoothing_ratio = 1.3;  // h / dx
   Kernel kernel = Kernel::wendland_c2;
   WallModel wall_model = WallModel::boundary_particles;
-  double sound_speed = 0;      // m/s: artificial sound speed c of every fluid, > 0
-  double cfl = 0.25;           // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
+  double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
+  double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
   double artificial_viscosity = 0.01;  // Monaghan alpha
   enum class DensityDiffusion { none, molteni, fourtakas };
   DensityDiffusion density_diffusion = DensityDiffusion::fourtakas;
   double density_diffusion_delta = 0.1;  // delta of delta-SPH
-  std::optional<Aabb> domain;  // particles leaving it are taken out of the simulation (counted, logged)
+  std::optional<Aabb> domain;            // particles leaving it are taken out of the simulation (counted, logged)
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
 };
@@ -204,12 +204,12 @@ struct FluidBody {
   std::string material;  // a key of Scene::materials (checked)
   Origin origin;
   Shape shape = Shape::box;
-  Aabb box;                                      // m, box
-  std::vector<std::array<double, 2>> profile;    // m, extruded_polygon: (along direction, z), >= 3 points
-  Vec3 profile_origin = Vec3::Zero();            // m
-  Vec3 direction{1, 0, 0};                       // horizontal unit vector
-  double width = 0;                              // m, > 0
-  Vec3 velocity = Vec3::Zero();                  // m/s
+  Aabb box;                                    // m, box
+  std::vector<std::array<double, 2>> profile;  // m, extruded_polygon: (along direction, z), >= 3 points
+  Vec3 profile_origin = Vec3::Zero();          // m
+  Vec3 direction{1, 0, 0};                     // horizontal unit vector
+  double width = 0;                            // m, > 0
+  Vec3 velocity = Vec3::Zero();                // m/s
   bool hydrostatic = true;
 };
 
@@ -237,7 +237,7 @@ struct Scene {
   SphSettings sph;
   DemContact dem_contact;
   SurfaceContact dem_fem_default;
-  SurfaceContact sph_fem_default;  // SPH particles against FEM surfaces (wall_model == penalty)
+  SurfaceContact sph_fem_default;         // SPH particles against FEM surfaces (wall_model == penalty)
   std::vector<Interaction> interactions;  // explicit per-pair settings
   Recording recording;
 

@@ -101,8 +101,8 @@ class Schema {
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root,      &run, &solvers, &solver,  &materials, &material, &particles,   &sphere,   &fill,
-            &structure, &sph, &fluid,   &contact, &dem_dem,   &dem_fem,  &sph_fem,     &interaction, &recording};
+    return {&root,      &run, &solvers, &solver,  &materials, &material, &particles, &sphere,      &fill,
+            &structure, &sph, &fluid,   &contact, &dem_dem,   &dem_fem,  &sph_fem,   &interaction, &recording};
   }
 
  private:
@@ -176,7 +176,8 @@ class Schema {
     solvers.description =
         "One table per solver role: `[solvers.sph]`, `[solvers.dem]`, `[solvers.fem]`. A role runs only when "
         "the scene's bodies need it (`[[fluids]]` need the sph_solver, `[[particles]]` the dem_solver, "
-        "`[[structures]]` the fem_solver). A table for a role that no body needs is an error. A needed role without a table uses the built executable and `beta = 1.0`.";
+        "`[[structures]]` the fem_solver). A table for a role that no body needs is an error. A needed role without a "
+        "table uses the built executable and `beta = 1.0`.";
     const std::string role_doc = "Settings of this role (see below).";
     solvers.keys = {
         K("sph", Type::table).inside(solver).absent("defaults").doc(role_doc),

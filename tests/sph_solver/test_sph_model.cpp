@@ -141,10 +141,12 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   std::cout << "S4 pressure L2 error: measured " << 100 * error << " % of rho g H, expected <= 2 %\n";
   std::cout << "S4 largest speed (second half): measured " << max_speed_late << " m/s, benchmark bound "
             << 1e-3 * std::sqrt(g * H) << " m/s, held here to " << 3e-2 * std::sqrt(g * H) << " m/s\n";
-  std::cout << "S4 bottom force (mean of the last quarter): measured " << bottom << " N, expected " << weight << " N (+-1.5% here, benchmark 1%)\n";
-  std::cout << "S4 side force (mean of the last quarter): measured " << side << " N, expected " << side_expected << " N (+-2%)\n";
-  std::cout << "S4 total wall force: measured " << -total.z() << " N vs weight " << model.masses()[0] * static_cast<double>(model.size()) * g
-            << " N\n";
+  std::cout << "S4 bottom force (mean of the last quarter): measured " << bottom << " N, expected " << weight
+            << " N (+-1.5% here, benchmark 1%)\n";
+  std::cout << "S4 side force (mean of the last quarter): measured " << side << " N, expected " << side_expected
+            << " N (+-2%)\n";
+  std::cout << "S4 total wall force: measured " << -total.z() << " N vs weight "
+            << model.masses()[0] * static_cast<double>(model.size()) * g << " N\n";
   EXPECT_LT(error, 0.02);
   EXPECT_NEAR(bottom / weight, 1.0, 0.015);  // reduced resolution: 1.5 % (benchmark: 1 %)
   EXPECT_NEAR(side / side_expected, 1.0, 0.02);
@@ -253,10 +255,9 @@ namespace {
 // h_c = tau_y / (rho g sin theta). Known shortfall, documented in docs/physics.md:
 // at this resolution, with open ends that slump, the 0.9 h_c layer does not come
 // to rest (its centre creeps at about a quarter of the 1.2 h_c layer's speed); the
-// test holds the ordering the criterion implies, thick at least twice as far. Here the von Mises yield stress sigma_y gives
-// tau_y = sigma_y / sqrt(3) in simple shear. Layer 0.9 h_c and 1.2 h_c thick,
-// open at both ends; the mean downslope displacement of its central third
-// between t_end / 3 and t_end is compared (the elastic start-up transient,
+// test holds the ordering the criterion implies, thick at least twice as far. Here the von Mises yield stress sigma_y
+// gives tau_y = sigma_y / sqrt(3) in simple shear. Layer 0.9 h_c and 1.2 h_c thick, open at both ends; the mean
+// downslope displacement of its central third between t_end / 3 and t_end is compared (the elastic start-up transient,
 // speeds of about tau_y / (rho c_shear), averages out of a displacement).
 double central_displacement_on_slope(scene::Material::Rheology rheology, double thickness_ratio, double t_end) {
   const double dx = 0.015, h_c = 0.1, theta = 20.0 * std::numbers::pi / 180.0, g = 9.81, rho = 1000;
@@ -278,8 +279,8 @@ double central_displacement_on_slope(scene::Material::Rheology rheology, double 
   s.fluids.push_back(testing::box_body("layer", Vec3(0, 0, 0), Vec3(length, width, thickness)));
   SphModel model(s);
   // Floor only, reaching 10 dx beyond the layer on every side.
-  physics::BoundaryParticles floor = testing::container_walls(Vec3(-10 * dx, -10 * dx, 0),
-                                                               Vec3(length + 10 * dx, width + 10 * dx, 0), dx, 3);
+  physics::BoundaryParticles floor =
+      testing::container_walls(Vec3(-10 * dx, -10 * dx, 0), Vec3(length + 10 * dx, width + 10 * dx, 0), dx, 3);
   model.set_boundary(floor);
   std::vector<std::size_t> central;
   for (std::size_t i = 0; i < model.size(); ++i) {
