@@ -181,6 +181,7 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
                peer->registration.name(), n, peer->registration.surface().node_id_size());
   events_.registered(name, peer->registration.pid(), peer->registration.name());
   if (recorder_) recorder_->record_registration(name, peer->registration);
+  if (role == sabo::v1::ROLE_SPH) sph_ = peer.get();
   if (role == sabo::v1::ROLE_DEM) dem_ = peer.get();
   if (role == sabo::v1::ROLE_FEM) fem_ = peer.get();
   peers_.push_back(std::move(peer));
@@ -284,6 +285,11 @@ void Coupler::validate_state(const Peer& peer) {
   if (peer.registration.exposes_surface() && s.has_topology()) {
     // Elements eroded: the surface's new topology replaces the registered one
     // from this step on (checked like the registration's).
+    if (walls_) {
+      invalid(
+          "a new surface topology (eroded elements) while the fluid's walls are boundary particles sampled "
+          "at registration: not supported in this version (use [sph] wall_model = \"penalty\")");
+    }
     const auto& topology = s.topology();
     if (topology.node_position_size() != 3 * topology.node_id_size() || topology.triangle_size() % 3 != 0 ||
         topology.face_part_size() * 3 != topology.triangle_size()) {
@@ -296,6 +302,22 @@ void Coupler::validate_state(const Peer& peer) {
     fem_surface_revision_ = topology.revision();
     fem_surface_nodes_ = topology.node_id_size();
   }
+  if (s.boundary_force_size() != 0 || s.has_boundary_step() || (&peer == sph_ && walls_)) {
+    const std::uint64_t steps_back = s.has_boundary_step() ? s.step() - s.boundary_step() : 1;
+    if (s.has_boundary_step() && (s.boundary_step() >= s.step() || steps_back > 2)) {
+      invalid(fmt::format("boundary_step = {} must be step - 1 or step - 2", s.boundary_step()));
+    }
+    const std::size_t sent = walls_ && &peer == sph_ ? walls_->selection(steps_back).size() : 0;
+    const bool may_be_empty = s.step() <= 1;
+    if (static_cast<std::size_t>(s.boundary_force_size()) != 3 * sent &&
+        !(may_be_empty && s.boundary_force_size() == 0)) {
+      invalid(
+          fmt::format("{} boundary_force values for the {} boundary particles the coupler sent at step {} "
+                      "(expected 3 each, in that order; boundary_step names the step)",
+                      s.boundary_force_size(), sent, s.step() - steps_back));
+    }
+    if (!all_finite(s.boundary_force())) invalid("non-finite boundary_force");
+  }
   if (peer.registration.exposes_surface() && s.node_position_size() != 0) {
     const auto nodes = fem_surface_nodes_;
     if (s.node_position_size() != 3 * nodes || s.node_velocity_size() != 3 * nodes) {
@@ -305,16 +327,54 @@ void Coupler::validate_state(const Peer& peer) {
   }
 }
 
+Coupler::PenaltyPair* Coupler::penalty_pair_of(const Peer* peer) const {
+  for (const auto& pair : penalty_pairs_) {
+    if (pair->solver == peer) return pair.get();
+  }
+  return nullptr;
+}
+
 void Coupler::prepare_contacts() {
-  if (dem_ == nullptr || fem_ == nullptr) return;
-  surface_contact_ = std::make_unique<SurfaceContact>(scene_);
-  surface_contact_->set_surface(protocol::surface_from_message(fem_->registration.surface(), "fem_solver"));
+  if (dem_ != nullptr) force_sources_.emplace_back("particles");
+  if (sph_ != nullptr) force_sources_.emplace_back("fluid");
+  if (fem_ == nullptr) return;
+  const auto surface = protocol::surface_from_message(fem_->registration.surface(), "fem_solver");
+  if (dem_ != nullptr) {
+    auto pair = std::make_unique<PenaltyPair>();
+    pair->solver = dem_;
+    pair->source = 0;
+    pair->contact = std::make_unique<SurfaceContact>(scene_);
+    pair->contact->set_surface(surface);
+    penalty_pairs_.push_back(std::move(pair));
+  }
+  if (sph_ == nullptr) return;
+  const std::size_t fluid_source = force_sources_.size() - 1;
+  if (scene_.sph.wall_model == scene::SphSettings::WallModel::penalty) {
+    std::vector<std::string> fluids;
+    for (const auto& fluid : scene_.fluids) fluids.push_back(fluid.name);
+    // Settings of (fluid body, structure): an interaction naming both, else [contact.sph_fem].
+    auto settings = [&scene = scene_](const std::string& fluid, const std::string& part) {
+      return scene.surface_contact(fluid, part);
+    };
+    auto pair = std::make_unique<PenaltyPair>();
+    pair->solver = sph_;
+    pair->source = fluid_source;
+    pair->contact = std::make_unique<SurfaceContact>(std::move(fluids), settings);
+    pair->contact->set_surface(surface);
+    penalty_pairs_.push_back(std::move(pair));
+  } else {
+    walls_ = std::make_unique<BoundaryWalls>(scene_.sph.particle_spacing, scene_.sph.kernel_support());
+    walls_->set_surface(surface);
+    walls_source_ = fluid_source;
+    spdlog::info("sampled the FEM surface into {} boundary particles ({} layers at dx = {} m)",
+                 walls_->sampling().size(), walls_->layers(), scene_.sph.particle_spacing);
+  }
 }
 
 double Coupler::coupled_dt() const {
   double dt = std::numeric_limits<double>::infinity();
   for (const auto& peer : peers_) dt = std::min(dt, peer->beta * peer->state.stable_dt());
-  if (surface_contact_ && dem_ != nullptr) dt = std::min(dt, dem_->beta * surface_contact_->stable_dt());
+  for (const auto& pair : penalty_pairs_) dt = std::min(dt, pair->solver->beta * pair->contact->stable_dt());
   if (scene_.run.max_dt) dt = std::min(dt, *scene_.run.max_dt);
   // Only rigid parts and nothing else that limits the step: take output-sized steps.
   if (!std::isfinite(dt)) dt = scene_.run.output_interval;
@@ -322,35 +382,72 @@ double Coupler::coupled_dt() const {
 }
 
 void Coupler::compute_contacts(double dt_previous) {
-  if (!surface_contact_) return;
+  if (penalty_pairs_.empty() && !walls_) return;
   const auto start = Clock::now();
   const auto& fem_state = fem_->state;
   if (fem_state.has_topology()) {
     // Faces that left (eroded elements) leave the contact; exposed faces join.
     // Tangential springs carry over where their nodes remain (keyed by node ids).
-    surface_contact_->set_surface(protocol::surface_from_message(fem_state.topology(), "fem_solver"));
+    const auto surface = protocol::surface_from_message(fem_state.topology(), "fem_solver");
+    for (auto& pair : penalty_pairs_) pair->contact->set_surface(surface);
   }
-  if (fem_state.node_position_size() > 0) {
-    surface_contact_->update_nodes(
-        {fem_state.node_position().data(), static_cast<std::size_t>(fem_state.node_position_size())},
-        {fem_state.node_velocity().data(), static_cast<std::size_t>(fem_state.node_velocity_size())});
+  const bool moved = fem_state.node_position_size() > 0;
+  const std::span<const double> node_position{fem_state.node_position().data(),
+                                              static_cast<std::size_t>(fem_state.node_position_size())};
+  const std::span<const double> node_velocity{fem_state.node_velocity().data(),
+                                              static_cast<std::size_t>(fem_state.node_velocity_size())};
+  fem_node_force_.assign(3 * static_cast<std::size_t>(fem_surface_nodes_), 0.0);
+  fem_node_force_nonzero_ = false;
+  std::size_t contacts = 0;
+  for (auto& pair : penalty_pairs_) {
+    if (moved) pair->contact->update_nodes(node_position, node_velocity);
+    pair->gather.gather(pair->solver->registration.particles(), pair->solver->state);
+    pair->contact->compute(pair->gather.view(), dt_previous, pair->out);
+    contacts += pair->out.contact_count;
+    if (pair->out.contact_count > 0) {
+      fem_node_force_nonzero_ = true;
+      for (std::size_t i = 0; i < fem_node_force_.size(); ++i) fem_node_force_[i] += pair->out.node_force[i];
+    }
   }
-  gather_.gather(dem_->registration.particles(), dem_->state);
-  surface_contact_->compute(gather_.view(), dt_previous, contact_out_);
-  max_contacts_ = std::max(max_contacts_, contact_out_.contact_count);
+  if (walls_) {
+    if (moved) walls_->update_nodes(node_position, node_velocity, dt_previous);
+    const auto& returned = sph_->state.boundary_force();
+    const std::size_t steps_back =
+        sph_->state.has_boundary_step() ? sph_->state.step() - sph_->state.boundary_step() : 1;
+    walls_->spread({returned.data(), static_cast<std::size_t>(returned.size())}, steps_back, walls_node_force_,
+                   walls_part_force_);
+    if (!returned.empty()) {
+      fem_node_force_nonzero_ = true;
+      for (std::size_t i = 0; i < fem_node_force_.size(); ++i) fem_node_force_[i] += walls_node_force_[i];
+    }
+    const auto& fluid = sph_->state.position();
+    walls_->select_near({fluid.data(), static_cast<std::size_t>(fluid.size())});
+    max_boundary_sent_ = std::max(max_boundary_sent_, walls_->selection().size());
+  }
+  max_contacts_ = std::max(max_contacts_, contacts);
   contact_seconds_ += seconds_since(start);
 }
 
 void Coupler::check_newton_third_law(std::uint64_t step) {
-  if (!surface_contact_) return;
+  if (penalty_pairs_.empty() && !walls_) return;
   Vec3 sum = Vec3::Zero();
   double scale = 0;
-  const auto& pf = contact_out_.particle_force;
-  for (std::size_t i = 0; i + 2 < pf.size(); i += 3) {
-    sum += Vec3(pf[i], pf[i + 1], pf[i + 2]);
-    scale += std::abs(pf[i]) + std::abs(pf[i + 1]) + std::abs(pf[i + 2]);
+  for (const auto& pair : penalty_pairs_) {
+    const auto& pf = pair->out.particle_force;
+    for (std::size_t i = 0; i + 2 < pf.size(); i += 3) {
+      sum += Vec3(pf[i], pf[i + 1], pf[i + 2]);
+      scale += std::abs(pf[i]) + std::abs(pf[i + 1]) + std::abs(pf[i + 2]);
+    }
   }
-  const auto& nf = contact_out_.node_force;
+  if (walls_) {
+    // The fluid feels minus the force it put on the boundary particles.
+    const auto& bf = sph_->state.boundary_force();
+    for (int i = 0; i + 2 < bf.size(); i += 3) {
+      sum -= Vec3(bf[i], bf[i + 1], bf[i + 2]);
+      scale += std::abs(bf[i]) + std::abs(bf[i + 1]) + std::abs(bf[i + 2]);
+    }
+  }
+  const auto& nf = fem_node_force_;
   for (std::size_t i = 0; i + 2 < nf.size(); i += 3) sum += Vec3(nf[i], nf[i + 1], nf[i + 2]);
   if (scale == 0) return;
   const double residual = sum.norm() / scale;
@@ -366,6 +463,23 @@ void Coupler::check_newton_third_law(std::uint64_t step) {
   }
 }
 
+namespace {
+void set_interest(sabo::v1::StepForces& f, const Aabb& box) {
+  auto* b = f.add_interest();
+  b->set_min_x(box.min.x()), b->set_min_y(box.min.y()), b->set_min_z(box.min.z());
+  b->set_max_x(box.max.x()), b->set_max_y(box.max.y()), b->set_max_z(box.max.z());
+  f.set_interest_all(false);
+}
+
+void assign_vectors(google::protobuf::RepeatedField<double>& field, const std::vector<Vec3>& values) {
+  field.Resize(3 * static_cast<int>(values.size()), 0.0);
+  double* out = field.mutable_data();
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    out[3 * i] = values[i].x(), out[3 * i + 1] = values[i].y(), out[3 * i + 2] = values[i].z();
+  }
+}
+}  // namespace
+
 void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop) {
   const auto start = Clock::now();
   for (auto& peer : peers_) {
@@ -375,28 +489,30 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
     f.set_dt(dt);
     f.set_output(output);
     f.set_stop(stop);
-    if (peer.get() == dem_) {
+    if (peer.get() == dem_ || peer.get() == sph_) {
+      const bool torque = peer->registration.exposes_angular_velocity();
       f.mutable_index()->CopyFrom(peer->state.index());
-      if (surface_contact_) {
-        f.mutable_force()->Assign(contact_out_.particle_force.begin(), contact_out_.particle_force.end());
-        f.mutable_torque()->Assign(contact_out_.particle_torque.begin(), contact_out_.particle_torque.end());
+      const PenaltyPair* pair = penalty_pair_of(peer.get());
+      if (pair != nullptr) {
+        f.mutable_force()->Assign(pair->out.particle_force.begin(), pair->out.particle_force.end());
+        if (torque) f.mutable_torque()->Assign(pair->out.particle_torque.begin(), pair->out.particle_torque.end());
+        set_interest(f, pair->contact->interest_region());
       } else {
         f.mutable_force()->Resize(3 * peer->state.index_size(), 0.0);
-        f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
-      }
-      if (surface_contact_) {
-        const Aabb box = surface_contact_->interest_region();
-        auto* b = f.add_interest();
-        b->set_min_x(box.min.x()), b->set_min_y(box.min.y()), b->set_min_z(box.min.z());
-        b->set_max_x(box.max.x()), b->set_max_y(box.max.y()), b->set_max_z(box.max.z());
-        f.set_interest_all(false);
-      } else {
+        if (torque) f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
         f.set_interest_all(false);  // nothing to touch: send nothing
       }
-    } else if (peer.get() == fem_) {
-      if (surface_contact_ && contact_out_.contact_count > 0) {
-        f.mutable_node_force()->Assign(contact_out_.node_force.begin(), contact_out_.node_force.end());
+      if (peer.get() == sph_ && walls_) {
+        const auto& b = walls_->selected();
+        assign_vectors(*f.mutable_boundary_position(), b.position);
+        assign_vectors(*f.mutable_boundary_velocity(), b.velocity);
+        assign_vectors(*f.mutable_boundary_normal(), b.normal);
+        assign_vectors(*f.mutable_boundary_acceleration(), b.acceleration);
+        f.mutable_boundary_volume()->Assign(b.volume.begin(), b.volume.end());
+        set_interest(f, walls_->interest_region());
       }
+    } else if (peer.get() == fem_) {
+      if (fem_node_force_nonzero_) f.mutable_node_force()->Assign(fem_node_force_.begin(), fem_node_force_.end());
       f.set_interest_all(true);
     }
     if (recorder_) recorder_->record_forces(peer->role_name, f);
@@ -406,9 +522,17 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
 }
 
 void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
-  if (forces_csv_ && surface_contact_) {
-    const auto& per_part = contact_out_.part_force;  // [part] -> force from the particles, N
-    for (std::size_t part = 0; part < per_part.size(); ++part) forces_csv_->add(part, 0, per_part[part], dt);
+  if (forces_csv_) {
+    for (const auto& pair : penalty_pairs_) {
+      const auto& per_part = pair->out.part_force;  // [part] -> force from this solver's particles, N
+      for (std::size_t part = 0; part < per_part.size(); ++part)
+        forces_csv_->add(part, pair->source, per_part[part], dt);
+    }
+    if (walls_) {
+      for (std::size_t part = 0; part < walls_part_force_.size(); ++part) {
+        forces_csv_->add(part, walls_source_, walls_part_force_[part], dt);
+      }
+    }
   }
   if (forces_csv_ && output) forces_csv_->write(time);
 
@@ -430,9 +554,12 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
   }
   previous_time_ = time;
   previous_output_ = output;
-  previous_contact_elastic_ = surface_contact_ ? contact_out_.elastic_energy : 0.0;
-  // Dashpot and slip power of step n acts over dt_n.
-  if (surface_contact_) contact_dissipated_ += contact_out_.dissipated_power * dt;
+  previous_contact_elastic_ = 0;
+  for (const auto& pair : penalty_pairs_) {
+    previous_contact_elastic_ += pair->out.elastic_energy;
+    // Dashpot and slip power of step n acts over dt_n.
+    contact_dissipated_ += pair->out.dissipated_power * dt;
+  }
 }
 
 void Coupler::progress(std::uint64_t step, double time, double dt, bool force_emit) {
@@ -538,8 +665,17 @@ void Coupler::write_summary(const std::string& status) {
     if (c.friction > 0) effects.push_back({{"effect", "dem_sliding_friction"}, {"process", "dem_solver"}});
     if (c.rolling_friction > 0) effects.push_back({{"effect", "dem_rolling_friction"}, {"process", "dem_solver"}});
   }
-  if (surface_contact_) {
-    effects.push_back({{"effect", "dem_fem_contact"}, {"process", "coupler"}, {"seconds", contact_seconds_}});
+  for (const auto& pair : penalty_pairs_) {
+    const char* effect = pair->solver == dem_ ? "dem_fem_contact" : "sph_fem_penalty_contact";
+    effects.push_back({{"effect", effect}, {"process", "coupler"}, {"seconds", contact_seconds_}});
+  }
+  if (walls_) {
+    effects.push_back({{"effect", "sph_fem_boundary_particles"},
+                       {"process", "coupler"},
+                       {"seconds", contact_seconds_},
+                       {"boundary_particles", walls_->sampling().size()},
+                       {"max_sent_per_step", max_boundary_sent_},
+                       {"layers", walls_->layers()}});
   }
   if (recorder_) effects.push_back({{"effect", "traffic_recording"}, {"process", "coupler"}});
 
@@ -595,8 +731,7 @@ int Coupler::run() {
     prepare_contacts();
     std::vector<std::string> parts;
     for (const auto& s : scene_.structures) parts.push_back(s.name);
-    forces_csv_ =
-        std::make_unique<ForceHistory>(options_.out_dir / "forces.csv", parts, std::vector<std::string>{"particles"});
+    forces_csv_ = std::make_unique<ForceHistory>(options_.out_dir / "forces.csv", parts, force_sources_);
     energy_csv_ = std::make_unique<EnergyHistory>(options_.out_dir / "energy.csv");
 
     double dt_previous = 0;

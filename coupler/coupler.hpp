@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "coupler/accounting.hpp"
+#include "coupler/boundary_walls.hpp"
 #include "coupler/contact/surface_contact.hpp"
 #include "coupler/events.hpp"
 #include "coupler/particles.hpp"
@@ -72,14 +73,29 @@ class Coupler {
   protocol::Socket socket_;
   protocol::Inbound inbound_;
   std::vector<std::unique_ptr<Peer>> peers_;
+  Peer* sph_ = nullptr;
   Peer* dem_ = nullptr;
   Peer* fem_ = nullptr;
   int fem_surface_nodes_ = 0;               // nodes of the FEM surface now (registration or last topology)
   std::uint64_t fem_surface_revision_ = 0;  // its topology revision
 
-  std::unique_ptr<SurfaceContact> surface_contact_;
-  ParticleGather gather_;
-  ContactOutput contact_out_;
+  // Penalty contact of one particle solver's particles against the FEM surface.
+  struct PenaltyPair {
+    Peer* solver = nullptr;
+    std::size_t source = 0;  // column in forces.csv
+    std::unique_ptr<SurfaceContact> contact;
+    ParticleGather gather;
+    ContactOutput out;
+  };
+  [[nodiscard]] PenaltyPair* penalty_pair_of(const Peer* peer) const;
+  std::vector<std::unique_ptr<PenaltyPair>> penalty_pairs_;  // DEM-FEM, SPH-FEM (wall_model = penalty)
+  std::unique_ptr<BoundaryWalls> walls_;                     // SPH-FEM (wall_model = boundary_particles)
+  std::size_t walls_source_ = 0;
+  std::vector<double> walls_node_force_;  // N, 3 per node, from the boundary particles
+  std::vector<Vec3> walls_part_force_;    // N per part, from the boundary particles
+  std::vector<double> fem_node_force_;    // N, 3 per node, every pair together
+  bool fem_node_force_nonzero_ = false;
+  std::vector<std::string> force_sources_;  // forces.csv sources: "particles" (DEM), "fluid" (SPH)
 
   std::unique_ptr<io::TrafficRecorder> recorder_;
   std::unique_ptr<ForceHistory> forces_csv_;
@@ -98,6 +114,7 @@ class Coupler {
   double newton_max_residual_ = 0;
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
+  std::size_t max_boundary_sent_ = 0;  // most boundary particles sent to the sph_solver in one step
   double next_output_time_ = 0;
   double previous_time_ = 0;
   bool previous_output_ = false;

@@ -594,14 +594,22 @@ class Builder {
 
     const toml::array* particles = root.table_list("particles");
     const toml::array* structures = root.table_list("structures");
+    const toml::array* fluids = root.table_list("fluids");
     has_particles_ = particles != nullptr && !particles->empty();
     has_structures_ = structures != nullptr && !structures->empty();
-    const bool lists_readable =
-        (particles != nullptr || !root.has("particles")) && (structures != nullptr || !root.has("structures"));
-    if (!has_particles_ && !has_structures_ && lists_readable) {
+    has_fluids_ = fluids != nullptr && !fluids->empty();
+    const bool lists_readable = (particles != nullptr || !root.has("particles")) &&
+                                (structures != nullptr || !root.has("structures")) &&
+                                (fluids != nullptr || !root.has("fluids"));
+    if (!has_particles_ && !has_structures_ && !has_fluids_ && lists_readable) {
       diag_.add_plain(1, "the scene has no bodies, so there is nothing to simulate",
-                      "add at least one [[particles]] or [[structures]] table");
+                      "add at least one [[fluids]], [[particles]] or [[structures]] table");
     }
+    read_sph(root);
+    if (fluids != nullptr) {
+      for (std::size_t k = 0; k < fluids->size(); ++k) read_fluid(*fluids->get(k)->as_table(), k);
+    }
+    check_fluid_materials();
     if (particles != nullptr) {
       for (std::size_t k = 0; k < particles->size(); ++k) read_particle_set(*particles->get(k)->as_table(), k);
     }
@@ -625,6 +633,12 @@ class Builder {
     bool is_particle_set;
     std::string path;
     int line;
+    bool is_fluid = false;
+  };
+  // The fluid keys of a material, for the checks that need the fluids that use it.
+  struct FluidMaterialKeys {
+    int line = 0;
+    bool has_eos_c1 = false;
   };
   // A sphere of a list, with where it was written, for the overlap check.
   struct ListedSphere {
@@ -670,7 +684,223 @@ class Builder {
       if (auto v = r.number("youngs_modulus")) material.youngs_modulus = *v;
       if (auto v = r.number("poisson_ratio")) material.poisson_ratio = *v;
       read_plasticity(r, material);
+      read_fluid_material(r, material);
       scene_.materials.push_back(std::move(material));
+    }
+  }
+
+  // ------------------------------------------------------------- SPH ----
+
+  void read_fluid_material(Reader& r, Material& material) {
+    if (auto v = r.string("eos")) material.eos = *v == "polynomial" ? Material::Eos::polynomial : Material::Eos::tait;
+    if (auto v = r.number("tait_exponent")) material.tait_exponent = *v;
+    if (auto v = r.number("eos_c0")) material.eos_c0 = *v;
+    if (auto v = r.number("eos_c1")) material.eos_c1 = *v;
+    if (auto v = r.number("eos_c2")) material.eos_c2 = *v;
+    if (auto v = r.number("eos_c3")) material.eos_c3 = *v;
+    if (auto v = r.string("rheology")) {
+      if (*v == "newtonian") material.rheology = Material::Rheology::newtonian;
+      if (*v == "bingham") material.rheology = Material::Rheology::bingham;
+      if (*v == "elastic_plastic") material.rheology = Material::Rheology::elastic_plastic;
+    }
+    if (auto v = r.number("viscosity")) material.viscosity = *v;
+    if (auto v = r.number("yield_shear_rate")) material.yield_shear_rate = *v;
+    if (auto v = r.number("fluid_shear_modulus")) material.fluid_shear_modulus = *v;
+    fluid_material_keys_[material.name] = {r.line(), r.has("eos_c1")};
+  }
+
+  void read_sph(Reader& root) {
+    const toml::table* table = root.table("sph");
+    if (table == nullptr) {
+      if (has_fluids_) {
+        diag_.add(root.line("fluids"), "sph", std::nullopt, "missing; the scene has [[fluids]]",
+                  "add an [sph] table with at least particle_spacing and sound_speed, e.g. [sph] particle_spacing = "
+                  "0.02, sound_speed = 30.0");
+      }
+      return;
+    }
+    if (!has_fluids_) {
+      diag_.add(line_of(*table), "sph", std::nullopt, "there are no fluids, so no SPH settings",
+                "remove [sph] or add [[fluids]]");
+      return;
+    }
+    Reader r(diag_, spec("sph"), *table, "sph");
+    SphSettings& sph = scene_.sph;
+    if (auto v = r.number("particle_spacing")) sph.particle_spacing = *v;
+    if (auto v = r.number("smoothing_ratio")) sph.smoothing_ratio = *v;
+    if (auto v = r.string("kernel")) {
+      sph.kernel = *v == "cubic_spline" ? SphSettings::Kernel::cubic_spline : SphSettings::Kernel::wendland_c2;
+    }
+    if (auto v = r.string("wall_model")) {
+      sph.wall_model = *v == "penalty" ? SphSettings::WallModel::penalty : SphSettings::WallModel::boundary_particles;
+    }
+    if (auto v = r.number("sound_speed")) sph.sound_speed = *v;
+    if (auto v = r.number("cfl")) sph.cfl = *v;
+    if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
+    if (auto v = r.string("density_diffusion")) {
+      sph.density_diffusion = *v == "none"      ? SphSettings::DensityDiffusion::none
+                              : *v == "molteni" ? SphSettings::DensityDiffusion::molteni
+                                                : SphSettings::DensityDiffusion::fourtakas;
+    }
+    if (auto v = r.number("density_diffusion_delta")) sph.density_diffusion_delta = *v;
+    const auto min = r.vec3("domain_min"), max = r.vec3("domain_max");
+    if (r.has("domain_min") != r.has("domain_max")) {
+      const char* given = r.has("domain_min") ? "domain_min" : "domain_max";
+      diag_.add(r.line(given), r.key_path(given), value_text(*r.node(given)),
+                "the domain needs both corners, domain_min and domain_max", "give both corners, or neither");
+    } else if (min && max) {
+      if (((*max).array() <= (*min).array()).any()) {
+        diag_.add(r.line("domain_max"), r.key_path("domain_max"), value_text(*r.node("domain_max")),
+                  fmt::format("the domain is empty or inverted: domain_max must exceed domain_min = {} on every axis",
+                              value_text(*r.node("domain_min"))),
+                  "swap the values where domain_max <= domain_min");
+      } else {
+        sph.domain = Aabb{*min, *max};
+        domain_line_ = r.line("domain_max");
+      }
+    }
+  }
+
+  void read_fluid(const toml::table& table, std::size_t index) {
+    const std::string path = fmt::format("fluids[{}]", index);
+    Reader r(diag_, spec("fluids"), table, path);
+    FluidBody body;
+    body.origin = origin(r.line(), path);
+    if (auto v = r.string("name")) {
+      body.name = *v;
+      register_body(r, body.name, false, true);
+    }
+    if (auto v = r.string("material")) {
+      body.material = *v;
+      check_material(r, body.material);
+    }
+    if (auto v = r.vec3("velocity")) body.velocity = *v;
+    if (auto v = r.boolean("hydrostatic")) body.hydrostatic = *v;
+    const auto shape = r.string("shape");
+    if (!shape) {
+      scene_.fluids.push_back(std::move(body));
+      return;
+    }
+    r.select(*shape);
+    const double dx = scene_.sph.particle_spacing;
+    Aabb bounds;
+    if (*shape == "box") {
+      body.shape = FluidBody::Shape::box;
+      const auto min = r.vec3("min"), max = r.vec3("max");
+      if (min && max) {
+        body.box = Aabb{*min, *max};
+        bounds = body.box;
+        if (((*max - *min).array() < dx).any()) {
+          diag_.add(r.line("max"), r.key_path("max"), value_text(*r.node("max")),
+                    fmt::format("the box must exceed min = {} by at least the particle spacing {} m on every axis, "
+                                "or it holds no particle",
+                                value_text(*r.node("min")), number_literal(dx)),
+                    "enlarge the box or lower sph.particle_spacing");
+        }
+      }
+    } else {
+      body.shape = FluidBody::Shape::extruded_polygon;
+      if (auto v = r.vec3("origin")) body.profile_origin = *v;
+      if (auto v = r.number("width")) {
+        body.width = *v;
+        if (body.width < dx) {
+          diag_.add(
+              r.line("width"), r.key_path("width"), number_literal(body.width),
+              fmt::format("narrower than the particle spacing {} m: the body holds no particle", number_literal(dx)),
+              "widen the body or lower sph.particle_spacing");
+        }
+      }
+      if (auto v = r.vec3("direction")) {
+        if (std::abs(v->z()) > 1e-12 || v->norm() == 0) {
+          diag_.add(r.line("direction"), r.key_path("direction"), value_text(*r.node("direction")),
+                    "must be horizontal (z = 0) and not zero", "give e.g. direction = [1.0, 0.0, 0.0]");
+        } else {
+          body.direction = v->normalized();
+        }
+      }
+      if (auto v = r.pairs("profile")) {
+        body.profile = *v;
+        check_profile(r, body.profile);
+        const Vec3 across(-body.direction.y(), body.direction.x(), 0.0);  // z x direction
+        for (const auto& [s, z] : body.profile) {
+          const Vec3 base = body.profile_origin + s * body.direction;
+          bounds.extend(Vec3(base.x(), base.y(), z) + 0.5 * body.width * across);
+          bounds.extend(Vec3(base.x(), base.y(), z) - 0.5 * body.width * across);
+        }
+      }
+    }
+    if (scene_.sph.domain && !bounds.empty() &&
+        !(scene_.sph.domain->contains(bounds.min) && scene_.sph.domain->contains(bounds.max))) {
+      diag_.add(
+          r.line(), path, std::nullopt,
+          fmt::format("the body reaches outside the SPH domain (sph.domain_min/domain_max, line {})", domain_line_),
+          "enlarge the domain or move the body into it");
+    }
+    scene_.fluids.push_back(std::move(body));
+  }
+
+  void check_profile(Reader& r, const std::vector<std::array<double, 2>>& profile) {
+    const int line = r.line("profile");
+    const std::string key = r.key_path("profile");
+    const std::string value = value_text(*r.node("profile"));
+    const std::size_t n = profile.size();
+    if (n < 3) {
+      diag_.add(line, key, value, fmt::format("a polygon needs at least 3 points, not {}", n),
+                "list the corners of the profile in order, e.g. [[0.0, 0.0], [10.0, 0.0], [0.0, 5.0]]");
+      return;
+    }
+    const auto point = [&](std::size_t k) { return profile[k % n]; };
+    for (std::size_t k = 0; k < n; ++k) {
+      if (point(k) == point(k + 1)) {
+        diag_.add(line, key, value, fmt::format("points {} and {} are the same: a zero-length edge", k, (k + 1) % n),
+                  "remove the repeated point");
+        return;
+      }
+    }
+    const auto cross = [](std::array<double, 2> o, std::array<double, 2> a, std::array<double, 2> b) {
+      return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t b = a + 2; b < n; ++b) {
+        if (a == 0 && b == n - 1) continue;  // neighbouring edges through point 0
+        const auto p1 = point(a), p2 = point(a + 1), q1 = point(b), q2 = point(b + 1);
+        const double d1 = cross(p1, p2, q1), d2 = cross(p1, p2, q2), d3 = cross(q1, q2, p1), d4 = cross(q1, q2, p2);
+        if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) {
+          diag_.add(line, key, value, fmt::format("edge {}-{} crosses edge {}-{}", a, (a + 1) % n, b, (b + 1) % n),
+                    "list the points in order around the polygon, without crossings");
+          return;
+        }
+      }
+    }
+  }
+
+  // Requirements of the materials that fluids use.
+  void check_fluid_materials() {
+    std::vector<std::string> checked;
+    for (const FluidBody& body : scene_.fluids) {
+      if (std::find(checked.begin(), checked.end(), body.material) != checked.end()) continue;
+      checked.push_back(body.material);
+      const auto material = std::find_if(scene_.materials.begin(), scene_.materials.end(),
+                                         [&](const Material& m) { return m.name == body.material; });
+      if (material == scene_.materials.end()) continue;
+      const FluidMaterialKeys keys = fluid_material_keys_[material->name];
+      const std::string path = "materials." + material->name;
+      const std::string user = fmt::format(" (used by fluid '{}')", body.name);
+      if (material->eos == Material::Eos::polynomial && !keys.has_eos_c1) {
+        diag_.add(keys.line, path + ".eos_c1", std::nullopt, "missing; eos = \"polynomial\" needs C1" + user,
+                  "add eos_c1 = 20e9 (the bulk stiffness of the polynomial EOS), or use eos = \"tait\"");
+      }
+      using R = Material::Rheology;
+      if ((material->rheology == R::newtonian || material->rheology == R::bingham) && material->viscosity <= 0) {
+        diag_.add(keys.line, path + ".viscosity", number_literal(material->viscosity),
+                  "a newtonian or bingham fluid needs a positive viscosity" + user,
+                  "give viscosity > 0 (Pa s), or use rheology = \"inviscid\"");
+      }
+      if ((material->rheology == R::bingham || material->rheology == R::elastic_plastic) && !material->yield_stress) {
+        diag_.add(keys.line, path + ".yield_stress", std::nullopt,
+                  "missing; a bingham or elastic_plastic fluid needs a positive yield stress" + user,
+                  "give yield_stress > 0 (Pa)");
+      }
     }
   }
 
@@ -741,18 +971,18 @@ class Builder {
     }
   }
 
-  void register_body(Reader& r, const std::string& name, bool is_particle_set) {
+  void register_body(Reader& r, const std::string& name, bool is_particle_set, bool is_fluid = false) {
     const int line = r.line("name");
     if (!valid_name(name)) {
       diag_.add(line, r.key_path("name"), quote_text(name), "a name must be made of letters, digits, '_' and '-'",
                 "rename it, e.g. \"boulders_1\"");
       return;
     }
-    auto [it, inserted] = bodies_.try_emplace(name, BodyName{is_particle_set, r.path(), line});
+    auto [it, inserted] = bodies_.try_emplace(name, BodyName{is_particle_set, r.path(), line, is_fluid});
     if (!inserted) {
       diag_.add(line, r.key_path("name"), quote_text(name),
                 fmt::format("the name is already used by {} (line {})", it->second.path, it->second.line),
-                "give each particle set and structure its own name");
+                "give each fluid, particle set and structure its own name");
     }
   }
 
@@ -1158,7 +1388,7 @@ class Builder {
       const char* bodies;
     };
     const RoleInfo roles[] = {
-        {Role::sph, "sph", false, "fluids (SPH bodies come in a later version)"},
+        {Role::sph, "sph", has_fluids_, "[[fluids]]"},
         {Role::dem, "dem", has_particles_, "[[particles]]"},
         {Role::fem, "fem", has_structures_, "[[structures]]"},
     };
@@ -1349,14 +1579,23 @@ class Builder {
     }
     Reader df(diag_, spec("contact-dem_fem"), dem_fem != nullptr ? *dem_fem : empty_table(), "contact.dem_fem");
     read_surface_contact(df, scene_.dem_fem_default);
+
+    const toml::table* sph_fem = contact.table("sph_fem");
+    if (sph_fem != nullptr && !(has_fluids_ && has_structures_)) {
+      diag_.add(line_of(*sph_fem), "contact.sph_fem", std::nullopt,
+                "fluid-structure contact needs both fluids and structures",
+                "remove [contact.sph_fem] or add the missing [[fluids]] or [[structures]]");
+    }
+    Reader sf(diag_, spec("contact-sph_fem"), sph_fem != nullptr ? *sph_fem : empty_table(), "contact.sph_fem");
+    read_surface_contact(sf, scene_.sph_fem_default);
   }
 
   void read_interactions(Reader& root) {
     const toml::array* interactions = root.table_list("interactions");
     if (interactions == nullptr || interactions->empty()) return;
-    if (!(has_particles_ && has_structures_)) {
+    if (!((has_particles_ || has_fluids_) && has_structures_)) {
       diag_.add(root.line("interactions"), "interactions", std::nullopt,
-                "interactions pair a particle set with a structure, but the scene lacks one of the two",
+                "interactions pair a particle set or fluid with a structure, but the scene lacks one of the two",
                 "remove the [[interactions]] tables or add the missing bodies");
       return;
     }
@@ -1369,10 +1608,14 @@ class Builder {
       Reader r(diag_, spec("interactions"), table, path);
       Interaction interaction;
       interaction.origin = origin(r.line(), path);
-      interaction.contact = scene_.dem_fem_default;
+      const auto pair = r.strings("pair");
+      const bool names_fluid = pair && std::any_of(pair->begin(), pair->end(), [&](const std::string& name) {
+                                 const auto it = bodies_.find(name);
+                                 return it != bodies_.end() && it->second.is_fluid;
+                               });
+      interaction.contact = names_fluid ? scene_.sph_fem_default : scene_.dem_fem_default;
       read_surface_contact(r, interaction.contact);
       if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
-      const auto pair = r.strings("pair");
       if (!pair) continue;
       const int line = r.line("pair");
       const std::string value = value_text(*r.node("pair"));
@@ -1389,12 +1632,20 @@ class Builder {
         diag_.add(line, r.key_path("pair"), value,
                   fmt::format("no particle set or structure is named {}{}", quote_text(name),
                               suggestion ? fmt::format(". Did you mean '{}'?", *suggestion) : std::string()),
-                  fmt::format("use the names of [[particles]] and [[structures]]: {}", join(body_names)));
+                  fmt::format("use the names of [[fluids]], [[particles]] and [[structures]]: {}", join(body_names)));
       }
       if (!known) continue;
       const BodyName& first = bodies_.at((*pair)[0]);
       const BodyName& second = bodies_.at((*pair)[1]);
-      if (first.is_particle_set == second.is_particle_set) {
+      const bool first_moves = first.is_particle_set || first.is_fluid;
+      const bool second_moves = second.is_particle_set || second.is_fluid;
+      if (first_moves && second_moves) {
+        diag_.add(line, r.key_path("pair"), value,
+                  "both are fluids or particle sets; a pair is one fluid or particle set and one structure",
+                  "pair a fluid or particle set with a structure here");
+        continue;
+      }
+      if (first.is_particle_set == second.is_particle_set && !first.is_fluid && !second.is_fluid) {
         diag_.add(line, r.key_path("pair"), value,
                   fmt::format("both are {}; a pair is one particle set and one structure",
                               first.is_particle_set ? "particle sets" : "structures"),
@@ -1403,8 +1654,9 @@ class Builder {
                                         : "pair a particle set with a structure");
         continue;
       }
-      interaction.a = first.is_particle_set ? (*pair)[0] : (*pair)[1];
-      interaction.b = first.is_particle_set ? (*pair)[1] : (*pair)[0];
+      interaction.a = first_moves ? (*pair)[0] : (*pair)[1];
+      interaction.b = first_moves ? (*pair)[1] : (*pair)[0];
+      interaction.fluid = first.is_fluid || second.is_fluid;
       auto [it, inserted] = seen.try_emplace({interaction.a, interaction.b}, line);
       if (!inserted) {
         diag_.add(line, r.key_path("pair"), value, fmt::format("this pair is already given at line {}", it->second),
@@ -1477,7 +1729,9 @@ class Builder {
   const toml::table& document_;
   fs::path scene_dir_;
   Scene scene_;
-  bool has_particles_ = false, has_structures_ = false;
+  bool has_particles_ = false, has_structures_ = false, has_fluids_ = false;
+  std::map<std::string, FluidMaterialKeys> fluid_material_keys_;
+  int domain_line_ = 0;
   std::vector<std::string> material_names_;
   std::map<std::string, BodyName> bodies_;
   std::vector<ListedSphere> listed_;

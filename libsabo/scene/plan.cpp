@@ -31,7 +31,7 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
   for (const auto& set : scene.particle_sets) {
     spheres += set.kind == ParticleSet::Kind::list ? set.spheres.size() : set.count;
   }
-  plan["bodies"] = {{"fluids", 0},
+  plan["bodies"] = {{"fluids", scene.fluids.size()},
                     {"particle_sets", scene.particle_sets.size()},
                     {"spheres", spheres},
                     {"structures", scene.structures.size()},

@@ -139,7 +139,8 @@ SurfaceContact Scene::surface_contact(const std::string& set, const std::string&
       return interaction.contact;
     }
   }
-  return dem_fem_default;
+  const bool is_fluid = std::any_of(fluids.begin(), fluids.end(), [&](const FluidBody& f) { return f.name == set; });
+  return is_fluid ? sph_fem_default : dem_fem_default;
 }
 
 }  // namespace sabo::scene

@@ -32,7 +32,7 @@ struct Material {
   double poisson_ratio = 0;   // in [0, 0.5)
   // Plasticity and failure of deformable structures (LS-DYNA MAT_PLASTIC_KINEMATIC);
   // absent: elastic, no failure.
-  std::optional<double> yield_stress;      // Pa, > 0
+  std::optional<double> yield_stress;      // Pa, > 0 (fluids: bingham tau_y, elastic_plastic von Mises sigma_y)
   double tangent_modulus = 0;              // Pa, in [0, E)
   double hardening = 0;                    // beta in [0, 1]: 0 kinematic, 1 isotropic
   std::optional<double> cowper_symonds_c;  // 1/s, > 0: strain-rate factor 1 + (rate / C)^(1/p)
@@ -40,6 +40,28 @@ struct Material {
   std::optional<double> failure_strain;    // > 0: elements erode at this maximum principal strain
   [[nodiscard]] double bulk_modulus() const { return youngs_modulus / (3.0 * (1.0 - 2.0 * poisson_ratio)); }
   [[nodiscard]] double shear_modulus() const { return youngs_modulus / (2.0 * (1.0 + poisson_ratio)); }
+
+  // Keys read by the sph_solver when a fluid body uses this material (ignored otherwise).
+  // Equation of state, mu = rho/rho0 - 1, B = rho0 c^2 / gamma with c = SphSettings::sound_speed:
+  //   tait:       p = B ((rho/rho0)^gamma - 1)
+  //   polynomial: p = C0 + s (C1 mu + C2 mu^2 + C3 mu^3), s = rho0 c^2 / C1, so the initial
+  //               stiffness is the artificial sound speed's while the shape of the curve is kept.
+  enum class Eos { tait, polynomial };
+  Eos eos = Eos::tait;
+  double tait_exponent = 7.0;                             // gamma, >= 1
+  double eos_c0 = 0, eos_c1 = 0, eos_c2 = 0, eos_c3 = 0;  // Pa (polynomial; C1 > 0)
+  // Rheology: only the terms a material asks for are computed.
+  //   inviscid:        no physical viscosity (artificial viscosity only)
+  //   newtonian:       dynamic viscosity `viscosity` (Morris operator)
+  //   bingham:         regularised: eta = viscosity + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot
+  //                    (Papanastasiou), plastic viscosity `viscosity`
+  //   elastic_plastic: deviatoric stress with Jaumann rate, shear modulus `fluid_shear_modulus`,
+  //                    von Mises yield `yield_stress`, radial return (LS-DYNA MAT_ELASTIC_PLASTIC_HYDRO)
+  enum class Rheology { inviscid, newtonian, bingham, elastic_plastic };
+  Rheology rheology = Rheology::inviscid;
+  double viscosity = 0;            // Pa s (newtonian: dynamic; bingham: plastic)
+  double yield_shear_rate = 1.0;   // 1/s (bingham regularisation)
+  double fluid_shear_modulus = 0;  // Pa (elastic_plastic; 0: shear_modulus() from E and nu)
 };
 
 struct RunSettings {
@@ -216,9 +238,57 @@ struct SurfaceContact {
 };
 
 struct Interaction {
-  std::string a, b;  // a particle set and a structure (checked)
+  std::string a, b;    // a particle set or a fluid body, and a structure (checked)
+  bool fluid = false;  // a is a fluid body (defaults from [contact.sph_fem])
   Origin origin;
   SurfaceContact contact;  // defaults filled from [contact.dem_fem]
+};
+
+// Weakly compressible SPH (sph_solver). The loader fills these from [sph]
+// and [[fluids]]; the sph_solver helper owns their keys and may add fields.
+// The coupler reads particle_spacing, smoothing_ratio, kernel and wall_model to
+// sample FEM surfaces as boundary particles (wall_model == boundary_particles:
+// ceil(kernel_support / particle_spacing) layers behind each wall surface).
+struct SphSettings {
+  enum class Kernel { wendland_c2, cubic_spline };
+  enum class WallModel { penalty, boundary_particles };
+  double particle_spacing = 0;   // m: initial particle spacing dx, > 0
+  double smoothing_ratio = 1.3;  // h / dx
+  Kernel kernel = Kernel::wendland_c2;
+  WallModel wall_model = WallModel::boundary_particles;
+  double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
+  double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
+  double artificial_viscosity = 0.01;  // Monaghan alpha
+  enum class DensityDiffusion { none, molteni, fourtakas };
+  DensityDiffusion density_diffusion = DensityDiffusion::fourtakas;
+  double density_diffusion_delta = 0.1;  // delta of delta-SPH
+  std::optional<Aabb> domain;            // particles leaving it are taken out of the simulation (counted, logged)
+  [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
+  [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
+};
+
+// One body of slurry, filled with particles on a cubic lattice of spacing
+// SphSettings::particle_spacing (particle centres dx/2 inside the shape's boundary).
+//   box:              the box [box.min, box.max]
+//   extruded_polygon: the polygon `profile` given in the vertical plane through
+//                     `profile_origin` spanned by the horizontal `direction` (first
+//                     coordinate) and z (second), extruded `width` across, centred on
+//                     that plane.
+// Initial state: `velocity`; with `hydrostatic`, the pressure of the fluid column
+// above each particle (density from the EOS), so that a body at rest starts at rest.
+struct FluidBody {
+  enum class Shape { box, extruded_polygon };
+  std::string name;
+  std::string material;  // a key of Scene::materials (checked)
+  Origin origin;
+  Shape shape = Shape::box;
+  Aabb box;                                    // m, box
+  std::vector<std::array<double, 2>> profile;  // m, extruded_polygon: (along direction, z), >= 3 points
+  Vec3 profile_origin = Vec3::Zero();          // m
+  Vec3 direction{1, 0, 0};                     // horizontal unit vector
+  double width = 0;                            // m, > 0
+  Vec3 velocity = Vec3::Zero();                // m/s
+  bool hydrostatic = true;
 };
 
 // What the coupler records into traffic.h5.
@@ -241,15 +311,18 @@ struct Scene {
   std::vector<Material> materials;         // sorted by name; index = material id
   std::vector<ParticleSet> particle_sets;  // DEM bodies, in file order
   std::vector<Structure> structures;       // FEM parts, in file order
+  std::vector<FluidBody> fluids;           // SPH bodies, in file order
+  SphSettings sph;
   DemContact dem_contact;
   SurfaceContact dem_fem_default;
+  SurfaceContact sph_fem_default;         // SPH particles against FEM surfaces (wall_model == penalty)
   std::vector<Interaction> interactions;  // explicit per-pair settings
   Recording recording;
 
   [[nodiscard]] bool needs(Role role) const;
   [[nodiscard]] const SolverSettings* solver(Role role) const;
   [[nodiscard]] std::size_t material_index(const std::string& name) const;  // asserts it exists
-  // Contact settings for particle set `set` against structure `structure`.
+  // Contact settings for particle set or fluid body `set` against structure `structure`.
   [[nodiscard]] SurfaceContact surface_contact(const std::string& set, const std::string& structure) const;
 };
 

@@ -80,8 +80,8 @@ class K {
 // All tables, built once in place (tables point at each other).
 class Schema {
  public:
-  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, contact, dem_dem, dem_pair,
-      dem_fem, interaction, recording;
+  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, sph, fluid, contact,
+      dem_dem, dem_pair, dem_fem, sph_fem, interaction, recording;
 
   Schema(const Schema&) = delete;
   Schema& operator=(const Schema&) = delete;
@@ -93,14 +93,16 @@ class Schema {
     build_materials();
     build_particles();
     build_structures();
+    build_sph();
     build_contact();
+    build_sph_fem();
     build_interactions();
     build_recording();
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root, &run,       &solvers, &solver,  &materials, &material, &particles,   &sphere,
-            &fill, &structure, &contact, &dem_dem, &dem_pair,  &dem_fem,  &interaction, &recording};
+    return {&root, &run,   &solvers, &solver,  &materials, &material, &particles, &sphere,      &fill,     &structure,
+            &sph,  &fluid, &contact, &dem_dem, &dem_pair,  &dem_fem,  &sph_fem,   &interaction, &recording};
   }
 
  private:
@@ -109,8 +111,7 @@ class Schema {
     root.anchor = "top-level";
     root.description =
         "The tables a scene file may hold. Only `format_version`, `[run]` and at least one body "
-        "(`[[particles]]` or `[[structures]]`) are required. Fluids (SPH bodies) come in a later "
-        "version; a `fluids` key is an unknown key for now.";
+        "(`[[fluids]]`, `[[particles]]` or `[[structures]]`) are required; `[sph]` is required with fluids.";
     root.keys = {
         K("format_version", Type::integer)
             .required("1")
@@ -124,10 +125,15 @@ class Schema {
         K("materials", Type::named_tables).inside(material).absent("no materials").doc("Named materials."),
         K("particles", Type::table_list).inside(particles).absent("no DEM bodies").doc("DEM sphere sets."),
         K("structures", Type::table_list).inside(structure).absent("no FEM bodies").doc("FEM parts."),
+        K("sph", Type::table)
+            .inside(sph)
+            .absent("no fluids allowed")
+            .doc("Settings of the SPH solver; required with `[[fluids]]`."),
+        K("fluids", Type::table_list).inside(fluid).absent("no SPH bodies").doc("SPH bodies (debris slurry, water)."),
         K("contact", Type::table).inside(contact).absent("defaults").doc("Contact laws between kinds of bodies."),
         K("interactions", Type::table_list)
             .inside(interaction)
-            .absent("every pair uses `[contact.dem_fem]`")
+            .absent("every pair uses `[contact.dem_fem]` or `[contact.sph_fem]`")
             .doc("Per-pair contact overrides."),
         K("recording", Type::table).inside(recording).absent("defaults").doc("What the coupler records."),
     };
@@ -169,9 +175,9 @@ class Schema {
     solvers.anchor = "solvers";
     solvers.description =
         "One table per solver role: `[solvers.sph]`, `[solvers.dem]`, `[solvers.fem]`. A role runs only when "
-        "the scene's bodies need it (`[[particles]]` need the dem_solver, `[[structures]]` the fem_solver; "
-        "fluids, which would need the sph_solver, come later). A table for a role that no body needs is an "
-        "error. A needed role without a table uses the built executable and `beta = 1.0`.";
+        "the scene's bodies need it (`[[fluids]]` need the sph_solver, `[[particles]]` the dem_solver, "
+        "`[[structures]]` the fem_solver). A table for a role that no body needs is an error. A needed role without a "
+        "table uses the built executable and `beta = 1.0`.";
     const std::string role_doc = "Settings of this role (see below).";
     solvers.keys = {
         K("sph", Type::table).inside(solver).absent("defaults").doc(role_doc),
@@ -206,11 +212,56 @@ class Schema {
         "Material ids in the protocol are the indices of the names in sorted order.";
     material.title = "[materials.NAME]";
     material.anchor = "materials-name";
-    material.description = "Linear elastic constants of one material.";
+    material.description =
+        "Linear elastic constants of one material. A material used by a fluid body also has an equation of "
+        "state and a rheology (the keys from `eos` on; the SPH solver reads them only for fluids); its "
+        "`density` is the rest density rho0.\n\n"
+        "* `eos = \"tait\"`: p = B ((rho/rho0)^gamma - 1), B = rho0 c^2 / gamma, c = `sph.sound_speed`.\n"
+        "* `eos = \"polynomial\"` (LS-DYNA's linear polynomial, the paper's slurry): p = C0 + s (C1 mu + C2 mu^2 "
+        "+ C3 mu^3), mu = rho/rho0 - 1, s = rho0 c^2 / C1: the artificial sound speed sets the stiffness, "
+        "the coefficients the shape.\n"
+        "* `rheology`: `inviscid` (artificial viscosity only); `newtonian` (dynamic `viscosity`, Morris "
+        "operator); `bingham` (Papanastasiou-regularised, eta = `viscosity` + `yield_stress` (1 - "
+        "exp(-gamma_dot / `yield_shear_rate`)) / gamma_dot); `elastic_plastic` (the paper's "
+        "MAT_ELASTIC_PLASTIC_HYDRO: deviatoric stress by the Jaumann rate with shear modulus "
+        "`fluid_shear_modulus`, von Mises yield `yield_stress`, radial return; `viscosity` optional).";
     material.keys = {
         K("density", Type::number).required("3000.0").unit("kg/m^3").gt(0).doc("Mass density."),
         K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
         K("poisson_ratio", Type::number).required("0.3").ge(0).lt(0.5).doc("Poisson's ratio nu."),
+        K("eos", Type::string).def("\"tait\"").choices({"tait", "polynomial"}).doc("Fluids: equation of state."),
+        K("tait_exponent", Type::number).def("7.0").ge(1).doc("Fluids, Tait: exponent gamma."),
+        K("eos_c0", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C0."),
+        K("eos_c1", Type::number)
+            .absent("required with eos = \"polynomial\"")
+            .example("20e9")
+            .unit("Pa")
+            .gt(0)
+            .doc("Fluids, polynomial: C1."),
+        K("eos_c2", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C2."),
+        K("eos_c3", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C3."),
+        K("rheology", Type::string)
+            .def("\"inviscid\"")
+            .choices({"inviscid", "newtonian", "bingham", "elastic_plastic"})
+            .doc("Fluids: constitutive model of the deviatoric stress."),
+        K("viscosity", Type::number)
+            .def("0.0")
+            .unit("Pa s")
+            .ge(0)
+            .doc("Fluids: dynamic viscosity (newtonian, > 0), plastic viscosity (bingham, > 0), extra viscosity "
+                 "(elastic_plastic)."),
+        K("yield_shear_rate", Type::number)
+            .def("1.0")
+            .unit("1/s")
+            .gt(0)
+            .doc("Fluids, bingham: shear rate below which the regularised law turns viscous (largest viscosity "
+                 "`viscosity` + `yield_stress` / `yield_shear_rate`)."),
+        K("fluid_shear_modulus", Type::number)
+            .absent("E / (2 (1 + nu)) of this material")
+            .example("1.68e6")
+            .unit("Pa")
+            .gt(0)
+            .doc("Fluids, elastic_plastic: shear modulus G."),
     };
     add_plasticity_keys();
   }
@@ -223,7 +274,12 @@ class Schema {
         "(`hardening` = 0) and isotropic (1), an optional Cowper-Symonds rate factor 1 + (rate / C)^(1/p), "
         "and erosion of elements whose maximum principal strain reaches `failure_strain`.";
     material.keys.push_back(
-        K("yield_stress", Type::number).absent("elastic").unit("Pa").gt(0).doc("Initial yield stress sigma_0."));
+        K("yield_stress", Type::number)
+            .absent("elastic (structures); required by bingham and elastic_plastic fluids")
+            .unit("Pa")
+            .gt(0)
+            .doc("Structures: initial yield stress sigma_0 of the plastic kinematic law. Fluids: the Bingham yield "
+                 "stress tau_y, or the von Mises yield stress sigma_y (elastic_plastic)."));
     material.keys.push_back(K("tangent_modulus", Type::number)
                                 .def("0.0")
                                 .unit("Pa")
@@ -486,18 +542,150 @@ class Schema {
     };
   }
 
+  void build_sph() {
+    sph.title = "[sph]";
+    sph.anchor = "sph";
+    sph.description =
+        "Weakly compressible SPH (sph_solver): kernel, resolution, equation-of-state stiffness, numerical "
+        "diffusion and the wall model. Required when the scene has `[[fluids]]`, an error otherwise.\n\n"
+        "Walls: with `wall_model = \"boundary_particles\"` the coupler samples every structure surface as "
+        "layers of wall particles (Adami, Hu & Adams 2012) that enter the fluid's density and pressure sums; "
+        "with `\"penalty\"` the coupler pushes fluid particles out of structure faces by the penalty contact "
+        "of paper eqs. 3-6 (`[contact.sph_fem]`).";
+    sph.keys = {
+        K("particle_spacing", Type::number).required("0.02").unit("m").gt(0).doc("Initial particle spacing dx."),
+        K("smoothing_ratio", Type::number).def("1.3").ge(0.5).le(3).doc("h / dx."),
+        K("kernel", Type::string)
+            .def("\"wendland_c2\"")
+            .choices({"wendland_c2", "cubic_spline"})
+            .doc("Smoothing kernel; both have support 2h."),
+        K("wall_model", Type::string)
+            .def("\"boundary_particles\"")
+            .choices({"boundary_particles", "penalty"})
+            .doc("How structures act on the fluid (see above)."),
+        K("sound_speed", Type::number)
+            .required("30.0")
+            .unit("m/s")
+            .gt(0)
+            .doc("Artificial sound speed c of every fluid: at least ten times the largest expected flow speed."),
+        K("cfl", Type::number)
+            .def("0.25")
+            .gt(0)
+            .le(1)
+            .doc("The stable dt sent to the coupler: cfl * min(h / (c + h max|div v|), sqrt(h / max|a|), "
+                 "rho h^2 / (8 eta)) (paper eq. 7's SPH term with its force and viscous conditions)."),
+        K("artificial_viscosity", Type::number).def("0.01").ge(0).doc("Monaghan's alpha."),
+        K("density_diffusion", Type::string)
+            .def("\"fourtakas\"")
+            .choices({"none", "molteni", "fourtakas"})
+            .doc("delta-SPH term of the continuity equation: Molteni & Colagrossi 2009, or with the hydrostatic "
+                 "part taken out (Fourtakas et al. 2019)."),
+        K("density_diffusion_delta", Type::number).def("0.1").ge(0).le(1).doc("delta of the density diffusion."),
+        K("domain_min", Type::vec3)
+            .absent("no domain: particles are never taken out")
+            .example("[-1.0, -1.0, -1.0]")
+            .unit("m")
+            .doc("Lower corner of the domain; a particle that leaves it is taken out of the simulation (counted "
+                 "and logged). Give both corners or neither."),
+        K("domain_max", Type::vec3)
+            .absent("no domain")
+            .example("[10.0, 1.0, 5.0]")
+            .unit("m")
+            .doc("Upper corner of the domain, above `domain_min` on every axis."),
+    };
+    fluid.title = "[[fluids]]";
+    fluid.anchor = "fluids";
+    fluid.selector = "shape";
+    fluid.description =
+        "One body of fluid (slurry, water), simulated by the sph_solver and filled with particles on a cubic "
+        "lattice of spacing `sph.particle_spacing`, centres dx/2 inside the shape's boundary.\n\n"
+        "* `box`: the box `[min, max]`.\n"
+        "* `extruded_polygon`: the polygon `profile` (points (s, z): s along `direction` from `origin`, z "
+        "absolute height) in the vertical plane through `origin`, extruded `width` across, centred on that "
+        "plane. The Wenjia scenes draw the gully's longitudinal profile this way.\n\n"
+        "With `hydrostatic = true` each particle starts with the pressure of the fluid column above it (and "
+        "the matching density), so that a body at rest stays at rest.";
+    fluid.keys = {
+        K("name", Type::string)
+            .required("\"slurry\"")
+            .allowed("letters, digits, `_`, `-`")
+            .doc("Name of the body, unique among all bodies."),
+        K("material", Type::string).required("\"slurry\"").allowed("a `[materials.NAME]`").doc("Material."),
+        K("shape", Type::string).required("\"box\"").choices({"box", "extruded_polygon"}).doc("Kind of geometry."),
+        K("min", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").only_for({"box"}).doc("Lower corner."),
+        K("max", Type::vec3)
+            .required("[1.0, 1.0, 1.0]")
+            .unit("m")
+            .only_for({"box"})
+            .doc("Upper corner, above `min` on every axis."),
+        K("profile", Type::pair_list)
+            .required("[[0.0, 0.0], [10.0, 0.0], [0.0, 5.0]]")
+            .unit("m")
+            .only_for({"extruded_polygon"})
+            .doc("Polygon vertices (s, z) in order, at least 3, not self-intersecting."),
+        K("origin", Type::vec3)
+            .def("[0.0, 0.0, 0.0]")
+            .unit("m")
+            .only_for({"extruded_polygon"})
+            .doc("Where s = 0 (its z is ignored: profile heights are absolute)."),
+        K("direction", Type::vec3)
+            .def("[1.0, 0.0, 0.0]")
+            .only_for({"extruded_polygon"})
+            .doc("Horizontal direction of s (z = 0), not zero."),
+        K("width", Type::number)
+            .required("7.0")
+            .unit("m")
+            .gt(0)
+            .only_for({"extruded_polygon"})
+            .doc("Extrusion width across `direction`."),
+        K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity."),
+        K("hydrostatic", Type::boolean)
+            .def("true")
+            .doc("Start with the hydrostatic pressure of the column above each particle."),
+    };
+  }
+
+  void build_sph_fem() {
+    sph_fem.title = "[contact.sph_fem]";
+    sph_fem.anchor = "contact-sph_fem";
+    sph_fem.description =
+        "Penalty contact of fluid particles against structure surfaces, computed by the coupler (paper eqs. "
+        "3-6, the particle's contact radius is h), used when `sph.wall_model = \"penalty\"`. Defaults of "
+        "every fluid/structure pair; `[[interactions]]` override them per pair.";
+    sph_fem.keys = {
+        K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
+        K("penalty_scale", Type::number).def("0.1").gt(0).doc("k1 of eq. 6."),
+        K("normal_stiffness", Type::number)
+            .absent("eq. 6")
+            .example("1e8")
+            .unit("N/m")
+            .gt(0)
+            .doc("Normal stiffness replacing eq. 6."),
+        K("normal_damping_ratio", Type::number)
+            .def("0.0")
+            .ge(0)
+            .lt(1)
+            .doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
+        K("tangential_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Tangential damping ratio."),
+    };
+  }
+
   void build_contact() {
     contact.title = "[contact]";
     contact.anchor = "contact";
     contact.description =
         "Contact laws between kinds of bodies. `[contact.dem_dem]` needs particles; `[contact.dem_fem]` needs "
-        "particles and structures.";
+        "particles and structures; `[contact.sph_fem]` needs fluids and structures.";
     contact.keys = {
         K("dem_dem", Type::table).inside(dem_dem).absent("defaults").doc("Sphere-sphere contact (dem_solver)."),
         K("dem_fem", Type::table)
             .inside(dem_fem)
             .absent("defaults")
             .doc("Sphere-structure contact (coupler), default of every pair."),
+        K("sph_fem", Type::table)
+            .inside(sph_fem)
+            .absent("defaults")
+            .doc("Fluid-structure penalty contact (coupler), default of every pair."),
     };
     dem_dem.title = "[contact.dem_dem]";
     dem_dem.anchor = "contact-dem_dem";
@@ -658,13 +846,14 @@ class Schema {
     interaction.title = "[[interactions]]";
     interaction.anchor = "interactions";
     interaction.description =
-        "Contact settings of one pair, a particle set and a structure (in either order), each pair at most "
-        "once. Keys left out take their value from `[contact.dem_fem]`.";
-    const std::string from_default = "as in `[contact.dem_fem]`";
+        "Contact settings of one pair, a particle set or a fluid body and a structure (in either order), each "
+        "pair at most once. Keys left out take their value from `[contact.dem_fem]` (particle sets) or "
+        "`[contact.sph_fem]` (fluids).";
+    const std::string from_default = "as in `[contact.dem_fem]` / `[contact.sph_fem]`";
     interaction.keys = {
         K("pair", Type::string_list)
             .required("[\"boulders\", \"chute\"]")
-            .allowed("a particle set and a structure")
+            .allowed("a particle set or fluid body, and a structure")
             .doc("The two bodies."),
         K("enabled", Type::boolean).def("true").doc("`false` switches contact of this pair off."),
         K("model", Type::string)
@@ -837,8 +1026,8 @@ std::vector<const Table*> tables() {
 
 const std::vector<std::string>& cross_checks() {
   static const std::vector<std::string> checks{
-      "A scene has at least one body (`[[particles]]` or `[[structures]]`).",
-      "Particle sets and structures share one namespace: every name is unique among both. Names are made of "
+      "A scene has at least one body (`[[fluids]]`, `[[particles]]` or `[[structures]]`).",
+      "Fluids, particle sets and structures share one namespace: every name is unique among them. Names are made of "
       "letters, digits, `_` and `-`; material names too.",
       "`material` names a `[materials.NAME]` table.",
       "A particle set gives exactly one of `spheres` and `fill`; a list has at least one sphere.",
@@ -853,13 +1042,19 @@ const std::vector<std::string>& cross_checks() {
       "`[[contact.dem_dem.pairs]]`: `materials` names two defined materials; no pair appears twice. "
       "`restitution` is given only where a pair uses `hertz_mindlin`, `rolling_viscosity` only where a pair uses "
       "`rolling = \"viscous\"`, and a viscous pair has `rolling_viscosity` > 0.",
-      "`[solvers.ROLE]` appears only for a role that the bodies need (`dem` for particles, `fem` for "
-      "structures; `sph` not in this version). `command`, when given, is not empty and its program exists: "
+      "`[solvers.ROLE]` appears only for a role that the bodies need (`sph` for fluids, `dem` for particles, "
+      "`fem` for structures). `command`, when given, is not empty and its program exists: "
       "an executable file (absolute, or relative to the scene file's folder when it contains a `/`) or a name "
       "found on `PATH`.",
       "`[contact.dem_dem]` needs particles; `[contact.dem_fem]` and `[[interactions]]` need particles and "
       "structures. `[contact.dem_dem]` gives `normal_stiffness` or `normal_stiffness_scale`, not both.",
-      "An interaction's `pair` names one particle set and one structure; no pair appears twice.",
+      "An interaction's `pair` names one particle set or fluid body and one structure; no pair appears twice.",
+      "`[sph]` is given exactly when there are `[[fluids]]`; `[contact.sph_fem]` needs fluids and structures. "
+      "`domain_min` and `domain_max` come together, min < max on every axis, and the domain holds every fluid.",
+      "A fluid material: `eos = \"polynomial\"` needs `eos_c1`; `newtonian` and `bingham` need `viscosity` > 0; "
+      "`bingham` and `elastic_plastic` need `yield_stress` > 0. A fluid body holds at least one particle; a "
+      "box has min < max on every axis; a profile has at least 3 points, no zero-length edge, no crossing "
+      "edges; `direction` is horizontal and not zero.",
       "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
       "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
       "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`, "
@@ -943,7 +1138,7 @@ std::string markdown() {
       "<!-- Generated by `sabo_scene schema-doc` from libsabo/scene/schema.cpp. Do not edit by hand: a test "
       "checks that this file equals the generated text. -->\n\n"
       "A scene is one TOML file (`configs/*.toml`) that says everything a run simulates: materials, bodies "
-      "(particle sets, structures), how they touch, and what is recorded. What the scene does not mention is "
+      "(fluids, particle sets, structures), how they touch, and what is recorded. What the scene does not mention is "
       "not simulated: a scene without `[[particles]]` starts no `dem_solver`. Units are SI (m, s, kg, Pa), "
       "angles in degrees, z points up.\n\n"
       "`sabo_scene check SCENE` validates a file and prints the launch plan (the processes to start, as JSON). "

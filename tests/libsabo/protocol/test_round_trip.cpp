@@ -146,6 +146,36 @@ TEST(RoundTrip, StepForces) {
   expect_round_trip(m);
 }
 
+TEST(RoundTrip, StepForcesWithBoundaryParticles) {
+  // SPH walls sampled as boundary particles (docs/protocol.md, "SPH walls").
+  sabo::v1::StepForces m;
+  m.set_step(3);
+  m.set_dt(1e-4);
+  const int n = 30000;  // ~2.9 MB: the zero-copy path as well
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      m.add_boundary_position(0.01 * i + c);
+      m.add_boundary_velocity(-1e-3 * i);
+      m.add_boundary_normal(c == 2 ? 1.0 : 0.0);
+      m.add_boundary_acceleration(c == 2 ? -0.5 : 0.0);
+    }
+    m.add_boundary_volume(1e-6 * (1 + i % 5));
+  }
+  expect_round_trip(m);
+  EXPECT_EQ(m.boundary_position_size(), 3 * n);
+  EXPECT_EQ(m.boundary_volume_size(), n);
+}
+
+TEST(RoundTrip, StepStateWithBoundaryForce) {
+  sabo::v1::StepState m;
+  m.set_step(4);
+  m.set_stable_dt(1e-4);
+  for (int i = 0; i < 1000; ++i) {
+    for (int c = 0; c < 3; ++c) m.add_boundary_force(c == 2 ? -9.81 * i : 1e-3 * i);
+  }
+  expect_round_trip(m);
+}
+
 TEST(RoundTrip, ErrorStopGoodbye) {
   sabo::v1::Error error;
   error.set_code(sabo::v1::Error::CODE_INVALID);

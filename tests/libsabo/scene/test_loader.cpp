@@ -418,7 +418,7 @@ TEST(SceneLoader, ChecksAcrossKeys) {
       {head + kGround + "[contact.dem_fem]\nfriction = 0.5\n",
        "key 'contact.dem_fem': sphere-structure contact needs both particles and structures"},
       {head + kOneSphere + "[[interactions]]\npair = [\"boulders\", \"x\"]\n",
-       "key 'interactions': interactions pair a particle set with a structure, but the scene lacks one"},
+       "key 'interactions': interactions pair a particle set or fluid with a structure, but the scene lacks one"},
       {head + kOneSphere + kGround +
            "[[interactions]]\npair = [\"boulders\", \"ground\"]\n[[interactions]]\npair = "
            "[\"ground\", \"boulders\"]\n",

@@ -1,0 +1,98 @@
+// Particle-steps per second of SphModel alone on a 3-D dam break (a water
+// column of a x a x 2a, a = 0.4 m, released in a closed tank 4a long) with
+// boundary-particle walls, the neighbour count per particle and the memory per
+// particle. Threads: OMP_NUM_THREADS.
+//   bench_sph_throughput [--spacing DX] [--steps N] [--kernel wendland_c2|cubic_spline] [--ratio H_OVER_DX]
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <fstream>
+
+#include "sph_solver/sph_model.hpp"
+
+namespace {
+
+double resident_megabytes() {
+  std::ifstream statm("/proc/self/statm");
+  double pages = 0, resident = 0;
+  statm >> pages >> resident;
+  return resident * 4096.0 / 1e6;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app("SPH throughput on a 3-D dam break");
+  double dx = 0.009, ratio = 1.3;
+  int steps = 20;
+  std::string kernel = "wendland_c2";
+  app.add_option("--spacing", dx, "particle spacing, m (0.009: about 170 000 particles)");
+  app.add_option("--steps", steps, "timed steps");
+  app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")
+      ->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
+  app.add_option("--ratio", ratio, "h / dx");
+  CLI11_PARSE(app, argc, argv);
+
+  using namespace sabo;
+  const double a = 0.4;
+  scene::Scene s;
+  scene::Material water;
+  water.name = "water";
+  water.density = 1000;
+  water.youngs_modulus = 1e9;
+  water.poisson_ratio = 0.3;
+  s.materials.push_back(water);
+  s.sph.particle_spacing = dx;
+  s.sph.smoothing_ratio = ratio;
+  s.sph.kernel =
+      kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
+  s.sph.sound_speed = 10.0 * std::sqrt(2 * 9.81 * 2 * a);
+  scene::FluidBody column;
+  column.name = "column";
+  column.material = "water";
+  column.box = Aabb{Vec3::Zero(), Vec3(a, a, 2 * a)};
+  s.fluids.push_back(column);
+
+  const double memory_before = resident_megabytes();
+  sph::SphModel model(s);
+  // Walls: 3 layers under and around the tank [0, 4a] x [0, a] x [0, 3a].
+  physics::BoundaryParticles walls;
+  const int layers = static_cast<int>(std::ceil(2 * ratio));
+  const Vec3 min = Vec3::Zero(), max(4 * a, a, 3 * a);
+  const Vec3 lo = min - Vec3::Constant(layers * dx), hi(max.x() + layers * dx, max.y() + layers * dx, max.z());
+  const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
+  for (int k = 0; k < count(hi.z() - lo.z()); ++k)
+    for (int j = 0; j < count(hi.y() - lo.y()); ++j)
+      for (int i = 0; i < count(hi.x() - lo.x()); ++i) {
+        const Vec3 p = lo + dx * Vec3(i + 0.5, j + 0.5, k + 0.5);
+        if ((p.array() > min.array()).all() && (p.array() < max.array()).all()) continue;
+        walls.position.push_back(p);
+        walls.velocity.push_back(Vec3::Zero());
+        walls.normal.push_back(Vec3::UnitZ());
+        walls.acceleration.push_back(Vec3::Zero());
+        walls.volume.push_back(dx * dx * dx);
+      }
+  model.set_boundary(walls);
+  double dt_previous = 0;
+  const auto step = [&] {
+    model.compute_internal_forces(dt_previous);
+    const double dt = model.stable_dt();
+    model.integrate(dt_previous, dt);
+    dt_previous = dt;
+  };
+  step();  // warm-up: buffers sized
+  const double memory_after = resident_megabytes();
+  const auto start = std::chrono::steady_clock::now();
+  for (int k = 0; k < steps; ++k) step();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double n = static_cast<double>(model.size());
+  fmt::print("particles {} walls {} threads {} kernel {} h/dx {}\n", model.size(), walls.size(), omp_get_max_threads(),
+             kernel, ratio);
+  fmt::print("particle_steps_per_second {:.4g}\n", n * steps / seconds);
+  fmt::print("neighbours_per_particle {:.1f}\n", model.mean_neighbours());
+  fmt::print("bytes_per_particle {:.0f}\n",
+             (memory_after - memory_before) * 1e6 / (n + static_cast<double>(walls.size())));
+  return 0;
+}

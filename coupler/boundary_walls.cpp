@@ -1,0 +1,110 @@
+#include "coupler/boundary_walls.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "libsabo/core/error.hpp"
+
+namespace sabo::coupler {
+
+BoundaryWalls::BoundaryWalls(double spacing, double support)
+    : spacing_(spacing),
+      support_(support),
+      layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support / spacing - 1e-9)))) {}
+
+void BoundaryWalls::set_surface(const geometry::SurfaceMesh& surface) {
+  surface_ = surface;
+  sampling_ = geometry::sample_surface(surface_, spacing_, layers_);
+  node_velocity_.assign(surface_.node_count(), Vec3::Zero());
+  previous_node_velocity_ = node_velocity_;
+  node_acceleration_ = node_velocity_;
+  selection_.clear();
+  previous_selection_.clear();
+  selected_.resize(0);
+  place_all();
+}
+
+void BoundaryWalls::place_all() {
+  all_position_.resize(sampling_.size());
+  bounds_ = Aabb{};
+  for (std::size_t k = 0; k < sampling_.size(); ++k) {
+    all_position_[k] = geometry::boundary_particle_position(surface_, sampling_, k);
+    bounds_.extend(all_position_[k]);
+  }
+  grid_valid_ = false;
+}
+
+void BoundaryWalls::update_nodes(std::span<const double> position, std::span<const double> velocity,
+                                 double dt_previous) {
+  const std::size_t n = surface_.node_count();
+  if (position.size() != 3 * n || (!velocity.empty() && velocity.size() != 3 * n)) {
+    throw ProtocolError(fmt::format("boundary walls: {} node positions and {} velocities for {} nodes", position.size(),
+                                    velocity.size(), n));
+  }
+  previous_node_velocity_ = node_velocity_;
+  for (std::size_t i = 0; i < n; ++i) {
+    surface_.node_position[i] = Vec3(position[3 * i], position[3 * i + 1], position[3 * i + 2]);
+    node_velocity_[i] =
+        velocity.empty() ? Vec3::Zero() : Vec3(velocity[3 * i], velocity[3 * i + 1], velocity[3 * i + 2]);
+    node_acceleration_[i] =
+        dt_previous > 0 ? Vec3((node_velocity_[i] - previous_node_velocity_[i]) / dt_previous) : Vec3::Zero();
+  }
+  place_all();
+}
+
+void BoundaryWalls::spread(std::span<const double> boundary_force, std::size_t steps_back,
+                           std::vector<double>& node_force, std::vector<Vec3>& part_force) const {
+  const auto& sent = selection(steps_back);
+  node_force.assign(3 * surface_.node_count(), 0.0);
+  part_force.assign(surface_.part_name.size(), Vec3::Zero());
+  if (boundary_force.empty()) return;
+  if (boundary_force.size() != 3 * sent.size()) {
+    throw ProtocolError(
+        fmt::format("{} boundary_force values for the {} boundary particles sent {} step(s) before "
+                    "(expected 3 each)",
+                    boundary_force.size(), sent.size(), steps_back));
+  }
+  geometry::spread_boundary_forces(surface_, sampling_, sent, boundary_force, node_force);
+  for (std::size_t s = 0; s < sent.size(); ++s) {
+    const std::uint32_t k = sent[s];
+    const auto shares = geometry::split_boundary_force(
+        surface_, sampling_, k, Vec3(boundary_force[3 * s], boundary_force[3 * s + 1], boundary_force[3 * s + 2]));
+    part_force[surface_.face_part[sampling_.face[k]]] += shares[0];
+    if (sampling_.partner_face[k] != geometry::kNoFace) {
+      part_force[surface_.face_part[sampling_.partner_face[k]]] += shares[1];
+    }
+  }
+}
+
+void BoundaryWalls::select_near(std::span<const double> fluid_position) {
+  // Visit the wall particles around each fluid particle (the wall grid is
+  // rebuilt only when the nodes move): the cost follows the fluid near the
+  // walls, not the whole sampled surface.
+  if (!grid_valid_) {
+    grid_.build_points(all_position_, support_);
+    grid_valid_ = true;
+  }
+  const std::size_t n = fluid_position.size() / 3;
+  near_.assign(all_position_.size(), 0);
+  const double reach2 = support_ * support_;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 x(fluid_position[3 * i], fluid_position[3 * i + 1], fluid_position[3 * i + 2]);
+    if (!x.allFinite()) continue;
+    grid_.for_each_near(x, [&](std::uint32_t k) {
+      if (!near_[k] && (all_position_[k] - x).squaredNorm() <= reach2) near_[k] = 1;
+    });
+  }
+  previous_selection_.swap(selection_);
+  selection_.clear();
+  for (std::size_t k = 0; k < near_.size(); ++k) {
+    if (near_[k]) selection_.push_back(static_cast<std::uint32_t>(k));
+  }
+  geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
+}
+
+Aabb BoundaryWalls::interest_region() const {
+  return bounds_.inflated(2 * support_);
+}
+
+}  // namespace sabo::coupler

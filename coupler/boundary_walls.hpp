@@ -1,0 +1,74 @@
+#pragma once
+// SPH walls as boundary particles (scene sph.wall_model = boundary_particles;
+// docs/physics.md "SPH walls", docs/protocol.md "SPH walls"). The coupler
+// samples the FEM surface once per topology (geometry/surface_sampling.hpp),
+// moves the particles with the nodes every step, sends the sph_solver those
+// within the kernel support of a fluid particle, and spreads the forces the
+// fluid put on them back onto the FEM nodes (action = reaction, exactly).
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "libsabo/core/types.hpp"
+#include "libsabo/geometry/surface_mesh.hpp"
+#include "libsabo/geometry/surface_sampling.hpp"
+#include "libsabo/physics/boundary_particles.hpp"
+#include "libsabo/physics/cell_list.hpp"
+
+namespace sabo::coupler {
+
+class BoundaryWalls {
+ public:
+  // spacing: dx (m); support: the SPH kernel's support radius (m); the walls
+  // get ceil(support / dx) layers.
+  BoundaryWalls(double spacing, double support);
+
+  // (Re)samples the surface at its current node positions.
+  void set_surface(const geometry::SurfaceMesh& surface);
+  // New node positions and velocities (3 doubles per node; velocity may be
+  // empty: at rest). The wall acceleration is the change of the node
+  // velocities over dt_previous (s; 0: none).
+  void update_nodes(std::span<const double> position, std::span<const double> velocity, double dt_previous);
+
+  // Spreads the forces the fluid put on the particles of a past selection
+  // (3 doubles each, in its order; steps_back 1: the last selection, 2: the
+  // one before) onto the nodes: node_force gets 3 doubles per node
+  // (overwritten), part_force the sum per structure part (N). Throws
+  // ProtocolError when the count does not match that selection.
+  void spread(std::span<const double> boundary_force, std::size_t steps_back, std::vector<double>& node_force,
+              std::vector<Vec3>& part_force) const;
+  // Selects the particles within the kernel support of any fluid particle
+  // (positions: 3 doubles each) and places them; becomes the last selection.
+  void select_near(std::span<const double> fluid_position);
+
+  [[nodiscard]] const physics::BoundaryParticles& selected() const { return selected_; }
+  // The last selection (steps_back 1) or the one before (2), as sample indices.
+  [[nodiscard]] const std::vector<std::uint32_t>& selection(std::size_t steps_back = 1) const {
+    return steps_back == 2 ? previous_selection_ : selection_;
+  }
+  [[nodiscard]] const geometry::SurfaceSampling& sampling() const { return sampling_; }
+  [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
+  [[nodiscard]] std::size_t layers() const { return layers_; }
+  // Where fluid particles must be sent from: the boundary particles' bounds
+  // inflated by the support, plus one support of wall motion.
+  [[nodiscard]] Aabb interest_region() const;
+
+ private:
+  void place_all();
+
+  double spacing_;
+  double support_;
+  std::size_t layers_;
+  geometry::SurfaceMesh surface_;
+  geometry::SurfaceSampling sampling_;
+  std::vector<Vec3> node_velocity_, previous_node_velocity_, node_acceleration_;
+  std::vector<Vec3> all_position_;  // every sampled particle, m
+  Aabb bounds_;                     // of all_position_
+  std::vector<std::uint32_t> selection_, previous_selection_;
+  physics::BoundaryParticles selected_;
+  std::vector<char> near_;  // per sampled particle: within the support of a fluid particle
+  physics::CellList grid_;  // of all_position_, cell = support
+  bool grid_valid_ = false;
+};
+
+}  // namespace sabo::coupler

@@ -1,0 +1,30 @@
+#pragma once
+#include <cstddef>
+#include <vector>
+
+#include "libsabo/core/types.hpp"
+
+namespace sabo::physics {
+
+// Wall particles sampled from structure surfaces by the coupler (Adami, Hu & Adams 2012).
+// The SPH solver includes them in its density and pressure sums; their pressure is
+// extrapolated from the fluid each step, and the force the fluid exerts on each of them
+// goes back to the structure through the coupler.
+struct BoundaryParticles {
+  std::vector<Vec3> position;      // m
+  std::vector<Vec3> velocity;      // m/s (prescribed wall velocity)
+  std::vector<Vec3> normal;        // unit, pointing into the fluid
+  std::vector<Vec3> acceleration;  // m/s^2 of the wall (Adami's pressure term uses g - a_w)
+  std::vector<double> volume;      // m^3 (dx^3 for a layer sampling)
+
+  [[nodiscard]] std::size_t size() const { return position.size(); }
+  void resize(std::size_t n) {
+    position.resize(n, Vec3::Zero());
+    velocity.resize(n, Vec3::Zero());
+    normal.resize(n, Vec3::Zero());
+    acceleration.resize(n, Vec3::Zero());
+    volume.resize(n, 0.0);
+  }
+};
+
+}  // namespace sabo::physics

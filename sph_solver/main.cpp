@@ -1,0 +1,141 @@
+// sph_solver: weakly compressible SPH coupled through the Sabo protocol.
+//   sph_solver --scene FILE --coupler ENDPOINT [--out DIR]
+// The physics is SphModel (sph_model.hpp); this file is the protocol side.
+//
+// Walls (docs/protocol.md): with penalty walls the coupler's force per particle is
+// added like the DEM solver's, and the SPH forces are computed while the coupler
+// works. With boundary-particle walls the wall particles at x_n arrive in the
+// StepForces of step n, so the SPH forces of step n are computed once they are
+// there (apply_coupling_forces), and the force on each wall particle goes back
+// in the next StepState.boundary_force, in the order received.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/solver/driver.hpp"
+#include "sph_solver/sph_model.hpp"
+#include "sph_solver/sph_output.hpp"
+
+namespace sabo::sph {
+namespace {
+
+std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& values, std::size_t count,
+                                 const char* field) {
+  if (static_cast<std::size_t>(values.size()) != 3 * count) {
+    throw ProtocolError(fmt::format("StepForces.{} has {} values for {} boundary particles; 3 per particle expected",
+                                    field, values.size(), count));
+  }
+  std::vector<Vec3> out(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    out[k] =
+        Vec3(values[static_cast<int>(3 * k)], values[static_cast<int>(3 * k + 1)], values[static_cast<int>(3 * k + 2)]);
+  }
+  return out;
+}
+
+class SphSolver final : public solver::CoupledSolver {
+ public:
+  SphSolver(const scene::Scene& scene, const solver::SolverOptions& options)
+      : model_(scene),
+        output_(options.out_dir, model_),
+        boundary_walls_(scene.sph.wall_model == scene::SphSettings::WallModel::boundary_particles) {
+    spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
+                 model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
+                 boundary_walls_ ? "boundary particles" : "penalty");
+  }
+
+  void describe(sabo::v1::Register& registration) override {
+    registration.set_name("sph_solver " SABO_VERSION);
+    registration.set_exposes_particles(true);
+    auto* table = registration.mutable_particles();
+    const auto n = model_.size();
+    const double contact_radius = 0.5 * model_.settings().particle_spacing;  // docs/protocol.md
+    for (std::size_t i = 0; i < n; ++i) {
+      table->add_id(i);
+      table->add_radius(contact_radius);
+    }
+    table->mutable_mass()->Assign(model_.masses().begin(), model_.masses().end());
+    table->mutable_material()->Assign(model_.material_index().begin(), model_.material_index().end());
+    table->mutable_body()->Assign(model_.body_index().begin(), model_.body_index().end());
+  }
+
+  double stable_dt() override { return model_.stable_dt(); }
+
+  void fill_state(const solver::Interest& interest, sabo::v1::StepState& state) override {
+    const auto positions = model_.positions();
+    const auto velocities = model_.velocities();
+    const auto active = model_.active();
+    auto* index = state.mutable_index();
+    auto* x = state.mutable_position();
+    auto* v = state.mutable_velocity();
+    index->Reserve(static_cast<int>(positions.size()));
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      if (!active[i] || !interest.contains(positions[i])) continue;
+      index->Add(static_cast<std::uint32_t>(i));
+      for (int c = 0; c < 3; ++c) {
+        x->Add(positions[i][c]);
+        v->Add(velocities[i][c]);
+      }
+    }
+    if (boundary_walls_ && have_boundary_forces_) {
+      auto* f = state.mutable_boundary_force();
+      for (const Vec3& force : model_.boundary_forces()) {
+        for (int c = 0; c < 3; ++c) f->Add(force[c]);
+      }
+    }
+    const Energies e = model_.energies();
+    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, 0.0});
+  }
+
+  void compute_internal_forces(double dt_previous) override {
+    dt_previous_ = dt_previous;
+    if (!boundary_walls_) model_.compute_internal_forces(dt_previous);
+  }
+
+  void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
+    if (boundary_walls_) {
+      const auto count = static_cast<std::size_t>(forces.boundary_volume_size());
+      physics::BoundaryParticles walls;
+      walls.position = unpack_vectors(forces.boundary_position(), count, "boundary_position");
+      walls.velocity = unpack_vectors(forces.boundary_velocity(), count, "boundary_velocity");
+      walls.normal = unpack_vectors(forces.boundary_normal(), count, "boundary_normal");
+      walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
+      walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
+      model_.set_boundary(walls);
+      model_.compute_internal_forces(dt_previous_);
+      have_boundary_forces_ = true;
+    }
+    model_.add_external_forces({forces.index().data(), static_cast<std::size_t>(forces.index_size())},
+                               {forces.force().data(), static_cast<std::size_t>(forces.force_size())});
+  }
+
+  void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
+
+  void integrate(double dt_previous, double dt) override {
+    const std::size_t lost_before = model_.lost_count();
+    model_.integrate(dt_previous, dt);
+    if (model_.lost_count() != lost_before) {
+      spdlog::warn("{} SPH particles left the domain and were taken out ({} in all)", model_.lost_count() - lost_before,
+                   model_.lost_count());
+    }
+  }
+
+  void finish() override {}
+
+ private:
+  SphModel model_;
+  SphOutput output_;
+  bool boundary_walls_;
+  bool have_boundary_forces_ = false;
+  double dt_previous_ = 0;
+};
+
+}  // namespace
+}  // namespace sabo::sph
+
+int main(int argc, char** argv) {
+  return sabo::solver::solver_main(argc, argv, "sph_solver", sabo::v1::ROLE_SPH,
+                                   [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
+                                     return std::make_unique<sabo::sph::SphSolver>(scene, options);
+                                   });
+}

@@ -1,0 +1,118 @@
+// Particles of the scene's fluid bodies on a cubic lattice, with the
+// hydrostatic initial state.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <utility>
+
+#include "libsabo/core/error.hpp"
+#include "sph_solver/sph_model.hpp"
+
+namespace sabo::sph {
+namespace {
+
+// Even-odd rule; points on an edge count as inside for one of the two polygons sharing it.
+bool inside_polygon(const std::vector<std::array<double, 2>>& polygon, double s, double z) {
+  bool inside = false;
+  const std::size_t n = polygon.size();
+  for (std::size_t a = 0, b = n - 1; a < n; b = a++) {
+    const auto& pa = polygon[a];
+    const auto& pb = polygon[b];
+    if ((pa[1] > z) != (pb[1] > z)) {
+      const double s_cross = pa[0] + (z - pa[1]) * (pb[0] - pa[0]) / (pb[1] - pa[1]);
+      if (s < s_cross) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+std::size_t lattice_count(double extent, double dx) {
+  return static_cast<std::size_t>(std::floor(extent / dx + 1e-9));
+}
+
+}  // namespace
+
+FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
+                      const std::vector<std::uint32_t>& body_material) {
+  FluidFill fill;
+  const double dx = scene.sph.particle_spacing;
+  const double g = std::abs(scene.run.gravity.z());
+  for (std::size_t b = 0; b < scene.fluids.size(); ++b) {
+    const scene::FluidBody& body = scene.fluids[b];
+    const std::size_t first = fill.position.size();
+    if (body.shape == scene::FluidBody::Shape::box) {
+      const Vec3 extent = body.box.max - body.box.min;
+      const std::size_t nx = lattice_count(extent.x(), dx), ny = lattice_count(extent.y(), dx),
+                        nz = lattice_count(extent.z(), dx);
+      for (std::size_t k = 0; k < nz; ++k) {
+        for (std::size_t j = 0; j < ny; ++j) {
+          for (std::size_t i = 0; i < nx; ++i) {
+            fill.position.push_back(body.box.min + dx * Vec3(static_cast<double>(i) + 0.5, static_cast<double>(j) + 0.5,
+                                                             static_cast<double>(k) + 0.5));
+          }
+        }
+      }
+    } else {
+      double s_min = INFINITY, s_max = -INFINITY, z_min = INFINITY, z_max = -INFINITY;
+      for (const auto& [s, z] : body.profile) {
+        s_min = std::min(s_min, s);
+        s_max = std::max(s_max, s);
+        z_min = std::min(z_min, z);
+        z_max = std::max(z_max, z);
+      }
+      const Vec3 across(-body.direction.y(), body.direction.x(), 0.0);
+      const std::size_t ns = lattice_count(s_max - s_min, dx), nt = lattice_count(body.width, dx),
+                        nz = lattice_count(z_max - z_min, dx);
+      for (std::size_t k = 0; k < nz; ++k) {
+        const double z = z_min + (static_cast<double>(k) + 0.5) * dx;
+        for (std::size_t j = 0; j < nt; ++j) {
+          const double t = -0.5 * body.width + (static_cast<double>(j) + 0.5) * dx;
+          for (std::size_t i = 0; i < ns; ++i) {
+            const double s = s_min + (static_cast<double>(i) + 0.5) * dx;
+            if (!inside_polygon(body.profile, s, z)) continue;
+            Vec3 p = body.profile_origin + s * body.direction + t * across;
+            p.z() = z;
+            fill.position.push_back(p);
+          }
+        }
+      }
+    }
+    const std::size_t count = fill.position.size() - first;
+    if (count == 0) {
+      throw SceneError(
+          fmt::format("{}:{}: fluids[{}] ('{}') holds no particle at the spacing dx = {} m. Fix: make "
+                      "the body larger than dx on every axis or lower sph.particle_spacing.",
+                      body.origin.file.string(), body.origin.line, b, body.name, dx));
+    }
+    // Hydrostatic state: pressure of the column of this body above each particle.
+    const FluidMaterial& material = materials[body_material[b]];
+    std::map<std::pair<std::int64_t, std::int64_t>, double> column_top;
+    const auto column = [&](const Vec3& p) {
+      return std::make_pair(static_cast<std::int64_t>(std::floor(p.x() / dx)),
+                            static_cast<std::int64_t>(std::floor(p.y() / dx)));
+    };
+    if (body.hydrostatic) {
+      for (std::size_t i = first; i < fill.position.size(); ++i) {
+        auto [it, inserted] = column_top.try_emplace(column(fill.position[i]), fill.position[i].z());
+        if (!inserted) it->second = std::max(it->second, fill.position[i].z());
+      }
+    }
+    const double rest = material.eos.rest_density;
+    for (std::size_t i = first; i < fill.position.size(); ++i) {
+      double p = 0;
+      if (body.hydrostatic) p = rest * g * (column_top.at(column(fill.position[i])) + 0.5 * dx - fill.position[i].z());
+      const double rho = body.hydrostatic ? material.eos.density(p) : rest;
+      fill.velocity.push_back(body.velocity);
+      fill.density.push_back(rho);
+      fill.pressure.push_back(material.eos.pressure(rho));
+      fill.mass.push_back(rest * dx * dx * dx);
+      fill.material.push_back(body_material[b]);
+      fill.body.push_back(static_cast<std::uint32_t>(b));
+    }
+  }
+  return fill;
+}
+
+}  // namespace sabo::sph

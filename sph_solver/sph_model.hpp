@@ -1,0 +1,203 @@
+#pragma once
+// The physics of sph_solver: weakly compressible SPH of the debris slurry
+// (docs/physics.md, "SPH"). No protocol here.
+//
+// Step contract (central difference, DESIGN.md §2). The state at step n is
+// positions x_n, densities rho_n, deviatoric stresses S_n and half-step
+// velocities v_{n-1/2} (at step 0 the initial v_0). One step, in this order:
+//   set_boundary(...)                  wall particles at x_n (boundary-particle walls);
+//                                      kept until replaced
+//   compute_internal_forces(dt_{n-1})  pressure, viscous, stress and gravity
+//                                      accelerations and drho/dt at x_n with v_{n-1/2};
+//                                      the force on every wall particle
+//   add_external_forces(...)           coupler forces (penalty walls), any number of calls
+//   integrate(dt_{n-1}, dt_n)          v_{n+1/2} = v_{n-1/2} + dt_avg a_n,
+//                                      x_{n+1} = x_n + dt_n v_{n+1/2},
+//                                      rho_{n+1} = rho_n + dt_n drho/dt(x_n, v_{n+1/2}, rho_n)
+//                                      (continuity with the new velocities: a second,
+//                                      cheaper neighbour pass; with v_{n-1/2} the
+//                                      acoustic modes would grow),
+//                                      S_{n+1} = return(S_n + dt_n dS/dt_n);
+//                                      dt_avg = (dt_{n-1} + dt_n)/2, or dt_n/2 at step 0.
+//
+// Ids: a particle's index is its global id, stable for the whole run: fluid
+// bodies in scene order, within a body lattice order (z, then y, then x).
+// Internally the particles are gathered into cell order every step (a
+// counting sort on a uniform grid of cell size 2h): each neighbour search
+// visits 27 cells of contiguous memory, and the cost is linear in the count.
+//
+// Determinism: every particle sums its own neighbours in a fixed order (cells
+// in grid order, particles in id order inside a cell); the per-particle
+// results are scattered back by id; every reduction over particles is serial.
+// Same input, same bits, for any number of threads.
+#include <algorithm>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "libsabo/core/types.hpp"
+#include "libsabo/physics/boundary_particles.hpp"
+#include "libsabo/scene/scene.hpp"
+#include "sph_solver/eos.hpp"
+#include "sph_solver/sph_kernel.hpp"
+
+namespace sabo::sph {
+
+struct Energies {
+  double kinetic = 0;    // J, 1/2 m v_{n-1/2}.v_{n+1/2} at the last integrate()
+  double potential = 0;  // J, -m g.x_n
+  double elastic = 0;    // J, compression: sum m p^2 / (2 rho0^2 c^2) (linearised EOS)
+  [[nodiscard]] double total() const { return kinetic + potential + elastic; }
+};
+
+// Material constants a particle needs in the inner loops.
+struct FluidMaterial {
+  EquationOfState eos;
+  scene::Material::Rheology rheology = scene::Material::Rheology::inviscid;
+  double viscosity = 0;         // Pa s
+  double yield_stress = 0;      // Pa
+  double yield_shear_rate = 1;  // 1/s
+  double shear_modulus = 0;     // Pa
+  [[nodiscard]] bool needs_velocity_gradient() const { return rheology != scene::Material::Rheology::inviscid; }
+  // Largest effective viscosity of the material (viscous dt condition), Pa s.
+  [[nodiscard]] double max_viscosity() const;
+};
+
+// Particles of the scene's fluid bodies on a cubic lattice of spacing dx, with
+// the hydrostatic initial state (docs/scene.md, [[fluids]]). Exposed for tests.
+struct FluidFill {
+  std::vector<Vec3> position, velocity;
+  std::vector<double> density, pressure, mass;
+  std::vector<std::uint32_t> material, body;
+};
+[[nodiscard]] FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
+                                    const std::vector<std::uint32_t>& body_material);
+
+class SphModel {
+ public:
+  // Builds the particles of every fluid body. Throws SceneError when a body
+  // holds no particle at the scene's spacing.
+  explicit SphModel(const scene::Scene& scene);
+
+  [[nodiscard]] std::size_t size() const { return position_.size(); }
+  [[nodiscard]] const scene::SphSettings& settings() const { return settings_; }
+  [[nodiscard]] const Kernel& kernel() const { return kernel_; }
+
+  // Structure-of-arrays state, indexed by particle id.
+  [[nodiscard]] std::span<const Vec3> positions() const { return position_; }   // m, x_n
+  [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }  // m/s, v_{n-1/2}
+  [[nodiscard]] std::span<Vec3> positions() { return position_; }
+  [[nodiscard]] std::span<Vec3> velocities() { return velocity_; }
+  [[nodiscard]] std::span<const double> densities() const { return density_; }   // kg/m^3, rho_n
+  [[nodiscard]] std::span<const double> pressures() const { return pressure_; }  // Pa, p(rho_n)
+  [[nodiscard]] std::span<const double> masses() const { return mass_; }         // kg
+  [[nodiscard]] std::span<const std::uint32_t> material_index() const { return material_; }
+  [[nodiscard]] std::span<const std::uint32_t> body_index() const { return body_; }
+  [[nodiscard]] std::span<const Vec3> accelerations() const { return acceleration_; }  // m/s^2, a_n
+  // Deviatoric stress (Pa), xx yy zz xy yz zx per particle; zero unless elastic-plastic.
+  [[nodiscard]] std::span<const double> deviatoric_stress() const { return stress_; }
+  [[nodiscard]] bool has_stress() const { return has_stress_; }
+  // 0 for particles that left the domain (taken out of the simulation).
+  [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }
+  [[nodiscard]] std::size_t lost_count() const { return lost_; }
+
+  // Wall particles for the next compute_internal_forces() (Adami et al. 2012).
+  void set_boundary(const physics::BoundaryParticles& boundary);
+  [[nodiscard]] const physics::BoundaryParticles& boundary() const { return boundary_; }
+  // Force (N) the fluid exerted on each boundary particle in the last
+  // compute_internal_forces(); their sum is minus the wall force on the fluid.
+  [[nodiscard]] std::span<const Vec3> boundary_forces() const { return boundary_force_; }
+  // Pressure (Pa) extrapolated onto each boundary particle in the last compute.
+  [[nodiscard]] std::span<const double> boundary_pressures() const { return boundary_pressure_; }
+
+  void compute_internal_forces(double dt_previous);
+  // force: 3 doubles per listed id, N. Throws ProtocolError on a size mismatch or an unknown id.
+  void add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force);
+  void integrate(double dt_previous, double dt);
+
+  // cfl * min(h / (c + h max|v_ij.r_ij|/(r^2 + eta^2)), sqrt(h / max|a|), rho0 h^2 / (8 eta_max)), s.
+  // Before the first compute: the sound-speed and viscous conditions and sqrt(h / |g|).
+  [[nodiscard]] double stable_dt() const { return stable_dt_; }
+
+  [[nodiscard]] Energies energies() const { return energies_; }
+  // Mean number of neighbours (fluid and wall, inside the support, self excluded) in the last compute.
+  [[nodiscard]] double mean_neighbours() const { return mean_neighbours_; }
+  // Box around all active particles; empty when there are none.
+  [[nodiscard]] Aabb bounds() const;
+
+ private:
+  void build_grid();
+  void gather();
+  void compute_boundary_state();
+  void compute_velocity_gradients();
+  void compute_fluid_forces();
+  void compute_boundary_forces();
+  void compute_velocity_divergence();
+  void scatter_and_stable_dt();
+  [[nodiscard]] double initial_stable_dt() const;
+  // Calls visit(slot) for every slot of the cell-ordered particles of `start` (fluid or
+  // boundary) in the 27 cells around (x, y, z), cells in grid order.
+  template <class Visit>
+  void for_neighbours(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {
+    const double inverse_cell = inverse_cell_;
+    const auto cx = static_cast<std::int64_t>((x - grid_origin_.x()) * inverse_cell);
+    const auto cy = static_cast<std::int64_t>((y - grid_origin_.y()) * inverse_cell);
+    const auto cz = static_cast<std::int64_t>((z - grid_origin_.z()) * inverse_cell);
+    const std::int64_t x0 = std::max<std::int64_t>(cx - 1, 0), x1 = std::min(cx + 1, nx_ - 1);
+    for (std::int64_t kz = std::max<std::int64_t>(cz - 1, 0); kz <= std::min(cz + 1, nz_ - 1); ++kz) {
+      for (std::int64_t ky = std::max<std::int64_t>(cy - 1, 0); ky <= std::min(cy + 1, ny_ - 1); ++ky) {
+        const std::int64_t row = (kz * ny_ + ky) * nx_;
+        const std::uint32_t begin = start[static_cast<std::size_t>(row + x0)];
+        const std::uint32_t end = start[static_cast<std::size_t>(row + x1 + 1)];
+        for (std::uint32_t j = begin; j < end; ++j) visit(j);
+      }
+    }
+  }
+
+  scene::SphSettings settings_;
+  Kernel kernel_;
+  Vec3 gravity_;
+  double sound_speed_ = 0;
+  double eta_squared_ = 0;  // 0.01 h^2, m^2
+  std::vector<FluidMaterial> materials_;
+  bool any_gradient_ = false, has_stress_ = false;
+
+  // Per particle, by id.
+  std::vector<Vec3> position_, velocity_, acceleration_, external_force_;
+  std::vector<double> density_, pressure_, density_rate_, mass_;
+  std::vector<double> stress_, stress_rate_;  // 6 per particle
+  std::vector<std::uint32_t> material_, body_;
+  std::vector<std::uint8_t> active_;
+  std::size_t lost_ = 0;
+
+  // Boundary particles and their per-step state.
+  physics::BoundaryParticles boundary_;
+  std::vector<Vec3> boundary_force_;
+  std::vector<double> boundary_pressure_;
+
+  // Uniform grid and the cell-ordered copies (fluid f_*, boundary b_*).
+  Vec3 grid_origin_ = Vec3::Zero();
+  double inverse_cell_ = 1;
+  std::int64_t nx_ = 0, ny_ = 0, nz_ = 0;
+  std::vector<std::uint32_t> f_cell_start_, b_cell_start_;  // per cell + 1
+  std::vector<std::uint32_t> f_order_, b_order_;            // sorted slot -> id
+  std::vector<std::uint32_t> f_cell_of_, b_cell_of_;        // per id (fluid) / per boundary index
+  std::vector<double> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_, fp_, fm_;
+  std::vector<std::uint32_t> fmat_;
+  std::vector<double> bx_, by_, bz_, bvx_, bvy_, bvz_, bvol_, bp_, brho_;  // bv: wall velocity for viscosity
+  std::vector<double> bwx_, bwy_, bwz_;                                    // prescribed wall velocity
+  std::vector<double> fgrad_;    // 9 per sorted fluid particle: velocity gradient L = dv/dx
+  std::vector<double> fstress_;  // 6 per sorted fluid particle
+  std::vector<double> feta_;     // effective viscosity per sorted fluid particle, Pa s
+  std::vector<double> out_ax_, out_ay_, out_az_, out_drho_, out_dtcv_, out_neigh_;
+  std::vector<double> out_bfx_, out_bfy_, out_bfz_;
+
+  double stable_dt_ = 0;
+  double mean_neighbours_ = 0;
+  bool forces_ready_ = false;
+  std::vector<double> particle_kinetic_;
+  Energies energies_;
+};
+
+}  // namespace sabo::sph

@@ -1,0 +1,63 @@
+#pragma once
+// Scenes and wall particles for the SPH tests, built in memory (no coupler).
+#include <string>
+
+#include "libsabo/physics/boundary_particles.hpp"
+#include "libsabo/scene/scene.hpp"
+
+namespace sabo::sph::testing {
+
+// A scene with one water-like material "water" (Tait, rest density 1000) and no bodies.
+inline scene::Scene water_scene(double dx, double sound_speed, double smoothing_ratio = 1.3) {
+  scene::Scene s;
+  s.run.gravity = Vec3(0, 0, -9.81);
+  scene::Material water;
+  water.name = "water";
+  water.density = 1000;
+  water.youngs_modulus = 1e9;
+  water.poisson_ratio = 0.3;
+  s.materials.push_back(water);
+  s.sph.particle_spacing = dx;
+  s.sph.smoothing_ratio = smoothing_ratio;
+  s.sph.sound_speed = sound_speed;
+  return s;
+}
+
+inline scene::FluidBody box_body(const std::string& name, const Vec3& min, const Vec3& max) {
+  scene::FluidBody body;
+  body.name = name;
+  body.material = "water";
+  body.shape = scene::FluidBody::Shape::box;
+  body.box = Aabb{min, max};
+  return body;
+}
+
+// Wall particles on a lattice of spacing dx filling `layers` layers outside the
+// faces of the container [min, max] (bottom and the four sides; the top is open
+// up to max.z). Lattice points sit at min + (k + 1/2) dx like the fluid's.
+inline physics::BoundaryParticles container_walls(const Vec3& min, const Vec3& max, double dx, int layers) {
+  physics::BoundaryParticles walls;
+  const Vec3 outer_min = min - Vec3::Constant(layers * dx);
+  const Vec3 outer_max(max.x() + layers * dx, max.y() + layers * dx, max.z());
+  const Vec3 extent = outer_max - outer_min;
+  const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
+  for (int k = 0; k < count(extent.z()); ++k) {
+    for (int j = 0; j < count(extent.y()); ++j) {
+      for (int i = 0; i < count(extent.x()); ++i) {
+        const Vec3 p = outer_min + dx * Vec3(i + 0.5, j + 0.5, k + 0.5);
+        if ((p.array() > min.array()).all() && (p.array() < max.array()).all()) continue;
+        const Vec3 inner = p.cwiseMax(min).cwiseMin(max);
+        Vec3 normal = inner - p;
+        normal = normal.norm() > 0 ? normal.normalized() : Vec3(0, 0, 1);
+        walls.position.push_back(p);
+        walls.velocity.push_back(Vec3::Zero());
+        walls.normal.push_back(normal);
+        walls.acceleration.push_back(Vec3::Zero());
+        walls.volume.push_back(dx * dx * dx);
+      }
+    }
+  }
+  return walls;
+}
+
+}  // namespace sabo::sph::testing
