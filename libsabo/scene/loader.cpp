@@ -1450,11 +1450,16 @@ class Builder {
               "give the full path of the program, add its folder to PATH, or " + fallback);
   }
 
-  static void read_surface_contact(Reader& r, SurfaceContact& contact) {
+  // The law of a sphere-structure pair: penalty (eqs. 3-6) or Hertz-Mindlin.
+  static void read_surface_contact_law(Reader& r, SurfaceContact& contact) {
     if (auto v = r.string("model")) {
       contact.model = *v == "hertz_mindlin" ? SurfaceContact::Model::hertz_mindlin : SurfaceContact::Model::penalty;
     }
     if (auto v = r.number("restitution")) contact.restitution = *v;
+  }
+
+  // The penalty keys every particle-structure pair has.
+  static void read_surface_contact(Reader& r, SurfaceContact& contact) {
     if (auto v = r.number("friction")) contact.friction = *v;
     if (auto v = r.number("penalty_scale")) contact.penalty_scale = *v;
     if (auto v = r.number("normal_stiffness")) contact.normal_stiffness = *v;
@@ -1578,6 +1583,7 @@ class Builder {
                 "remove [contact.dem_fem] or add the missing [[particles]] or [[structures]]");
     }
     Reader df(diag_, spec("contact-dem_fem"), dem_fem != nullptr ? *dem_fem : empty_table(), "contact.dem_fem");
+    read_surface_contact_law(df, scene_.dem_fem_default);
     read_surface_contact(df, scene_.dem_fem_default);
 
     const toml::table* sph_fem = contact.table("sph_fem");
@@ -1614,6 +1620,17 @@ class Builder {
                                  return it != bodies_.end() && it->second.is_fluid;
                                });
       interaction.contact = names_fluid ? scene_.sph_fem_default : scene_.dem_fem_default;
+      if (names_fluid) {
+        for (const char* key : {"model", "restitution"}) {
+          if (r.has(key)) {
+            diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                      "fluid particles meet structures through the penalty law only",
+                      "remove the key from this fluid's interaction");
+          }
+        }
+      } else {
+        read_surface_contact_law(r, interaction.contact);
+      }
       read_surface_contact(r, interaction.contact);
       if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
       if (!pair) continue;

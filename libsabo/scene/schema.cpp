@@ -650,7 +650,7 @@ class Schema {
     sph_fem.anchor = "contact-sph_fem";
     sph_fem.description =
         "Penalty contact of fluid particles against structure surfaces, computed by the coupler (paper eqs. "
-        "3-6, the particle's contact radius is h), used when `sph.wall_model = \"penalty\"`. Defaults of "
+        "3-6, the particle's contact radius is dx/2: the wall stands where the fluid body ends), used when `sph.wall_model = \"penalty\"`. Defaults of "
         "every fluid/structure pair; `[[interactions]]` override them per pair.";
     sph_fem.keys = {
         K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
@@ -785,7 +785,7 @@ class Schema {
             .example("0.3")
             .gt(0)
             .le(1)
-            .doc("Coefficient of restitution (hertz_mindlin)."),
+            .doc("Coefficient of restitution (hertz_mindlin; particle sets only)."),
         K("friction", Type::number).absent(from_dem).example("0.5").ge(0).doc("Sliding friction coefficient."),
         K("rolling", Type::string)
             .absent(from_dem)
@@ -860,13 +860,13 @@ class Schema {
             .absent(from_default)
             .example("\"hertz_mindlin\"")
             .choices({"penalty", "hertz_mindlin"})
-            .doc("Contact law."),
+            .doc("Contact law (particle sets; a fluid's pairs are penalty only)."),
         K("restitution", Type::number)
             .absent(from_default)
             .example("0.5")
             .gt(0)
             .le(1)
-            .doc("Coefficient of restitution (hertz_mindlin)."),
+            .doc("Coefficient of restitution (hertz_mindlin; particle sets only)."),
         K("friction", Type::number).absent(from_default).example("0.4").ge(0).doc("Coulomb friction coefficient."),
         K("penalty_scale", Type::number).absent(from_default).example("0.1").gt(0).doc("k1 of eq. 6."),
         K("normal_stiffness", Type::number)
