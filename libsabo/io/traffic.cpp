@@ -31,8 +31,9 @@ constexpr std::uint8_t kFlagOutput = 2;
 constexpr std::uint8_t kFlagStop = 4;
 constexpr std::uint8_t kFlagInterestAll = 8;
 
-const std::vector<std::string> kFieldNames = {"position",      "velocity",      "angular_velocity", "force",   "torque",
-                                              "node_position", "node_velocity", "node_force",       "energies"};
+const std::vector<std::string> kFieldNames = {"position", "velocity",           "angular_velocity", "force",
+                                              "torque",   "node_position",      "node_velocity",    "node_force",
+                                              "energies", "boundary_particles", "boundary_force"};
 
 template <class T>
 std::span<const T> span_of(const google::protobuf::RepeatedField<T>& field) {
@@ -47,6 +48,9 @@ std::span<const std::uint8_t> bytes_of(const std::string& text) {
 struct Selection {
   bool position = false, velocity = false, angular_velocity = false, force = false, torque = false;
   bool node_position = false, node_velocity = false, node_force = false, energies = false;
+  // SPH walls: the boundary particles sent (StepForces boundary_*) and the
+  // fluid's forces on them with their boundary_step (StepState).
+  bool boundary_particles = false, boundary_force = false;
 
   explicit Selection(const std::vector<std::string>& fields) {
     const bool all = fields.empty();
@@ -66,6 +70,8 @@ struct Selection {
     node_velocity = wants("node_velocity");
     node_force = wants("node_force");
     energies = wants("energies");
+    boundary_particles = wants("boundary_particles");
+    boundary_force = wants("boundary_force");
   }
 };
 
@@ -160,6 +166,8 @@ struct StateStream {
     emplace_if(selection.angular_velocity, angular_velocity, group, "angular_velocity", stages);
     emplace_if(selection.node_position, node_position, group, "node_position", stages);
     emplace_if(selection.node_velocity, node_velocity, group, "node_velocity", stages);
+    emplace_if(selection.boundary_force, boundary_force, group, "boundary_force", stages);
+    emplace_if(selection.boundary_force, boundary_step, group, "boundary_step", stages);
   }
 
   void record(const sabo::v1::StepState& message, std::string& scratch) {
@@ -179,6 +187,13 @@ struct StateStream {
     if (angular_velocity) angular_velocity->push(span_of(message.angular_velocity()));
     if (node_position) node_position->push(span_of(message.node_position()));
     if (node_velocity) node_velocity->push(span_of(message.node_velocity()));
+    if (boundary_force) boundary_force->push(span_of(message.boundary_force()));
+    if (boundary_step) {
+      // Optional on the wire: 1 value when present, 0 when absent.
+      const std::uint64_t value = message.boundary_step();
+      boundary_step->push(message.has_boundary_step() ? std::span<const std::uint64_t>(&value, 1)
+                                                      : std::span<const std::uint64_t>());
+    }
     scratch.clear();
     if (message.has_particle_table()) message.particle_table().SerializeToString(&scratch);
     particle_table.push(bytes_of(scratch));
@@ -192,7 +207,8 @@ struct StateStream {
   Column<double> time, stable_dt, timing;
   std::optional<Column<double>> energies;
   OptionalArray<std::uint32_t> index;
-  OptionalArray<double> position, velocity, angular_velocity, node_position, node_velocity;
+  OptionalArray<double> position, velocity, angular_velocity, node_position, node_velocity, boundary_force;
+  OptionalArray<std::uint64_t> boundary_step;
   ArrayColumn<std::uint8_t> particle_table, topology;
 };
 
@@ -207,6 +223,12 @@ struct ForcesStream {
     emplace_if(selection.force, force, group, "force", stages);
     emplace_if(selection.torque, torque, group, "torque", stages);
     emplace_if(selection.node_force, node_force, group, "node_force", stages);
+    const bool walls = selection.boundary_particles;
+    emplace_if(walls, boundary_position, group, "boundary_position", stages);
+    emplace_if(walls, boundary_velocity, group, "boundary_velocity", stages);
+    emplace_if(walls, boundary_normal, group, "boundary_normal", stages);
+    emplace_if(walls, boundary_acceleration, group, "boundary_acceleration", stages);
+    emplace_if(walls, boundary_volume, group, "boundary_volume", stages);
   }
 
   void record(const sabo::v1::StepForces& message, std::vector<double>& scratch) {
@@ -222,6 +244,13 @@ struct ForcesStream {
     if (force) force->push(span_of(message.force()));
     if (torque) torque->push(span_of(message.torque()));
     if (node_force) node_force->push(span_of(message.node_force()));
+    if (boundary_position) {
+      boundary_position->push(span_of(message.boundary_position()));
+      boundary_velocity->push(span_of(message.boundary_velocity()));
+      boundary_normal->push(span_of(message.boundary_normal()));
+      boundary_acceleration->push(span_of(message.boundary_acceleration()));
+      boundary_volume->push(span_of(message.boundary_volume()));
+    }
     scratch.clear();
     for (const auto& box : message.interest()) {
       scratch.insert(scratch.end(), {box.min_x(), box.min_y(), box.min_z(), box.max_x(), box.max_y(), box.max_z()});
@@ -235,6 +264,7 @@ struct ForcesStream {
   Column<std::uint8_t> flags;
   OptionalArray<std::uint32_t> index;
   OptionalArray<double> force, torque, node_force;
+  OptionalArray<double> boundary_position, boundary_velocity, boundary_normal, boundary_acceleration, boundary_volume;
   ArrayColumn<double> interest;
 };
 
@@ -607,6 +637,10 @@ sabo::v1::StepState TrafficReader::state(const std::string& role, std::uint64_t 
   stream.array<double>("angular_velocity", entry, message.mutable_angular_velocity());
   stream.array<double>("node_position", entry, message.mutable_node_position());
   stream.array<double>("node_velocity", entry, message.mutable_node_velocity());
+  stream.array<double>("boundary_force", entry, message.mutable_boundary_force());
+  google::protobuf::RepeatedField<std::uint64_t> boundary_step;
+  stream.array<std::uint64_t>("boundary_step", entry, &boundary_step);
+  if (!boundary_step.empty()) message.set_boundary_step(boundary_step[0]);
   const std::string table = stream.bytes("particle_table", entry);
   if (!table.empty()) parse(*message.mutable_particle_table(), table, stream.what());
   const std::string topology = stream.bytes("topology", entry);
@@ -629,6 +663,11 @@ sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_
   stream.array<double>("force", entry, message.mutable_force());
   stream.array<double>("torque", entry, message.mutable_torque());
   stream.array<double>("node_force", entry, message.mutable_node_force());
+  stream.array<double>("boundary_position", entry, message.mutable_boundary_position());
+  stream.array<double>("boundary_velocity", entry, message.mutable_boundary_velocity());
+  stream.array<double>("boundary_normal", entry, message.mutable_boundary_normal());
+  stream.array<double>("boundary_acceleration", entry, message.mutable_boundary_acceleration());
+  stream.array<double>("boundary_volume", entry, message.mutable_boundary_volume());
   google::protobuf::RepeatedField<double> boxes;
   stream.array<double>("interest", entry, &boxes);
   for (int i = 0; i + 6 <= boxes.size(); i += 6) {

@@ -16,12 +16,15 @@
 //                                                recorded step concatenated, and per step
 //                                                where its slice starts and how long it is
 //         fields: index uint32, position, velocity, angular_velocity, node_position,
-//         node_velocity float64, particle_table and topology uint8 (serialized, present only
+//         node_velocity, boundary_force float64, boundary_step uint64 (0 or 1 value: the
+//         optional field), particle_table and topology uint8 (serialized, present only
 //         in steps where the message carried them)
 //     forces/                StepForces messages (coupler -> solver)
 //       step uint64, dt float64, flags uint8 (1 checkpoint, 2 output, 4 stop, 8 interest_all)
 //       <field>, <field>_offset, <field>_count   for index uint32, force, torque, node_force,
-//                                                interest float64 (6 per box)
+//                                                interest float64 (6 per box), boundary_position,
+//                                                boundary_velocity, boundary_normal,
+//                                                boundary_acceleration, boundary_volume float64
 //
 // Crash safety: the file is written in HDF5's single-writer/multiple-reader
 // (SWMR) mode, which keeps it consistent on disk at every moment. Values are
@@ -41,7 +44,9 @@
 
 namespace sabo::io {
 
-// The array fields a Recording may select ("energies" selects the energies).
+// The array fields a Recording may select ("energies" selects the energies,
+// "boundary_particles" the five StepForces boundary_* fields, "boundary_force"
+// the StepState boundary_force and boundary_step).
 [[nodiscard]] const std::vector<std::string>& traffic_field_names();
 
 class TrafficRecorder {

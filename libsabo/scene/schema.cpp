@@ -650,7 +650,8 @@ class Schema {
     sph_fem.anchor = "contact-sph_fem";
     sph_fem.description =
         "Penalty contact of fluid particles against structure surfaces, computed by the coupler (paper eqs. "
-        "3-6, the particle's contact radius is dx/2: the wall stands where the fluid body ends), used when `sph.wall_model = \"penalty\"`. Defaults of "
+        "3-6, the particle's contact radius is dx/2: the wall stands where the fluid body ends), used when "
+        "`sph.wall_model = \"penalty\"`. Defaults of "
         "every fluid/structure pair; `[[interactions]]` override them per pair.";
     sph_fem.keys = {
         K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
@@ -899,8 +900,10 @@ class Schema {
         K("fields", Type::string_list)
             .def("[]")
             .choices({"position", "velocity", "angular_velocity", "force", "torque", "node_position", "node_velocity",
-                      "node_force", "energies"})
-            .doc("Fields to record; empty: all."),
+                      "node_force", "energies", "boundary_particles", "boundary_force"})
+            .doc("Fields to record; empty: all. `boundary_particles`: the SPH wall particles sent to the sph_solver "
+                 "(position, velocity, normal, acceleration, volume); `boundary_force`: the fluid's forces on them "
+                 "(with their `boundary_step`)."),
         K("every", Type::integer).def("1").ge(1).doc("Record every N-th step."),
         K("first_step", Type::integer).def("0").ge(0).doc("First recorded step."),
         K("last_step", Type::integer)

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -15,6 +16,7 @@
 #include "coupler/coupler.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "libsabo/geometry/surface_sampling.hpp"
+#include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/solver_link.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 
@@ -125,6 +127,8 @@ struct SphFixture : ::testing::Test {
   }
 
   void run_boundary_exchange(std::uint64_t steps_back);
+  void check_recorded_walls(const std::vector<sabo::v1::StepState>& sent_states,
+                            const std::vector<sabo::v1::StepForces>& received_forces, std::uint64_t steps_back) const;
   void run_penalty_slide(sabo::v1::StepForces& last_sph);
 
   static sabo::v1::Register sph_registration(const std::vector<Vec3>& particles) {
@@ -254,6 +258,9 @@ TEST_F(SphFixture, PenaltyWallPushesSphParticlesWithFrictionAndTheFloorFeelsTheR
 void SphFixture::run_boundary_exchange(std::uint64_t steps_back) {
   scene.sph.wall_model = scene::SphSettings::WallModel::boundary_particles;
   scene.run.end_time = 0.005;
+  // The walls and the fluid's forces on them go into traffic.h5 (docs/traffic.md).
+  scene.recording.enabled = true;
+  scene.recording.fields = {"boundary_particles", "boundary_force"};
   auto coupler = start_coupler();
   // One fluid particle dx/2 above the floor, moving from its edge (x = -0.5 m)
   // towards its centre by dx per step, so that the set of wall particles near
@@ -292,6 +299,8 @@ void SphFixture::run_boundary_exchange(std::uint64_t steps_back) {
   std::vector<double> returned;
   Vec3 returned_sum = Vec3::Zero();
   std::uint64_t steps = 0;
+  std::vector<sabo::v1::StepState> sent_states;
+  std::vector<sabo::v1::StepForces> received_forces;
   for (std::uint64_t step = 0;; ++step) {
     particles[0].x() = -0.5 + kDx * static_cast<double>(step);
     const auto expected = expected_near(particles[0]);
@@ -312,6 +321,8 @@ void SphFixture::run_boundary_exchange(std::uint64_t steps_back) {
     fem.send_state(fem_state);
     const auto forces = sph.receive_forces(step);
     const auto& fem_forces = fem.receive_forces(step);
+    sent_states.push_back(sph_state);
+    received_forces.push_back(forces);
     // The fluid gets no penalty force: the walls act through its own sums.
     ASSERT_EQ(forces.force_size(), 6);
     for (double f : forces.force()) EXPECT_EQ(f, 0.0);
@@ -357,6 +368,53 @@ void SphFixture::run_boundary_exchange(std::uint64_t steps_back) {
   bool listed = false;
   for (const auto& e : s["active_effects"]) listed = listed || e["effect"] == "sph_fem_boundary_particles";
   EXPECT_TRUE(listed);
+  check_recorded_walls(sent_states, received_forces, steps_back);
+}
+
+// traffic.h5 holds, for every step, the wall particles the fluid received
+// and the forces it returned, bit for bit, with consistent sizes: a replayed
+// sph_solver gets its walls, the structure's side sees the fluid's forces.
+void SphFixture::check_recorded_walls(const std::vector<sabo::v1::StepState>& sent_states,
+                                      const std::vector<sabo::v1::StepForces>& received_forces,
+                                      std::uint64_t steps_back) const {
+  auto same = [](const auto& recorded, const auto& sent) {
+    return std::equal(recorded.begin(), recorded.end(), sent.begin(), sent.end());
+  };
+  io::TrafficReader reader(dir / "traffic.h5");
+  ASSERT_EQ(reader.steps("sph_solver").size(), sent_states.size());
+  ASSERT_EQ(reader.force_steps("sph_solver").size(), received_forces.size());
+  std::size_t recorded_walls = 0, recorded_wall_forces = 0;
+  for (std::uint64_t step = 0; step < sent_states.size(); ++step) {
+    const auto forces = reader.forces("sph_solver", step);
+    const auto& received = received_forces[step];
+    EXPECT_TRUE(same(forces.boundary_position(), received.boundary_position())) << "step " << step;
+    EXPECT_TRUE(same(forces.boundary_velocity(), received.boundary_velocity())) << "step " << step;
+    EXPECT_TRUE(same(forces.boundary_normal(), received.boundary_normal())) << "step " << step;
+    EXPECT_TRUE(same(forces.boundary_acceleration(), received.boundary_acceleration())) << "step " << step;
+    EXPECT_TRUE(same(forces.boundary_volume(), received.boundary_volume())) << "step " << step;
+    EXPECT_EQ(forces.boundary_position_size(), 3 * forces.boundary_volume_size()) << "step " << step;
+    EXPECT_EQ(forces.force_size(), 0) << "not selected, not recorded";
+    recorded_walls += static_cast<std::size_t>(forces.boundary_volume_size());
+
+    const auto state = reader.state("sph_solver", step);
+    const auto& sent = sent_states[step];
+    EXPECT_TRUE(same(state.boundary_force(), sent.boundary_force())) << "step " << step;
+    EXPECT_EQ(state.has_boundary_step(), sent.has_boundary_step()) << "step " << step;
+    EXPECT_EQ(state.boundary_step(), sent.boundary_step()) << "step " << step;
+    EXPECT_EQ(state.position_size(), 0) << "not selected, not recorded";
+    recorded_wall_forces += static_cast<std::size_t>(state.boundary_force_size() / 3);
+    if (step >= steps_back) {
+      // The forces answer the walls of StepForces boundary_step (n - 1 when absent).
+      const std::uint64_t answered = state.has_boundary_step() ? state.boundary_step() : step - 1;
+      EXPECT_EQ(answered, step - steps_back);
+      EXPECT_EQ(state.boundary_force_size(), reader.forces("sph_solver", answered).boundary_position_size())
+          << "step " << step;
+    }
+  }
+  std::cout << "traffic.h5: " << sent_states.size() << " steps, " << recorded_walls << " wall particles and "
+            << recorded_wall_forces << " wall forces recorded\n";
+  EXPECT_GT(recorded_walls, 0u);
+  EXPECT_GT(recorded_wall_forces, 0u);
 }
 
 TEST_F(SphFixture, BoundaryParticlesGoToTheFluidAndTheirForcesToTheNodes) {

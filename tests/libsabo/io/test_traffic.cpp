@@ -221,6 +221,95 @@ TEST(Traffic, FieldSubsetAndStepRange) {
   EXPECT_THROW((void)reader.state("dem_solver", 3), sabo::FileError);
 }
 
+namespace {
+
+// SPH walls (wall_model = boundary_particles): the number of wall particles
+// changes from step to step, boundary_step is absent at steps 0 and 1.
+std::uint32_t wall_count(std::uint64_t step) {
+  return 20 + static_cast<std::uint32_t>((step * 13) % 40);
+}
+
+sabo::v1::StepForces make_wall_forces(std::uint64_t step) {
+  sabo::v1::StepForces forces;
+  forces.set_step(step);
+  forces.set_dt(2e-5);
+  for (std::uint32_t i = 0; i < wall_count(step); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double value = static_cast<double>(step) + 1e-3 * i + 1e-6 * k;
+      forces.add_boundary_position(value);
+      forces.add_boundary_velocity(-value);
+      forces.add_boundary_normal(k == 2 ? 1.0 : 0.0);
+      forces.add_boundary_acceleration(0.5 * value);
+    }
+    forces.add_boundary_volume(1e-6 * (1 + i % 3));
+  }
+  return forces;
+}
+
+sabo::v1::StepState make_wall_state(std::uint64_t step) {
+  sabo::v1::StepState state;
+  state.set_step(step);
+  state.set_stable_dt(2e-5);
+  if (step >= 2) {
+    state.set_boundary_step(step - 1);
+    for (std::uint32_t i = 0; i < 3 * wall_count(step - 1); ++i) state.add_boundary_force(1e-2 * i - 0.1);
+  }
+  return state;
+}
+
+}  // namespace
+
+TEST(Traffic, RoundTripOfSphWallFields) {
+  const fs::path path = scratch("walls.h5");
+  sabo::scene::Recording settings = every_step_settings();
+  settings.fields = {"boundary_particles", "boundary_force"};
+  {
+    TrafficRecorder recorder(path, settings, "");
+    for (std::uint64_t step = 0; step < 12; ++step) {
+      recorder.record_state("sph_solver", make_wall_state(step));
+      recorder.record_forces("sph_solver", make_wall_forces(step));
+      recorder.end_step(step);
+    }
+  }
+  TrafficReader reader(path);
+  ASSERT_EQ(reader.steps("sph_solver").size(), 12u);
+  for (std::uint64_t step = 0; step < 12; ++step) {
+    const auto state = reader.state("sph_solver", step);
+    expect_same(make_wall_forces(step), reader.forces("sph_solver", step));
+    expect_same(make_wall_state(step), state);
+    EXPECT_EQ(state.has_boundary_step(), step >= 2) << "step " << step;
+  }
+  // The fluid's forces of step n belong to the walls sent at step n - 1.
+  const auto state = reader.state("sph_solver", 7);
+  const auto walls = reader.forces("sph_solver", state.boundary_step());
+  std::cout << "step 7: " << walls.boundary_volume_size() << " wall particles sent at step 6, "
+            << state.boundary_force_size() / 3 << " wall forces received\n";
+  EXPECT_EQ(state.boundary_force_size(), walls.boundary_position_size());
+  EXPECT_EQ(walls.boundary_position_size(), 3 * walls.boundary_volume_size());
+
+  // Not selected: no datasets at all (nothing recorded, nothing flushed).
+  const fs::path lean = scratch("walls_not_selected.h5");
+  settings.fields = {"position"};
+  {
+    TrafficRecorder recorder(lean, settings, "");
+    recorder.record_state("sph_solver", make_wall_state(3));
+    recorder.record_forces("sph_solver", make_wall_forces(3));
+  }
+  {
+    const auto file = sabo::io::hdf5::File::open(lean);
+    for (const char* name : {"boundary_force", "boundary_step"}) {
+      EXPECT_FALSE(file.group("sph_solver").group("state").exists(name)) << name;
+    }
+    for (const char* name :
+         {"boundary_position", "boundary_velocity", "boundary_normal", "boundary_acceleration", "boundary_volume"}) {
+      EXPECT_FALSE(file.group("sph_solver").group("forces").exists(name)) << name;
+    }
+  }
+  TrafficReader lean_reader(lean);
+  EXPECT_EQ(lean_reader.forces("sph_solver", 3).boundary_position_size(), 0);
+  EXPECT_FALSE(lean_reader.state("sph_solver", 3).has_boundary_step());
+}
+
 TEST(Traffic, RejectsBadSettings) {
   sabo::scene::Recording settings;
   settings.fields = {"positon"};
