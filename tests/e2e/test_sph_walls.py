@@ -83,6 +83,54 @@ class TankTest(RealRunTestCase):
         print("boundary particles sampled: {} in {} layers".format(effects[0]["boundary_particles"],
                                                                    effects[0]["layers"]))
 
+    def test_boundary_particle_walls_are_recorded(self):
+        """traffic.h5 holds the walls sent to the sph_solver and its forces on them (docs/traffic.md): every
+        step, 3 values per wall particle in each 3-vector field and 1 volume, and the forces of step n match
+        the walls of the step they answer (boundary_step, n - 1 when absent)."""
+        import h5py
+        import numpy as np
+        with open(self.scene_path(BOUNDARY), encoding="utf-8") as handle:
+            text = handle.read()
+        self.assertIn('fields = ["energies"]', text)
+        self.assertIn("end_time = 0.6", text)
+        text = text.replace('fields = ["energies"]', 'fields = ["boundary_particles", "boundary_force"]')
+        text = text.replace("end_time = 0.6", "end_time = 0.03")
+        scene = os.path.join(self.tmp, "tank_recorded.toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        out = os.path.join(self.tmp, "recorded")
+        sabo = self.run_sabo(scene, out)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        with h5py.File(os.path.join(out, "traffic.h5"), "r", swmr=True) as traffic:
+            forces, state = traffic["sph_solver/forces"], traffic["sph_solver/state"]
+            force_steps, state_steps = forces["step"][()], state["step"][()]
+            self.assertGreater(len(state_steps), 2)
+            self.assertTrue(np.array_equal(force_steps, np.arange(len(force_steps))))
+            volumes = forces["boundary_volume_count"][:len(force_steps)]
+            for name in ["boundary_position", "boundary_velocity", "boundary_normal", "boundary_acceleration"]:
+                counts = forces[name + "_count"][:len(force_steps)]
+                self.assertTrue(np.array_equal(counts, 3 * volumes), name)
+                self.assertEqual(forces[name].shape[0], counts.sum(), name)
+            self.assertTrue((volumes > 0).all(), "walls sent every step")
+            normals = forces["boundary_normal"][:].reshape(-1, 3)
+            self.assertLess(np.abs(np.linalg.norm(normals, axis=1) - 1).max(), 1e-12)
+            force_counts = state["boundary_force_count"][:len(state_steps)]
+            step_counts = state["boundary_step_count"][:len(state_steps)]
+            step_values = state["boundary_step"][()]
+            step_offsets = state["boundary_step_offset"][:len(state_steps)]
+            answered = 0
+            for i, n in enumerate(int(value) for value in state_steps):
+                if force_counts[i] == 0:
+                    self.assertLess(n, 2, "forces missing at step {}".format(n))
+                    continue
+                k = int(step_values[step_offsets[i]]) if step_counts[i] == 1 else n - 1
+                self.assertEqual(force_counts[i], 3 * volumes[k], "step {} answering step {}".format(n, k))
+                answered += 1
+            print("traffic.h5: {} steps, {} to {} wall particles sent per step, {} answers with consistent "
+                  "sizes".format(len(force_steps), volumes.min(), volumes.max(), answered))
+            self.assertGreater(answered, 0)
+            fem = traffic["fem_solver/forces"]
+            self.assertEqual(fem["boundary_volume_count"][:len(fem["step"][()])].sum(), 0)
 
 if __name__ == "__main__":
     unittest.main()
