@@ -6,6 +6,7 @@
 #include <set>
 #include <string>
 
+#include "libsabo/io/traffic.hpp"
 #include "libsabo/scene/loader.hpp"
 #include "libsabo/scene/schema.hpp"
 #include "scene_test_support.hpp"
@@ -121,3 +122,21 @@ TEST(SceneSchema, ExampleSceneLoads) {
 
 }  // namespace
 }  // namespace sabo::scene
+
+// The recorder owns the field names; the schema's choices must name the same set.
+TEST(SceneSchema, RecordingFieldsAreTheRecordersFields) {
+  const sabo::scene::schema::Table* recording = nullptr;
+  for (const auto* table : sabo::scene::schema::tables()) {
+    if (table->anchor == "recording") recording = table;
+  }
+  ASSERT_NE(recording, nullptr);
+  const auto* fields = recording->find("fields");
+  ASSERT_NE(fields, nullptr);
+  const std::set<std::string> in_schema(fields->choices.begin(), fields->choices.end());
+  const auto& names = sabo::io::traffic_field_names();
+  const std::set<std::string> in_recorder(names.begin(), names.end());
+  for (const auto& name : in_recorder)
+    EXPECT_TRUE(in_schema.count(name)) << "recorder field missing in schema: " << name;
+  for (const auto& name : in_schema)
+    EXPECT_TRUE(in_recorder.count(name)) << "schema field unknown to recorder: " << name;
+}
