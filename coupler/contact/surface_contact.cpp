@@ -313,7 +313,15 @@ void SurfaceContact::update_nodes(std::span<const double> position, std::span<co
     }
     node_velocity_[i] = velocity.empty() ? Vec3::Zero() : vec3_at(velocity, i);
   }
-  if (moved) refresh_geometry();
+  if (moved) {
+    // Eq. 6's stiffness stays that of the surface as set: a stiffness following the
+    // deformed face area is not the gradient of a penalty energy (it created energy).
+    const std::vector<double> stiffness = face_stiffness_factor_;
+    refresh_geometry();
+    for (std::size_t f = 0; f < stiffness.size(); ++f) {
+      if (!degenerate_[f] && stiffness[f] > 0) face_stiffness_factor_[f] = stiffness[f];
+    }
+  }
 }
 
 void SurfaceContact::build_grid(double query_reach) {
@@ -471,24 +479,65 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     if (a.face != b.face) return a.face < b.face;
     return feature_rank(a.closest.feature) < feature_rank(b.closest.feature);
   });
-  scratch.kept.clear();
-  for (std::size_t h : scratch.touching) {
-    const Hit& hit = scratch.hits[h];
-    const bool duplicate = std::any_of(scratch.kept.begin(), scratch.kept.end(), [&](std::size_t k) {
-      const Hit& other = scratch.hits[k];
-      return hit.gap.normal.dot(other.gap.normal) >= cos_smooth_ && shares_node(hit.face, other.face);
-    });
-    if (!duplicate) scratch.kept.push_back(h);
-  }
-  if (scratch.kept.empty()) return;
-
-  // Tangential springs: same feature first, then the closest-normal vanished contact.
+  // Rule 3 with memory: a feature merged into a neighbouring contact stays
+  // merged while a contact on a triangle sharing a node with it remains, even
+  // once the angle between them has grown past the smooth angle. Deciding by
+  // the angle every step made a dented surface add a second full-stiffness
+  // contact, with its whole overlap, the step two faces of the dent passed the
+  // smooth angle: a jump of the force and of the penalty energy, energy created
+  // (docs/physics.md, FEM, "coupling"). Merging stays immediate (a merge can
+  // only take energy out).
   const std::uint64_t id = particles.id[i];
   const auto range =
       std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}},
                        [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
   const auto previous = std::span<const HistoryEntry>(history_).subspan(
       static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
+  const auto merged_range =
+      std::equal_range(merged_.begin(), merged_.end(), MergedEntry{id, {}},
+                       [](const MergedEntry& a, const MergedEntry& b) { return a.particle < b.particle; });
+  const auto was_merged = [&](const FeatureKey& key) {
+    return std::any_of(merged_range.first, merged_range.second, [&](const MergedEntry& e) { return e.key == key; });
+  };
+  const auto same_as_kept = [&](const FeatureKey& key) {
+    return std::any_of(scratch.kept.begin(), scratch.kept.end(),
+                       [&](std::size_t k) { return feature_key(scratch.hits[k]) == key; });
+  };
+  scratch.kept.clear();
+  result.merged.clear();
+  // Pass 1, deepest first, by the angle: every feature not merged in the previous step.
+  for (std::size_t h : scratch.touching) {
+    const Hit& hit = scratch.hits[h];
+    const FeatureKey key = feature_key(hit);
+    if (was_merged(key) || same_as_kept(key)) continue;
+    const bool duplicate = std::any_of(scratch.kept.begin(), scratch.kept.end(), [&](std::size_t k) {
+      const Hit& other = scratch.hits[k];
+      return hit.gap.normal.dot(other.gap.normal) >= cos_smooth_ && shares_node(hit.face, other.face);
+    });
+    if (duplicate) {
+      result.merged.push_back(key);
+    } else {
+      scratch.kept.push_back(h);
+    }
+  }
+  // Pass 2: features merged in the previous step stay merged while a neighbouring contact remains.
+  for (std::size_t h : scratch.touching) {
+    const Hit& hit = scratch.hits[h];
+    const FeatureKey key = feature_key(hit);
+    if (!was_merged(key) || same_as_kept(key)) continue;
+    const bool carried = std::any_of(scratch.kept.begin(), scratch.kept.end(),
+                                     [&](std::size_t k) { return shares_node(hit.face, scratch.hits[k].face); });
+    if (carried) {
+      if (std::find(result.merged.begin(), result.merged.end(), key) == result.merged.end()) {
+        result.merged.push_back(key);
+      }
+    } else {
+      scratch.kept.push_back(h);
+    }
+  }
+  if (scratch.kept.empty()) return;
+
+  // Tangential springs: same feature first, then the closest-normal vanished contact.
   const std::size_t count = scratch.kept.size();
   result.contacts.resize(count);
   scratch.history_used.assign(previous.size(), 0);
@@ -631,6 +680,7 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   stable_dt_ = std::numeric_limits<double>::infinity();
   if (surface_.triangle.empty()) {
     history_.clear();
+    merged_.clear();
     return;
   }
 
@@ -651,10 +701,12 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
 
   // Sums over particles, in particle order.
   next_history_.clear();
+  next_merged_.clear();
   for (std::size_t i = 0; i < n; ++i) {
     const ParticleResult& result = results_[i];
     stable_dt_ = std::min(stable_dt_, result.stable_dt);
     const std::uint32_t source = particles.body.empty() ? 0U : particles.body[i];
+    for (const FeatureKey& key : result.merged) next_merged_.push_back(MergedEntry{particles.id[i], key});
     for (const ActiveContact& contact : result.contacts) {
       const Hit& hit = contact.hit;
       const Vec3& force = contact.law.force;
@@ -694,6 +746,9 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   std::stable_sort(next_history_.begin(), next_history_.end(),
                    [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
   history_.swap(next_history_);
+  std::stable_sort(next_merged_.begin(), next_merged_.end(),
+                   [](const MergedEntry& a, const MergedEntry& b) { return a.particle < b.particle; });
+  merged_.swap(next_merged_);
 }
 
 }  // namespace sabo::coupler

@@ -22,7 +22,11 @@
 //  3. contacts on triangles that share a node and whose normals differ by
 //     less than SurfaceContactOptions::smooth_angle_deg are one contact, the
 //     deepest (a flat floor crossed on a shared edge, a shallow fold); a
-//     concave corner (floor meets wall) keeps both contacts;
+//     concave corner (floor meets wall) keeps both contacts; a merged
+//     feature stays merged while a contact on a triangle sharing a node with
+//     it lasts, even once the angle has grown (a dent under the particle):
+//     otherwise a second full-stiffness contact would join with its whole
+//     overlap at once, a jump of force and energy;
 //  4. a face contact with the centre behind a one-sided face counts only if
 //     that face is the particle's nearest triangle (a particle on top of a
 //     thin solid is not pulled through by its bottom face).
@@ -34,7 +38,8 @@
 // m* = its mass), E* and G* from the sphere's and the part's materials (a rigid
 // part is rigid: E = infinity), dashpots from the pair's restitution; for the
 // paper's penalty law (the default): physics::spring_dashpot_force with
-// k_n from eq. 6 per face (shell: k1 K s / longest edge; solid: k1 K s^2 / V)
+// k_n from eq. 6 per face (shell: k1 K s / longest edge; solid: k1 K s^2 / V,
+// with the face as set by set_surface(), not as it deforms)
 // or the pair's explicit stiffness, k_t = k_n, c = 2 zeta sqrt(k m) with m the
 // particle's mass (the wall is taken as infinitely heavy: rigid parts are, and
 // the coupler does not know the FEM node masses), Coulomb friction mu. The
@@ -189,6 +194,11 @@ class SurfaceContact {
     Vec3 displacement = Vec3::Zero();
     Vec3 normal = Vec3::UnitZ();
   };
+  // A feature merged into a neighbouring contact (rule 3) in the last step.
+  struct MergedEntry {
+    std::uint64_t particle = 0;
+    FeatureKey key;
+  };
   // One triangle's closest point to a particle.
   struct Hit {
     std::uint32_t face = 0;
@@ -221,6 +231,7 @@ class SurfaceContact {
   };
   struct ParticleResult {
     std::vector<ActiveContact> contacts;
+    std::vector<FeatureKey> merged;  // features merged into a neighbouring contact (rule 3)
     double stable_dt = std::numeric_limits<double>::infinity();
   };
 
@@ -269,6 +280,8 @@ class SurfaceContact {
 
   std::vector<HistoryEntry> history_;  // sorted by particle id; per particle in contact order
   std::vector<HistoryEntry> next_history_;
+  std::vector<MergedEntry> merged_;  // sorted by particle id
+  std::vector<MergedEntry> next_merged_;
   std::vector<ParticleResult> results_;
   std::vector<ContactRecord> records_;
   double stable_dt_ = std::numeric_limits<double>::infinity();

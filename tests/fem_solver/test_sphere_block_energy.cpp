@@ -1,0 +1,140 @@
+// Energy balance of a sphere striking a deformable hexahedral block through the
+// coupler's penalty contact (SurfaceContact), stepped in one loop the way the
+// coupler steps the solvers: at step n both sides get the contact forces of
+// x_n and advance to x_{n+1}. The scene is configs/tests/sphere_on_block.toml
+// with the stiff penalty scale k1 = 1.0 (docs/physics.md, FEM, "coupling").
+// Before the fix the plastic block's total rose 25 %: two faces of the dent
+// passing the smooth angle added a second full-stiffness contact at once, and
+// the face stiffness followed the deformed face area.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <numbers>
+
+#include "coupler/contact/surface_contact.hpp"
+#include "fem_solver/fem_model.hpp"
+
+using sabo::Vec3;
+
+namespace {
+
+sabo::scene::Scene block_scene(double element_size, bool plastic) {
+  sabo::scene::Scene scene;
+  sabo::scene::Material concrete;
+  concrete.name = "soft_concrete";
+  concrete.density = 2000;
+  concrete.youngs_modulus = 1e9;
+  concrete.poisson_ratio = 0.3;
+  if (plastic) {
+    concrete.yield_stress = 5e6;
+    concrete.tangent_modulus = 1e8;
+    concrete.hardening = 1.0;
+  }
+  scene.materials.push_back(concrete);
+  sabo::scene::Structure block;
+  block.name = "block";
+  block.material = "soft_concrete";
+  block.rigid = false;
+  block.shape.type = sabo::scene::Shape::Type::box;
+  block.shape.box.min = Vec3(0, 0, 0);
+  block.shape.box.max = Vec3(1, 1, 0.5);
+  block.shape.element_size = element_size;
+  block.fixed_faces = {"z-"};
+  scene.structures.push_back(block);
+  scene.run.gravity = Vec3::Zero();
+  return scene;
+}
+
+struct ImpactResult {
+  double initial = 0;        // J
+  double largest = 0;        // J, largest total energy over the run
+  double final_total = 0;    // J
+  double rebound_speed = 0;  // m/s
+};
+
+// Sphere r = 0.25 m, 196 kg (granite), 10 m/s down onto the block's top; 0.07 s.
+ImpactResult impact(double penalty_scale, double element_size, bool plastic) {
+  const double max_dt = 5e-5;  // s, the scene's run.max_dt
+  sabo::fem::FemModel model(block_scene(element_size, plastic));
+  sabo::scene::SurfaceContact settings;
+  settings.friction = 0.0;
+  settings.penalty_scale = penalty_scale;
+  sabo::coupler::SurfaceContact contact({"sphere"}, [&](const std::string&, const std::string&) { return settings; });
+  contact.set_surface(model.surface());
+
+  const double radius = 0.25, density = 3000;
+  const double mass = density * 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
+  Vec3 centre(0.5, 0.5, 0.8), velocity(0, 0, -10.0);
+  std::vector<std::uint64_t> id{1};
+  std::vector<double> position(3), vel(3), angular(3, 0.0), radii{radius}, masses{mass};
+
+  ImpactResult result;
+  result.initial = 0.5 * mass * velocity.squaredNorm();
+  result.largest = result.initial;
+  double dt_previous = 0, t = 0;
+  sabo::coupler::ContactOutput out;
+  std::vector<double> node_position, node_velocity;
+  std::uint64_t step = 0;
+  while (t < 0.07) {
+    // As fem_solver's fill_state(): the surface nodes at x_n (and a new topology, none here).
+    if (model.update_surface()) contact.set_surface(model.surface());
+    model.compute_internal_forces(dt_previous);
+    const auto& surface = model.surface();
+    node_position.assign(3 * surface.node_count(), 0.0);
+    node_velocity.assign(3 * surface.node_count(), 0.0);
+    for (std::size_t i = 0; i < surface.node_count(); ++i) {
+      for (int d = 0; d < 3; ++d) {
+        node_position[3 * i + static_cast<std::size_t>(d)] = surface.node_position[i](d);
+        node_velocity[3 * i + static_cast<std::size_t>(d)] = model.node_velocities()[i](d);
+      }
+    }
+    contact.update_nodes(node_position, node_velocity);
+    for (int d = 0; d < 3; ++d) {
+      position[static_cast<std::size_t>(d)] = centre(d);
+      vel[static_cast<std::size_t>(d)] = velocity(d);
+    }
+    const sabo::coupler::ParticleView view{id, position, vel, angular, radii, masses, {}};
+    contact.compute(view, dt_previous, out);
+    model.apply_node_forces(out.node_force);
+    const double dt = std::min({0.9 * model.stable_dt(), contact.stable_dt(), max_dt});
+    // The sphere as dem_solver steps it: v_{n+1/2} = v_{n-1/2} + dt_avg F_n / m.
+    const Vec3 force(out.particle_force[0], out.particle_force[1], out.particle_force[2]);
+    const Vec3 old_velocity = velocity;
+    velocity += 0.5 * (dt_previous + dt) * force / mass;
+    centre += dt * velocity;
+    model.step(dt);
+    const auto e = model.deformable(0)->solid_energies();
+    // Kinetic energies at x_n from the mean of the half-step velocities, as the solvers report them.
+    const double sphere_kinetic = 0.5 * mass * (0.5 * (old_velocity + velocity)).squaredNorm();
+    const double total = sphere_kinetic + e.kinetic + e.internal + e.hourglass + out.elastic_energy;
+    if (step > 0) result.largest = std::max(result.largest, total);
+    result.final_total = total;
+    dt_previous = dt;
+    t += dt;
+    ++step;
+  }
+  result.rebound_speed = velocity.z();
+  return result;
+}
+
+}  // namespace
+
+TEST(FemSphereBlockEnergy, StiffPenaltyCreatesNoEnergy) {
+  const ImpactResult r = impact(1.0, 0.125, false);
+  const double rise = (r.largest - r.initial) / r.initial;
+  std::cout << "elastic block, k1 = 1.0, 0.125 m hexahedra: largest total energy rise over initial: measured "
+            << 100 * rise << " % limit 1 %; final total " << r.final_total << " J of " << r.initial
+            << " J; sphere rebound " << r.rebound_speed << " m/s\n";
+  EXPECT_LT(rise, 0.01);
+}
+
+TEST(FemSphereBlockEnergy, StiffPenaltyOnPlasticBlockCreatesNoEnergy) {
+  // The e2e scene's material (it dents); plastic work is dissipated, so the
+  // kept energy must stay below the start as well.
+  const ImpactResult r = impact(1.0, 0.125, true);
+  const double rise = (r.largest - r.initial) / r.initial;
+  std::cout << "plastic block, k1 = 1.0, 0.125 m hexahedra: largest energy rise over initial: measured " << 100 * rise
+            << " % limit 2 % (25 % before the fix); sphere rebound " << r.rebound_speed << " m/s\n";
+  EXPECT_LT(rise, 0.02);
+}
