@@ -35,23 +35,11 @@ class DemSolver final : public solver::CoupledSolver {
   double stable_dt() override { return model_.stable_dt(); }
 
   void fill_state(const solver::Interest& interest, sabo::v1::StepState& state) override {
-    const auto positions = model_.positions();
-    const auto velocities = model_.velocities();
-    const auto spins = model_.angular_velocities();
-    auto* index = state.mutable_index();
-    auto* x = state.mutable_position();
-    auto* v = state.mutable_velocity();
-    auto* w = state.mutable_angular_velocity();
-    index->Reserve(static_cast<int>(positions.size()));
-    for (std::size_t i = 0; i < positions.size(); ++i) {
-      if (!interest.contains(positions[i])) continue;
-      index->Add(static_cast<std::uint32_t>(i));
-      for (int c = 0; c < 3; ++c) {
-        x->Add(positions[i][c]);
-        v->Add(velocities[i][c]);
-        w->Add(spins[i][c]);
-      }
-    }
+    solver::add_particle_states(interest,
+                                {.position = model_.positions(),
+                                 .velocity = model_.velocities(),
+                                 .angular_velocity = model_.angular_velocities()},
+                                state);
     const Energies e = model_.energies();
     solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.dissipated});
   }

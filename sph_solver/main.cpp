@@ -62,21 +62,8 @@ class SphSolver final : public solver::CoupledSolver {
   double stable_dt() override { return model_.stable_dt(); }
 
   void fill_state(const solver::Interest& interest, sabo::v1::StepState& state) override {
-    const auto positions = model_.positions();
-    const auto velocities = model_.velocities();
-    const auto active = model_.active();
-    auto* index = state.mutable_index();
-    auto* x = state.mutable_position();
-    auto* v = state.mutable_velocity();
-    index->Reserve(static_cast<int>(positions.size()));
-    for (std::size_t i = 0; i < positions.size(); ++i) {
-      if (!active[i] || !interest.contains(positions[i])) continue;
-      index->Add(static_cast<std::uint32_t>(i));
-      for (int c = 0; c < 3; ++c) {
-        x->Add(positions[i][c]);
-        v->Add(velocities[i][c]);
-      }
-    }
+    solver::add_particle_states(
+        interest, {.position = model_.positions(), .velocity = model_.velocities(), .active = model_.active()}, state);
     if (boundary_walls_ && have_boundary_forces_) {
       auto* f = state.mutable_boundary_force();
       for (const Vec3& force : model_.boundary_forces()) {

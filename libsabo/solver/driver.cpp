@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cassert>
 #include <chrono>
 
 #include "libsabo/core/error.hpp"
@@ -46,6 +47,28 @@ void set_energies(sabo::v1::StepState& state, const EnergyReport& energies) {
   e->set_potential(energies.potential);
   e->set_elastic(energies.elastic);
   e->set_dissipated(energies.dissipated);
+}
+
+void add_particle_states(const Interest& interest, const ParticleStates& particles, sabo::v1::StepState& state) {
+  assert(particles.velocity.size() == particles.position.size());
+  assert(particles.angular_velocity.empty() || particles.angular_velocity.size() == particles.position.size());
+  assert(particles.active.empty() || particles.active.size() == particles.position.size());
+  const bool spins = !particles.angular_velocity.empty();
+  auto* index = state.mutable_index();
+  auto* x = state.mutable_position();
+  auto* v = state.mutable_velocity();
+  auto* w = state.mutable_angular_velocity();
+  index->Reserve(static_cast<int>(particles.position.size()));
+  for (std::size_t i = 0; i < particles.position.size(); ++i) {
+    if (!particles.active.empty() && particles.active[i] == 0) continue;
+    if (!interest.contains(particles.position[i])) continue;
+    index->Add(static_cast<std::uint32_t>(i));
+    for (int c = 0; c < 3; ++c) {
+      x->Add(particles.position[i][c]);
+      v->Add(particles.velocity[i][c]);
+      if (spins) w->Add(particles.angular_velocity[i][c]);
+    }
+  }
 }
 
 std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, const std::string& program) {

@@ -7,6 +7,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "libsabo/scene/scene.hpp"
@@ -57,6 +58,17 @@ struct EnergyReport {
   double kinetic = 0, potential = 0, elastic = 0, dissipated = 0;
 };
 void set_energies(sabo::v1::StepState& state, const EnergyReport& energies);
+
+// The particles of a particle solver (DEM spheres, SPH particles), by id.
+struct ParticleStates {
+  std::span<const Vec3> position;            // m
+  std::span<const Vec3> velocity;            // m/s
+  std::span<const Vec3> angular_velocity{};  // rad/s; empty: not exposed
+  std::span<const std::uint8_t> active{};    // empty: all active; 0: taken out, never sent
+};
+// Appends index, position, velocity (and angular velocity) of the active
+// particles inside `interest` to `state`.
+void add_particle_states(const Interest& interest, const ParticleStates& particles, sabo::v1::StepState& state);
 
 struct SolverOptions {
   std::filesystem::path scene;
