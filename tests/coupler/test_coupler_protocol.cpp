@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "coupler/coupler.hpp"
+#include "coupler_fixture.hpp"
 #include "libsabo/protocol/solver_link.hpp"
 
 using namespace sabo;
@@ -16,24 +17,12 @@ using namespace std::chrono_literals;
 
 namespace {
 
-struct Fixture : ::testing::Test {
-  std::filesystem::path dir;
-  std::string endpoint;
-  scene::Scene scene;
-  std::FILE* events_file = nullptr;
-
+struct Fixture : sabo::testing::CouplerFixture {
   void SetUp() override {
-    dir = std::filesystem::temp_directory_path() / ("sabo-coupler-test-" + std::to_string(::getpid()) + "-" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    endpoint = "ipc://" + (dir / "c.sock").string();
-    scene.file = dir / "scene.toml";
-    std::ofstream(scene.file) << "# test scene\n";
+    CouplerFixture::SetUp();
     scene.run.end_time = 0.01;
     scene.run.output_interval = 0.005;
     scene.run.hang_timeout = 1.0;
-    scene.recording.enabled = false;
     sabo::scene::Material rock;
     rock.name = "rock";
     rock.density = 3000;
@@ -49,29 +38,6 @@ struct Fixture : ::testing::Test {
     dem.role = scene::Role::dem;
     dem.beta = 0.5;
     scene.solvers.push_back(dem);
-    events_file = std::tmpfile();
-  }
-  void TearDown() override {
-    std::fclose(events_file);
-    std::filesystem::remove_all(dir);
-  }
-
-  std::future<int> start_coupler() {
-    return std::async(std::launch::async, [this] {
-      coupler::EventStream events(events_file);
-      coupler::CouplerOptions options{endpoint, dir, 3000ms};
-      coupler::Coupler c(scene, options, events);
-      return c.run();
-    });
-  }
-
-  std::vector<nlohmann::json> events() const {
-    std::fflush(events_file);
-    std::rewind(events_file);
-    std::vector<nlohmann::json> out;
-    char line[4096];
-    while (std::fgets(line, sizeof line, events_file) != nullptr) out.push_back(nlohmann::json::parse(line));
-    return out;
   }
 
   static sabo::v1::Register dem_registration() {

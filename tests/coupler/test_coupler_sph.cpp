@@ -14,6 +14,7 @@
 #include <tuple>
 
 #include "coupler/coupler.hpp"
+#include "coupler_fixture.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "libsabo/geometry/surface_sampling.hpp"
 #include "libsabo/io/traffic.hpp"
@@ -43,24 +44,12 @@ geometry::SurfaceMesh floor_mesh() {
   return mesh;
 }
 
-struct SphFixture : ::testing::Test {
-  std::filesystem::path dir;
-  std::string endpoint;
-  scene::Scene scene;
-  std::FILE* events_file = nullptr;
-
+struct SphFixture : sabo::testing::CouplerFixture {
   void SetUp() override {
-    dir = std::filesystem::temp_directory_path() / ("sabo-coupler-sph-" + std::to_string(::getpid()) + "-" +
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    endpoint = "ipc://" + (dir / "c.sock").string();
-    scene.file = dir / "scene.toml";
-    std::ofstream(scene.file) << "# test scene\n";
+    CouplerFixture::SetUp();
     scene.run.end_time = 0.02;
     scene.run.output_interval = 0.01;
     scene.run.hang_timeout = 2.0;
-    scene.recording.enabled = false;
     for (auto [name, density, youngs_modulus, poisson_ratio] :
          {std::tuple{"concrete", 2400.0, 30e9, 0.2}, std::tuple{"water", 1000.0, 2.2e9, 0.0}}) {
       scene::Material material;
@@ -88,20 +77,6 @@ struct SphFixture : ::testing::Test {
       s.beta = 1.0;
       scene.solvers.push_back(s);
     }
-    events_file = std::tmpfile();
-  }
-  void TearDown() override {
-    std::fclose(events_file);
-    std::filesystem::remove_all(dir);
-  }
-
-  std::future<int> start_coupler() {
-    return std::async(std::launch::async, [this] {
-      coupler::EventStream events(events_file);
-      coupler::CouplerOptions options{endpoint, dir, 3000ms};
-      coupler::Coupler c(scene, options, events);
-      return c.run();
-    });
   }
 
   nlohmann::json summary() const {
