@@ -159,13 +159,12 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   }
   if (registration.exposes_surface()) {
     const auto& surface = registration.surface();
-    fem_surface_nodes_ = surface.node_id_size();
-    fem_surface_revision_ = surface.revision();
-    if (surface.node_position_size() != 3 * surface.node_id_size() || surface.triangle_size() % 3 != 0 ||
-        surface.face_part_size() * 3 != surface.triangle_size()) {
+    if (!protocol::arrays_consistent(surface)) {
       refuse(fmt::format("{}: the surface's arrays are inconsistent", name));
       return;
     }
+    fem_surface_nodes_ = surface.node_id_size();
+    fem_surface_revision_ = surface.revision();
   }
 
   auto peer = std::make_unique<Peer>();
@@ -291,10 +290,7 @@ void Coupler::validate_state(const Peer& peer) {
           "at registration: not supported in this version (use [sph] wall_model = \"penalty\")");
     }
     const auto& topology = s.topology();
-    if (topology.node_position_size() != 3 * topology.node_id_size() || topology.triangle_size() % 3 != 0 ||
-        topology.face_part_size() * 3 != topology.triangle_size()) {
-      invalid("the new surface topology's arrays are inconsistent");
-    }
+    if (!protocol::arrays_consistent(topology)) invalid("the new surface topology's arrays are inconsistent");
     if (topology.revision() <= fem_surface_revision_) {
       invalid(fmt::format("surface topology revision {} does not follow revision {}", topology.revision(),
                           fem_surface_revision_));

@@ -1,5 +1,9 @@
 #include "libsabo/protocol/surface_codec.hpp"
 
+#include <fmt/format.h>
+
+#include "libsabo/core/error.hpp"
+
 namespace sabo::protocol {
 
 void surface_to_message(const geometry::SurfaceMesh& mesh, std::uint64_t revision, sabo::v1::SurfaceTopology& out) {
@@ -28,7 +32,19 @@ void surface_to_message(const geometry::SurfaceMesh& mesh, std::uint64_t revisio
   for (const auto& name : mesh.part_name) out.add_part_name(name);
 }
 
+bool arrays_consistent(const sabo::v1::SurfaceTopology& topology) {
+  return topology.node_position_size() == 3 * topology.node_id_size() && topology.triangle_size() % 3 == 0 &&
+         topology.face_part_size() * 3 == topology.triangle_size();
+}
+
 geometry::SurfaceMesh surface_from_message(const sabo::v1::SurfaceTopology& topology, const std::string& sender) {
+  if (!arrays_consistent(topology)) {
+    throw ProtocolError(
+        fmt::format("the surface sent by {}: its arrays differ in length ({} node ids, {} node "
+                    "coordinates, {} triangle corners, {} face parts)",
+                    sender, topology.node_id_size(), topology.node_position_size(), topology.triangle_size(),
+                    topology.face_part_size()));
+  }
   geometry::SurfaceMesh mesh;
   const auto nodes = static_cast<std::size_t>(topology.node_id_size());
   mesh.node_id.assign(topology.node_id().begin(), topology.node_id().end());
