@@ -8,25 +8,11 @@
 #include <utility>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/polygon.hpp"
 #include "sph_solver/sph_model.hpp"
 
 namespace sabo::sph {
 namespace {
-
-// Even-odd rule; points on an edge count as inside for one of the two polygons sharing it.
-bool inside_polygon(const std::vector<std::array<double, 2>>& polygon, double s, double z) {
-  bool inside = false;
-  const std::size_t n = polygon.size();
-  for (std::size_t a = 0, b = n - 1; a < n; b = a++) {
-    const auto& pa = polygon[a];
-    const auto& pb = polygon[b];
-    if ((pa[1] > z) != (pb[1] > z)) {
-      const double s_cross = pa[0] + (z - pa[1]) * (pb[0] - pa[0]) / (pb[1] - pa[1]);
-      if (s < s_cross) inside = !inside;
-    }
-  }
-  return inside;
-}
 
 std::size_t lattice_count(double extent, double dx) {
   return static_cast<std::size_t>(std::floor(extent / dx + 1e-9));
@@ -71,7 +57,7 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
           const double t = -0.5 * body.width + (static_cast<double>(j) + 0.5) * dx;
           for (std::size_t i = 0; i < ns; ++i) {
             const double s = s_min + (static_cast<double>(i) + 0.5) * dx;
-            if (!inside_polygon(body.profile, s, z)) continue;
+            if (!geometry::polygon_contains(body.profile, s, z)) continue;
             Vec3 p = body.profile_origin + s * body.direction + t * across;
             p.z() = z;
             fill.position.push_back(p);

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/polygon.hpp"
 #include "libsabo/scene/schema.hpp"
 #include "libsabo/scene/suggest.hpp"
 
@@ -1089,24 +1090,6 @@ class Builder {
     }
   }
 
-  // Whether segments [a, b] and [c, d] of the plane meet (touching counts).
-  static bool segments_meet(const std::array<double, 2>& a, const std::array<double, 2>& b,
-                            const std::array<double, 2>& c, const std::array<double, 2>& d) {
-    const auto cross = [](const std::array<double, 2>& o, const std::array<double, 2>& p,
-                          const std::array<double, 2>& q) {
-      return (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]);
-    };
-    const auto within = [](const std::array<double, 2>& p, const std::array<double, 2>& q,
-                           const std::array<double, 2>& r) {  // r on the line pq: inside the segment?
-      return std::min(p[0], q[0]) <= r[0] && r[0] <= std::max(p[0], q[0]) && std::min(p[1], q[1]) <= r[1] &&
-             r[1] <= std::max(p[1], q[1]);
-    };
-    const double d1 = cross(c, d, a), d2 = cross(c, d, b), d3 = cross(a, b, c), d4 = cross(a, b, d);
-    if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
-    return (d1 == 0 && within(c, d, a)) || (d2 == 0 && within(c, d, b)) || (d3 == 0 && within(a, b, c)) ||
-           (d4 == 0 && within(a, b, d));
-  }
-
   void read_fill_region(Reader& f, ParticleSet& set) {
     const bool has_box = f.has("min") || f.has("max");
     const bool has_polygon = f.has("polygon_xz") || f.has("y_range");
@@ -1171,7 +1154,7 @@ class Builder {
       for (std::size_t j = i + 1; j < n; ++j) {
         const bool adjacent = j == i + 1 || (i == 0 && j == n - 1);
         if (adjacent) continue;
-        if (segments_meet((*polygon)[i], (*polygon)[(i + 1) % n], (*polygon)[j], (*polygon)[(j + 1) % n])) {
+        if (geometry::segments_meet((*polygon)[i], (*polygon)[(i + 1) % n], (*polygon)[j], (*polygon)[(j + 1) % n])) {
           diag_.add(line, f.key_path("polygon_xz"), value,
                     fmt::format("the polygon is not simple: edge {} (vertices {} and {}) meets edge {} (vertices {} "
                                 "and {})",

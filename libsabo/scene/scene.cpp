@@ -5,6 +5,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "libsabo/geometry/polygon.hpp"
+
 namespace sabo::scene {
 
 const char* role_name(Role role) {
@@ -98,13 +100,7 @@ double ParticleSet::mean_sphere_volume() const {
 
 double ParticleSet::region_volume() const {
   if (polygon_xz.empty()) return (region.max - region.min).prod();
-  double twice_area = 0;
-  for (std::size_t k = 0; k < polygon_xz.size(); ++k) {
-    const auto& a = polygon_xz[k];
-    const auto& b = polygon_xz[(k + 1) % polygon_xz.size()];
-    twice_area += a[0] * b[1] - b[0] * a[1];
-  }
-  return 0.5 * std::abs(twice_area) * (region.max.y() - region.min.y());
+  return geometry::polygon_area(polygon_xz) * (region.max.y() - region.min.y());
 }
 
 bool ParticleSet::contains_sphere(const Vec3& center, double radius) const {
@@ -113,14 +109,10 @@ bool ParticleSet::contains_sphere(const Vec3& center, double radius) const {
   }
   if (polygon_xz.empty()) return true;
   const double x = center.x(), z = center.z();
-  bool inside = false;
   for (std::size_t k = 0, j = polygon_xz.size() - 1; k < polygon_xz.size(); j = k++) {
-    const auto& a = polygon_xz[k];
-    const auto& b = polygon_xz[j];
-    if ((a[1] > z) != (b[1] > z) && x < (b[0] - a[0]) * (z - a[1]) / (b[1] - a[1]) + a[0]) inside = !inside;
-    if (segment_distance_squared(x, z, a, b) < radius * radius) return false;
+    if (segment_distance_squared(x, z, polygon_xz[k], polygon_xz[j]) < radius * radius) return false;
   }
-  return inside;
+  return geometry::polygon_contains(polygon_xz, x, z);
 }
 
 const DemContactLaw& DemContact::law(const std::string& material_a, const std::string& material_b) const {

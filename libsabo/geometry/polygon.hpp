@@ -1,0 +1,55 @@
+#pragma once
+// Plane polygons given by their corners in order: the profiles that regions
+// and fluid bodies extrude (fill polygon_xz, fluid profile).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+namespace sabo::geometry {
+
+using Point2 = std::array<double, 2>;
+using Polygon2 = std::vector<Point2>;
+
+// Even-odd rule: whether (s, z) lies inside.
+[[nodiscard]] inline bool polygon_contains(const Polygon2& polygon, double s, double z) {
+  bool inside = false;
+  const std::size_t n = polygon.size();
+  for (std::size_t a = 0, b = n - 1; a < n; b = a++) {
+    const Point2& pa = polygon[a];
+    const Point2& pb = polygon[b];
+    if ((pa[1] > z) != (pb[1] > z)) {
+      const double s_cross = pa[0] + (z - pa[1]) * (pb[0] - pa[0]) / (pb[1] - pa[1]);
+      if (s < s_cross) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+// Enclosed area (shoelace), whatever the orientation.
+[[nodiscard]] inline double polygon_area(const Polygon2& polygon) {
+  double twice_area = 0;
+  for (std::size_t k = 0; k < polygon.size(); ++k) {
+    const Point2& a = polygon[k];
+    const Point2& b = polygon[(k + 1) % polygon.size()];
+    twice_area += a[0] * b[1] - b[0] * a[1];
+  }
+  return 0.5 * std::abs(twice_area);
+}
+
+// Whether segments [a, b] and [c, d] meet (touching counts).
+[[nodiscard]] inline bool segments_meet(const Point2& a, const Point2& b, const Point2& c, const Point2& d) {
+  const auto cross = [](const Point2& o, const Point2& p, const Point2& q) {
+    return (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]);
+  };
+  const auto within = [](const Point2& p, const Point2& q, const Point2& r) {  // r on the line pq: in the segment?
+    return std::min(p[0], q[0]) <= r[0] && r[0] <= std::max(p[0], q[0]) && std::min(p[1], q[1]) <= r[1] &&
+           r[1] <= std::max(p[1], q[1]);
+  };
+  const double d1 = cross(c, d, a), d2 = cross(c, d, b), d3 = cross(a, b, c), d4 = cross(a, b, d);
+  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
+  return (d1 == 0 && within(c, d, a)) || (d2 == 0 && within(c, d, b)) || (d3 == 0 && within(a, b, c)) ||
+         (d4 == 0 && within(a, b, d));
+}
+
+}  // namespace sabo::geometry
