@@ -23,9 +23,6 @@ std::string origin_text(const scene::ParticleSet& set) {
   return fmt::format("{}:{}: particle set '{}'", set.origin.file.string(), set.origin.line, set.name);
 }
 
-// 2 sqrt(5/6): the restitution-damping prefactor of the Hertz-Mindlin DEM form.
-const double kHertzDampingPrefactor = 2.0 * std::sqrt(5.0 / 6.0);
-
 // What one contact needs besides its law: geometry and the pair's effective inertia.
 struct ContactInput {
   Vec3 normal;               // unit, from b to a
@@ -276,17 +273,17 @@ void DemModel::build_law_table(const scene::Scene& scene) {
       law.tangential_damping_ratio = source.tangential_damping_ratio;
       const auto& ma = scene.materials[a];
       const auto& mb = scene.materials[b];
-      law.effective_modulus = 1.0 / ((1 - ma.poisson_ratio * ma.poisson_ratio) / ma.youngs_modulus +
-                                     (1 - mb.poisson_ratio * mb.poisson_ratio) / mb.youngs_modulus);
-      law.effective_shear_modulus = 1.0 / (2 * (2 - ma.poisson_ratio) * (1 + ma.poisson_ratio) / ma.youngs_modulus +
-                                           2 * (2 - mb.poisson_ratio) * (1 + mb.poisson_ratio) / mb.youngs_modulus);
-      const double beta = physics::restitution_damping_ratio(source.restitution);
-      law.damping = -kHertzDampingPrefactor * beta;
+      law.effective_modulus =
+          physics::hertz_effective_modulus(ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus, mb.poisson_ratio);
+      law.effective_shear_modulus = physics::mindlin_effective_shear_modulus(ma.youngs_modulus, ma.poisson_ratio,
+                                                                             mb.youngs_modulus, mb.poisson_ratio);
+      law.damping = physics::hertz_damping_factor(source.restitution);
       law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
       law.rolling = !source.has_rolling() ? 0 : source.rolling == scene::RollingModel::constant ? 1 : 2;
       law.rolling_friction = source.rolling_friction;
       law.rolling_viscosity = source.rolling_viscosity;
-      law.rolling_damping_ratio = law.hertz ? -beta : source.tangential_damping_ratio;
+      law.rolling_damping_ratio =
+          law.hertz ? -physics::restitution_damping_ratio(source.restitution) : source.tangential_damping_ratio;
       any_linear = any_linear || !law.hertz;
       any_hertz = any_hertz || law.hertz;
       any_none = any_none || law.rolling == 0;
@@ -432,11 +429,9 @@ void DemModel::add_wall(const Wall& wall) {
     PairLaw law = pair_law_[m * material_count_ + m];
     if (wall.youngs_modulus > 0) {
       const double nu = material_poisson_[m], youngs = material_youngs_[m];
-      const double wall_nu = wall.poisson_ratio, wall_youngs = wall.youngs_modulus;
-      // (1 - nu^2) / E and 2 (2 - nu)(1 + nu) / E vanish for a rigid wall (E = +infinity).
-      law.effective_modulus = 1.0 / ((1 - nu * nu) / youngs + (1 - wall_nu * wall_nu) / wall_youngs);
+      law.effective_modulus = physics::hertz_effective_modulus(youngs, nu, wall.youngs_modulus, wall.poisson_ratio);
       law.effective_shear_modulus =
-          1.0 / (2 * (2 - nu) * (1 + nu) / youngs + 2 * (2 - wall_nu) * (1 + wall_nu) / wall_youngs);
+          physics::mindlin_effective_shear_modulus(youngs, nu, wall.youngs_modulus, wall.poisson_ratio);
       law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
     }
     wall_law_.push_back(law);
@@ -869,15 +864,10 @@ double DemModel::stable_dt() const {
   }
   if (!std::isfinite(lightest)) return std::numeric_limits<double>::infinity();
   double largest_rolling = 0;
-  bool any_linear = false, any_hertz = false;
-  for (std::size_t a = 0; a < material_count_; ++a) {
-    for (std::size_t b = 0; b < material_count_; ++b) {
-      const PairLaw& law = pair_law_[a * material_count_ + b];
-      if (law.rolling == 1) largest_rolling = std::max(largest_rolling, law.rolling_friction);
-      any_linear = any_linear || !law.hertz;
-      any_hertz = any_hertz || law.hertz;
-    }
+  for (const PairLaw& law : pair_law_) {
+    if (law.rolling == 1) largest_rolling = std::max(largest_rolling, law.rolling_friction);
   }
+  const bool any_linear = law_kind_ != 1, any_hertz = law_kind_ != 0;
   // The rolling spring on a sphere against a much larger one has k_r / I = 5.625 mu_r^2 k_n / m.
   const double rolling_factor = std::max(1.0, 5.625 * largest_rolling * largest_rolling);
   double dt = std::numeric_limits<double>::infinity();

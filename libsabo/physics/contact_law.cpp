@@ -12,14 +12,10 @@ double damping_coefficient(double stiffness, double effective_mass, double dampi
   return 2.0 * damping_ratio * std::sqrt(stiffness * effective_mass);
 }
 
-ContactForce spring_dashpot_force(const SpringDashpot& law, double overlap, const Vec3& n,
-                                  const Vec3& relative_velocity, double dt_previous, TangentialHistory& history) {
-  ContactForce result;
-  const double normal_speed = relative_velocity.dot(n);  // < 0 while approaching
-  const Vec3 tangential_velocity = relative_velocity - normal_speed * n;
-
-  result.normal_force = law.normal_stiffness * overlap - law.normal_damping * normal_speed;
-
+TangentialForce tangential_spring_force(double stiffness, double damping, double friction, double normal_force,
+                                        const Vec3& n, const Vec3& tangential_velocity, double dt_previous,
+                                        TangentialHistory& history) {
+  TangentialForce result;
   // Carry the spring over from the previous tangent plane: drop its normal part, keep its length.
   Vec3 displacement = history.displacement;
   const double length = displacement.norm();
@@ -28,29 +24,44 @@ ContactForce spring_dashpot_force(const SpringDashpot& law, double overlap, cons
     const double projected_length = displacement.norm();
     displacement = projected_length > 0 ? Vec3(displacement * (length / projected_length)) : Vec3::Zero();
   }
-  const double stored_energy = 0.5 * law.tangential_stiffness * displacement.squaredNorm();
+  const double stored_energy = 0.5 * stiffness * displacement.squaredNorm();
   displacement += tangential_velocity * dt_previous;
 
-  Vec3 tangential_force = -law.tangential_stiffness * displacement - law.tangential_damping * tangential_velocity;
-  const double coulomb_force = law.friction * std::max(result.normal_force, 0.0);
-  const double trial_magnitude = tangential_force.norm();
+  result.force = -stiffness * displacement - damping * tangential_velocity;
+  const double coulomb_force = friction * std::max(normal_force, 0.0);
+  const double trial_magnitude = result.force.norm();
   if (trial_magnitude > coulomb_force) {
     result.sliding = true;
-    tangential_force *= coulomb_force / trial_magnitude;
+    result.force *= coulomb_force / trial_magnitude;
     // Shorten the spring to the Coulomb force; never lengthen it (when the dashpot alone pushes
     // the contact over the limit, stretching the spring would store energy that no work paid for).
-    const double spring_force = law.tangential_stiffness * displacement.norm();
+    const double spring_force = stiffness * displacement.norm();
     if (spring_force > coulomb_force) displacement *= coulomb_force / spring_force;
-    result.slip_spring_release = stored_energy - 0.5 * law.tangential_stiffness * displacement.squaredNorm();
-    result.dissipative_force = -law.normal_damping * normal_speed * n + tangential_force;
+    result.slip_spring_release = stored_energy - 0.5 * stiffness * displacement.squaredNorm();
+    result.dissipative = result.force;
   } else {
-    result.dissipative_force = -law.normal_damping * normal_speed * n - law.tangential_damping * tangential_velocity;
+    result.dissipative = -damping * tangential_velocity;
   }
   history.displacement = displacement;
+  return result;
+}
 
-  result.force = result.normal_force * n + tangential_force;
-  result.elastic_energy =
-      0.5 * law.normal_stiffness * overlap * overlap + 0.5 * law.tangential_stiffness * displacement.squaredNorm();
+ContactForce spring_dashpot_force(const SpringDashpot& law, double overlap, const Vec3& n,
+                                  const Vec3& relative_velocity, double dt_previous, TangentialHistory& history) {
+  ContactForce result;
+  const double normal_speed = relative_velocity.dot(n);  // < 0 while approaching
+  const Vec3 tangential_velocity = relative_velocity - normal_speed * n;
+
+  result.normal_force = law.normal_stiffness * overlap - law.normal_damping * normal_speed;
+  const TangentialForce tangential =
+      tangential_spring_force(law.tangential_stiffness, law.tangential_damping, law.friction, result.normal_force, n,
+                              tangential_velocity, dt_previous, history);
+  result.sliding = tangential.sliding;
+  result.slip_spring_release = tangential.slip_spring_release;
+  result.dissipative_force = -law.normal_damping * normal_speed * n + tangential.dissipative;
+  result.force = result.normal_force * n + tangential.force;
+  result.elastic_energy = 0.5 * law.normal_stiffness * overlap * overlap +
+                          0.5 * law.tangential_stiffness * history.displacement.squaredNorm();
   return result;
 }
 

@@ -54,6 +54,21 @@ struct ContactForce {
 ContactForce spring_dashpot_force(const SpringDashpot& law, double overlap, const Vec3& n,
                                   const Vec3& relative_velocity, double dt_previous, TangentialHistory& history);
 
+// The tangential part of a contact law, shared by spring_dashpot_force and hertz_mindlin_force:
+// the history is rotated onto the tangent plane of n (length kept) and extended by
+// tangential_velocity * dt_previous; the trial force -stiffness d - damping v_t is capped at
+// friction * max(normal_force, 0) as spring_dashpot_force describes (the spring is shortened to
+// the limit, never lengthened). history is updated.
+struct TangentialForce {
+  Vec3 force = Vec3::Zero();        // on A, N
+  Vec3 dissipative = Vec3::Zero();  // N: -damping v_t, or the capped force when sliding
+  bool sliding = false;
+  double slip_spring_release = 0;  // J, as in ContactForce
+};
+TangentialForce tangential_spring_force(double stiffness, double damping, double friction, double normal_force,
+                                        const Vec3& n, const Vec3& tangential_velocity, double dt_previous,
+                                        TangentialHistory& history);
+
 // Constant-torque rolling resistance: torque on A = -mu_r * r_eff * |F_n| * w_rel/|w_rel|
 // (zero if w_rel ~ 0). relative_angular_velocity = w_A - w_B, rad/s; B receives -torque.
 // |F_n| is the compressive part max(normal_force, 0), as for the Coulomb limit. The torque

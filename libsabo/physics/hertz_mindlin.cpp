@@ -48,28 +48,31 @@ double shear_compliance(double youngs_modulus, double poisson_ratio) {
   return 2.0 * (2.0 - poisson_ratio) * (1.0 + poisson_ratio) / youngs_modulus;
 }
 
-// Dashpot coefficient -2 sqrt(5/6) beta sqrt(S m*) >= 0, N s/m.
-double dashpot(const HertzMindlin& law, double stiffness) {
-  return -kDampingPrefactor * restitution_damping_ratio(law.restitution) * std::sqrt(stiffness * law.effective_mass);
+}  // namespace
+
+double hertz_effective_modulus(double youngs_a, double poisson_a, double youngs_b, double poisson_b) {
+  return 1.0 / (normal_compliance(youngs_a, poisson_a) + normal_compliance(youngs_b, poisson_b));
 }
 
-}  // namespace
+double mindlin_effective_shear_modulus(double youngs_a, double poisson_a, double youngs_b, double poisson_b) {
+  return 1.0 / (shear_compliance(youngs_a, poisson_a) + shear_compliance(youngs_b, poisson_b));
+}
 
 HertzMindlin hertz_mindlin_parameters(const HertzBody& a, const HertzBody& b, double restitution, double friction) {
   check_body(a, "body A");
   check_body(b, "body B");
   check_coefficients(restitution, friction);
-  const double compliance =
-      normal_compliance(a.youngs_modulus, a.poisson_ratio) + normal_compliance(b.youngs_modulus, b.poisson_ratio);
-  const double shear =
-      shear_compliance(a.youngs_modulus, a.poisson_ratio) + shear_compliance(b.youngs_modulus, b.poisson_ratio);
-  require(compliance > 0, "youngs_modulus (both)", a.youngs_modulus, "at most one body of a contact can be rigid");
-  return HertzMindlin{1.0 / compliance,
-                      a.radius * b.radius / (a.radius + b.radius),
-                      a.mass * b.mass / (a.mass + b.mass),
-                      1.0 / shear,
-                      restitution,
-                      friction};
+  const double modulus = hertz_effective_modulus(a.youngs_modulus, a.poisson_ratio, b.youngs_modulus, b.poisson_ratio);
+  // Two rigid bodies: no compliance, E* = +infinity.
+  require(std::isfinite(modulus), "youngs_modulus (both)", a.youngs_modulus,
+          "at most one body of a contact can be rigid");
+  return HertzMindlin{
+      modulus,
+      a.radius * b.radius / (a.radius + b.radius),
+      a.mass * b.mass / (a.mass + b.mass),
+      mindlin_effective_shear_modulus(a.youngs_modulus, a.poisson_ratio, b.youngs_modulus, b.poisson_ratio),
+      restitution,
+      friction};
 }
 
 HertzMindlin hertz_mindlin_wall_parameters(const HertzBody& sphere, double wall_youngs_modulus,
@@ -80,17 +83,24 @@ HertzMindlin hertz_mindlin_wall_parameters(const HertzBody& sphere, double wall_
   require(wall_poisson_ratio > -1 && wall_poisson_ratio <= 0.5, "wall.poisson_ratio", wall_poisson_ratio,
           "give a Poisson ratio in (-1, 0.5]");
   check_coefficients(restitution, friction);
-  const double compliance = normal_compliance(sphere.youngs_modulus, sphere.poisson_ratio) +
-                            normal_compliance(wall_youngs_modulus, wall_poisson_ratio);
-  const double shear = shear_compliance(sphere.youngs_modulus, sphere.poisson_ratio) +
-                       shear_compliance(wall_youngs_modulus, wall_poisson_ratio);
-  return HertzMindlin{1.0 / compliance, sphere.radius, sphere.mass, 1.0 / shear, restitution, friction};
+  return HertzMindlin{
+      hertz_effective_modulus(sphere.youngs_modulus, sphere.poisson_ratio, wall_youngs_modulus, wall_poisson_ratio),
+      sphere.radius,
+      sphere.mass,
+      mindlin_effective_shear_modulus(sphere.youngs_modulus, sphere.poisson_ratio, wall_youngs_modulus,
+                                      wall_poisson_ratio),
+      restitution,
+      friction};
 }
 
 double restitution_damping_ratio(double restitution) {
   assert(restitution > 0 && restitution <= 1);
   const double log_e = std::log(restitution);
   return log_e / std::sqrt(log_e * log_e + std::numbers::pi * std::numbers::pi);
+}
+
+double hertz_damping_factor(double restitution) {
+  return -kDampingPrefactor * restitution_damping_ratio(restitution);
 }
 
 double hertz_normal_stiffness(const HertzMindlin& law, double overlap) {
@@ -117,44 +127,25 @@ ContactForce hertz_mindlin_force(const HertzMindlin& law, double overlap, const 
   const Vec3 tangential_velocity = relative_velocity - normal_speed * n;
   const double normal_stiffness = hertz_normal_stiffness(law, overlap);
   const double tangential_stiffness = mindlin_tangential_stiffness(law, overlap);
-  const double normal_damping = dashpot(law, normal_stiffness);
-  const double tangential_damping = dashpot(law, tangential_stiffness);
+  const double damping_factor = hertz_damping_factor(law.restitution);
+  const double normal_damping = damping_factor * std::sqrt(normal_stiffness * law.effective_mass);
+  const double tangential_damping = damping_factor * std::sqrt(tangential_stiffness * law.effective_mass);
 
   // 4/3 E* sqrt(R*) delta^{3/2} = 2/3 S_n delta.
   const double elastic_normal_force = (2.0 / 3.0) * normal_stiffness * overlap;
   result.normal_force = elastic_normal_force - normal_damping * normal_speed;
 
-  // Carry the spring over from the previous tangent plane: drop its normal part, keep its length.
-  Vec3 displacement = history.displacement;
-  const double length = displacement.norm();
-  if (length > 0) {
-    displacement -= displacement.dot(n) * n;
-    const double projected_length = displacement.norm();
-    displacement = projected_length > 0 ? Vec3(displacement * (length / projected_length)) : Vec3::Zero();
-  }
-  const double stored_energy = 0.5 * tangential_stiffness * displacement.squaredNorm();
-  displacement += tangential_velocity * dt_previous;
+  const TangentialForce tangential =
+      tangential_spring_force(tangential_stiffness, tangential_damping, law.friction, result.normal_force, n,
+                              tangential_velocity, dt_previous, history);
+  result.sliding = tangential.sliding;
+  result.slip_spring_release = tangential.slip_spring_release;
+  result.dissipative_force = -normal_damping * normal_speed * n + tangential.dissipative;
 
-  Vec3 tangential_force = -tangential_stiffness * displacement - tangential_damping * tangential_velocity;
-  const double coulomb_force = law.friction * std::max(result.normal_force, 0.0);
-  const double trial_magnitude = tangential_force.norm();
-  if (trial_magnitude > coulomb_force) {
-    result.sliding = true;
-    tangential_force *= coulomb_force / trial_magnitude;
-    // Shorten the spring to the Coulomb force; never lengthen it (see spring_dashpot_force).
-    const double spring_force = tangential_stiffness * displacement.norm();
-    if (spring_force > coulomb_force) displacement *= coulomb_force / spring_force;
-    result.slip_spring_release = stored_energy - 0.5 * tangential_stiffness * displacement.squaredNorm();
-    result.dissipative_force = -normal_damping * normal_speed * n + tangential_force;
-  } else {
-    result.dissipative_force = -normal_damping * normal_speed * n - tangential_damping * tangential_velocity;
-  }
-  history.displacement = displacement;
-
-  result.force = result.normal_force * n + tangential_force;
+  result.force = result.normal_force * n + tangential.force;
   // 2/5 * 4/3 E* sqrt(R*) delta^{5/2} = 2/5 * elastic normal force * delta.
   result.elastic_energy =
-      0.4 * elastic_normal_force * overlap + 0.5 * tangential_stiffness * displacement.squaredNorm();
+      0.4 * elastic_normal_force * overlap + 0.5 * tangential_stiffness * history.displacement.squaredNorm();
   return result;
 }
 

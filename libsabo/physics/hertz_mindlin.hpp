@@ -34,8 +34,17 @@ HertzMindlin hertz_mindlin_parameters(const HertzBody& a, const HertzBody& b, do
 HertzMindlin hertz_mindlin_wall_parameters(const HertzBody& sphere, double wall_youngs_modulus,
                                            double wall_poisson_ratio, double restitution, double friction);
 
+// E* of two bodies, Pa: 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2 (E = +infinity: rigid, adds nothing).
+double hertz_effective_modulus(double youngs_a, double poisson_a, double youngs_b, double poisson_b);
+
+// G* of two bodies, Pa: 1/G* = 2(2-nu1)(1+nu1)/E1 + 2(2-nu2)(1+nu2)/E2 (E = +infinity adds nothing).
+double mindlin_effective_shear_modulus(double youngs_a, double poisson_a, double youngs_b, double poisson_b);
+
 // Damping ratio of the restitution: beta = ln(e) / sqrt(ln(e)^2 + pi^2) (<= 0; 0 for e = 1).
 double restitution_damping_ratio(double restitution);
+
+// Dashpot factor of the restitution: -2 sqrt(5/6) beta >= 0; a dashpot is factor * sqrt(S m*), N s/m.
+double hertz_damping_factor(double restitution);
 
 // Normal contact stiffness S_n = dF_n/d(delta) = 2 E* sqrt(R* delta), N/m.
 double hertz_normal_stiffness(const HertzMindlin& law, double overlap);

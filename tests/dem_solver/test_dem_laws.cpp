@@ -42,6 +42,16 @@ scene::Scene material_scene(double density, double youngs, double poisson) {
   return scene;
 }
 
+// Hertz-Mindlin without damping, friction or rolling resistance: the D1 impacts.
+scene::Scene undamped_hertz_scene(double density, double youngs, double poisson) {
+  scene::Scene scene = material_scene(density, youngs, poisson);
+  scene.dem_contact.model = scene::DemLaw::hertz_mindlin;
+  scene.dem_contact.restitution = 1.0;
+  scene.dem_contact.friction = 0;
+  scene.dem_contact.rolling_friction = 0;
+  return scene;
+}
+
 scene::ParticleSet spheres(std::vector<scene::Sphere> list) {
   scene::ParticleSet set = list_set("s", std::move(list));
   set.material = "m";
@@ -89,11 +99,7 @@ void expect_within(const char* what, double measured, double expected, double to
 
 TEST(DemLawsD1, HertzImpactOfTwoGlassSpheres) {
   // Chung & Ooi 2011 test 1: E 48 GPa, nu 0.2, rho 2800, R 10 mm, 10 m/s each, no damping.
-  scene::Scene scene = material_scene(2800, 48e9, 0.2);
-  scene.dem_contact.model = scene::DemLaw::hertz_mindlin;
-  scene.dem_contact.restitution = 1.0;
-  scene.dem_contact.friction = 0;
-  scene.dem_contact.rolling_friction = 0;
+  scene::Scene scene = undamped_hertz_scene(2800, 48e9, 0.2);
   const double r = 0.01, gap = 1e-5;
   scene.particle_sets.push_back(spheres({scene::Sphere{Vec3(-r - gap, 0, 0), r, Vec3(10, 0, 0)},
                                          scene::Sphere{Vec3(r + gap, 0, 0), r, Vec3(-10, 0, 0)}}));
@@ -107,11 +113,7 @@ TEST(DemLawsD1, HertzImpactOfTwoGlassSpheres) {
 
 TEST(DemLawsD1, HertzImpactOfAnAluminiumSphereOnARigidWall) {
   // Chung & Ooi 2011 test 2: R 0.1 m, 0.2 m/s, E 70 GPa, nu 0.33, rho 2700, rigid wall.
-  scene::Scene scene = material_scene(2700, 70e9, 0.33);
-  scene.dem_contact.model = scene::DemLaw::hertz_mindlin;
-  scene.dem_contact.restitution = 1.0;
-  scene.dem_contact.friction = 0;
-  scene.dem_contact.rolling_friction = 0;
+  scene::Scene scene = undamped_hertz_scene(2700, 70e9, 0.33);
   scene.particle_sets.push_back(spheres({scene::Sphere{Vec3(0, 0, 0.1 + 1e-6), 0.1, Vec3(0, 0, -0.2)}}));
   DemModel model(scene);
   Wall wall;
