@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -41,33 +42,28 @@ MaterialParameters material_parameters(const scene::Material& m) {
   return p;
 }
 
+// Elements along an edge of `length` (m) for the shape's element size (one when none is given).
+std::size_t element_divisions(double length, double element_size) {
+  return element_size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / element_size))) : std::size_t{1};
+}
+
 HexMesh structure_mesh(const scene::Structure& structure) {
   const Aabb& box = structure.shape.box;
-  std::array<std::size_t, 3> divisions{1, 1, 1};
-  if (structure.shape.element_size > 0) {
-    for (int d = 0; d < 3; ++d) {
-      divisions[static_cast<std::size_t>(d)] =
-          static_cast<std::size_t>(std::max(1.0, std::round((box.max(d) - box.min(d)) / structure.shape.element_size)));
-    }
+  std::array<std::size_t, 3> divisions{};
+  for (int d = 0; d < 3; ++d) {
+    divisions[static_cast<std::size_t>(d)] = element_divisions(box.max(d) - box.min(d), structure.shape.element_size);
   }
   return structured_box(box, divisions);
 }
 
 constexpr std::uint64_t kDeformableIdBase = std::uint64_t{1} << 40;
 
-}  // namespace
-
-namespace {
-
 // Shell meshes of a deformable structure with a thickness: a plane panel, or
 // a thin-walled building (the four walls of the box, the roof and floors - 1
 // intermediate slabs; body material 0 the walls, 1 the slabs).
 ShellMesh structure_shells(const scene::Structure& structure) {
   const scene::Shape& shape = structure.shape;
-  const double size = shape.element_size;
-  const auto divisions = [&](double length) {
-    return size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / size))) : std::size_t{1};
-  };
+  const auto divisions = [&](double length) { return element_divisions(length, shape.element_size); };
   ShellMesh mesh;
   if (shape.type == scene::Shape::Type::plane) {
     const Vec3 side = shape.normal.cross(shape.direction).normalized();
@@ -119,6 +115,14 @@ void fix_faces(Body& body, const std::vector<std::string>& fixed, unsigned dofs)
   }
 }
 
+// Gravity, the fixed faces and the initial velocity of a new body.
+template <class Body>
+void set_up(Body& body, const scene::Structure& structure, const Vec3& gravity, unsigned fixed_dofs) {
+  body.set_gravity(gravity);
+  fix_faces(body, structure.fixed_faces, fixed_dofs);
+  body.set_velocity(structure.velocity);
+}
+
 }  // namespace
 
 DeformablePart::DeformablePart(const scene::Structure& structure, const scene::Scene& scene) {
@@ -131,9 +135,7 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
     const MaterialParameters parameters = material_parameters(scene.materials[material]);
     if (!gmsh.hexahedra.element.empty()) {
       solid_ = std::make_unique<SolidBody>(std::move(gmsh.hexahedra), parameters);
-      solid_->set_gravity(scene.run.gravity);
-      fix_faces(*solid_, structure.fixed_faces, dof_all);
-      solid_->set_velocity(structure.velocity);
+      set_up(*solid_, structure, scene.run.gravity, dof_all);
     } else {
       if (!(structure.thickness > 0)) {
         throw SceneError(fmt::format(
@@ -147,9 +149,7 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
       shells.thickness.assign(shells.element.size(), structure.thickness);
       shells.material.assign(shells.element.size(), 0);
       shell_ = std::make_unique<ShellBody>(std::move(shells), std::vector<MaterialParameters>{parameters});
-      shell_->set_gravity(scene.run.gravity);
-      fix_faces(*shell_, structure.fixed_faces, dof_all | rotations_all);
-      shell_->set_velocity(structure.velocity);
+      set_up(*shell_, structure, scene.run.gravity, dof_all | rotations_all);
     }
   } else if (structure.thickness > 0) {
     std::size_t slab_material = material;
@@ -161,16 +161,12 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
       bulk_modulus_.push_back(scene.materials[m].bulk_modulus());
     }
     shell_ = std::make_unique<ShellBody>(structure_shells(structure), parameters);
-    shell_->set_gravity(scene.run.gravity);
-    fix_faces(*shell_, structure.fixed_faces, dof_all | rotations_all);
-    shell_->set_velocity(structure.velocity);
+    set_up(*shell_, structure, scene.run.gravity, dof_all | rotations_all);
   } else {
     scene_material_ = {static_cast<std::uint32_t>(material)};
     bulk_modulus_ = {scene.materials[material].bulk_modulus()};
     solid_ = std::make_unique<SolidBody>(structure_mesh(structure), material_parameters(scene.materials[material]));
-    solid_->set_gravity(scene.run.gravity);
-    fix_faces(*solid_, structure.fixed_faces, dof_all);
-    solid_->set_velocity(structure.velocity);
+    set_up(*solid_, structure, scene.run.gravity, dof_all);
   }
   refresh_surface();
 }
@@ -484,7 +480,6 @@ void FemModel::apply_node_forces(std::span<const double> node_force) {
 }
 
 void FemModel::step(double dt) {
-  dt_previous_ = dt;
   for (std::size_t p = 0; p < parts_.size(); ++p) {
     const PartInfo& info = info_[p];
     parts_[p]->step(dt, std::span<const Vec3>(node_force_).subspan(info.node_begin, info.node_end - info.node_begin));
@@ -536,12 +531,8 @@ void FemModel::write_energy_history(const std::filesystem::path& run_folder, dou
     total.hourglass += e.hourglass;
     total.eroded += e.eroded;
     total.external_work += e.external_work;
-    if (const SolidBody* solid = deformable->solid()) {
-      for (std::size_t k = 0; k < solid->element_count(); ++k) eroded += solid->eroded(k) ? 1 : 0;
-    } else {
-      const ShellBody* shell = deformable->shell();
-      for (std::size_t k = 0; k < shell->element_count(); ++k) eroded += shell->eroded(k) ? 1 : 0;
-    }
+    const auto active = deformable->solid() ? deformable->solid()->active() : deformable->shell()->active();
+    eroded += static_cast<std::size_t>(std::count(active.begin(), active.end(), std::uint8_t{0}));
   }
   if (!any) return;
   const std::filesystem::path file = run_folder / "fem_energy.csv";

@@ -186,7 +186,6 @@ class FemModel {
   std::vector<geometry::SurfaceMesh> rigid_surface_;  // per part (empty for deformable parts)
   std::vector<Vec3> node_velocity_;
   std::uint64_t surface_revision_ = 0;
-  double dt_previous_ = 0;
   std::vector<std::optional<io::vtk::TimeSeries>> part_series_;
   bool energy_history_started_ = false;
   std::vector<std::unique_ptr<Part>> parts_;

@@ -78,14 +78,7 @@ void ShellBody::fix(std::size_t node, unsigned dofs) {
 }
 
 std::size_t ShellBody::fix_in_box(const Aabb& box, unsigned dofs) {
-  std::size_t count = 0;
-  for (std::size_t i = 0; i < position_.size(); ++i) {
-    if (box.contains(position_[i])) {
-      fix(i, dofs);
-      ++count;
-    }
-  }
-  return count;
+  return fix_nodes_in_box(position_, box, [&](std::size_t i) { fix(i, dofs); });
 }
 
 void ShellBody::set_velocity(const Vec3& velocity) {
@@ -94,12 +87,6 @@ void ShellBody::set_velocity(const Vec3& velocity) {
     for (int d = 0; d < 3; ++d) velocity_[i](d) = (fixed_[i] & (1u << d)) != 0 ? 0.0 : velocity(d);
     kinetic_ += 0.5 * mass_[i] * velocity_[i].squaredNorm();
   }
-}
-
-double ShellBody::total_mass() const {
-  double sum = 0;
-  for (double m : mass_) sum += m;
-  return sum;
 }
 
 std::size_t ShellBody::compute_internal_forces(double dt_previous) {
@@ -196,17 +183,10 @@ void ShellBody::integrate(double dt_previous, double dt, std::span<const Vec3> e
 }
 
 SolidEnergies ShellBody::energies() const {
-  SolidEnergies e;
+  SolidEnergies e = element_energies(state_, active_, mass_, position_, gravity_);
   e.kinetic = kinetic_;
-  for (std::size_t k = 0; k < state_.size(); ++k) {
-    e.plastic_work += state_[k].plastic_work;
-    if (active_[k] == 0) continue;
-    e.internal += state_[k].internal_energy;
-    e.hourglass += state_[k].hourglass_energy;
-  }
   e.eroded = eroded_energy_;
   e.external_work = external_work_;
-  for (std::size_t i = 0; i < position_.size(); ++i) e.potential -= mass_[i] * gravity_.dot(position_[i]);
   return e;
 }
 

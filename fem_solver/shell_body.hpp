@@ -59,7 +59,7 @@ class ShellBody {
   [[nodiscard]] const Shell4State& element_state(std::size_t e) const { return state_[e]; }
   [[nodiscard]] bool eroded(std::size_t e) const { return active_[e] == 0; }
   [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }
-  [[nodiscard]] double total_mass() const;
+  [[nodiscard]] double total_mass() const { return sum_masses(mass_); }
 
   std::size_t compute_internal_forces(double dt_previous);
   void integrate(double dt_previous, double dt, std::span<const Vec3> external_force = {});

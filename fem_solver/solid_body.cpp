@@ -16,7 +16,6 @@ SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double ho
   mass_.assign(nodes, 0.0);
   fixed_.assign(nodes, 0);
   state_.assign(elements, Hex8State{});
-  eroded_.assign(elements, 0);
   active_.assign(elements, 1);
   element_force_.assign(8 * elements, Vec3::Zero());
   element_dt_.assign(elements, std::numeric_limits<double>::infinity());
@@ -40,14 +39,7 @@ void SolidBody::fix(std::size_t node, unsigned dofs) {
 }
 
 std::size_t SolidBody::fix_in_box(const Aabb& box, unsigned dofs) {
-  std::size_t count = 0;
-  for (std::size_t i = 0; i < position_.size(); ++i) {
-    if (box.contains(position_[i])) {
-      fix(i, dofs);
-      ++count;
-    }
-  }
-  return count;
+  return fix_nodes_in_box(position_, box, [&](std::size_t i) { fix(i, dofs); });
 }
 
 void SolidBody::set_node_velocity(std::size_t node, const Vec3& velocity) {
@@ -61,12 +53,6 @@ void SolidBody::set_velocity(const Vec3& velocity) {
   for (std::size_t i = 0; i < velocity_.size(); ++i) set_node_velocity(i, velocity);
   kinetic_ = 0;
   for (std::size_t i = 0; i < velocity_.size(); ++i) kinetic_ += 0.5 * mass_[i] * velocity_[i].squaredNorm();
-}
-
-double SolidBody::total_mass() const {
-  double sum = 0;
-  for (double m : mass_) sum += m;
-  return sum;
 }
 
 std::size_t SolidBody::compute_internal_forces(double dt_previous) {
@@ -96,7 +82,6 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
   for (std::size_t e = 0; e < mesh_.element.size(); ++e) {
     if (element_failed_[e] == 0 || active_[e] == 0) continue;
     active_[e] = 0;
-    eroded_[e] = 1;
     eroded_energy_ += state_[e].internal_energy + state_[e].hourglass_energy;
     for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a].setZero();
     element_dt_[e] = std::numeric_limits<double>::infinity();
@@ -149,17 +134,10 @@ void SolidBody::integrate(double dt_previous, double dt, std::span<const Vec3> e
 }
 
 SolidEnergies SolidBody::energies() const {
-  SolidEnergies e;
+  SolidEnergies e = element_energies(state_, active_, mass_, position_, gravity_);
   e.kinetic = kinetic_;
-  for (std::size_t k = 0; k < state_.size(); ++k) {
-    e.plastic_work += state_[k].plastic_work;
-    if (active_[k] == 0) continue;
-    e.internal += state_[k].internal_energy;
-    e.hourglass += state_[k].hourglass_energy;
-  }
   e.eroded = eroded_energy_;
   e.external_work = external_work_;
-  for (std::size_t i = 0; i < position_.size(); ++i) e.potential -= mass_[i] * gravity_.dot(position_[i]);
   return e;
 }
 

@@ -17,24 +17,13 @@
 #include <span>
 #include <vector>
 
+#include "fem_solver/body_common.hpp"
 #include "fem_solver/elements/hex8.hpp"
 #include "fem_solver/materials/plastic_kinematic.hpp"
 #include "fem_solver/mesh/hex_mesh.hpp"
 #include "fem_solver/node_gather.hpp"
 
 namespace sabo::fem {
-
-struct SolidEnergies {
-  double kinetic = 0;        // J, with v_n = (v_{n-1/2} + v_{n+1/2}) / 2 after integrate()
-  double internal = 0;       // J, stress work of the active elements (elastic + plastic)
-  double plastic_work = 0;   // J, of every element, eroded included
-  double hourglass = 0;      // J, active elements
-  double eroded = 0;         // J, internal + hourglass energy of eroded elements when they failed
-  double external_work = 0;  // J, of gravity and the contact forces
-  double potential = 0;      // J, -sum m g . x
-  // Kinetic + internal + hourglass + eroded - external work - initial kinetic: zero for a perfect balance.
-  [[nodiscard]] double total() const { return kinetic + internal + hourglass + eroded - external_work; }
-};
 
 enum Dof : unsigned { dof_x = 1, dof_y = 2, dof_z = 4, dof_all = 7 };
 
@@ -65,9 +54,9 @@ class SolidBody {
   [[nodiscard]] std::span<const double> masses() const { return mass_; }
   [[nodiscard]] std::span<const Vec3> internal_forces() const { return internal_force_; }
   [[nodiscard]] const Hex8State& element_state(std::size_t e) const { return state_[e]; }
-  [[nodiscard]] bool eroded(std::size_t e) const { return eroded_[e] != 0; }
+  [[nodiscard]] bool eroded(std::size_t e) const { return active_[e] == 0; }
   [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }  // 1: not eroded
-  [[nodiscard]] double total_mass() const;
+  [[nodiscard]] double total_mass() const { return sum_masses(mass_); }
 
   // See the class comment. Returns the number of elements eroded now.
   std::size_t compute_internal_forces(double dt_previous);
@@ -91,9 +80,9 @@ class SolidBody {
   std::vector<double> mass_;
   std::vector<std::uint8_t> fixed_;  // Dof bits per node
   std::vector<Hex8State> state_;
-  std::vector<std::uint8_t> eroded_, active_;
-  std::vector<Vec3> element_force_;  // 8 per element
-  std::vector<double> element_dt_;   // per element
+  std::vector<std::uint8_t> active_;  // 1: not eroded
+  std::vector<Vec3> element_force_;   // 8 per element
+  std::vector<double> element_dt_;    // per element
   std::vector<std::uint8_t> element_failed_;
   NodeGather gather_;
   double stable_dt_ = 0;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "fem_solver/mesh/hex_mesh.hpp"
+
 namespace sabo::fem {
 namespace {
 
@@ -21,10 +23,6 @@ constexpr double hourglass_vector(int alpha, int node) {
     default: return n[0] * n[1] * n[2];
   }
 }
-
-// Faces as node quadruples, outward.
-constexpr std::array<std::array<int, 4>, 6> kFaces{
-    {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}}};
 
 struct Geometry {
   Mat3 jacobian;                 // column j: d x / d xi_j at the centre (half-length vectors)
@@ -60,7 +58,7 @@ double hex8_volume(const HexNodes& x) {
 
 double hex8_characteristic_length(const HexNodes& x) {
   double largest_area = 0;
-  for (const auto& face : kFaces) {
+  for (const auto& face : hex_faces()) {
     const Vec3 d1 = x[static_cast<std::size_t>(face[2])] - x[static_cast<std::size_t>(face[0])];
     const Vec3 d2 = x[static_cast<std::size_t>(face[3])] - x[static_cast<std::size_t>(face[1])];
     largest_area = std::max(largest_area, 0.5 * d1.cross(d2).norm());
@@ -125,15 +123,19 @@ bool hex8_internal_force(const MaterialParameters& material, double hourglass_sc
     const double nu = material.poisson_ratio;
     const double plane_modulus = youngs / (1 - nu * nu);
     const double v3 = g.volume / 3.0;
+    // Per axis i, the sum over the two other axes j of 1 / a_j^2 (the warping mode's shears).
+    std::array<double, 3> warping_sum{};
+    for (std::size_t i = 0; i < 3; ++i) {
+      for (std::size_t j = 0; j < 3; ++j) {
+        if (j != i)
+          warping_sum[i] +=
+              1.0 / (half_length(static_cast<Eigen::Index>(j)) * half_length(static_cast<Eigen::Index>(j)));
+      }
+    }
     std::array<std::array<double, 4>, 3> increment{};
     for (std::size_t i = 0; i < 3; ++i) {
       // Warping mode (no normal strain): its two shears with G.
-      double sum = 0;
-      for (std::size_t j = 0; j < 3; ++j) {
-        if (j != i)
-          sum += 1.0 / (half_length(static_cast<Eigen::Index>(j)) * half_length(static_cast<Eigen::Index>(j)));
-      }
-      increment[i][i] = shear * v3 * sum * rate[i][i];
+      increment[i][i] = shear * v3 * warping_sum[i] * rate[i][i];
       // xi eta zeta mode: uniaxial normal strain varying as the product of the other two coordinates.
       const double li = half_length(static_cast<Eigen::Index>(i));
       increment[i][3] = youngs * g.volume / 9.0 / (li * li) * rate[i][3];
@@ -153,20 +155,12 @@ bool hex8_internal_force(const MaterialParameters& material, double hourglass_sc
     std::array<std::array<double, 4>, 3> limit{};
     for (auto& row : limit) row.fill(std::numeric_limits<double>::infinity());
     if (material.plastic()) {
-      const double hardening_modulus = material.tangent_modulus > 0
-                                           ? material.youngs_modulus * material.tangent_modulus /
-                                                 (material.youngs_modulus - material.tangent_modulus)
-                                           : 0.0;
-      const double yield = material.yield_stress + material.hardening * hardening_modulus * state.point.plastic_strain;
+      const double yield =
+          material.yield_stress + material.hardening * material.hardening_modulus() * state.point.plastic_strain;
       for (std::size_t i = 0; i < 3; ++i) {
         const double li = half_length(static_cast<Eigen::Index>(i));
-        double sum = 0;
-        for (std::size_t j = 0; j < 3; ++j) {
-          if (j != i)
-            sum += 1.0 / (half_length(static_cast<Eigen::Index>(j)) * half_length(static_cast<Eigen::Index>(j)));
-        }
         for (std::size_t alpha = 0; alpha < 3; ++alpha) {
-          limit[i][alpha] = alpha == i ? yield / std::sqrt(3.0) * v3 * std::sqrt(sum) : yield * v3 / li;
+          limit[i][alpha] = alpha == i ? yield / std::sqrt(3.0) * v3 * std::sqrt(warping_sum[i]) : yield * v3 / li;
         }
         limit[i][3] = yield * g.volume / 9.0 / li;
       }

@@ -44,9 +44,7 @@ MaterialUpdate update_stress(const MaterialParameters& material, const Mat3& rat
 
   if (material.plastic()) {
     rotate(point.back_stress, spin, dt);
-    const double youngs = material.youngs_modulus;
-    const double hardening_modulus =
-        material.tangent_modulus > 0 ? youngs * material.tangent_modulus / (youngs - material.tangent_modulus) : 0.0;
+    const double hardening_modulus = material.hardening_modulus();
     double rate_factor = 1.0;
     if (material.cowper_symonds_c > 0 && dt > 0) {
       const Mat3 d_dev = deviator(rate_of_deformation);

@@ -37,6 +37,10 @@ struct MaterialParameters {
   [[nodiscard]] bool erodes() const { return failure_plastic_strain > 0 || failure_principal_strain > 0; }
   [[nodiscard]] double shear_modulus() const { return youngs_modulus / (2 * (1 + poisson_ratio)); }
   [[nodiscard]] double bulk_modulus() const { return youngs_modulus / (3 * (1 - 2 * poisson_ratio)); }
+  // E_p = E E_t / (E - E_t), Pa: the plastic hardening modulus (0 without a tangent modulus).
+  [[nodiscard]] double hardening_modulus() const {
+    return tangent_modulus > 0 ? youngs_modulus * tangent_modulus / (youngs_modulus - tangent_modulus) : 0.0;
+  }
   [[nodiscard]] double lame_lambda() const {
     return youngs_modulus * poisson_ratio / ((1 + poisson_ratio) * (1 - 2 * poisson_ratio));
   }

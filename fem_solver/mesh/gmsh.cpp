@@ -22,12 +22,10 @@ class LineReader {
   // The next line; throws at the end of the file, naming what was expected.
   std::string next(const char* expected) {
     std::string line;
-    if (!std::getline(in_, line))
+    if (!next_if_any(line)) {
       fail(fmt::format("the file ends where {} was expected", expected),
-           "the file is "
-           "truncated: export the mesh again");
-    ++line_;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
+           "the file is truncated: export the mesh again");
+    }
     return line;
   }
   bool next_if_any(std::string& line) {

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <limits>
 
 namespace sabo::fem {
 
@@ -60,30 +59,6 @@ HexMesh structured_cylinder(const Vec3& base, double radius, double length, std:
     const double x = u * std::sqrt(1.0 - 0.5 * v * v);
     const double y = v * std::sqrt(1.0 - 0.5 * u * u);
     p = base + Vec3(radius * x, radius * y, p.z());
-  }
-  return mesh;
-}
-
-HexMesh structured_box_with_holes(const Aabb& box, const std::array<std::size_t, 3>& divisions,
-                                  std::span<const Aabb> holes) {
-  const HexMesh full = structured_box(box, divisions);
-  HexMesh mesh;
-  std::vector<std::uint32_t> renumber(full.node.size(), std::numeric_limits<std::uint32_t>::max());
-  for (const auto& element : full.element) {
-    Vec3 centre = Vec3::Zero();
-    for (auto n : element) centre += full.node[n] / 8.0;
-    const bool cut = std::any_of(holes.begin(), holes.end(), [&](const Aabb& hole) { return hole.contains(centre); });
-    if (cut) continue;
-    std::array<std::uint32_t, 8> kept{};
-    for (std::size_t a = 0; a < 8; ++a) {
-      std::uint32_t& id = renumber[element[a]];
-      if (id == std::numeric_limits<std::uint32_t>::max()) {
-        id = static_cast<std::uint32_t>(mesh.node.size());
-        mesh.node.push_back(full.node[element[a]]);
-      }
-      kept[a] = id;
-    }
-    mesh.element.push_back(kept);
   }
   return mesh;
 }

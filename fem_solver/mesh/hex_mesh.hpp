@@ -25,11 +25,6 @@ struct HexMesh {
 [[nodiscard]] HexMesh structured_cylinder(const Vec3& base, double radius, double length, std::size_t section,
                                           std::size_t axial);
 
-// The box mesh without the elements whose centres lie inside any of `holes`
-// (a dam with slits: the box with slit boxes cut out). Unused nodes are dropped.
-[[nodiscard]] HexMesh structured_box_with_holes(const Aabb& box, const std::array<std::size_t, 3>& divisions,
-                                                std::span<const Aabb> holes);
-
 // One face of an element on the exterior of the active elements: its nodes
 // counter-clockwise seen from outside.
 struct BoundaryFace {

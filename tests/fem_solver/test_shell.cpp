@@ -6,22 +6,13 @@
 #include <iostream>
 
 #include "fem_solver/shell_body.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Aabb;
 using sabo::Vec3;
 using namespace sabo::fem;
 
-namespace {
-
-MaterialParameters steel() {
-  MaterialParameters m;
-  m.density = 7850;
-  m.youngs_modulus = 210e9;
-  m.poisson_ratio = 0.3;
-  return m;
-}
-
-}  // namespace
+using test::steel;
 
 // Strip 1 m x 0.1 m x 10 mm clamped at x = 0, 10 N at the tip:
 // P L^3 / (3 E I) = 1.905 mm with I = b t^3 / 12.

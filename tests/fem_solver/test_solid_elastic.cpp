@@ -10,20 +10,15 @@
 #include <vector>
 
 #include "fem_solver/solid_body.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Aabb;
 using sabo::Vec3;
 using namespace sabo::fem;
 
-namespace {
+using test::steel;
 
-MaterialParameters steel() {
-  MaterialParameters m;
-  m.density = 7850;
-  m.youngs_modulus = 210e9;
-  m.poisson_ratio = 0.3;
-  return m;
-}
+namespace {
 
 constexpr double kLength = 1.0, kSide = 0.05;
 

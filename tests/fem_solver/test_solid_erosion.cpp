@@ -9,6 +9,7 @@
 
 #include "fem_solver/fem_model.hpp"
 #include "fem_solver/solid_body.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Aabb;
 using sabo::Vec3;
@@ -17,10 +18,7 @@ using namespace sabo::fem;
 namespace {
 
 MaterialParameters brittle_steel() {
-  MaterialParameters m;
-  m.density = 7850;
-  m.youngs_modulus = 210e9;
-  m.poisson_ratio = 0.3;
+  MaterialParameters m = test::steel();
   m.failure_principal_strain = 1e-3;
   return m;
 }
