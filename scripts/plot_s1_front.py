@@ -5,8 +5,8 @@ Martin & Moyce 1952 (n^2 = 2) as a PNG.
     SABO_S1_FRONT_CSV=/tmp/s1.csv build/bin/test_sph_model --gtest_filter='*S1*'
     scripts/plot_s1_front.py /tmp/s1.csv s1_front.png [--shift S] [--label TEXT]
 
-The CSV has a header T,Z; several CSVs may be given (one line each, e.g. the
-boundary-particle and the penalty wall runs) with the PNG path last.
+The CSV has a header T,Z; several CSVs may be given (one line each) with the
+PNG path last.
 """
 import argparse
 import csv

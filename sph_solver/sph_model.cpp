@@ -19,13 +19,23 @@ constexpr std::size_t kParallelThreshold = 512;
 // More cells than this means a domain far larger than the particles need.
 constexpr std::int64_t kMaxCells = std::int64_t{1} << 27;
 
-// Symmetric 3x3 stored as xx yy zz xy yz zx.
-inline double stress_dot(const double* s, double gx, double gy, double gz, int row) {
-  switch (row) {
-    case 0: return s[0] * gx + s[3] * gy + s[5] * gz;
-    case 1: return s[3] * gx + s[1] * gy + s[4] * gz;
-    default: return s[5] * gx + s[4] * gy + s[2] * gz;
-  }
+// Adds S . (f r) to a, S symmetric 3x3 stored as xx yy zz xy yz zx.
+inline void add_stress_dot(const double* s, double f, double rx, double ry, double rz, double& ax, double& ay,
+                           double& az) {
+  const double gx = f * rx, gy = f * ry, gz = f * rz;
+  ax += s[0] * gx + s[3] * gy + s[5] * gz;
+  ay += s[3] * gx + s[1] * gy + s[4] * gz;
+  az += s[5] * gx + s[4] * gy + s[2] * gz;
+}
+
+// Stress term of a fluid particle (stress s_i, density rho_i) and a wall particle
+// (mass m_wall, density rho_wall): the wall carries the stress of the fluid next to it
+// (zero normal gradient).
+inline void add_wall_stress(const double* s_i, double m_wall, double rho_i, double rho_wall, double f, double rx,
+                            double ry, double rz, double& ax, double& ay, double& az) {
+  double sum[6];
+  for (int q = 0; q < 6; ++q) sum[q] = m_wall * s_i[q] * (1.0 / (rho_i * rho_i) + 1.0 / (rho_wall * rho_wall));
+  add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
 }
 
 }  // namespace
@@ -58,6 +68,12 @@ SphModel::SphModel(const scene::Scene& scene)
     material.yield_stress = source.yield_stress.value_or(0.0);
     material.yield_shear_rate = source.yield_shear_rate;
     material.shear_modulus = source.fluid_shear_modulus > 0 ? source.fluid_shear_modulus : source.shear_modulus();
+    if (material.rheology == Rheology::elastic_plastic) {
+      // Elastic waves: c_eff^2 = c^2 + 4 G / (3 rho0).
+      const double c_eff =
+          std::sqrt(sound_speed_ * sound_speed_ + 4.0 * material.shear_modulus / (3.0 * material.eos.rest_density));
+      elastic_wave_dt_ = std::min(elastic_wave_dt_, kernel_.h / c_eff);
+    }
   }
   for (const auto& body : scene.fluids) {
     const auto m = static_cast<std::uint32_t>(scene.material_index(body.material));
@@ -81,6 +97,8 @@ SphModel::SphModel(const scene::Scene& scene)
   stress_rate_.assign(6 * n, 0.0);
   active_.assign(n, 1);
   particle_kinetic_.assign(n, 0.0);
+  particle_potential_.assign(n, 0.0);
+  particle_elastic_.assign(n, 0.0);
   stable_dt_ = initial_stable_dt();
   energies_.kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -170,10 +188,10 @@ void SphModel::build_grid() {
     }
     for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
     order.resize(used);
-    std::vector<std::uint32_t> next(start.begin(), start.end() - 1);
+    cell_next_.assign(start.begin(), start.end() - 1);
     for (std::size_t i = 0; i < count; ++i) {
       if (cell_id[i] == std::numeric_limits<std::uint32_t>::max()) continue;
-      order[next[cell_id[i]]++] = static_cast<std::uint32_t>(i);
+      order[cell_next_[cell_id[i]]++] = static_cast<std::uint32_t>(i);
     }
   };
   sort(
@@ -201,8 +219,7 @@ void SphModel::gather() {
     fvy_[s] = velocity_[i].y();
     fvz_[s] = velocity_[i].z();
     frho_[s] = density_[i];
-    pressure_[i] = materials_[material_[i]].eos.pressure(density_[i]);
-    fp_[s] = pressure_[i];
+    fp_[s] = pressure_[i];  // p(rho_n): set by the fill and by integrate()
     fm_[s] = mass_[i];
     fmat_[s] = material_[i];
     feta_[s] = 0;
@@ -384,9 +401,7 @@ void SphModel::compute_fluid_forces() {
         const double* s_j = &fstress_[6 * j];
         double sum[6];
         for (int q = 0; q < 6; ++q) sum[q] = m_j * (s_i[q] / (rho_i * rho_i) + s_j[q] / (rho_j * rho_j));
-        ax += stress_dot(sum, f * rx, f * ry, f * rz, 0);
-        ay += stress_dot(sum, f * rx, f * ry, f * rz, 1);
-        az += stress_dot(sum, f * rx, f * ry, f * rz, 2);
+        add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
       }
       if (diffusion) {
         double psi = rho_j - rho_i;
@@ -417,14 +432,7 @@ void SphModel::compute_fluid_forces() {
         ay += viscous * (vy - bvy_[j]);
         az += viscous * (vz - bvz_[j]);
       }
-      if (s_i != nullptr) {
-        // The wall carries the stress of the fluid next to it (zero normal gradient).
-        double sum[6];
-        for (int q = 0; q < 6; ++q) sum[q] = m_j * s_i[q] * (1.0 / (rho_i * rho_i) + 1.0 / (rho_j * rho_j));
-        ax += stress_dot(sum, f * rx, f * ry, f * rz, 0);
-        ay += stress_dot(sum, f * rx, f * ry, f * rz, 1);
-        az += stress_dot(sum, f * rx, f * ry, f * rz, 2);
-      }
+      if (s_i != nullptr) add_wall_stress(s_i, m_j, rho_i, rho_j, f, rx, ry, rz, ax, ay, az);
     });
     out_ax_[i] = ax + gx;
     out_ay_[i] = ay + gy;
@@ -468,14 +476,7 @@ void SphModel::compute_boundary_forces() {
         ay += viscous * (fvy_[j] - bvy_[b]);
         az += viscous * (fvz_[j] - bvz_[b]);
       }
-      if (has_stress_) {
-        const double* s_i = &fstress_[6 * j];
-        double sum[6];
-        for (int q = 0; q < 6; ++q) sum[q] = m_b * s_i[q] * (1.0 / (rho_i * rho_i) + 1.0 / (rho_b * rho_b));
-        ax += stress_dot(sum, f * rx, f * ry, f * rz, 0);
-        ay += stress_dot(sum, f * rx, f * ry, f * rz, 1);
-        az += stress_dot(sum, f * rx, f * ry, f * rz, 2);
-      }
+      if (has_stress_) add_wall_stress(&fstress_[6 * j], m_b, rho_i, rho_b, f, rx, ry, rz, ax, ay, az);
       fx -= m_i * ax;
       fy -= m_i * ay;
       fz -= m_i * az;
@@ -539,13 +540,7 @@ void SphModel::scatter_and_stable_dt() {
     if (feta_[s] > 0) dt_viscous = std::min(dt_viscous, frho_[s] * h * h / (8.0 * feta_[s]));
     neighbour_sum += out_neigh_[s];
   }
-  for (std::size_t m = 0; m < materials_.size(); ++m) {
-    if (materials_[m].rheology != Rheology::elastic_plastic) continue;
-    // Elastic waves: c_eff^2 = c^2 + 4 G / (3 rho0).
-    const double c_eff = std::sqrt(sound_speed_ * sound_speed_ +
-                                   4.0 * materials_[m].shear_modulus / (3.0 * materials_[m].eos.rest_density));
-    dt_cv = std::min(dt_cv, h / c_eff);
-  }
+  dt_cv = std::min(dt_cv, elastic_wave_dt_);
   mean_neighbours_ = n > 0 ? neighbour_sum / static_cast<double>(n) : 0.0;
   if (n == 0) dt_cv = h / sound_speed_;
   stable_dt_ = settings_.cfl * std::min({dt_cv, dt_force, dt_viscous});
@@ -612,8 +607,6 @@ void SphModel::integrate(double dt_previous, double dt) {
   const double dt_update = first_step ? 0.5 * dt : 0.5 * (dt_previous + dt);
   const auto n = static_cast<std::int64_t>(size());
   const bool parallel = size() > kParallelThreshold;
-  double potential = 0, elastic = 0;
-  std::vector<double> particle_potential(size(), 0.0), particle_elastic(size(), 0.0);
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::int64_t k = 0; k < n; ++k) {
     const auto i = static_cast<std::size_t>(k);
@@ -623,9 +616,9 @@ void SphModel::integrate(double dt_previous, double dt) {
       continue;
     }
     const FluidMaterial& material = materials_[material_[i]];
-    particle_potential[i] = -mass_[i] * gravity_.dot(position_[i]);
+    particle_potential_[i] = -mass_[i] * gravity_.dot(position_[i]);
     const double c_rho = material.eos.rest_density * sound_speed_;
-    particle_elastic[i] = mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
+    particle_elastic_[i] = mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
     const Vec3 a = acceleration_[i] + external_force_[i] / mass_[i];
     const Vec3 velocity = velocity_[i] + dt_update * a;
     particle_kinetic_[i] =
@@ -654,7 +647,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
     pressure_[i] = material.eos.pressure(density_[i]);
   }
-  double kinetic = 0;
+  double kinetic = 0, potential = 0, elastic = 0;
   for (std::size_t i = 0; i < size(); ++i) {
     if (!active_[i]) continue;
     if (!std::isfinite(position_[i].x() + position_[i].y() + position_[i].z() + density_[i])) {
@@ -664,8 +657,8 @@ void SphModel::integrate(double dt_previous, double dt) {
                       i, position_[i].x(), position_[i].y(), position_[i].z(), density_[i], dt));
     }
     kinetic += particle_kinetic_[i];
-    potential += particle_potential[i];
-    elastic += particle_elastic[i];
+    potential += particle_potential_[i];
+    elastic += particle_elastic_[i];
     if (settings_.domain && !settings_.domain->contains(position_[i])) {
       active_[i] = 0;
       velocity_[i].setZero();

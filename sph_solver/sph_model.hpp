@@ -32,6 +32,7 @@
 // Same input, same bits, for any number of threads.
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -160,6 +161,8 @@ class SphModel {
   Vec3 gravity_;
   double sound_speed_ = 0;
   double eta_squared_ = 0;  // 0.01 h^2, m^2
+  // Smallest h / c_eff over the elastic-plastic materials (infinity if none), s.
+  double elastic_wave_dt_ = std::numeric_limits<double>::infinity();
   std::vector<FluidMaterial> materials_;
   bool any_gradient_ = false, has_stress_ = false;
 
@@ -183,6 +186,7 @@ class SphModel {
   std::vector<std::uint32_t> f_cell_start_, b_cell_start_;  // per cell + 1
   std::vector<std::uint32_t> f_order_, b_order_;            // sorted slot -> id
   std::vector<std::uint32_t> f_cell_of_, b_cell_of_;        // per id (fluid) / per boundary index
+  std::vector<std::uint32_t> cell_next_;                    // build_grid() scratch: next free slot per cell
   std::vector<double> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_, fp_, fm_;
   std::vector<std::uint32_t> fmat_;
   std::vector<double> bx_, by_, bz_, bvx_, bvy_, bvz_, bvol_, bp_, brho_;  // bv: wall velocity for viscosity
@@ -196,7 +200,7 @@ class SphModel {
   double stable_dt_ = 0;
   double mean_neighbours_ = 0;
   bool forces_ready_ = false;
-  std::vector<double> particle_kinetic_;
+  std::vector<double> particle_kinetic_, particle_potential_, particle_elastic_;  // J, by id
   Energies energies_;
 };
 
