@@ -90,3 +90,24 @@ void EnergyHistory::close() {
 }
 
 }  // namespace sabo::coupler
+
+namespace sabo::coupler {
+
+void PartEnergyHistory::observe(const PartEnergySample& sample, const std::string& part, bool keep) {
+  Series& series = parts_[part];
+  series.last = sample;
+  series.last_kept = keep;
+  if (keep) series.kept.push_back(sample);
+}
+
+std::map<std::string, std::vector<PartEnergySample>> PartEnergyHistory::history() const {
+  std::map<std::string, std::vector<PartEnergySample>> out;
+  for (const auto& [part, series] : parts_) {
+    auto& samples = out[part];
+    samples = series.kept;
+    if (!series.last_kept) samples.push_back(series.last);
+  }
+  return out;
+}
+
+}  // namespace sabo::coupler

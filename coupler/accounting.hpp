@@ -1,6 +1,7 @@
 #pragma once
 // What the coupler accounts for a run: the force on every structure part split
 // by source (forces.csv) and the energy balance (energy.csv).
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -78,6 +79,35 @@ class EnergyHistory {
   bool first_ = true;
   EnergySample initial_, last_;
   double max_total_ = 0;
+};
+
+}  // namespace sabo::coupler
+
+namespace sabo::coupler {
+
+// One deformable FEM part's energies at one time (StepState.part_energies), J.
+struct PartEnergySample {
+  double time = 0;  // s
+  double kinetic = 0, internal = 0, plastic_work = 0, hourglass = 0, eroded = 0, external_work = 0;
+  std::uint64_t eroded_elements = 0;
+};
+
+// The energy history of the deformable FEM parts for summary.json: a sample
+// per part at every output time, and the last one.
+class PartEnergyHistory {
+ public:
+  // Every step; `keep`: an output time.
+  void observe(const PartEnergySample& sample, const std::string& part, bool keep);
+  // Per part (sorted by name): the kept samples, the last one appended when it was not kept.
+  [[nodiscard]] std::map<std::string, std::vector<PartEnergySample>> history() const;
+
+ private:
+  struct Series {
+    std::vector<PartEnergySample> kept;
+    PartEnergySample last;
+    bool last_kept = false;
+  };
+  std::map<std::string, Series> parts_;
 };
 
 }  // namespace sabo::coupler

@@ -547,6 +547,13 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
     sample.contact_elastic = previous_contact_elastic_;
     sample.dissipated += contact_dissipated_;
     if (energy_csv_) energy_csv_->observe(sample, previous_output_);
+    for (const auto& peer : peers_) {
+      for (const auto& p : peer->state.part_energies()) {
+        part_energies_.observe({previous_time_, p.kinetic(), p.internal(), p.plastic_work(), p.hourglass(), p.eroded(),
+                                p.external_work(), p.eroded_elements()},
+                               p.part(), previous_output_);
+      }
+    }
   }
   previous_time_ = time;
   previous_output_ = output;
@@ -644,6 +651,36 @@ void Coupler::write_summary(const std::string& status) {
                 {"max_total", energy_csv_->max_total()},
                 {"max_rise_over_initial", energy_csv_->max_total() - energy_csv_->initial().total()}};
   }
+  // Deformable FEM parts: the history of internal, kinetic, plastic work,
+  // hourglass and eroded energy at the output times (columns), and the largest
+  // hourglass share of the internal energy among the samples holding at least
+  // a tenth of the part's largest internal energy.
+  json structures = json::object();
+  for (const auto& [part, samples] : part_energies_.history()) {
+    json columns = {{"time", json::array()},          {"kinetic", json::array()},        {"internal", json::array()},
+                    {"plastic_work", json::array()},  {"hourglass", json::array()},      {"eroded", json::array()},
+                    {"external_work", json::array()}, {"eroded_elements", json::array()}};
+    double peak_internal = 0;
+    for (const auto& e : samples) {
+      columns["time"].push_back(e.time);
+      columns["kinetic"].push_back(e.kinetic);
+      columns["internal"].push_back(e.internal);
+      columns["plastic_work"].push_back(e.plastic_work);
+      columns["hourglass"].push_back(e.hourglass);
+      columns["eroded"].push_back(e.eroded);
+      columns["external_work"].push_back(e.external_work);
+      columns["eroded_elements"].push_back(e.eroded_elements);
+      peak_internal = std::max(peak_internal, e.internal);
+    }
+    double worst_hourglass = 0;
+    for (const auto& e : samples) {
+      if (e.internal > 0 && e.internal >= 0.1 * peak_internal) {
+        worst_hourglass = std::max(worst_hourglass, e.hourglass / e.internal);
+      }
+    }
+    structures[part] = {{"history", columns}, {"max_hourglass_over_internal", worst_hourglass}};
+  }
+  if (!structures.empty()) energies["structures"] = structures;
   json peak_forces = json::object();
   if (forces_csv_) {
     for (std::size_t part = 0; part < forces_csv_->part_names().size(); ++part) {

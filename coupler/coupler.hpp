@@ -100,6 +100,7 @@ class Coupler {
   std::unique_ptr<io::TrafficRecorder> recorder_;
   std::unique_ptr<ForceHistory> forces_csv_;
   std::unique_ptr<EnergyHistory> energy_csv_;
+  PartEnergyHistory part_energies_;  // deformable FEM parts, for summary.json
 
   // Run statistics for summary.json.
   std::uint64_t steps_ = 0;

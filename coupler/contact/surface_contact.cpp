@@ -189,6 +189,11 @@ void SurfaceContact::refresh_geometry() {
   const std::size_t faces = surface_.triangle.size();
   face_normal_.resize(faces);
   face_stiffness_factor_.resize(faces);
+  face_mass_.resize(faces);
+  for (std::size_t f = 0; f < faces; ++f) {
+    const auto& t = surface_.triangle[f];
+    face_mass_[f] = std::min({surface_.mass_of(t[0]), surface_.mass_of(t[1]), surface_.mass_of(t[2])});
+  }
   degenerate_.resize(faces);
   face_box_.resize(faces);
   surface_bounds_ = surface_.bounds();
@@ -441,6 +446,8 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     nearest = std::min(nearest, hit.gap.distance);
     if (hit.gap.reachable && hit.gap.overlap > radius - potential_reach) {
       const Pair& settings = pair(source, face);
+      const double face_mass = face_mass_[face];
+      const double reduced_mass = std::isinf(face_mass) ? mass : mass * face_mass / (mass + face_mass);
       if (settings.hertz) {
         // A fifth of the particle's Rayleigh time pi r sqrt(rho / G) / (0.1631 nu + 0.8766), and a tenth of the
         // contact period at the current overlap (fast impacts go deeper than the Rayleigh bound assumes).
@@ -449,11 +456,11 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
             std::min(result.stable_dt, 0.2 * std::numbers::pi * radius * std::sqrt(density) * settings.rayleigh_factor);
         if (hit.gap.overlap > 0) {
           const double stiffness = 2.0 * settings.effective_modulus * std::sqrt(radius * hit.gap.overlap);
-          result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(mass / stiffness));
+          result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(reduced_mass / stiffness));
         }
       } else {
         const double k = face_stiffness(face, source);
-        result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(mass / k));
+        result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(reduced_mass / k));
       }
     }
     scratch.hits.push_back(hit);

@@ -41,8 +41,14 @@
 // k_n from eq. 6 per face (shell: k1 K s / longest edge; solid: k1 K s^2 / V,
 // with the face as set by set_surface(), not as it deforms)
 // or the pair's explicit stiffness, k_t = k_n, c = 2 zeta sqrt(k m) with m the
-// particle's mass (the wall is taken as infinitely heavy: rigid parts are, and
-// the coupler does not know the FEM node masses), Coulomb friction mu. The
+// particle's mass (the wall is taken as infinitely heavy), Coulomb friction mu.
+//
+// Stable step (eq. 7's contact term, 0.2 pi sqrt(m / k)) with m the reduced
+// mass of the particle and the face: m_p M / (m_p + M), M the lightest node
+// mass of the face's triangle (SurfaceMesh::node_mass; rigid nodes are
+// infinitely heavy, M = infinity gives m_p). The spring acts on the
+// particle and on the face's nodes alike: a heavy boulder against light
+// nodes of a fine deformable mesh is limited by the nodes. The
 // relative velocity is that of the particle's contact point (v + w x (-r n))
 // minus the surface's (barycentric interpolation of the node velocities; zero
 // until update_nodes gives them). Torque on the particle: (-r n) x F. The
@@ -267,6 +273,7 @@ class SurfaceContact {
   std::vector<std::uint32_t> node_faces_;
   std::vector<Vec3> face_normal_;              // unit, outward
   std::vector<double> face_stiffness_factor_;  // eq. 6 without k1: K s / L_max or K s^2 / V, N/m
+  std::vector<double> face_mass_;              // kg: lightest node of the face (infinity: rigid)
   std::vector<char> degenerate_;               // zero-area faces take no part
   std::vector<Aabb> face_box_;
   double median_face_size_ = 0;

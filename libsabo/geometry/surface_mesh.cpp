@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "libsabo/core/error.hpp"
 
@@ -34,6 +35,11 @@ Aabb SurfaceMesh::bounds() const {
   return box;
 }
 
+double SurfaceMesh::mass_of(std::size_t node) const {
+  const double mass = node < node_mass.size() ? node_mass[node] : 0.0;
+  return mass > 0 ? mass : std::numeric_limits<double>::infinity();
+}
+
 void SurfaceMesh::make_single_part(const std::string& name) {
   node_id.resize(node_position.size());
   for (std::size_t i = 0; i < node_id.size(); ++i) node_id[i] = i;
@@ -44,12 +50,21 @@ void SurfaceMesh::make_single_part(const std::string& name) {
   face_bulk_modulus.assign(faces, 0.0);
   face_element_volume.assign(faces, 0.0);
   part_name = {name};
+  node_mass.clear();
 }
 
 void SurfaceMesh::append(const SurfaceMesh& other) {
   const auto node_offset = static_cast<std::uint32_t>(node_position.size());
   const auto part_offset = static_cast<std::uint32_t>(part_name.size());
   node_id.insert(node_id.end(), other.node_id.begin(), other.node_id.end());
+  if (!node_mass.empty() || !other.node_mass.empty()) {
+    node_mass.resize(node_offset, 0.0);
+    if (other.node_mass.empty()) {
+      node_mass.resize(node_offset + other.node_position.size(), 0.0);
+    } else {
+      node_mass.insert(node_mass.end(), other.node_mass.begin(), other.node_mass.end());
+    }
+  }
   node_position.insert(node_position.end(), other.node_position.begin(), other.node_position.end());
   triangle.reserve(triangle.size() + other.triangle.size());
   for (const auto& t : other.triangle) triangle.push_back({t[0] + node_offset, t[1] + node_offset, t[2] + node_offset});
@@ -70,6 +85,15 @@ void SurfaceMesh::validate(const std::string& what) const {
   const std::size_t nodes = node_position.size();
   const std::size_t faces = triangle.size();
   if (node_id.size() != nodes) fail(fmt::format("{} node ids for {} nodes", node_id.size(), nodes));
+  if (!node_mass.empty() && node_mass.size() != nodes) {
+    fail(fmt::format("{} node masses for {} nodes", node_mass.size(), nodes));
+  }
+  for (std::size_t i = 0; i < node_mass.size(); ++i) {
+    if (!std::isfinite(node_mass[i]) || node_mass[i] < 0) {
+      fail(fmt::format("node {} (id {}) has mass {} kg (must be finite and >= 0; 0: rigid)", i, node_id[i],
+                       node_mass[i]));
+    }
+  }
   auto check_face_array = [&](std::size_t size, const char* name) {
     if (size != faces) fail(fmt::format("{} has {} entries for {} faces", name, size, faces));
   };

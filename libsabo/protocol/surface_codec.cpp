@@ -30,20 +30,22 @@ void surface_to_message(const geometry::SurfaceMesh& mesh, std::uint64_t revisio
   out.mutable_face_bulk_modulus()->Assign(mesh.face_bulk_modulus.begin(), mesh.face_bulk_modulus.end());
   out.mutable_face_element_volume()->Assign(mesh.face_element_volume.begin(), mesh.face_element_volume.end());
   for (const auto& name : mesh.part_name) out.add_part_name(name);
+  out.mutable_node_mass()->Assign(mesh.node_mass.begin(), mesh.node_mass.end());
 }
 
 bool arrays_consistent(const sabo::v1::SurfaceTopology& topology) {
   return topology.node_position_size() == 3 * topology.node_id_size() && topology.triangle_size() % 3 == 0 &&
-         topology.face_part_size() * 3 == topology.triangle_size();
+         topology.face_part_size() * 3 == topology.triangle_size() &&
+         (topology.node_mass_size() == 0 || topology.node_mass_size() == topology.node_id_size());
 }
 
 geometry::SurfaceMesh surface_from_message(const sabo::v1::SurfaceTopology& topology, const std::string& sender) {
   if (!arrays_consistent(topology)) {
     throw ProtocolError(
         fmt::format("the surface sent by {}: its arrays differ in length ({} node ids, {} node "
-                    "coordinates, {} triangle corners, {} face parts)",
+                    "coordinates, {} triangle corners, {} face parts, {} node masses)",
                     sender, topology.node_id_size(), topology.node_position_size(), topology.triangle_size(),
-                    topology.face_part_size()));
+                    topology.face_part_size(), topology.node_mass_size()));
   }
   geometry::SurfaceMesh mesh;
   const auto nodes = static_cast<std::size_t>(topology.node_id_size());
@@ -66,6 +68,7 @@ geometry::SurfaceMesh surface_from_message(const sabo::v1::SurfaceTopology& topo
   mesh.face_bulk_modulus.assign(topology.face_bulk_modulus().begin(), topology.face_bulk_modulus().end());
   mesh.face_element_volume.assign(topology.face_element_volume().begin(), topology.face_element_volume().end());
   mesh.part_name.assign(topology.part_name().begin(), topology.part_name().end());
+  mesh.node_mass.assign(topology.node_mass().begin(), topology.node_mass().end());
   mesh.validate("the surface sent by " + sender);
   return mesh;
 }

@@ -943,6 +943,10 @@ class Builder {
         structure.roof_material = *v;
         check_material(r, *v, "roof_material");
       }
+      if (auto v = r.integer("slit_count")) structure.slit_count = static_cast<std::size_t>(*v);
+      if (auto v = r.number("slit_width")) structure.slit_width = *v;
+      if (auto v = r.number("slit_depth")) structure.slit_depth = *v;
+      if (auto v = r.string("slit_axis")) structure.slit_axis = *v == "x" ? 0 : 1;
       if (!structure.rigid && structure.thickness == 0) {
         for (const char* key : {"floors", "roof_thickness", "roof_material"}) {
           if (r.has(key)) {
@@ -952,9 +956,19 @@ class Builder {
           }
         }
       }
+      if (!structure.rigid && structure.thickness > 0) {
+        for (const char* key : kSlitKeys) {
+          if (r.has(key)) {
+            diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                      "belongs to slit dams (solid boxes), but this box has a thickness (a shell building)",
+                      "remove the thickness for a solid dam of hexahedra, or remove the key");
+          }
+        }
+      }
     }
     if (structure.rigid) {
-      for (const char* key : {"fixed", "velocity", "floors", "roof_thickness", "roof_material"}) {
+      for (const char* key : {"fixed", "velocity", "floors", "roof_thickness", "roof_material", "slit_count",
+                              "slit_width", "slit_depth", "slit_axis"}) {
         if (r.has(key)) {
           diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                     "belongs to deformable structures, but this one is rigid",
@@ -969,6 +983,50 @@ class Builder {
                             "with a thickness (shells) or Gmsh meshes, not shape = {}{}",
                             quote_text(*shape), *shape == "plane" ? " without a thickness" : ""),
                 "use shape = \"box\" with element_size, give the plane a thickness, or set rigid = true");
+    }
+  }
+
+  static constexpr std::array<const char*, 4> kSlitKeys{"slit_count", "slit_width", "slit_depth", "slit_axis"};
+
+  // A slit dam's slits must fit the (deformable, solid) box read before.
+  void check_slits(Reader& r, const Structure& structure) {
+    if (structure.rigid || structure.thickness > 0) return;
+    const Aabb& box = structure.shape.box;
+    if (structure.slit_count == 0) {
+      for (const char* key : {"slit_width", "slit_depth", "slit_axis"}) {
+        if (r.has(key)) {
+          diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                    "a slit dimension without slits (slit_count is 0)",
+                    "give slit_count = the number of slits, or remove the key");
+        }
+      }
+      return;
+    }
+    const int across = structure.slit_axis == 0 ? 1 : 0;  // the axis along which the slits are spaced
+    const double length = box.max(across) - box.min(across), height = box.max.z() - box.min.z();
+    const char* across_name = across == 0 ? "x" : "y";
+    const auto count_text = std::to_string(structure.slit_count);
+    if (!(structure.slit_width > 0)) {
+      diag_.add(r.has("slit_width") ? r.line("slit_width") : r.line("slit_count"), r.key_path("slit_width"),
+                r.has("slit_width") ? std::optional<std::string>(value_text(*r.node("slit_width"))) : std::nullopt,
+                fmt::format("slit_count = {} needs the width of the slits", count_text), "give slit_width > 0 (m)");
+    } else if (static_cast<double>(structure.slit_count) * structure.slit_width >= length) {
+      diag_.add(r.line("slit_width"), r.key_path("slit_width"), value_text(*r.node("slit_width")),
+                fmt::format("{} slits of this width take {} m of the box's {} m along {}, leaving no piers", count_text,
+                            number_literal(static_cast<double>(structure.slit_count) * structure.slit_width),
+                            number_literal(length), across_name),
+                fmt::format("give slit_width below {} m, or fewer slits",
+                            number_literal(length / static_cast<double>(structure.slit_count))));
+    }
+    if (!(structure.slit_depth > 0)) {
+      diag_.add(r.has("slit_depth") ? r.line("slit_depth") : r.line("slit_count"), r.key_path("slit_depth"),
+                r.has("slit_depth") ? std::optional<std::string>(value_text(*r.node("slit_depth"))) : std::nullopt,
+                fmt::format("slit_count = {} needs the depth of the slits below the top of the box", count_text),
+                fmt::format("give slit_depth in (0, {}] m", number_literal(height)));
+    } else if (structure.slit_depth > height) {
+      diag_.add(r.line("slit_depth"), r.key_path("slit_depth"), value_text(*r.node("slit_depth")),
+                fmt::format("deeper than the box is high ({} m)", number_literal(height)),
+                fmt::format("give slit_depth <= {} m (equal: the slits reach the ground)", number_literal(height)));
     }
   }
 
@@ -1299,6 +1357,7 @@ class Builder {
                     "swap the values of min and max where max <= min");
         }
       }
+      if (min && max && ((*max).array() > (*min).array()).all()) check_slits(r, structure);
     } else if (*shape == "chute") {
       s.type = Shape::Type::chute;
       if (auto v = r.vec3("origin")) s.origin = *v;

@@ -211,9 +211,16 @@ struct Structure {
   // thickness: four walls, floors - 1 slabs and a roof), or a shell panel (a
   // plane with a thickness), with elements of about element_size.
   bool rigid = true;
-  double roof_thickness = 0;             // m, building slabs (0: thickness)
-  std::string roof_material;             // building slabs (empty: material)
-  std::size_t floors = 1;                // building storeys (>= 1)
+  double roof_thickness = 0;  // m, building slabs (0: thickness)
+  std::string roof_material;  // building slabs (empty: material)
+  std::size_t floors = 1;     // building storeys (>= 1)
+  // Deformable solid box: a slit dam, slit_count vertical slits (open at the
+  // top, slit_depth deep, slit_width wide) through the box along slit_axis
+  // (0: x, 1: y), spaced so that the slit_count + 1 piers are equally wide.
+  std::size_t slit_count = 0;
+  double slit_width = 0;  // m
+  double slit_depth = 0;  // m
+  int slit_axis = 1;
   std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
   Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
   double thickness = 0;                  // m: shell thickness for the eq. 3 offset (0: solid face)

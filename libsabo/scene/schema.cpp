@@ -469,6 +469,32 @@ class Schema {
             .allowed("a `[materials.NAME]`")
             .only_for({"box"})
             .doc("Deformable building: material of the floor and roof slabs."),
+        K("slit_count", Type::integer)
+            .def("0")
+            .ge(0)
+            .only_for({"box"})
+            .doc("Deformable solid box (no `thickness`): a slit dam. Number of vertical slits, open at the top, "
+                 "cut through the box along `slit_axis` and spaced evenly along the other horizontal axis (the "
+                 "`slit_count + 1` piers between them are equally wide). 0: a plain box."),
+        K("slit_width", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"box"})
+            .doc("Slit dam: width of each slit; with `slit_count`, below the box's length across `slit_axis`."),
+        K("slit_depth", Type::number)
+            .def("0.0")
+            .unit("m")
+            .ge(0)
+            .only_for({"box"})
+            .doc("Slit dam: depth of the slits from the top of the box down; at most its height (`max.z - min.z`; "
+                 "equal: the slits reach the ground)."),
+        K("slit_axis", Type::string)
+            .def("\"y\"")
+            .choices({"x", "y"})
+            .only_for({"box"})
+            .doc("Slit dam: the horizontal axis the slits pass through (the flow direction, across the dam's "
+                 "thickness)."),
         K("thickness", Type::number)
             .def("0.0")
             .unit("m")

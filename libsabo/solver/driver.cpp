@@ -146,6 +146,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       solver.integrate(dt_previous, forces.dt());
       time += forces.dt();
       dt_previous = forces.dt();
+      if (forces.checkpoint()) solver.write_checkpoint(step + 1, time);
       compute_since_last = overlapped + seconds_since(start);
       compute_seconds += compute_since_last;
     }

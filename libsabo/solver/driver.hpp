@@ -35,6 +35,8 @@ class Interest {
 //   3. apply_coupling_forces(): the contact forces received for step n;
 //   4. write_output() when the coupler asks for output at t_n;
 //   5. integrate(dt_{n-1}, dt_n): v_{n+1/2}, x_{n+1} (skipped on the last step).
+//   6. write_checkpoint(n + 1, t_{n+1}) when StepForces.checkpoint is set
+//      (after integrate: the state a restart resumes from at step n + 1).
 class CoupledSolver {
  public:
   virtual ~CoupledSolver() = default;
@@ -48,6 +50,8 @@ class CoupledSolver {
   virtual void apply_coupling_forces(const sabo::v1::StepForces& forces) = 0;
   virtual void write_output(std::uint64_t step, double time) = 0;
   virtual void integrate(double dt_previous, double dt) = 0;
+  // Solvers that support restarts write their state here; the default writes nothing.
+  virtual void write_checkpoint(std::uint64_t /*next_step*/, double /*time*/) {}
   // Called once at the end, also after errors: close files.
   virtual void finish() = 0;
 };

@@ -826,3 +826,46 @@ TEST(SurfaceContact, HertzImpactOnARigidFloorIsBenchmarkD1) {
 
 }  // namespace
 }  // namespace sabo::coupler
+
+namespace sabo::coupler {
+namespace {
+
+// Eq. 7's contact term with the node masses: 0.2 pi sqrt(m_r / k), m_r the
+// reduced mass of the particle and the face's lightest node. Without node
+// masses (rigid) m_r is the particle's mass; a light node of a fine FEM mesh
+// under a heavy boulder lowers it, as the spring then moves the node.
+TEST(SurfaceContact, StableDtUsesTheReducedMassWithTheFaceNodes) {
+  const double k = 1e6, particle_mass = 10.0;
+  auto stable_dt = [&](const std::vector<double>& node_mass) {
+    test::MeshBuilder builder;
+    const auto part = builder.part("plate");
+    builder.triangle(Vec3(-1, -1, 0), Vec3(2, -1, 0), Vec3(-1, 2, 0), part);
+    builder.mesh().node_mass = node_mass;
+    SurfaceContact contact({"boulders"}, test::uniform(test::explicit_stiffness(k)));
+    contact.set_surface(builder.mesh());
+    test::Cloud cloud;
+    cloud.add(Vec3(0, 0, 0.45), 0.5, particle_mass);
+    ContactOutput out;
+    contact.compute(cloud.view(), 1e-4, out);
+    return contact.stable_dt();
+  };
+  const double factor = 0.2 * std::numbers::pi;
+  const double rigid = stable_dt({});
+  const double rigid_expected = factor * std::sqrt(particle_mass / k);
+  std::cout << "contact dt, rigid face: measured " << rigid << " s expected " << rigid_expected << " s\n";
+  EXPECT_NEAR(rigid, rigid_expected, 1e-12 * rigid_expected);
+  EXPECT_EQ(stable_dt({0.0, 0.0, 0.0}), rigid);  // mass 0: a rigid node
+
+  const double light = stable_dt({0.5, 2.0, 3.0});
+  const double reduced = particle_mass * 0.5 / (particle_mass + 0.5);
+  const double light_expected = factor * std::sqrt(reduced / k);
+  std::cout << "contact dt, 0.5 kg node under a 10 kg particle: measured " << light << " s expected " << light_expected
+            << " s\n";
+  EXPECT_NEAR(light, light_expected, 1e-12 * light_expected);
+  // Central difference is stable for omega dt < 2: the two-mass spring's omega = sqrt(k / m_r).
+  EXPECT_LT(light * std::sqrt(k / reduced), 2.0);
+  EXPECT_GT(rigid * std::sqrt(k / reduced), 2.0) << "the particle-only dt would be unstable for this node";
+}
+
+}  // namespace
+}  // namespace sabo::coupler
