@@ -7,10 +7,12 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <type_traits>
 
 #include "fem_solver/mesh/gmsh.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
+#include "libsabo/io/hdf5.hpp"
 
 namespace sabo::fem {
 
@@ -49,6 +51,10 @@ std::size_t element_divisions(double length, double element_size) {
 
 HexMesh structure_mesh(const scene::Structure& structure) {
   const Aabb& box = structure.shape.box;
+  if (structure.slit_count > 0) {
+    return slit_dam(box, structure.slit_count, structure.slit_width, structure.slit_depth, structure.slit_axis,
+                    structure.shape.element_size);
+  }
   std::array<std::size_t, 3> divisions{};
   for (int d = 0; d < 3; ++d) {
     divisions[static_cast<std::size_t>(d)] = element_divisions(box.max(d) - box.min(d), structure.shape.element_size);
@@ -218,6 +224,26 @@ Vec3 DeformablePart::velocity(std::size_t node) const {
   return solid_ ? solid_->velocities()[node] : shell_->velocities()[node];
 }
 
+BodyState DeformablePart::save_state() const {
+  BodyState state = solid_ ? solid_->save_state() : shell_->save_state();
+  state.real.push_back(dt_previous_);
+  return state;
+}
+
+void DeformablePart::restore_state(const BodyState& state, const std::string& what) {
+  if (state.real.empty()) throw FileError(fmt::format("{}: the checkpoint holds no values", what));
+  BodyState body = state;
+  dt_previous_ = body.real.back();
+  body.real.pop_back();
+  if (solid_) {
+    solid_->restore_state(body, what);
+  } else {
+    shell_->restore_state(body, what);
+  }
+  surface_built_ = false;
+  refresh_surface();
+}
+
 bool DeformablePart::refresh_surface() {
   const std::uint64_t revision = solid_ ? solid_->topology_revision() : shell_->topology_revision();
   if (surface_built_ && surface_revision_ == revision) return false;
@@ -249,9 +275,11 @@ bool DeformablePart::refresh_surface() {
 
 geometry::SurfaceMesh DeformablePart::surface() const {
   geometry::SurfaceMesh mesh;
+  const std::span<const double> masses = solid_ ? solid_->masses() : shell_->masses();
   for (std::uint32_t n : surface_nodes_) {
     mesh.node_id.push_back(n);  // the model offsets ids per part
     mesh.node_position.push_back(position(n));
+    mesh.node_mass.push_back(masses[n]);
   }
   for (const BoundaryFace& face : faces_) {
     const auto s = [&](std::size_t k) { return body_to_surface_[face.node[k]]; };
@@ -485,6 +513,67 @@ void FemModel::step(double dt) {
     parts_[p]->step(dt, std::span<const Vec3>(node_force_).subspan(info.node_begin, info.node_end - info.node_begin));
   }
   time_ += dt;
+}
+
+namespace {
+constexpr const char* kCheckpointFormat = "sabo fem_solver checkpoint 1";
+}  // namespace
+
+void FemModel::write_checkpoint(const std::filesystem::path& file, std::uint64_t step) const {
+  io::hdf5::File out = io::hdf5::File::create(file);
+  out.set_attribute("format", kCheckpointFormat);
+  out.set_attribute("step", static_cast<std::int64_t>(step));
+  out.set_attribute("time", time_);
+  out.set_attribute("surface_revision", static_cast<std::int64_t>(surface_revision_));
+  io::hdf5::Group parts = out.create_group("parts");
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get());
+    if (part == nullptr) continue;
+    const BodyState state = part->save_state();
+    io::hdf5::Group group = parts.create_group(info_[index].name);
+    auto write = [&](const std::string& name, const auto& values) {
+      using T = typename std::decay_t<decltype(values)>::value_type;
+      group.create_dataset<T>(name, std::max<std::uint64_t>(1, values.size()))
+          .append(std::span<const T>(values.data(), values.size()));
+    };
+    write("real", state.real);
+    write("active", state.active);
+    write("counters", state.counters);
+  }
+  out.flush();
+}
+
+std::uint64_t FemModel::read_checkpoint(const std::filesystem::path& file) {
+  const io::hdf5::File in = io::hdf5::File::open(file);
+  if (!in.has_attribute("format") || in.string_attribute("format") != kCheckpointFormat) {
+    throw FileError(
+        fmt::format("{}: not a fem_solver checkpoint (attribute format is not \"{}\"). Fix: restart "
+                    "from a checkpoint_fem_*.h5 file the fem_solver wrote",
+                    file.string(), kCheckpointFormat));
+  }
+  const io::hdf5::Group parts = in.group("parts");
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    auto* part = dynamic_cast<DeformablePart*>(parts_[index].get());
+    if (part == nullptr) continue;
+    const std::string& name = info_[index].name;
+    const std::string what = fmt::format("{}: part '{}'", file.string(), name);
+    if (!parts.exists(name)) {
+      throw FileError(
+          fmt::format("{}: no state for this deformable part. Fix: restart from a checkpoint of this "
+                      "scene",
+                      what));
+    }
+    const io::hdf5::Group group = parts.group(name);
+    BodyState state;
+    state.real = group.dataset("real").read_all<double>();
+    state.active = group.dataset("active").read_all<std::uint8_t>();
+    state.counters = group.dataset("counters").read_all<std::uint64_t>();
+    part->restore_state(state, what);
+  }
+  time_ = in.double_attribute("time");
+  rebuild_surface();
+  surface_revision_ = static_cast<std::uint64_t>(in.int_attribute("surface_revision"));
+  return static_cast<std::uint64_t>(in.int_attribute("step"));
 }
 
 void FemModel::write_output(const std::filesystem::path& run_folder, std::uint64_t step, double time,

@@ -81,6 +81,11 @@ class DeformablePart final : public Part {
   [[nodiscard]] bool is_shell() const { return shell_ != nullptr; }
   [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
   [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
+  [[nodiscard]] std::size_t eroded_count() const { return solid_ ? solid_->eroded_count() : shell_->eroded_count(); }
+  // Checkpoint and restart: the body's evolving state with the part's last
+  // step dt appended; restore_state also rebuilds the surface of the active elements.
+  [[nodiscard]] BodyState save_state() const;
+  void restore_state(const BodyState& state, const std::string& what);
   // The volume mesh (.vtu): hexahedra or quads with displacement, velocity,
   // stress, von Mises stress, plastic strain, eroded.
   void write_volume(const std::filesystem::path& file, const io::vtk::Options& options) const;
@@ -165,6 +170,17 @@ class FemModel {
   [[nodiscard]] std::span<const Vec3> node_forces() const { return node_force_; }  // last applied, N
 
   void step(double dt);  // s; see the step contract above
+
+  // Checkpoint (DESIGN.md §5) after step(): every deformable part's state
+  // (node positions and velocities, stresses, back stresses, plastic strains,
+  // hourglass forces, eroded flags, energy accounts) and the model's time, in
+  // HDF5 (`file`: attributes format, step, time, surface_revision; a group
+  // parts/<name> per deformable part with datasets real, active, counters).
+  void write_checkpoint(const std::filesystem::path& file, std::uint64_t step) const;
+  // Restores a checkpoint written by a model of the same scene, so that the
+  // next steps give the same bits as the run that wrote it; returns its step.
+  // Throws FileError for an unreadable file or one that does not fit the scene.
+  std::uint64_t read_checkpoint(const std::filesystem::path& file);
 
   // Writes <run_folder>/fem/fem_<step>.vtp (the surface with node_force,
   // node_id, and per face part, material, thickness) and adds it to

@@ -51,6 +51,20 @@ class FemSolver final : public solver::CoupledSolver {
     }
     const Energies e = model_.energies();
     solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.dissipated});
+    for (std::size_t index = 0; index < model_.part_count(); ++index) {
+      const DeformablePart* part = model_.deformable(index);
+      if (part == nullptr) continue;
+      const SolidEnergies pe = part->solid_energies();
+      auto* out = state.add_part_energies();
+      out->set_part(model_.part(index).name);
+      out->set_kinetic(pe.kinetic);
+      out->set_internal(pe.internal);
+      out->set_plastic_work(pe.plastic_work);
+      out->set_hourglass(pe.hourglass);
+      out->set_eroded(pe.eroded);
+      out->set_external_work(pe.external_work);
+      out->set_eroded_elements(part->eroded_count());
+    }
   }
 
   void compute_internal_forces(double dt_previous) override { model_.compute_internal_forces(dt_previous); }
@@ -61,6 +75,9 @@ class FemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }
   void integrate(double /*dt_previous*/, double dt) override { model_.step(dt); }
+  void write_checkpoint(std::uint64_t next_step, double /*time*/) override {
+    model_.write_checkpoint(out_dir_ / fmt::format("checkpoint_fem_{:08}.h5", next_step), next_step);
+  }
   void finish() override {
     for (std::size_t index = 0; index < model_.part_count(); ++index) {
       const DeformablePart* part = model_.deformable(index);

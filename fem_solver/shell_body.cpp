@@ -134,7 +134,10 @@ std::size_t ShellBody::compute_internal_forces(double dt_previous) {
     element_dt_[e] = std::numeric_limits<double>::infinity();
     ++newly_eroded;
   }
-  if (newly_eroded > 0) ++topology_revision_;
+  if (newly_eroded > 0) {
+    eroded_count_ += newly_eroded;
+    ++topology_revision_;
+  }
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
 #pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
@@ -188,6 +191,39 @@ SolidEnergies ShellBody::energies() const {
   e.eroded = eroded_energy_;
   e.external_work = external_work_;
   return e;
+}
+
+BodyState ShellBody::save_state() const {
+  BodyState out;
+  const auto put = [&](double value) { out.real.push_back(value); };
+  for (const auto* field : {&position_, &velocity_, &angular_velocity_}) {
+    for (const Vec3& v : *field) {
+      for (int d = 0; d < 3; ++d) put(v(d));
+    }
+  }
+  for (const Shell4State& s : state_) for_each_value_of_shell(s, put);
+  for (double value : {kinetic_, external_work_, eroded_energy_, stable_dt_}) put(value);
+  out.active = active_;
+  out.counters = {topology_revision_, eroded_count_};
+  return out;
+}
+
+void ShellBody::restore_state(const BodyState& state, const std::string& what) {
+  BodyStateReader reader(state, what);
+  std::size_t per_element = 0;
+  const Shell4State probe{};
+  for_each_value_of_shell(probe, [&](const double&) { ++per_element; });
+  reader.expect_sizes(9 * position_.size() + per_element * state_.size() + 4, state_.size(), 2);
+  for (auto* field : {&position_, &velocity_, &angular_velocity_}) {
+    for (Vec3& v : *field) {
+      for (int d = 0; d < 3; ++d) v(d) = reader.next();
+    }
+  }
+  for (Shell4State& s : state_) for_each_value_of_shell(s, [&](double& value) { value = reader.next(); });
+  for (double* value : {&kinetic_, &external_work_, &eroded_energy_, &stable_dt_}) *value = reader.next();
+  active_ = state.active;
+  topology_revision_ = state.counters[0];
+  eroded_count_ = static_cast<std::size_t>(state.counters[1]);
 }
 
 }  // namespace sabo::fem

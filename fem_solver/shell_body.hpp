@@ -10,6 +10,7 @@
 // from limiting the step; it slows rotations, not the static response.
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "fem_solver/elements/shell4.hpp"
@@ -65,7 +66,13 @@ class ShellBody {
   void integrate(double dt_previous, double dt, std::span<const Vec3> external_force = {});
   [[nodiscard]] double stable_dt() const { return stable_dt_; }
   [[nodiscard]] SolidEnergies energies() const;
+  // Checkpoint and restart: the evolving state (body_state.hpp). restore_state
+  // takes a state saved by a body built from the same mesh and settings and
+  // continues with the same bits; FileError when the sizes do not match.
+  [[nodiscard]] BodyState save_state() const;
+  void restore_state(const BodyState& state, const std::string& what);
   [[nodiscard]] std::uint64_t topology_revision() const { return topology_revision_; }
+  [[nodiscard]] std::size_t eroded_count() const { return eroded_count_; }
 
  private:
   ShellMesh mesh_;
@@ -84,6 +91,7 @@ class ShellBody {
   NodeGather gather_;
   double stable_dt_ = 0, kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
   std::uint64_t topology_revision_ = 0;
+  std::size_t eroded_count_ = 0;
 };
 
 inline constexpr unsigned rotation_x = 8, rotation_y = 16, rotation_z = 32, rotations_all = 56;

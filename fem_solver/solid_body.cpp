@@ -141,4 +141,37 @@ SolidEnergies SolidBody::energies() const {
   return e;
 }
 
+BodyState SolidBody::save_state() const {
+  BodyState out;
+  const auto put = [&](double value) { out.real.push_back(value); };
+  for (const auto* field : {&position_, &velocity_}) {
+    for (const Vec3& v : *field) {
+      for (int d = 0; d < 3; ++d) put(v(d));
+    }
+  }
+  for (const Hex8State& s : state_) for_each_value_of_hex(s, put);
+  for (double value : {kinetic_, external_work_, eroded_energy_, stable_dt_}) put(value);
+  out.active = active_;
+  out.counters = {topology_revision_, eroded_count_};
+  return out;
+}
+
+void SolidBody::restore_state(const BodyState& state, const std::string& what) {
+  BodyStateReader reader(state, what);
+  std::size_t per_element = 0;
+  const Hex8State probe{};
+  for_each_value_of_hex(probe, [&](const double&) { ++per_element; });
+  reader.expect_sizes(6 * position_.size() + per_element * state_.size() + 4, state_.size(), 2);
+  for (auto* field : {&position_, &velocity_}) {
+    for (Vec3& v : *field) {
+      for (int d = 0; d < 3; ++d) v(d) = reader.next();
+    }
+  }
+  for (Hex8State& s : state_) for_each_value_of_hex(s, [&](double& value) { value = reader.next(); });
+  for (double* value : {&kinetic_, &external_work_, &eroded_energy_, &stable_dt_}) *value = reader.next();
+  active_ = state.active;
+  topology_revision_ = state.counters[0];
+  eroded_count_ = static_cast<std::size_t>(state.counters[1]);
+}
+
 }  // namespace sabo::fem

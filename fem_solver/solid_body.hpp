@@ -15,9 +15,11 @@
 // gather them in a fixed order: the same bits on any number of threads.
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "fem_solver/body_common.hpp"
+#include "fem_solver/body_state.hpp"
 #include "fem_solver/elements/hex8.hpp"
 #include "fem_solver/materials/plastic_kinematic.hpp"
 #include "fem_solver/mesh/hex_mesh.hpp"
@@ -67,6 +69,11 @@ class SolidBody {
   [[nodiscard]] double stable_dt() const { return stable_dt_; }
   [[nodiscard]] SolidEnergies energies() const;
   // Incremented whenever elements erode (the exterior surface changed).
+  // Checkpoint and restart: the evolving state (body_state.hpp). restore_state
+  // takes a state saved by a body built from the same mesh and settings and
+  // continues with the same bits; FileError when the sizes do not match.
+  [[nodiscard]] BodyState save_state() const;
+  void restore_state(const BodyState& state, const std::string& what);
   [[nodiscard]] std::uint64_t topology_revision() const { return topology_revision_; }
   [[nodiscard]] std::size_t eroded_count() const { return eroded_count_; }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 
 namespace sabo::fem {
 
@@ -49,6 +50,93 @@ HexMesh structured_box(const Aabb& box, const std::array<std::size_t, 3>& divisi
     }
   }
   mesh.element = grid_elements(divisions);
+  return mesh;
+}
+
+HexMesh structured_grid(const std::array<std::vector<double>, 3>& lines) {
+  std::array<std::size_t, 3> divisions{};
+  for (std::size_t d = 0; d < 3; ++d) {
+    assert(lines[d].size() >= 2);
+    divisions[d] = lines[d].size() - 1;
+  }
+  HexMesh mesh;
+  mesh.node.reserve(lines[0].size() * lines[1].size() * lines[2].size());
+  for (double z : lines[2]) {
+    for (double y : lines[1]) {
+      for (double x : lines[0]) mesh.node.emplace_back(x, y, z);
+    }
+  }
+  mesh.element = grid_elements(divisions);
+  return mesh;
+}
+
+namespace {
+
+// Node lines over [from, to] in about `element_size` steps (at least one), `from` excluded.
+void append_lines(std::vector<double>& lines, double from, double to, double element_size) {
+  const double length = to - from;
+  const auto n =
+      element_size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / element_size))) : std::size_t{1};
+  for (std::size_t k = 1; k < n; ++k) lines.push_back(from + length * static_cast<double>(k) / static_cast<double>(n));
+  lines.push_back(to);
+}
+
+}  // namespace
+
+HexMesh slit_dam(const Aabb& box, std::size_t slit_count, double slit_width, double slit_depth, int slit_axis,
+                 double element_size) {
+  assert(slit_axis == 0 || slit_axis == 1);
+  const auto through = static_cast<std::size_t>(slit_axis);
+  const std::size_t across = 1 - through;
+  const double length = box.max(static_cast<Eigen::Index>(across)) - box.min(static_cast<Eigen::Index>(across));
+  const double pier = (length - static_cast<double>(slit_count) * slit_width) / static_cast<double>(slit_count + 1);
+  assert(pier > 0 && slit_depth > 0 && slit_depth <= box.max.z() - box.min.z());
+
+  std::array<std::vector<double>, 3> lines;
+  lines[through] = {box.min(static_cast<Eigen::Index>(through))};
+  append_lines(lines[through], box.min(static_cast<Eigen::Index>(through)), box.max(static_cast<Eigen::Index>(through)),
+               element_size);
+  std::vector<Aabb> slits;
+  double position = box.min(static_cast<Eigen::Index>(across));
+  lines[across] = {position};
+  for (std::size_t k = 0; k <= slit_count; ++k) {
+    const double pier_end = k == slit_count ? box.max(static_cast<Eigen::Index>(across)) : position + pier;
+    append_lines(lines[across], position, pier_end, element_size);
+    position = pier_end;
+    if (k == slit_count) break;
+    Aabb slit{box.min, box.max};
+    slit.min(static_cast<Eigen::Index>(across)) = position;
+    slit.max(static_cast<Eigen::Index>(across)) = position + slit_width;
+    slit.min.z() = box.max.z() - slit_depth - 1e-9 * (box.max.z() - box.min.z());
+    slits.push_back(slit);
+    append_lines(lines[across], position, position + slit_width, element_size);
+    position += slit_width;
+  }
+  lines[2] = {box.min.z()};
+  const double height = box.max.z() - box.min.z();
+  // Slits as deep as the box (up to rounding) reach the ground: no sliver layer below them.
+  const double slit_bottom = slit_depth < height * (1 - 1e-9) ? box.max.z() - slit_depth : box.min.z();
+  if (slit_bottom > box.min.z()) append_lines(lines[2], box.min.z(), slit_bottom, element_size);
+  append_lines(lines[2], slit_bottom, box.max.z(), element_size);
+
+  const HexMesh grid = structured_grid(lines);
+  HexMesh mesh;
+  std::vector<std::uint32_t> renumber(grid.node.size(), std::numeric_limits<std::uint32_t>::max());
+  for (const auto& element : grid.element) {
+    Vec3 centre = Vec3::Zero();
+    for (auto n : element) centre += grid.node[n] / 8.0;
+    if (std::any_of(slits.begin(), slits.end(), [&](const Aabb& slit) { return slit.contains(centre); })) continue;
+    std::array<std::uint32_t, 8> kept{};
+    for (std::size_t a = 0; a < 8; ++a) {
+      std::uint32_t& id = renumber[element[a]];
+      if (id == std::numeric_limits<std::uint32_t>::max()) {
+        id = static_cast<std::uint32_t>(mesh.node.size());
+        mesh.node.push_back(grid.node[element[a]]);
+      }
+      kept[a] = id;
+    }
+    mesh.element.push_back(kept);
+  }
   return mesh;
 }
 

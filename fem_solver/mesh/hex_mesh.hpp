@@ -19,6 +19,20 @@ struct HexMesh {
 // The box [min, max] cut into divisions[0] x divisions[1] x divisions[2] equal hexahedra (each >= 1).
 [[nodiscard]] HexMesh structured_box(const Aabb& box, const std::array<std::size_t, 3>& divisions);
 
+// The box spanned by grid lines: lines[d] holds the increasing node
+// coordinates along axis d (at least two each), m.
+[[nodiscard]] HexMesh structured_grid(const std::array<std::vector<double>, 3>& lines);
+
+// A slit dam: the box with `slit_count` vertical slits open at the top,
+// `slit_width` wide and `slit_depth` deep (m), cut through the box along axis
+// `slit_axis` (0: x, 1: y) and spaced along the other horizontal axis so that
+// the slit_count + 1 piers are equally wide. The grid has node lines on every
+// slit edge (the slits are exact) and elements of about `element_size` (m;
+// 0: one element per pier, slit and height segment). Nodes of removed
+// elements that no kept element uses are dropped.
+[[nodiscard]] HexMesh slit_dam(const Aabb& box, std::size_t slit_count, double slit_width, double slit_depth,
+                               int slit_axis, double element_size);
+
 // A circular cylinder along z: base centre `base`, `radius`, `length`; the
 // section is an n x n grid mapped onto the disc (elliptical grid mapping),
 // `axial` layers along z.

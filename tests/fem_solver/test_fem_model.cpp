@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <iostream>
 #include <limits>
 #include <numbers>
 #include <sstream>
@@ -12,6 +13,7 @@
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
+#include "libsabo/scene/loader.hpp"
 #include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
@@ -310,4 +312,61 @@ TEST(FemModel, WritesSurfaceSeries) {
   EXPECT_NE(pvd.str().find("timestep=\"0.05\" group=\"\" part=\"0\" file=\"fem/fem_00000250.vtp\""), std::string::npos)
       << pvd.str();
   EXPECT_NE(pvd.str().find("file=\"fem/fem_00000000.vtp\""), std::string::npos);
+}
+
+// A slit dam from the scene (loader and schema keys slit_*): the mesh has the
+// slits exactly (node lines on their edges), its mass is that of the box less
+// the slits, the surface carries the slits' floors, and the FEM model reports
+// the node masses of the deformable surface for the coupler's stable dt.
+TEST(FemModel, SlitDamFromTheScene) {
+  const fs::path file = scratch("slit_dam.toml");
+  {
+    std::ofstream out(file);
+    out << "format_version = 1\n[run]\nend_time = 1.0\noutput_interval = 0.1\n"
+           "[materials.concrete]\ndensity = 2300.0\nyoungs_modulus = 8e9\npoisson_ratio = 0.23\n"
+           "[[structures]]\nname = \"dam\"\nmaterial = \"concrete\"\nrigid = false\nshape = \"box\"\n"
+           "min = [0.0, 0.0, 0.0]\nmax = [6.0, 2.0, 4.0]\nelement_size = 0.5\nfixed = [\"z-\"]\n"
+           "slit_count = 2\nslit_width = 1.0\nslit_depth = 2.0\nslit_axis = \"y\"\n";
+  }
+  const sabo::scene::Scene scene = sabo::scene::load_scene(file);
+  ASSERT_EQ(scene.structures.size(), 1u);
+  EXPECT_EQ(scene.structures[0].slit_count, 2u);
+  EXPECT_EQ(scene.structures[0].slit_axis, 1);
+  FemModel model(scene);
+  const auto* solid = model.deformable(0)->solid();
+  ASSERT_NE(solid, nullptr);
+  // Piers (6 - 2 x 1) / 3 = 1.333 m: 3 elements each, slits 2, so 13 x 4 x 8 less 2 x (2 x 4 x 4).
+  EXPECT_EQ(solid->element_count(), 13u * 4u * 8u - 64u);
+  const double expected_mass = 2300.0 * (6.0 * 2.0 * 4.0 - 2 * (1.0 * 2.0 * 2.0));
+  std::cout << "slit dam mass: measured " << solid->total_mass() << " kg expected " << expected_mass << " kg\n";
+  EXPECT_NEAR(solid->total_mass(), expected_mass, 1e-9 * expected_mass);
+  const double pier = 4.0 / 3.0;
+  std::vector<sabo::Aabb> slits;
+  for (int k = 0; k < 2; ++k) {
+    const double x0 = (k + 1) * pier + k * 1.0;
+    slits.push_back(sabo::Aabb{Vec3(x0, 0, 2), Vec3(x0 + 1.0, 2, 4)});
+  }
+  for (std::size_t e = 0; e < solid->element_count(); ++e) {
+    Vec3 centre = Vec3::Zero();
+    for (auto n : solid->mesh().element[e]) centre += solid->reference_positions()[n] / 8.0;
+    for (const auto& slit : slits) ASSERT_FALSE(slit.contains(centre)) << "element " << e << " inside a slit";
+  }
+  // The slits' floors (z = 2, inside the slits, facing up) are on the contact surface.
+  const auto& surface = model.surface();
+  double floor_area = 0;
+  for (std::size_t f = 0; f < surface.face_count(); ++f) {
+    const auto& t = surface.triangle[f];
+    const Vec3 c = (surface.node_position[t[0]] + surface.node_position[t[1]] + surface.node_position[t[2]]) / 3.0;
+    if (std::abs(c.z() - 2.0) < 1e-9 && surface.face_normal(f).z() > 0.999) floor_area += surface.face_area(f);
+  }
+  std::cout << "slit floor area on the surface: measured " << floor_area << " m^2 expected 4 m^2\n";
+  EXPECT_NEAR(floor_area, 2 * 1.0 * 2.0, 1e-9);
+  // Node masses travel with the surface (eq. 7's contact term), their sum at most the dam's mass.
+  ASSERT_EQ(surface.node_mass.size(), surface.node_count());
+  double surface_mass = 0;
+  for (double m : surface.node_mass) {
+    EXPECT_GT(m, 0.0);
+    surface_mass += m;
+  }
+  EXPECT_LT(surface_mass, solid->total_mass());
 }
