@@ -304,12 +304,36 @@ class SphereOnDeformableBlockTest(RealRunTestCase):
         with open(os.path.join(out, "fem_energy.csv"), newline="") as handle:
             rows = list(csv.DictReader(handle))
         self.assertGreaterEqual(len(rows), 4)
-        last = rows[-1]
-        hourglass = float(last["hourglass_J"]) / max(float(last["internal_J"]), 1e-30)
-        # Reported, not held to 10%: a concentrated impact on a coarse one-point mesh puts much of the
-        # deformation in the stabilised (hourglass) modes; see docs/physics.md "FEM solids".
-        print(f"block hourglass / internal energy at the end: measured {hourglass:.3f}; plastic work "
-              f"{float(last['plastic_work_J']):.1f} J")
+        # The energy history of the block in summary.json: every output time, the same figures as
+        # fem_energy.csv (written by the fem_solver at those times).
+        block = balance["structures"]["block"]
+        history = block["history"]
+        for name in ("time", "kinetic", "internal", "plastic_work", "hourglass", "eroded", "external_work",
+                     "eroded_elements"):
+            self.assertEqual(len(history[name]), len(history["time"]), name)
+        print(f"summary energy history of the block: {len(history['time'])} samples, fem_energy.csv "
+              f"{len(rows)} rows")
+        self.assertGreaterEqual(len(history["time"]), len(rows) - 1)
+        csv_by_time = {round(float(row["time_s"]), 9): row for row in rows}
+        matched = 0
+        for k, t in enumerate(history["time"]):
+            row = csv_by_time.get(round(t, 9))
+            if row is None:
+                continue
+            matched += 1
+            for name in ("internal", "plastic_work", "hourglass"):
+                self.assertAlmostEqual(history[name][k], float(row[name + "_J"]),
+                                       delta=1e-6 * max(1.0, abs(history[name][k])))
+        print(f"summary samples matching fem_energy.csv rows: measured {matched} expected >= 3")
+        self.assertGreaterEqual(matched, 3)
+        self.assertGreater(history["plastic_work"][-1], 0.0)
+        self.assertEqual(history["eroded_elements"][-1], 0)
+        # Reported from summary.json, not yet held to the 10% bound: the sphere loads the coarse
+        # one-point mesh at about one node, and the stabilised (hourglass) modes carry most of the
+        # deformation (0.9 at 0.125 m, 0.58 at 0.0625 m). See docs/physics.md "FEM solids".
+        hourglass = block["max_hourglass_over_internal"]
+        print(f"block hourglass / internal energy, largest over the run: measured {hourglass:.4f} (bound 0.1 "
+              f"not met on this mesh)")
         self.assertTrue(math.isfinite(hourglass))
 
 
@@ -342,4 +366,12 @@ class SphereBreaksBlockTest(RealRunTestCase):
         s = particle_states(out)
         print(f"sphere final vertical velocity: measured {s['velocity'][-1, 2]:.2f} m/s (started at -30)")
         self.assertTrue(np.isfinite(s["position"]).all())
+        block = read_json(os.path.join(out, "summary.json"))["energies"]["structures"]["block"]
+        history = block["history"]
+        print(f"summary: eroded elements {history['eroded_elements'][-1]}, eroded energy "
+              f"{history['eroded'][-1]:.1f} J, largest hourglass / internal energy "
+              f"{block['max_hourglass_over_internal']:.4f} (bound 0.1 not met on this 0.25 m mesh)")
+        self.assertGreater(history["eroded_elements"][-1], 0)
+        self.assertGreater(history["eroded"][-1], 0.0)
+        self.assertTrue(math.isfinite(block["max_hourglass_over_internal"]))
 
