@@ -12,6 +12,7 @@
 
 #include "coupler/contact/surface_contact.hpp"
 #include "fem_solver/fem_model.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Vec3;
 
@@ -65,6 +66,7 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
 
   double dt_previous = 0, t = 0, worst_energy = 0, fastest_node = 0;
   bool finite = true;
+  sabo::fem::test::HourglassMonitor hourglass;
   sabo::coupler::ContactOutput out;
   while (t < 0.06) {
     model.compute_internal_forces(dt_previous);
@@ -95,6 +97,7 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
     dt_previous = dt;
     t += dt;
     const auto e = model.deformable(0)->solid_energies();
+    hourglass.observe(e);
     const double total =
         0.5 * mass * velocity.squaredNorm() + e.kinetic + e.internal + e.hourglass + e.eroded + out.elastic_energy;
     worst_energy = std::max(worst_energy, total / initial);
@@ -108,6 +111,8 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
   std::cout << "eroded shell elements: " << eroded << " of " << shell->element_count() << "\n";
   std::cout << "fastest wall node: measured " << fastest_node << " m/s limit " << 3 * speed << " m/s\n";
   std::cout << "largest total energy / initial: measured " << worst_energy << " limit 1.05\n";
+  // Reported, not yet held to 10%: the boulder loads the 0.25 m shells at a few nodes (docs/physics.md).
+  std::cout << "hourglass/internal energy of the wall: measured " << hourglass.worst() << " (bound 0.1 not met)\n";
   ASSERT_TRUE(finite);
   EXPECT_LT(fastest_node, 3 * speed);
   EXPECT_LT(worst_energy, 1.05);
