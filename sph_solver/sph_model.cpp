@@ -304,10 +304,27 @@ void SphModel::build_grid() {
       order[cell_next_[cell_of(position[i])]++] = static_cast<std::uint32_t>(i);
     }
   };
+  // Then by x inside each cell (ties by id): every row of cells is x-sorted.
+  const auto sort_by_x = [&](const std::vector<Vec3>& position, const std::vector<std::uint32_t>& start,
+                             std::vector<std::uint32_t>& order) {
+    const auto cell_count = static_cast<std::int64_t>(cells);
+#pragma omp parallel for schedule(static) if (order.size() > kParallelThreshold)
+    for (std::int64_t c = 0; c < cell_count; ++c) {
+      const auto first = order.begin() + start[static_cast<std::size_t>(c)];
+      const auto last = order.begin() + start[static_cast<std::size_t>(c) + 1];
+      if (last - first < 2) continue;
+      std::sort(first, last, [&](std::uint32_t a, std::uint32_t b) {
+        const double xa = position[a].x(), xb = position[b].x();
+        return xa < xb || (xa == xb && a < b);
+      });
+    }
+  };
   sort(
       position_, [&](std::size_t i) { return active_[i] != 0; }, f_cell_start_, f_order_);
+  sort_by_x(position_, f_cell_start_, f_order_);
   sort(
       boundary_.position, [](std::size_t) { return true; }, b_cell_start_, b_order_);
+  sort_by_x(boundary_.position, b_cell_start_, b_order_);
 }
 
 void SphModel::gather() {
@@ -402,11 +419,16 @@ void SphModel::boundary_state(T) {
     const float x = bx_[s], y = by_[s], z = bz_[s];
     const Vec3& position = boundary_.position[id];
     {
-      std::uint32_t rows[9][2];
+      NeighbourRow rows[9];
       const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
       for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r][0], end = rows[r][1];
-        for (std::uint32_t j0 = begin; j0 < end; j0 += kLanes) {
+        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+        // Blocks wholly outside the x window hold no neighbour: skipped.
+        std::uint32_t j0 = begin;
+        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+        std::uint32_t stop = j0;
+        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+        for (; j0 < stop; j0 += kLanes) {
 #pragma omp simd
           for (std::uint32_t l = 0; l < kLanes; ++l) {
             const std::uint32_t j = j0 + l;
@@ -607,11 +629,16 @@ void SphModel::fluid_forces(T) {
     alignas(64) std::int32_t neighbours[kLanes] = {};
     const Vec3& position = position_[id];
     {
-      std::uint32_t rows[9][2];
+      NeighbourRow rows[9];
       const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
       for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r][0], end = rows[r][1];
-        for (std::uint32_t j0 = begin; j0 < end; j0 += kLanes) {
+        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+        // Blocks wholly outside the x window hold no neighbour: skipped.
+        std::uint32_t j0 = begin;
+        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+        std::uint32_t stop = j0;
+        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+        for (; j0 < stop; j0 += kLanes) {
 #pragma omp simd
           for (std::uint32_t l = 0; l < kLanes; ++l) {
             const std::uint32_t j = j0 + l;
@@ -654,11 +681,16 @@ void SphModel::fluid_forces(T) {
       }
     }
     {
-      std::uint32_t rows[9][2];
+      NeighbourRow rows[9];
       const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
       for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r][0], end = rows[r][1];
-        for (std::uint32_t j0 = begin; j0 < end; j0 += kLanes) {
+        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+        // Blocks wholly outside the x window hold no neighbour: skipped.
+        std::uint32_t j0 = begin;
+        while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+        std::uint32_t stop = j0;
+        while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
+        for (; j0 < stop; j0 += kLanes) {
 #pragma omp simd
           for (std::uint32_t l = 0; l < kLanes; ++l) {
             const std::uint32_t j = j0 + l;
@@ -755,11 +787,16 @@ void SphModel::boundary_forces(T) {
     alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
     const Vec3& position = boundary_.position[id];
     {
-      std::uint32_t rows[9][2];
+      NeighbourRow rows[9];
       const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
       for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r][0], end = rows[r][1];
-        for (std::uint32_t j0 = begin; j0 < end; j0 += kLanes) {
+        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+        // Blocks wholly outside the x window hold no neighbour: skipped.
+        std::uint32_t j0 = begin;
+        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+        std::uint32_t stop = j0;
+        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+        for (; j0 < stop; j0 += kLanes) {
 #pragma omp simd
           for (std::uint32_t l = 0; l < kLanes; ++l) {
             const std::uint32_t j = j0 + l;
@@ -843,11 +880,16 @@ void SphModel::velocity_divergence(T) {
     alignas(64) float drho[kLanes] = {};
     const Vec3& position = position_[f_order_[i]];
     {
-      std::uint32_t rows[9][2];
+      NeighbourRow rows[9];
       const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
       for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r][0], end = rows[r][1];
-        for (std::uint32_t j0 = begin; j0 < end; j0 += kLanes) {
+        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+        // Blocks wholly outside the x window hold no neighbour: skipped.
+        std::uint32_t j0 = begin;
+        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+        std::uint32_t stop = j0;
+        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+        for (; j0 < stop; j0 += kLanes) {
 #pragma omp simd
           for (std::uint32_t l = 0; l < kLanes; ++l) {
             const std::uint32_t j = j0 + l;
@@ -862,11 +904,16 @@ void SphModel::velocity_divergence(T) {
       }
     }
     {
-      std::uint32_t rows[9][2];
+      NeighbourRow rows[9];
       const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
       for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r][0], end = rows[r][1];
-        for (std::uint32_t j0 = begin; j0 < end; j0 += kLanes) {
+        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+        // Blocks wholly outside the x window hold no neighbour: skipped.
+        std::uint32_t j0 = begin;
+        while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+        std::uint32_t stop = j0;
+        while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
+        for (; j0 < stop; j0 += kLanes) {
 #pragma omp simd
           for (std::uint32_t l = 0; l < kLanes; ++l) {
             const std::uint32_t j = j0 + l;

@@ -30,6 +30,9 @@
 // the wall forces are summed in double, and a fluid-wall pair term is the same
 // float on both sides, so that action equals reaction to double rounding.
 //
+// Inside a cell the particles are sorted by x (ties by id), so that a row of 3
+// cells is x-sorted and the blocks outside a particle's x window are skipped.
+//
 // Determinism: every particle sums its own neighbours in a fixed order (rows
 // in grid order, lane k of a block summing slots begin + k + kLanes m, lanes
 // added in lane order); the per-particle results are written back by id;
@@ -40,6 +43,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "libsabo/core/types.hpp"
@@ -166,18 +170,43 @@ class SphModel {
         const std::int64_t row = (kz * ny_ + ky) * nx_;
         const std::uint32_t begin = start[static_cast<std::size_t>(row + x0)];
         const std::uint32_t end = start[static_cast<std::size_t>(row + x1 + 1)];
-        if (begin < end) visit(begin, end);
+        if (begin < end) {
+          if constexpr (std::is_invocable_v<Visit, std::uint32_t, std::uint32_t, std::int64_t, std::int64_t>) {
+            visit(begin, end, ky, kz);
+          } else {
+            visit(begin, end);
+          }
+        }
       }
     }
   }
-  // The same rows as [begin, end) pairs in `rows`; returns how many (rows with no particle left out).
+  // One row of 3 cells for a particle: slots [begin, end), x-sorted, and the x window
+  // (m, relative to grid_origin_) outside which no slot of the row is within 2h.
+  struct NeighbourRow {
+    std::uint32_t begin, end;
+    float x_min, x_max;
+  };
+  // The rows of for_neighbour_rows() that can hold a neighbour of (x, y, z); returns how many.
   int neighbour_rows(double x, double y, double z, const std::vector<std::uint32_t>& start,
-                     std::uint32_t (&rows)[9][2]) const {
+                     NeighbourRow (&rows)[9]) const {
+    const double cell = kernel_.support(), support2 = cell * cell;
+    const double px = x - grid_origin_.x(), py = y - grid_origin_.y(), pz = z - grid_origin_.z();
+    const auto cy = static_cast<std::int64_t>(py * inverse_cell_);
+    const auto cz = static_cast<std::int64_t>(pz * inverse_cell_);
+    // Distance from p to the band [k cell, (k + 1) cell] of offset k - c: 0 inside, else to its nearer side.
+    const auto band_distance = [&](double p, std::int64_t k, std::int64_t c) {
+      if (k < c) return p - static_cast<double>(k + 1) * cell;
+      if (k > c) return static_cast<double>(k) * cell - p;
+      return 0.0;
+    };
     int count = 0;
-    for_neighbour_rows(x, y, z, start, [&](std::uint32_t begin, std::uint32_t end) {
-      rows[count][0] = begin;
-      rows[count][1] = end;
-      ++count;
+    for_neighbour_rows(x, y, z, start, [&](std::uint32_t begin, std::uint32_t end, std::int64_t ky, std::int64_t kz) {
+      const double dy = std::max(0.0, band_distance(py, ky, cy)), dz = std::max(0.0, band_distance(pz, kz, cz));
+      const double w2 = support2 - dy * dy - dz * dz;
+      if (w2 <= 0) return;
+      // The margin covers the float positions and the cell index rounding.
+      const double w = std::sqrt(w2) + 1e-4 * cell;
+      rows[count++] = {begin, end, static_cast<float>(px - w), static_cast<float>(px + w)};
     });
     return count;
   }
