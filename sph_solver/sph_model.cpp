@@ -147,6 +147,56 @@ inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_
   }
 }
 
+// Particles per unit of work handed to with_best_isa() by the parallel loops.
+constexpr std::int64_t kChunk = 64;
+
+// The pair loops are compiled for three instruction sets (x86-64 baseline, x86-64-v3:
+// AVX2 + FMA, x86-64-v4: AVX-512) and the best one the CPU has runs, the same one for
+// every call: the same bits on any thread count (not across instruction sets: FMA).
+enum class Isa { generic, avx2, avx512 };
+
+Isa best_isa() {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const Isa isa = [] {
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("x86-64-v4")) return Isa::avx512;
+    if (__builtin_cpu_supports("x86-64-v3")) return Isa::avx2;
+    return Isa::generic;
+  }();
+  return isa;
+#else
+  return Isa::generic;
+#endif
+}
+
+// f() with every call inside inlined (flatten), compiled for the named instruction set.
+#if defined(__x86_64__) && defined(__GNUC__)
+template <class F>
+[[gnu::target("arch=x86-64-v4,prefer-vector-width=512"), gnu::flatten]] void run_avx512(F f) {
+  f();
+}
+template <class F>
+[[gnu::target("arch=x86-64-v3"), gnu::flatten]] void run_avx2(F f) {
+  f();
+}
+#endif
+template <class F>
+[[gnu::flatten]] void run_generic(F f) {
+  f();
+}
+
+template <class F>
+void with_best_isa(F f) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  switch (best_isa()) {
+    case Isa::avx512: run_avx512(f); return;
+    case Isa::avx2: run_avx2(f); return;
+    case Isa::generic: break;
+  }
+#endif
+  run_generic(f);
+}
+
 // Resizes a cell-ordered array to count + kLanes entries, the padding set to `pad`.
 template <class V>
 void resize_padded(std::vector<V>& array, std::size_t count, V pad) {
@@ -406,90 +456,97 @@ void SphModel::boundary_state(T) {
   const bool one_material = std::all_of(fmat_.begin(), fmat_.begin() + static_cast<std::ptrdiff_t>(f_order_.size()),
                                         [&](std::uint32_t m) { return m == fmat_[0]; });
   const auto count = static_cast<std::int64_t>(nb);
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold) \
-    firstprivate(kernel, support2, fx, fy, fz, fvx, fvy, fvz, frho, fpr)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto s = static_cast<std::size_t>(k);
-    const std::uint32_t id = b_order_[s];
-    const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
-    const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
-               gaz = static_cast<float>(g_minus_a.z());
-    alignas(64) float sum_w[kLanes] = {}, sum_pw[kLanes] = {}, sum_rho_r_g[kLanes] = {};
-    alignas(64) float svx[kLanes] = {}, svy[kLanes] = {}, svz[kLanes] = {};
-    const float x = bx_[s], y = by_[s], z = bz_[s];
-    const Vec3& position = boundary_.position[id];
-    {
-      NeighbourRow rows[9];
-      const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-      for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-        // Blocks wholly outside the x window hold no neighbour: skipped.
-        std::uint32_t j0 = begin;
-        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-        std::uint32_t stop = j0;
-        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-        for (; j0 < stop; j0 += kLanes) {
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto s = static_cast<std::size_t>(k);
+        const std::uint32_t id = b_order_[s];
+        const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
+        const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
+                   gaz = static_cast<float>(g_minus_a.z());
+        alignas(64) float sum_w[kLanes] = {}, sum_pw[kLanes] = {}, sum_rho_r_g[kLanes] = {};
+        alignas(64) float svx[kLanes] = {}, svy[kLanes] = {}, svz[kLanes] = {};
+        const float x = bx_[s], y = by_[s], z = bz_[s];
+        const Vec3& position = boundary_.position[id];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
 #pragma omp simd
-          for (std::uint32_t l = 0; l < kLanes; ++l) {
-            const std::uint32_t j = j0 + l;
-            const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-            const float r2 = rx * rx + ry * ry + rz * rz;
-            const bool inside = (j < end) & (r2 < support2);
-            const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
-            const float rho_j = frho[j];
-            sum_w[l] += w;
-            sum_pw[l] += fpr[j] * rho_j * rho_j * w;
-            sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
-            if constexpr (T::viscous) {
-              svx[l] += fvx[j] * w;
-              svy[l] += fvy[j] * w;
-              svz[l] += fvz[j] * w;
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
+                const float rho_j = frho[j];
+                sum_w[l] += w;
+                sum_pw[l] += fpr[j] * rho_j * rho_j * w;
+                sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
+                if constexpr (T::viscous) {
+                  svx[l] += fvx[j] * w;
+                  svy[l] += fvy[j] * w;
+                  svz[l] += fvz[j] * w;
+                }
+              }
             }
           }
         }
-      }
-    }
-    double total_w = 0, total_pw = 0, total_rho_r_g = 0, total_vx = 0, total_vy = 0, total_vz = 0;
-    for (std::uint32_t l = 0; l < kLanes; ++l) {
-      total_w += sum_w[l];
-      total_pw += sum_pw[l];
-      total_rho_r_g += sum_rho_r_g[l];
-      total_vx += svx[l];
-      total_vy += svy[l];
-      total_vz += svz[l];
-    }
-    std::uint32_t material = fmat_.empty() ? 0 : fmat_[0];
-    if (!one_material && total_w > 0) {
-      // The material of the nearest fluid particle (largest W, the first in search order).
-      double best_w = -1;
-      for_neighbours(position.x(), position.y(), position.z(), f_cell_start_, [&](std::uint32_t j) {
-        const double rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-        const double r2 = rx * rx + ry * ry + rz * rz;
-        if (r2 >= support2) return;
-        const double w = kernel_.value(std::sqrt(r2));
-        if (w > best_w) {
-          best_w = w;
-          material = fmat_[j];
+        double total_w = 0, total_pw = 0, total_rho_r_g = 0, total_vx = 0, total_vy = 0, total_vz = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          total_w += sum_w[l];
+          total_pw += sum_pw[l];
+          total_rho_r_g += sum_rho_r_g[l];
+          total_vx += svx[l];
+          total_vy += svy[l];
+          total_vz += svz[l];
         }
-      });
-    }
-    const EquationOfState& eos = materials_.empty() ? EquationOfState() : materials_[material].eos;
-    double p = 0, rho = eos.rest_density;
-    if (total_w > 0) {
-      // Adami et al. 2012 eq. 27; negative wall pressure would glue the fluid to the wall.
-      p = std::max(0.0, (total_pw + total_rho_r_g) / total_w);
-      rho = eos.density(p);
-    }
-    bpr_[s] = static_cast<float>(p / (rho * rho));
-    brho_[s] = static_cast<float>(rho);
-    if constexpr (T::viscous) {
-      // No-slip wall velocity for the viscous terms: 2 v_w - v_extrapolated (Adami eq. 22).
-      const bool any = total_w > 0;
-      bvx_[s] = any ? static_cast<float>(2.0 * bwx_[s] - total_vx / total_w) : bwx_[s];
-      bvy_[s] = any ? static_cast<float>(2.0 * bwy_[s] - total_vy / total_w) : bwy_[s];
-      bvz_[s] = any ? static_cast<float>(2.0 * bwz_[s] - total_vz / total_w) : bwz_[s];
-    }
-    boundary_pressure_[id] = p;
+        std::uint32_t material = fmat_.empty() ? 0 : fmat_[0];
+        if (!one_material && total_w > 0) {
+          // The material of the nearest fluid particle (largest W, the first in search order).
+          double best_w = -1;
+          for_neighbours(position.x(), position.y(), position.z(), f_cell_start_, [&](std::uint32_t j) {
+            const double rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+            const double r2 = rx * rx + ry * ry + rz * rz;
+            if (r2 >= support2) return;
+            const double w = kernel_.value(std::sqrt(r2));
+            if (w > best_w) {
+              best_w = w;
+              material = fmat_[j];
+            }
+          });
+        }
+        const EquationOfState& eos = materials_.empty() ? EquationOfState() : materials_[material].eos;
+        double p = 0, rho = eos.rest_density;
+        if (total_w > 0) {
+          // Adami et al. 2012 eq. 27; negative wall pressure would glue the fluid to the wall.
+          p = std::max(0.0, (total_pw + total_rho_r_g) / total_w);
+          rho = eos.density(p);
+        }
+        bpr_[s] = static_cast<float>(p / (rho * rho));
+        brho_[s] = static_cast<float>(rho);
+        if constexpr (T::viscous) {
+          // No-slip wall velocity for the viscous terms: 2 v_w - v_extrapolated (Adami eq. 22).
+          const bool any = total_w > 0;
+          bvx_[s] = any ? static_cast<float>(2.0 * bwx_[s] - total_vx / total_w) : bwx_[s];
+          bvy_[s] = any ? static_cast<float>(2.0 * bwy_[s] - total_vy / total_w) : bwy_[s];
+          bvz_[s] = any ? static_cast<float>(2.0 * bwz_[s] - total_vz / total_w) : bwz_[s];
+        }
+        boundary_pressure_[id] = p;
+      }
+    });
   }
 }
 
@@ -609,134 +666,143 @@ void SphModel::fluid_forces(T) {
   double max_mu = 0, max_acceleration = 0;
   std::int64_t neighbour_count = 0;
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count) \
-    if (n > kParallelThreshold) \
-    firstprivate(kernel, support2, h, eta2, alpha_hc, gxf, gyf, gzf, inverse_c2, fx, fy, fz, fvx, fvy, fvz, frho, fpr, fm, feta, fstress, bx, by, bz, bwx, bwy, bwz, bvx, bvy, bvz, bvol, bpr, brho)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto i = static_cast<std::uint32_t>(k);
-    const std::uint32_t id = f_order_[i];
-    const float x = fx[i], y = fy[i], z = fz[i];
-    const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
-    const float rho_i = frho[i], pr_i = fpr[i];
-    float eta_i = 0;
-    if constexpr (T::viscous) eta_i = feta[i];
-    float rest_i = 0;
-    if constexpr (T::hydrostatic) rest_i = static_cast<float>(materials_[fmat_[i]].eos.rest_density);
-    float s_i[6] = {0, 0, 0, 0, 0, 0};
-    if constexpr (T::stress) std::copy_n(&fstress[6 * i], 6, s_i);
-    alignas(64) double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
-    alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
-    alignas(64) std::int32_t neighbours[kLanes] = {};
-    const Vec3& position = position_[id];
-    {
-      NeighbourRow rows[9];
-      const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-      for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-        // Blocks wholly outside the x window hold no neighbour: skipped.
-        std::uint32_t j0 = begin;
-        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-        std::uint32_t stop = j0;
-        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-        for (; j0 < stop; j0 += kLanes) {
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count)  if (n > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this, &max_mu, &max_acceleration, &neighbour_count] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto i = static_cast<std::uint32_t>(k);
+        const std::uint32_t id = f_order_[i];
+        const float x = fx[i], y = fy[i], z = fz[i];
+        const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
+        const float rho_i = frho[i], pr_i = fpr[i];
+        float eta_i = 0;
+        if constexpr (T::viscous) eta_i = feta[i];
+        float rest_i = 0;
+        if constexpr (T::hydrostatic) rest_i = static_cast<float>(materials_[fmat_[i]].eos.rest_density);
+        float s_i[6] = {0, 0, 0, 0, 0, 0};
+        if constexpr (T::stress) std::copy_n(&fstress[6 * i], 6, s_i);
+        alignas(64) double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
+        alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
+        alignas(64) std::int32_t neighbours[kLanes] = {};
+        const Vec3& position = position_[id];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+              const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
 #pragma omp simd
-          for (std::uint32_t l = 0; l < kLanes; ++l) {
-            const std::uint32_t j = j0 + l;
-            const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-            const float r2 = rx * rx + ry * ry + rz * rz;
-            const bool inside = (j < end) & (j != i) & (r2 < support2);
-            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-            const float m_j = static_cast<float>(fm[j]), rho_j = frho[j];
-            const float dvx = vx - fvx[j], dvy = vy - fvy[j], dvz = vz - fvz[j];
-            const float vr = dvx * rx + dvy * ry + dvz * rz;
-            const float inverse_r2 = 1.0f / (r2 + eta2);
-            const float mu = h * vr * inverse_r2;
-            mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
-            neighbours[l] += inside ? 1 : 0;
-            const float sf = pair_scalar(m_j, pr_i, fpr[j], vr, inverse_r2, rho_i, rho_j, alpha_hc) * f;
-            float tx = sf * rx, ty = sf * ry, tz = sf * rz;
-            if constexpr (T::viscous) {
-              const float viscous = m_j * (eta_i + feta[j]) / (rho_i * rho_j) * f * r2 * inverse_r2;
-              tx += viscous * dvx;
-              ty += viscous * dvy;
-              tz += viscous * dvz;
-            }
-            if constexpr (T::stress) {
-              const float* s_j = &fstress[6 * j];
-              float sum[6];
-              for (int q = 0; q < 6; ++q) sum[q] = m_j * (s_i[q] / (rho_i * rho_i) + s_j[q] / (rho_j * rho_j));
-              add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
-            }
-            ax[l] += tx;
-            ay[l] += ty;
-            az[l] += tz;
-            if constexpr (T::diffusion) {
-              float psi = rho_j - rho_i;
-              // (x_j - x_i).g = -(r_ij . g): hydrostatic density difference rho0 g.(x_j - x_i) / c^2.
-              if constexpr (T::hydrostatic) psi += rest_i * (gxf * rx + gyf * ry + gzf * rz) * inverse_c2;
-              diffuse[l] += psi * (-f * r2) * inverse_r2 * m_j / rho_j;
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (l != self) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float m_j = static_cast<float>(fm[j]), rho_j = frho[j];
+                const float dvx = vx - fvx[j], dvy = vy - fvy[j], dvz = vz - fvz[j];
+                const float vr = dvx * rx + dvy * ry + dvz * rz;
+                const float inverse_r2 = 1.0f / (r2 + eta2);
+                const float mu = h * vr * inverse_r2;
+                mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+                neighbours[l] += inside ? 1 : 0;
+                const float sf = pair_scalar(m_j, pr_i, fpr[j], vr, inverse_r2, rho_i, rho_j, alpha_hc) * f;
+                float tx = sf * rx, ty = sf * ry, tz = sf * rz;
+                if constexpr (T::viscous) {
+                  const float viscous = m_j * (eta_i + feta[j]) / (rho_i * rho_j) * f * r2 * inverse_r2;
+                  tx += viscous * dvx;
+                  ty += viscous * dvy;
+                  tz += viscous * dvz;
+                }
+                if constexpr (T::stress) {
+                  const float* s_j = &fstress[6 * j];
+                  float sum[6];
+                  for (int q = 0; q < 6; ++q) sum[q] = m_j * (s_i[q] / (rho_i * rho_i) + s_j[q] / (rho_j * rho_j));
+                  add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
+                }
+                ax[l] += tx;
+                ay[l] += ty;
+                az[l] += tz;
+                if constexpr (T::diffusion) {
+                  float psi = rho_j - rho_i;
+                  // (x_j - x_i).g = -(r_ij . g): hydrostatic density difference rho0 g.(x_j - x_i) / c^2.
+                  if constexpr (T::hydrostatic) psi += rest_i * (gxf * rx + gyf * ry + gzf * rz) * inverse_c2;
+                  diffuse[l] += psi * (-f * r2) * inverse_r2 * m_j / rho_j;
+                }
+              }
             }
           }
         }
-      }
-    }
-    {
-      NeighbourRow rows[9];
-      const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
-      for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-        // Blocks wholly outside the x window hold no neighbour: skipped.
-        std::uint32_t j0 = begin;
-        while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-        std::uint32_t stop = j0;
-        while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
-        for (; j0 < stop; j0 += kLanes) {
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
 #pragma omp simd
-          for (std::uint32_t l = 0; l < kLanes; ++l) {
-            const std::uint32_t j = j0 + l;
-            const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
-            const float r2 = rx * rx + ry * ry + rz * rz;
-            const bool inside = (j < end) & (r2 < support2);
-            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-            const float rho_b = brho[j], m_b = rho_b * bvol[j];
-            const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
-            const float inverse_r2 = 1.0f / (r2 + eta2);
-            const float mu = h * vr * inverse_r2;
-            mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
-            neighbours[l] += inside ? 1 : 0;
-            float ux = 0, uy = 0, uz = 0;
-            if constexpr (T::viscous) {
-              ux = vx - bvx[j];
-              uy = vy - bvy[j];
-              uz = vz - bvz[j];
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float rho_b = brho[j], m_b = rho_b * bvol[j];
+                const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+                const float inverse_r2 = 1.0f / (r2 + eta2);
+                const float mu = h * vr * inverse_r2;
+                mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+                neighbours[l] += inside ? 1 : 0;
+                float ux = 0, uy = 0, uz = 0;
+                if constexpr (T::viscous) {
+                  ux = vx - bvx[j];
+                  uy = vy - bvy[j];
+                  uz = vz - bvz[j];
+                }
+                float tx, ty, tz;
+                wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy, uz,
+                             alpha_hc, tx, ty, tz);
+                ax[l] += tx;
+                ay[l] += ty;
+                az[l] += tz;
+              }
             }
-            float tx, ty, tz;
-            wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy, uz,
-                         alpha_hc, tx, ty, tz);
-            ax[l] += tx;
-            ay[l] += ty;
-            az[l] += tz;
           }
         }
+        double sum_x = 0, sum_y = 0, sum_z = 0, sum_diffuse = 0;
+        float lane_mu = 0;
+        std::int64_t lane_neighbours = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          sum_x += ax[l];
+          sum_y += ay[l];
+          sum_z += az[l];
+          sum_diffuse += diffuse[l];
+          lane_mu = std::max(lane_mu, mu_max[l]);
+          lane_neighbours += neighbours[l];
+        }
+        const Vec3 a(sum_x + gx, sum_y + gy, sum_z + gz);
+        acceleration_[id] = a;
+        out_drho_[i] = T::diffusion ? diffusion_scale * sum_diffuse : 0.0;
+        max_mu = std::max(max_mu, double{lane_mu});
+        max_acceleration = std::max(max_acceleration, a.norm());
+        neighbour_count += lane_neighbours;
       }
-    }
-    double sum_x = 0, sum_y = 0, sum_z = 0, sum_diffuse = 0;
-    float lane_mu = 0;
-    std::int64_t lane_neighbours = 0;
-    for (std::uint32_t l = 0; l < kLanes; ++l) {
-      sum_x += ax[l];
-      sum_y += ay[l];
-      sum_z += az[l];
-      sum_diffuse += diffuse[l];
-      lane_mu = std::max(lane_mu, mu_max[l]);
-      lane_neighbours += neighbours[l];
-    }
-    const Vec3 a(sum_x + gx, sum_y + gy, sum_z + gz);
-    acceleration_[id] = a;
-    out_drho_[i] = T::diffusion ? diffusion_scale * sum_diffuse : 0.0;
-    max_mu = std::max(max_mu, double{lane_mu});
-    max_acceleration = std::max(max_acceleration, a.norm());
-    neighbour_count += lane_neighbours;
+    });
   }
   max_mu_ = max_mu;
   max_acceleration_ = max_acceleration;
@@ -770,70 +836,77 @@ void SphModel::boundary_forces(T) {
   const float* fstress = fstress_.data();
   const double* fm = fm_.data();
   const auto count = static_cast<std::int64_t>(nb);
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold) \
-    firstprivate(kernel, support2, eta2, alpha_hc, fx, fy, fz, fvx, fvy, fvz, frho, fpr, feta, fstress, fm)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto b = static_cast<std::size_t>(k);
-    const std::uint32_t id = b_order_[b];
-    const float x = bx_[b], y = by_[b], z = bz_[b];
-    const float rho_b = brho_[b], m_b = rho_b * bvol_[b], pr_b = bpr_[b];
-    const float wx = bwx_[b], wy = bwy_[b], wz = bwz_[b];
-    float vx_b = 0, vy_b = 0, vz_b = 0;
-    if constexpr (T::viscous) {
-      vx_b = bvx_[b];
-      vy_b = bvy_[b];
-      vz_b = bvz_[b];
-    }
-    alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
-    const Vec3& position = boundary_.position[id];
-    {
-      NeighbourRow rows[9];
-      const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-      for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-        // Blocks wholly outside the x window hold no neighbour: skipped.
-        std::uint32_t j0 = begin;
-        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-        std::uint32_t stop = j0;
-        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-        for (; j0 < stop; j0 += kLanes) {
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto b = static_cast<std::size_t>(k);
+        const std::uint32_t id = b_order_[b];
+        const float x = bx_[b], y = by_[b], z = bz_[b];
+        const float rho_b = brho_[b], m_b = rho_b * bvol_[b], pr_b = bpr_[b];
+        const float wx = bwx_[b], wy = bwy_[b], wz = bwz_[b];
+        float vx_b = 0, vy_b = 0, vz_b = 0;
+        if constexpr (T::viscous) {
+          vx_b = bvx_[b];
+          vy_b = bvy_[b];
+          vz_b = bvz_[b];
+        }
+        alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
+        const Vec3& position = boundary_.position[id];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
 #pragma omp simd
-          for (std::uint32_t l = 0; l < kLanes; ++l) {
-            const std::uint32_t j = j0 + l;
-            const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
-            const float r2 = rx * rx + ry * ry + rz * rz;
-            const bool inside = (j < end) & (r2 < support2);
-            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-            const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
-            const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
-            const float inverse_r2 = 1.0f / (r2 + eta2);
-            float ux = 0, uy = 0, uz = 0, eta_i = 0;
-            const float* s_i = nullptr;
-            if constexpr (T::viscous) {
-              ux = vx - vx_b;
-              uy = vy - vy_b;
-              uz = vz - vz_b;
-              eta_i = feta[j];
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
+                const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
+                const float inverse_r2 = 1.0f / (r2 + eta2);
+                float ux = 0, uy = 0, uz = 0, eta_i = 0;
+                const float* s_i = nullptr;
+                if constexpr (T::viscous) {
+                  ux = vx - vx_b;
+                  uy = vy - vy_b;
+                  uz = vz - vz_b;
+                  eta_i = feta[j];
+                }
+                if constexpr (T::stress) s_i = &fstress[6 * j];
+                float tx, ty, tz;
+                wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
+                             uz, alpha_hc, tx, ty, tz);
+                const double m_i = inside ? fm[j] : 0.0;
+                fbx[l] -= m_i * tx;
+                fby[l] -= m_i * ty;
+                fbz[l] -= m_i * tz;
+              }
             }
-            if constexpr (T::stress) s_i = &fstress[6 * j];
-            float tx, ty, tz;
-            wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy, uz,
-                         alpha_hc, tx, ty, tz);
-            const double m_i = inside ? fm[j] : 0.0;
-            fbx[l] -= m_i * tx;
-            fby[l] -= m_i * ty;
-            fbz[l] -= m_i * tz;
           }
         }
+        double sum_x = 0, sum_y = 0, sum_z = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          sum_x += fbx[l];
+          sum_y += fby[l];
+          sum_z += fbz[l];
+        }
+        boundary_force_[id] = Vec3(sum_x, sum_y, sum_z);
       }
-    }
-    double sum_x = 0, sum_y = 0, sum_z = 0;
-    for (std::uint32_t l = 0; l < kLanes; ++l) {
-      sum_x += fbx[l];
-      sum_y += fby[l];
-      sum_z += fbz[l];
-    }
-    boundary_force_[id] = Vec3(sum_x, sum_y, sum_z);
+    });
   }
 }
 
@@ -871,65 +944,75 @@ void SphModel::velocity_divergence(T) {
   const float* bvol = bvol_.data();
   const float* brho = brho_.data();
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold) \
-    firstprivate(kernel, support2, fx, fy, fz, fvx, fvy, fvz, fm, bx, by, bz, bwx, bwy, bwz, bvol, brho)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto i = static_cast<std::uint32_t>(k);
-    const float x = fx[i], y = fy[i], z = fz[i];
-    const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
-    alignas(64) float drho[kLanes] = {};
-    const Vec3& position = position_[f_order_[i]];
-    {
-      NeighbourRow rows[9];
-      const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-      for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-        // Blocks wholly outside the x window hold no neighbour: skipped.
-        std::uint32_t j0 = begin;
-        while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-        std::uint32_t stop = j0;
-        while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-        for (; j0 < stop; j0 += kLanes) {
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto i = static_cast<std::uint32_t>(k);
+        const float x = fx[i], y = fy[i], z = fz[i];
+        const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
+        alignas(64) float drho[kLanes] = {};
+        const Vec3& position = position_[f_order_[i]];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+              const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
 #pragma omp simd
-          for (std::uint32_t l = 0; l < kLanes; ++l) {
-            const std::uint32_t j = j0 + l;
-            const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-            const float r2 = rx * rx + ry * ry + rz * rz;
-            const bool inside = (j < end) & (j != i) & (r2 < support2);
-            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-            const float vr = (vx - fvx[j]) * rx + (vy - fvy[j]) * ry + (vz - fvz[j]) * rz;
-            drho[l] += static_cast<float>(fm[j]) * vr * f;
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (l != self) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float vr = (vx - fvx[j]) * rx + (vy - fvy[j]) * ry + (vz - fvz[j]) * rz;
+                drho[l] += static_cast<float>(fm[j]) * vr * f;
+              }
+            }
           }
         }
-      }
-    }
-    {
-      NeighbourRow rows[9];
-      const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
-      for (int r = 0; r < row_count; ++r) {
-        const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-        // Blocks wholly outside the x window hold no neighbour: skipped.
-        std::uint32_t j0 = begin;
-        while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-        std::uint32_t stop = j0;
-        while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
-        for (; j0 < stop; j0 += kLanes) {
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
 #pragma omp simd
-          for (std::uint32_t l = 0; l < kLanes; ++l) {
-            const std::uint32_t j = j0 + l;
-            const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
-            const float r2 = rx * rx + ry * ry + rz * rz;
-            const bool inside = (j < end) & (r2 < support2);
-            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-            const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
-            drho[l] += brho[j] * bvol[j] * vr * f;
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+                drho[l] += brho[j] * bvol[j] * vr * f;
+              }
+            }
           }
         }
+        double sum = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) sum += drho[l];
+        out_drho_[i] += sum;
       }
-    }
-    double sum = 0;
-    for (std::uint32_t l = 0; l < kLanes; ++l) sum += drho[l];
-    out_drho_[i] += sum;
+    });
   }
 }
 
