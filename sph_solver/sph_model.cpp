@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <string>
 
 #include "libsabo/core/error.hpp"
 
@@ -155,18 +157,31 @@ constexpr std::int64_t kChunk = 64;
 // every call: the same bits on any thread count (not across instruction sets: FMA).
 enum class Isa { generic, avx2, avx512 };
 
+// SABO_SPH_ISA=generic or avx2 asks for a lower one than the CPU's best (to test those copies).
 Isa best_isa() {
-#if defined(__x86_64__) && defined(__GNUC__)
   static const Isa isa = [] {
+    Isa best = Isa::generic;
+#if defined(__x86_64__) && defined(__GNUC__)
     __builtin_cpu_init();
-    if (__builtin_cpu_supports("x86-64-v4")) return Isa::avx512;
-    if (__builtin_cpu_supports("x86-64-v3")) return Isa::avx2;
-    return Isa::generic;
+    if (__builtin_cpu_supports("x86-64-v4")) {
+      best = Isa::avx512;
+    } else if (__builtin_cpu_supports("x86-64-v3")) {
+      best = Isa::avx2;
+    }
+#endif
+    const char* asked = std::getenv("SABO_SPH_ISA");
+    if (asked == nullptr || *asked == '\0') return best;
+    const std::string name(asked);
+    const Isa wanted = name == "generic" ? Isa::generic
+                       : name == "avx2"  ? Isa::avx2
+                       : name == "avx512"
+                           ? Isa::avx512
+                           : throw Error(fmt::format("SABO_SPH_ISA={}: unknown instruction set. Fix: generic, avx2, "
+                                                     "avx512 or unset (the best the CPU has)",
+                                                     name));
+    return std::min(wanted, best);
   }();
   return isa;
-#else
-  return Isa::generic;
-#endif
 }
 
 // f() with every call inside inlined (flatten), compiled for the named instruction set.
