@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <fstream>
+#include <utility>
 
 #include "sph_solver/sph_model.hpp"
 
@@ -74,7 +75,8 @@ int main(int argc, char** argv) {
         walls.acceleration.push_back(Vec3::Zero());
         walls.volume.push_back(dx * dx * dx);
       }
-  model.set_boundary(walls);
+  const std::size_t wall_count = walls.size();
+  model.set_boundary(std::move(walls));  // the model keeps the only copy
   double dt_previous = 0;
   const auto step = [&] {
     model.compute_internal_forces(dt_previous);
@@ -88,11 +90,17 @@ int main(int argc, char** argv) {
   for (int k = 0; k < steps; ++k) step();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double n = static_cast<double>(model.size());
-  fmt::print("particles {} walls {} threads {} kernel {} h/dx {}\n", model.size(), walls.size(), omp_get_max_threads(),
+  fmt::print("particles {} walls {} threads {} kernel {} h/dx {}\n", model.size(), wall_count, omp_get_max_threads(),
              kernel, ratio);
-  fmt::print("particle_steps_per_second {:.4g}\n", n * steps / seconds);
+  const double rate = n * steps / seconds;
+  const double bytes = (memory_after - memory_before) * 1e6 / (n + static_cast<double>(wall_count));
+  fmt::print("particle_steps_per_second {:.4g}\n", rate);
   fmt::print("neighbours_per_particle {:.1f}\n", model.mean_neighbours());
-  fmt::print("bytes_per_particle {:.0f}\n",
-             (memory_after - memory_before) * 1e6 / (n + static_cast<double>(walls.size())));
+  fmt::print("bytes_per_particle {:.0f}\n", bytes);
+  // The last line: the figures for bench/run.py.
+  fmt::print(
+      "{{\"particles\": {}, \"walls\": {}, \"particle_steps_per_second\": {:.6g}, \"neighbours_per_particle\": {:.2f}, "
+      "\"bytes_per_particle\": {:.1f}, \"seconds\": {:.4g}}}\n",
+      model.size(), wall_count, rate, model.mean_neighbours(), bytes, seconds);
   return 0;
 }

@@ -11,6 +11,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <utility>
+
 #include "libsabo/core/error.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/sph_model.hpp"
@@ -88,7 +90,7 @@ class SphSolver final : public solver::CoupledSolver {
       walls.normal = unpack_vectors(forces.boundary_normal(), count, "boundary_normal");
       walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
       walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
-      model_.set_boundary(walls);
+      model_.set_boundary(std::move(walls));
       model_.compute_internal_forces(dt_previous_);
       have_boundary_forces_ = true;
     }

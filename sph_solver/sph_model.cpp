@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <string>
 
 #include "libsabo/core/error.hpp"
 
@@ -13,29 +15,208 @@ namespace sabo::sph {
 namespace {
 
 using Rheology = scene::Material::Rheology;
+using KernelKind = scene::SphSettings::Kernel;
+using DensityDiffusion = scene::SphSettings::DensityDiffusion;
 
 // Above this many particles the loops run in parallel.
 constexpr std::size_t kParallelThreshold = 512;
 // More cells than this means a domain far larger than the particles need.
 constexpr std::int64_t kMaxCells = std::int64_t{1} << 27;
+// Slots per block of the inner loops (one AVX-512 register of floats); the
+// cell-ordered arrays carry this many padding entries.
+constexpr std::uint32_t kLanes = 16;
+// Particles per block of the energy sums (fixed: the same bits on any number of threads).
+constexpr std::size_t kEnergyBlock = 4096;
+// Padding slots sit this far (m) from everything: outside every support.
+constexpr float kFarAway = 1e6f;
 
-// Adds S . (f r) to a, S symmetric 3x3 stored as xx yy zz xy yz zx.
-inline void add_stress_dot(const double* s, double f, double rx, double ry, double rz, double& ax, double& ay,
-                           double& az) {
-  const double gx = f * rx, gy = f * ry, gz = f * rz;
-  ax += s[0] * gx + s[3] * gy + s[5] * gz;
-  ay += s[3] * gx + s[1] * gy + s[4] * gz;
-  az += s[5] * gx + s[4] * gy + s[2] * gz;
+// The terms a step computes, fixed at compile time: the pair loops carry no
+// branch for a term that no material asks for.
+template <KernelKind Kind, bool Viscous, bool Stress, DensityDiffusion Diffusion>
+struct Terms {
+  static constexpr KernelKind kernel = Kind;
+  static constexpr bool viscous = Viscous;  // velocity gradients, Morris viscosity
+  static constexpr bool stress = Stress;    // deviatoric stress (elastic-plastic)
+  static constexpr bool diffusion = Diffusion != DensityDiffusion::none;
+  static constexpr bool hydrostatic = Diffusion == DensityDiffusion::fourtakas;
+};
+
+template <class F>
+void with_terms(KernelKind kind, bool viscous, bool stress, DensityDiffusion diffusion, F&& f) {
+  const auto with_diffusion = [&]<KernelKind K, bool V, bool S>() {
+    switch (diffusion) {
+      case DensityDiffusion::none: f(Terms<K, V, S, DensityDiffusion::none>{}); return;
+      case DensityDiffusion::molteni: f(Terms<K, V, S, DensityDiffusion::molteni>{}); return;
+      case DensityDiffusion::fourtakas: f(Terms<K, V, S, DensityDiffusion::fourtakas>{}); return;
+    }
+  };
+  const auto with_rheology = [&]<KernelKind K>() {
+    if (stress) {
+      with_diffusion.template operator()<K, true, true>();
+    } else if (viscous) {
+      with_diffusion.template operator()<K, true, false>();
+    } else {
+      with_diffusion.template operator()<K, false, false>();
+    }
+  };
+  if (kind == KernelKind::wendland_c2) {
+    with_rheology.template operator()<KernelKind::wendland_c2>();
+  } else {
+    with_rheology.template operator()<KernelKind::cubic_spline>();
+  }
 }
 
-// Stress term of a fluid particle (stress s_i, density rho_i) and a wall particle
-// (mass m_wall, density rho_wall): the wall carries the stress of the fluid next to it
-// (zero normal gradient).
-inline void add_wall_stress(const double* s_i, double m_wall, double rho_i, double rho_wall, double f, double rx,
-                            double ry, double rz, double& ax, double& ay, double& az) {
-  double sum[6];
-  for (int q = 0; q < 6; ++q) sum[q] = m_wall * s_i[q] * (1.0 / (rho_i * rho_i) + 1.0 / (rho_wall * rho_wall));
-  add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
+// The kernel of sph_kernel.hpp in single precision, branch-free for the vectorised loops.
+struct KernelF {
+  float inverse_h, normalisation, gradient_scale;
+  explicit KernelF(const Kernel& kernel)
+      : inverse_h(static_cast<float>(kernel.inverse_h)),
+        normalisation(static_cast<float>(kernel.normalisation)),
+        gradient_scale(static_cast<float>(kernel.gradient_scale)) {}
+};
+
+// (dW/dr) / r at squared distance r2 < (2h)^2, 1/m^5; finite for every r2 >= 0.
+template <KernelKind Kind>
+inline float gradient_factor(float r2, const KernelF& k) {
+  const float q = std::sqrt(r2) * k.inverse_h;
+  if constexpr (Kind == KernelKind::wendland_c2) {
+    const float a = 1.0f - 0.5f * q;
+    return -5.0f * k.gradient_scale * a * a * a;
+  } else {
+    const float inner = k.gradient_scale * (-3.0f + 2.25f * q);
+    const float b = 2.0f - q;
+    const float outer = -0.75f * k.gradient_scale * b * b / std::max(q, 1e-6f);
+    return q < 1.0f ? inner : outer;
+  }
+}
+
+// W at squared distance r2 < (2h)^2, 1/m^3.
+template <KernelKind Kind>
+inline float kernel_value(float r2, const KernelF& k) {
+  const float q = std::sqrt(r2) * k.inverse_h;
+  if constexpr (Kind == KernelKind::wendland_c2) {
+    const float a = 1.0f - 0.5f * q;
+    const float a2 = a * a;
+    return k.normalisation * a2 * a2 * (2.0f * q + 1.0f);
+  } else {
+    const float inner = k.normalisation * (1.0f - 1.5f * q * q + 0.75f * q * q * q);
+    const float b = 2.0f - q;
+    const float outer = k.normalisation * 0.25f * b * b * b;
+    return q < 1.0f ? inner : outer;
+  }
+}
+
+// Pressure and Monaghan viscosity of a pair, per unit F(r) r_ij: the acceleration of i
+// is pair_scalar * F * r_ij. Symmetric in i and j for equal masses (the same float).
+inline float pair_scalar(float m_j, float pr_i, float pr_j, float vr, float inverse_r2, float rho_i, float rho_j,
+                         float alpha_hc) {
+  const float pressure = -m_j * (pr_i + pr_j);
+  const float viscosity = m_j * alpha_hc * vr * inverse_r2 / (0.5f * (rho_i + rho_j));
+  return vr < 0.0f ? pressure + viscosity : pressure;
+}
+
+// Adds S . (f r) to t, S symmetric 3x3 stored as xx yy zz xy yz zx.
+inline void add_stress_dot(const float* s, float f, float rx, float ry, float rz, float& tx, float& ty, float& tz) {
+  const float gx = f * rx, gy = f * ry, gz = f * rz;
+  tx += s[0] * gx + s[3] * gy + s[5] * gz;
+  ty += s[3] * gx + s[1] * gy + s[4] * gz;
+  tz += s[5] * gx + s[4] * gy + s[2] * gz;
+}
+
+// Acceleration t of fluid particle i (density rho_i, p_i / rho_i^2 = pr_i, viscosity
+// eta_i, stress s_i) from wall particle b (mass m_b, density rho_b, pr_b), r = x_i - x_b,
+// vr = (v_i - v_wall).r, u = v_i - v_b (no-slip wall velocity). The wall carries the
+// stress of the fluid next to it (zero normal gradient). One function for both sides
+// of the pair: the force on the wall particle is minus m_i times the same float.
+template <class T>
+inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_i, float eta_i, const float* s_i,
+                      float f, float rx, float ry, float rz, float r2, float vr, float inverse_r2, float ux, float uy,
+                      float uz, float alpha_hc, float& tx, float& ty, float& tz) {
+  const float sf = pair_scalar(m_b, pr_i, pr_b, vr, inverse_r2, rho_i, rho_b, alpha_hc) * f;
+  tx = sf * rx;
+  ty = sf * ry;
+  tz = sf * rz;
+  if constexpr (T::viscous) {
+    const float viscous = m_b * 2.0f * eta_i / (rho_i * rho_b) * f * r2 * inverse_r2;
+    tx += viscous * ux;
+    ty += viscous * uy;
+    tz += viscous * uz;
+  }
+  if constexpr (T::stress) {
+    float sum[6];
+    for (int q = 0; q < 6; ++q) sum[q] = m_b * s_i[q] * (1.0f / (rho_i * rho_i) + 1.0f / (rho_b * rho_b));
+    add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
+  }
+}
+
+// Particles per unit of work handed to with_best_isa() by the parallel loops.
+constexpr std::int64_t kChunk = 64;
+
+// The pair loops are compiled for three instruction sets (x86-64 baseline, x86-64-v3:
+// AVX2 + FMA, x86-64-v4: AVX-512) and the best one the CPU has runs, the same one for
+// every call: the same bits on any thread count (not across instruction sets: FMA).
+enum class Isa { generic, avx2, avx512 };
+
+// SABO_SPH_ISA=generic or avx2 asks for a lower one than the CPU's best (to test those copies).
+Isa best_isa() {
+  static const Isa isa = [] {
+    Isa best = Isa::generic;
+#if defined(__x86_64__) && defined(__GNUC__)
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("x86-64-v4")) {
+      best = Isa::avx512;
+    } else if (__builtin_cpu_supports("x86-64-v3")) {
+      best = Isa::avx2;
+    }
+#endif
+    const char* asked = std::getenv("SABO_SPH_ISA");
+    if (asked == nullptr || *asked == '\0') return best;
+    const std::string name(asked);
+    const Isa wanted = name == "generic" ? Isa::generic
+                       : name == "avx2"  ? Isa::avx2
+                       : name == "avx512"
+                           ? Isa::avx512
+                           : throw Error(fmt::format("SABO_SPH_ISA={}: unknown instruction set. Fix: generic, avx2, "
+                                                     "avx512 or unset (the best the CPU has)",
+                                                     name));
+    return std::min(wanted, best);
+  }();
+  return isa;
+}
+
+// f() with every call inside inlined (flatten), compiled for the named instruction set.
+#if defined(__x86_64__) && defined(__GNUC__)
+template <class F>
+[[gnu::target("arch=x86-64-v4,prefer-vector-width=512"), gnu::flatten]] void run_avx512(F f) {
+  f();
+}
+template <class F>
+[[gnu::target("arch=x86-64-v3"), gnu::flatten]] void run_avx2(F f) {
+  f();
+}
+#endif
+template <class F>
+[[gnu::flatten]] void run_generic(F f) {
+  f();
+}
+
+template <class F>
+void with_best_isa(F f) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  switch (best_isa()) {
+    case Isa::avx512: run_avx512(f); return;
+    case Isa::avx2: run_avx2(f); return;
+    case Isa::generic: break;
+  }
+#endif
+  run_generic(f);
+}
+
+// Resizes a cell-ordered array to count + kLanes entries, the padding set to `pad`.
+template <class V>
+void resize_padded(std::vector<V>& array, std::size_t count, V pad) {
+  array.resize(count + kLanes);
+  std::fill(array.begin() + static_cast<std::ptrdiff_t>(count), array.end(), pad);
 }
 
 }  // namespace
@@ -91,14 +272,11 @@ SphModel::SphModel(const scene::Scene& scene)
   body_ = std::move(fill.body);
   const std::size_t n = position_.size();
   acceleration_.assign(n, Vec3::Zero());
-  external_force_.assign(n, Vec3::Zero());
-  density_rate_.assign(n, 0.0);
-  stress_.assign(6 * n, 0.0);
-  stress_rate_.assign(6 * n, 0.0);
+  if (has_stress_) {
+    stress_.assign(6 * n, 0.0);
+    stress_rate_.assign(6 * n, 0.0);
+  }
   active_.assign(n, 1);
-  particle_kinetic_.assign(n, 0.0);
-  particle_potential_.assign(n, 0.0);
-  particle_elastic_.assign(n, 0.0);
   stable_dt_ = initial_stable_dt();
   energies_.kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -126,7 +304,7 @@ double SphModel::initial_stable_dt() const {
   return settings_.cfl * dt;
 }
 
-void SphModel::set_boundary(const physics::BoundaryParticles& boundary) {
+void SphModel::set_boundary(physics::BoundaryParticles boundary) {
   const std::size_t n = boundary.size();
   if (boundary.velocity.size() != n || boundary.normal.size() != n || boundary.acceleration.size() != n ||
       boundary.volume.size() != n) {
@@ -135,7 +313,7 @@ void SphModel::set_boundary(const physics::BoundaryParticles& boundary) {
         "accelerations, {} volumes; every array needs one entry per particle",
         n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(), boundary.volume.size()));
   }
-  boundary_ = boundary;
+  boundary_ = std::move(boundary);
 }
 
 Aabb SphModel::bounds() const {
@@ -170,136 +348,236 @@ void SphModel::build_grid() {
     const auto ix = static_cast<std::int64_t>((p.x() - grid_origin_.x()) * inverse_cell);
     const auto iy = static_cast<std::int64_t>((p.y() - grid_origin_.y()) * inverse_cell);
     const auto iz = static_cast<std::int64_t>((p.z() - grid_origin_.z()) * inverse_cell);
-    return static_cast<std::uint32_t>((iz * ny_ + iy) * nx_ + ix);
+    return static_cast<std::size_t>((iz * ny_ + iy) * nx_ + ix);
   };
-  const auto sort = [&](std::size_t count, auto position_of, auto is_active, std::vector<std::uint32_t>& cell_id,
-                        std::vector<std::uint32_t>& start, std::vector<std::uint32_t>& order) {
-    cell_id.resize(count);
+  // Counting sort by cell, ids ascending inside a cell; the cell is computed twice
+  // rather than stored (memory per particle).
+  const auto sort = [&](const std::vector<Vec3>& position, auto is_active, std::vector<std::uint32_t>& start,
+                        std::vector<std::uint32_t>& order) {
     start.assign(cells + 1, 0);
     std::size_t used = 0;
-    for (std::size_t i = 0; i < count; ++i) {
-      if (!is_active(i)) {
-        cell_id[i] = std::numeric_limits<std::uint32_t>::max();
-        continue;
-      }
-      cell_id[i] = cell_of(position_of(i));
-      ++start[cell_id[i] + 1];
+    for (std::size_t i = 0; i < position.size(); ++i) {
+      if (!is_active(i)) continue;
+      ++start[cell_of(position[i]) + 1];
       ++used;
     }
     for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
     order.resize(used);
     cell_next_.assign(start.begin(), start.end() - 1);
-    for (std::size_t i = 0; i < count; ++i) {
-      if (cell_id[i] == std::numeric_limits<std::uint32_t>::max()) continue;
-      order[cell_next_[cell_id[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t i = 0; i < position.size(); ++i) {
+      if (!is_active(i)) continue;
+      order[cell_next_[cell_of(position[i])]++] = static_cast<std::uint32_t>(i);
+    }
+  };
+  // Then by x inside each cell (ties by id): every row of cells is x-sorted.
+  const auto sort_by_x = [&](const std::vector<Vec3>& position, const std::vector<std::uint32_t>& start,
+                             std::vector<std::uint32_t>& order) {
+    const auto cell_count = static_cast<std::int64_t>(cells);
+#pragma omp parallel for schedule(static) if (order.size() > kParallelThreshold)
+    for (std::int64_t c = 0; c < cell_count; ++c) {
+      const auto first = order.begin() + start[static_cast<std::size_t>(c)];
+      const auto last = order.begin() + start[static_cast<std::size_t>(c) + 1];
+      if (last - first < 2) continue;
+      std::sort(first, last, [&](std::uint32_t a, std::uint32_t b) {
+        const double xa = position[a].x(), xb = position[b].x();
+        return xa < xb || (xa == xb && a < b);
+      });
     }
   };
   sort(
-      position_.size(), [&](std::size_t i) -> const Vec3& { return position_[i]; },
-      [&](std::size_t i) { return active_[i] != 0; }, f_cell_of_, f_cell_start_, f_order_);
+      position_, [&](std::size_t i) { return active_[i] != 0; }, f_cell_start_, f_order_);
+  sort_by_x(position_, f_cell_start_, f_order_);
   sort(
-      boundary_.size(), [&](std::size_t i) -> const Vec3& { return boundary_.position[i]; },
-      [](std::size_t) { return true; }, b_cell_of_, b_cell_start_, b_order_);
+      boundary_.position, [](std::size_t) { return true; }, b_cell_start_, b_order_);
+  sort_by_x(boundary_.position, b_cell_start_, b_order_);
 }
 
 void SphModel::gather() {
   const std::size_t n = f_order_.size();
-  for (auto* v : {&fx_, &fy_, &fz_, &fvx_, &fvy_, &fvz_, &frho_, &fp_, &fm_, &feta_, &out_ax_, &out_ay_, &out_az_,
-                  &out_drho_, &out_dtcv_, &out_neigh_}) {
-    v->resize(n);
-  }
-  fmat_.resize(n);
-  fstress_.assign(has_stress_ ? 6 * n : 0, 0.0);
-  for (std::size_t s = 0; s < n; ++s) {
+  const Vec3 origin = grid_origin_;
+  resize_padded(fx_, n, kFarAway);
+  resize_padded(fy_, n, kFarAway);
+  resize_padded(fz_, n, kFarAway);
+  for (auto* v : {&fvx_, &fvy_, &fvz_, &fpr_}) resize_padded(*v, n, 0.0f);
+  resize_padded(fm_, n, 0.0);
+  resize_padded(frho_, n, 1.0f);
+  resize_padded(fmat_, n, std::uint32_t{0});
+  if (any_gradient_) resize_padded(feta_, n, 0.0f);
+  if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);
+  out_drho_.resize(n);
+  const auto count = static_cast<std::int64_t>(n);
+#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+  for (std::int64_t k = 0; k < count; ++k) {
+    const auto s = static_cast<std::size_t>(k);
     const std::uint32_t i = f_order_[s];
-    fx_[s] = position_[i].x();
-    fy_[s] = position_[i].y();
-    fz_[s] = position_[i].z();
-    fvx_[s] = velocity_[i].x();
-    fvy_[s] = velocity_[i].y();
-    fvz_[s] = velocity_[i].z();
-    frho_[s] = density_[i];
-    fp_[s] = pressure_[i];  // p(rho_n): set by the fill and by integrate()
+    fx_[s] = static_cast<float>(position_[i].x() - origin.x());
+    fy_[s] = static_cast<float>(position_[i].y() - origin.y());
+    fz_[s] = static_cast<float>(position_[i].z() - origin.z());
+    fvx_[s] = static_cast<float>(velocity_[i].x());
+    fvy_[s] = static_cast<float>(velocity_[i].y());
+    fvz_[s] = static_cast<float>(velocity_[i].z());
+    frho_[s] = static_cast<float>(density_[i]);
+    // p(rho_n): set by the fill and by integrate().
+    fpr_[s] = static_cast<float>(pressure_[i] / (density_[i] * density_[i]));
     fm_[s] = mass_[i];
     fmat_[s] = material_[i];
-    feta_[s] = 0;
-    if (has_stress_) std::copy_n(&stress_[6 * i], 6, &fstress_[6 * s]);
+    if (any_gradient_) feta_[s] = 0;
+    if (has_stress_) {
+      for (int q = 0; q < 6; ++q)
+        fstress_[6 * s + static_cast<std::size_t>(q)] =
+            static_cast<float>(stress_[6 * i + static_cast<std::size_t>(q)]);
+    }
   }
   const std::size_t nb = b_order_.size();
-  for (auto* v : {&bx_, &by_, &bz_, &bvx_, &bvy_, &bvz_, &bvol_, &bp_, &brho_, &bwx_, &bwy_, &bwz_, &out_bfx_,
-                  &out_bfy_, &out_bfz_}) {
-    v->resize(nb);
+  resize_padded(bx_, nb, kFarAway);
+  resize_padded(by_, nb, kFarAway);
+  resize_padded(bz_, nb, kFarAway);
+  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_}) resize_padded(*v, nb, 0.0f);
+  resize_padded(brho_, nb, 1.0f);
+  if (any_gradient_) {
+    for (auto* v : {&bvx_, &bvy_, &bvz_}) resize_padded(*v, nb, 0.0f);
   }
   for (std::size_t s = 0; s < nb; ++s) {
     const std::uint32_t b = b_order_[s];
-    bx_[s] = boundary_.position[b].x();
-    by_[s] = boundary_.position[b].y();
-    bz_[s] = boundary_.position[b].z();
-    bwx_[s] = boundary_.velocity[b].x();
-    bwy_[s] = boundary_.velocity[b].y();
-    bwz_[s] = boundary_.velocity[b].z();
-    bvol_[s] = boundary_.volume[b];
+    bx_[s] = static_cast<float>(boundary_.position[b].x() - origin.x());
+    by_[s] = static_cast<float>(boundary_.position[b].y() - origin.y());
+    bz_[s] = static_cast<float>(boundary_.position[b].z() - origin.z());
+    bwx_[s] = static_cast<float>(boundary_.velocity[b].x());
+    bwy_[s] = static_cast<float>(boundary_.velocity[b].y());
+    bwz_[s] = static_cast<float>(boundary_.velocity[b].z());
+    bvol_[s] = static_cast<float>(boundary_.volume[b]);
   }
 }
 
 void SphModel::compute_boundary_state() {
-  const std::size_t nb = b_order_.size();
-  const double support2 = kernel_.support() * kernel_.support();
-  const auto count = static_cast<std::int64_t>(nb);
   boundary_pressure_.assign(boundary_.size(), 0.0);
+  with_terms(kernel_.type, any_gradient_, false, DensityDiffusion::none, [&](auto terms) { boundary_state(terms); });
+}
+
+template <class T>
+void SphModel::boundary_state(T) {
+  const std::size_t nb = b_order_.size();
+  const KernelF kernel(kernel_);
+  const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
+  const float* fx = fx_.data();
+  const float* fy = fy_.data();
+  const float* fz = fz_.data();
+  const float* fvx = fvx_.data();
+  const float* fvy = fvy_.data();
+  const float* fvz = fvz_.data();
+  const float* frho = frho_.data();
+  const float* fpr = fpr_.data();
+  // With one fluid material the material of every wall particle is known.
+  const bool one_material = std::all_of(fmat_.begin(), fmat_.begin() + static_cast<std::ptrdiff_t>(f_order_.size()),
+                                        [&](std::uint32_t m) { return m == fmat_[0]; });
+  const auto count = static_cast<std::int64_t>(nb);
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
 #pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto s = static_cast<std::size_t>(k);
-    const std::uint32_t id = b_order_[s];
-    const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
-    double sum_w = 0, sum_pw = 0, sum_rho_r_g = 0, svx = 0, svy = 0, svz = 0, best_w = -1;
-    std::uint32_t material = fmat_.empty() ? 0 : fmat_[0];
-    const double x = bx_[s], y = by_[s], z = bz_[s];
-    for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
-      const double rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
-      const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 < support2) {
-        const double w = kernel_.value(std::sqrt(r2));
-        sum_w += w;
-        sum_pw += fp_[j] * w;
-        sum_rho_r_g += frho_[j] * w * (g_minus_a.x() * rx + g_minus_a.y() * ry + g_minus_a.z() * rz);
-        svx += fvx_[j] * w;
-        svy += fvy_[j] * w;
-        svz += fvz_[j] * w;
-        if (w > best_w) {
-          best_w = w;
-          material = fmat_[j];
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto s = static_cast<std::size_t>(k);
+        const std::uint32_t id = b_order_[s];
+        const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
+        const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
+                   gaz = static_cast<float>(g_minus_a.z());
+        alignas(64) float sum_w[kLanes] = {}, sum_pw[kLanes] = {}, sum_rho_r_g[kLanes] = {};
+        alignas(64) float svx[kLanes] = {}, svy[kLanes] = {}, svz[kLanes] = {};
+        const float x = bx_[s], y = by_[s], z = bz_[s];
+        const Vec3& position = boundary_.position[id];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+#pragma omp simd
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
+                const float rho_j = frho[j];
+                sum_w[l] += w;
+                sum_pw[l] += fpr[j] * rho_j * rho_j * w;
+                sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
+                if constexpr (T::viscous) {
+                  svx[l] += fvx[j] * w;
+                  svy[l] += fvy[j] * w;
+                  svz[l] += fvz[j] * w;
+                }
+              }
+            }
+          }
         }
+        double total_w = 0, total_pw = 0, total_rho_r_g = 0, total_vx = 0, total_vy = 0, total_vz = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          total_w += sum_w[l];
+          total_pw += sum_pw[l];
+          total_rho_r_g += sum_rho_r_g[l];
+          total_vx += svx[l];
+          total_vy += svy[l];
+          total_vz += svz[l];
+        }
+        std::uint32_t material = fmat_.empty() ? 0 : fmat_[0];
+        if (!one_material && total_w > 0) {
+          // The material of the nearest fluid particle (largest W, the first in search order).
+          double best_w = -1;
+          for_neighbours(position.x(), position.y(), position.z(), f_cell_start_, [&](std::uint32_t j) {
+            const double rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+            const double r2 = rx * rx + ry * ry + rz * rz;
+            if (r2 >= support2) return;
+            const double w = kernel_.value(std::sqrt(r2));
+            if (w > best_w) {
+              best_w = w;
+              material = fmat_[j];
+            }
+          });
+        }
+        const EquationOfState& eos = materials_.empty() ? EquationOfState() : materials_[material].eos;
+        double p = 0, rho = eos.rest_density;
+        if (total_w > 0) {
+          // Adami et al. 2012 eq. 27; negative wall pressure would glue the fluid to the wall.
+          p = std::max(0.0, (total_pw + total_rho_r_g) / total_w);
+          rho = eos.density(p);
+        }
+        bpr_[s] = static_cast<float>(p / (rho * rho));
+        brho_[s] = static_cast<float>(rho);
+        if constexpr (T::viscous) {
+          // No-slip wall velocity for the viscous terms: 2 v_w - v_extrapolated (Adami eq. 22).
+          const bool any = total_w > 0;
+          bvx_[s] = any ? static_cast<float>(2.0 * bwx_[s] - total_vx / total_w) : bwx_[s];
+          bvy_[s] = any ? static_cast<float>(2.0 * bwy_[s] - total_vy / total_w) : bwy_[s];
+          bvz_[s] = any ? static_cast<float>(2.0 * bwz_[s] - total_vz / total_w) : bwz_[s];
+        }
+        boundary_pressure_[id] = p;
       }
     });
-    const EquationOfState& eos = materials_.empty() ? EquationOfState() : materials_[material].eos;
-    if (sum_w > 0) {
-      // Adami et al. 2012 eq. 27; negative wall pressure would glue the fluid to the wall.
-      const double p = std::max(0.0, (sum_pw + sum_rho_r_g) / sum_w);
-      bp_[s] = p;
-      brho_[s] = eos.density(p);
-      // No-slip wall velocity for the viscous terms: 2 v_w - v_extrapolated (Adami eq. 22).
-      bvx_[s] = 2.0 * bwx_[s] - svx / sum_w;
-      bvy_[s] = 2.0 * bwy_[s] - svy / sum_w;
-      bvz_[s] = 2.0 * bwz_[s] - svz / sum_w;
-    } else {
-      bp_[s] = 0;
-      brho_[s] = eos.rest_density;
-      bvx_[s] = bwx_[s];
-      bvy_[s] = bwy_[s];
-      bvz_[s] = bwz_[s];
-    }
-    boundary_pressure_[id] = bp_[s];
   }
 }
 
 void SphModel::compute_velocity_gradients() {
   const std::size_t n = f_order_.size();
+  min_viscous_dt_ = std::numeric_limits<double>::infinity();
+  if (!any_gradient_) {
+    fgrad_.clear();
+    return;
+  }
   fgrad_.assign(9 * n, 0.0);
-  if (!any_gradient_) return;
   const double support2 = kernel_.support() * kernel_.support();
+  const double h = kernel_.h;
+  double min_viscous_dt = min_viscous_dt_;
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) reduction(min : min_viscous_dt) if (n > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const FluidMaterial& material = materials_[fmat_[i]];
@@ -315,17 +593,22 @@ void SphModel::compute_velocity_gradients() {
         for (int b = 0; b < 3; ++b) L[3 * a + b] += dv[a] * g[b];
       }
     };
-    for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
+    const Vec3& position = position_[f_order_[i]];
+    for_neighbours(position.x(), position.y(), position.z(), f_cell_start_, [&](std::uint32_t j) {
       if (j == i) return;
       const double rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
       const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 < support2)
-        add(rx, ry, rz, r2, fvx_[j] - fvx_[i], fvy_[j] - fvy_[i], fvz_[j] - fvz_[i], fm_[j] / frho_[j]);
+      if (r2 < support2) {
+        add(rx, ry, rz, r2, double{fvx_[j]} - fvx_[i], double{fvy_[j]} - fvy_[i], double{fvz_[j]} - fvz_[i],
+            double{fm_[j]} / frho_[j]);
+      }
     });
-    for_neighbours(x, y, z, b_cell_start_, [&](std::uint32_t j) {
+    for_neighbours(position.x(), position.y(), position.z(), b_cell_start_, [&](std::uint32_t j) {
       const double rx = x - bx_[j], ry = y - by_[j], rz = z - bz_[j];
       const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 < support2) add(rx, ry, rz, r2, bvx_[j] - fvx_[i], bvy_[j] - fvy_[i], bvz_[j] - fvz_[i], bvol_[j]);
+      if (r2 < support2) {
+        add(rx, ry, rz, r2, double{bvx_[j]} - fvx_[i], double{bvy_[j]} - fvy_[i], double{bvz_[j]} - fvz_[i], bvol_[j]);
+      }
     });
     std::copy_n(L, 9, &fgrad_[9 * i]);
     // Strain rate D = (L + L^T)/2; shear rate sqrt(2 D':D').
@@ -336,240 +619,443 @@ void SphModel::compute_velocity_gradients() {
     d[2] -= trace;
     const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + 2.0 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
     const double shear_rate = std::sqrt(2.0 * dd);
+    double eta = 0;
     switch (material.rheology) {
-      case Rheology::newtonian: feta_[i] = material.viscosity; break;
+      case Rheology::newtonian: eta = material.viscosity; break;
       case Rheology::bingham: {
         // Papanastasiou: eta = mu_p + tau_y (1 - exp(-gamma_dot / gamma_0)) / gamma_dot, limit mu_p + tau_y / gamma_0.
         const double x_rate = shear_rate / material.yield_shear_rate;
         const double factor = x_rate > 1e-8 ? -std::expm1(-x_rate) / shear_rate : 1.0 / material.yield_shear_rate;
-        feta_[i] = material.viscosity + material.yield_stress * factor;
+        eta = material.viscosity + material.yield_stress * factor;
         break;
       }
-      case Rheology::elastic_plastic: feta_[i] = material.viscosity; break;
+      case Rheology::elastic_plastic: eta = material.viscosity; break;
       case Rheology::inviscid: break;
     }
+    feta_[i] = static_cast<float>(eta);
+    if (eta > 0) min_viscous_dt = std::min(min_viscous_dt, double{frho_[i]} * h * h / (8.0 * eta));
   }
+  min_viscous_dt_ = min_viscous_dt;
 }
 
 void SphModel::compute_fluid_forces() {
+  with_terms(kernel_.type, any_gradient_, has_stress_, settings_.density_diffusion,
+             [&](auto terms) { fluid_forces(terms); });
+}
+
+template <class T>
+void SphModel::fluid_forces(T) {
   const std::size_t n = f_order_.size();
-  const double support2 = kernel_.support() * kernel_.support();
-  const double h = kernel_.h, c = sound_speed_, eta2 = eta_squared_;
-  const double alpha_hc = settings_.artificial_viscosity * h * c;
-  const bool diffusion = settings_.density_diffusion != scene::SphSettings::DensityDiffusion::none;
-  const bool hydrostatic_diffusion = settings_.density_diffusion == scene::SphSettings::DensityDiffusion::fourtakas;
-  const double diffusion_scale = 2.0 * settings_.density_diffusion_delta * h * c;
+  const KernelF kernel(kernel_);
+  const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
+  const double c = sound_speed_;
+  const auto h = static_cast<float>(kernel_.h), eta2 = static_cast<float>(eta_squared_);
+  const auto alpha_hc = static_cast<float>(settings_.artificial_viscosity * kernel_.h * c);
+  const double diffusion_scale = 2.0 * settings_.density_diffusion_delta * kernel_.h * c;
   const double gx = gravity_.x(), gy = gravity_.y(), gz = gravity_.z();
-  const double inverse_c2 = 1.0 / (c * c);
+  const auto gxf = static_cast<float>(gx), gyf = static_cast<float>(gy), gzf = static_cast<float>(gz);
+  const auto inverse_c2 = static_cast<float>(1.0 / (c * c));
+  const float* fx = fx_.data();
+  const float* fy = fy_.data();
+  const float* fz = fz_.data();
+  const float* fvx = fvx_.data();
+  const float* fvy = fvy_.data();
+  const float* fvz = fvz_.data();
+  const float* frho = frho_.data();
+  const float* fpr = fpr_.data();
+  const double* fm = fm_.data();
+  const float* feta = feta_.data();
+  const float* fstress = fstress_.data();
+  const float* bx = bx_.data();
+  const float* by = by_.data();
+  const float* bz = bz_.data();
+  const float* bwx = bwx_.data();
+  const float* bwy = bwy_.data();
+  const float* bwz = bwz_.data();
+  const float* bvx = bvx_.data();
+  const float* bvy = bvy_.data();
+  const float* bvz = bvz_.data();
+  const float* bvol = bvol_.data();
+  const float* bpr = bpr_.data();
+  const float* brho = brho_.data();
+  double max_mu = 0, max_acceleration = 0;
+  std::int64_t neighbour_count = 0;
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto i = static_cast<std::size_t>(k);
-    const double x = fx_[i], y = fy_[i], z = fz_[i];
-    const double vx = fvx_[i], vy = fvy_[i], vz = fvz_[i];
-    const double rho_i = frho_[i], p_i = fp_[i];
-    const double p_over_rho2_i = p_i / (rho_i * rho_i);
-    const double eta_i = feta_[i];
-    const double rest_i = materials_[fmat_[i]].eos.rest_density;
-    const double* s_i = has_stress_ ? &fstress_[6 * i] : nullptr;
-    double ax = 0, ay = 0, az = 0, diffuse = 0, max_mu = 0, neighbours = 0;
-    for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
-      if (j == i) return;
-      const double rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
-      const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 >= support2) return;
-      neighbours += 1;
-      const double f = kernel_.gradient_factor(std::sqrt(r2));
-      const double m_j = fm_[j], rho_j = frho_[j];
-      const double dvx = vx - fvx_[j], dvy = vy - fvy_[j], dvz = vz - fvz_[j];
-      const double vr = dvx * rx + dvy * ry + dvz * rz;
-      const double mu = h * vr / (r2 + eta2);
-      max_mu = std::max(max_mu, std::abs(mu));
-      double scalar = -m_j * (p_over_rho2_i + fp_[j] / (rho_j * rho_j));
-      if (vr < 0) scalar += m_j * alpha_hc * vr / ((r2 + eta2) * 0.5 * (rho_i + rho_j));
-      ax += scalar * f * rx;
-      ay += scalar * f * ry;
-      az += scalar * f * rz;
-      const double eta_sum = eta_i + feta_[j];
-      if (eta_sum > 0) {
-        const double viscous = m_j * eta_sum / (rho_i * rho_j) * f * r2 / (r2 + eta2);
-        ax += viscous * dvx;
-        ay += viscous * dvy;
-        az += viscous * dvz;
-      }
-      if (s_i != nullptr) {
-        const double* s_j = &fstress_[6 * j];
-        double sum[6];
-        for (int q = 0; q < 6; ++q) sum[q] = m_j * (s_i[q] / (rho_i * rho_i) + s_j[q] / (rho_j * rho_j));
-        add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
-      }
-      if (diffusion) {
-        double psi = rho_j - rho_i;
-        // (x_j - x_i).g = -(r_ij . g): hydrostatic density difference rho0 g.(x_j - x_i) / c^2.
-        if (hydrostatic_diffusion) psi -= -rest_i * (gx * rx + gy * ry + gz * rz) * inverse_c2;
-        diffuse += psi * (-f * r2) / (r2 + eta2) * m_j / rho_j;
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count)  if (n > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this, &max_mu, &max_acceleration, &neighbour_count] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto i = static_cast<std::uint32_t>(k);
+        const std::uint32_t id = f_order_[i];
+        const float x = fx[i], y = fy[i], z = fz[i];
+        const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
+        const float rho_i = frho[i], pr_i = fpr[i];
+        float eta_i = 0;
+        if constexpr (T::viscous) eta_i = feta[i];
+        float rest_i = 0;
+        if constexpr (T::hydrostatic) rest_i = static_cast<float>(materials_[fmat_[i]].eos.rest_density);
+        float s_i[6] = {0, 0, 0, 0, 0, 0};
+        if constexpr (T::stress) std::copy_n(&fstress[6 * i], 6, s_i);
+        alignas(64) double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
+        alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
+        alignas(64) std::int32_t neighbours[kLanes] = {};
+        const Vec3& position = position_[id];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+              const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
+#pragma omp simd
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (l != self) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float m_j = static_cast<float>(fm[j]), rho_j = frho[j];
+                const float dvx = vx - fvx[j], dvy = vy - fvy[j], dvz = vz - fvz[j];
+                const float vr = dvx * rx + dvy * ry + dvz * rz;
+                const float inverse_r2 = 1.0f / (r2 + eta2);
+                const float mu = h * vr * inverse_r2;
+                mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+                neighbours[l] += inside ? 1 : 0;
+                const float sf = pair_scalar(m_j, pr_i, fpr[j], vr, inverse_r2, rho_i, rho_j, alpha_hc) * f;
+                float tx = sf * rx, ty = sf * ry, tz = sf * rz;
+                if constexpr (T::viscous) {
+                  const float viscous = m_j * (eta_i + feta[j]) / (rho_i * rho_j) * f * r2 * inverse_r2;
+                  tx += viscous * dvx;
+                  ty += viscous * dvy;
+                  tz += viscous * dvz;
+                }
+                if constexpr (T::stress) {
+                  const float* s_j = &fstress[6 * j];
+                  float sum[6];
+                  for (int q = 0; q < 6; ++q) sum[q] = m_j * (s_i[q] / (rho_i * rho_i) + s_j[q] / (rho_j * rho_j));
+                  add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
+                }
+                ax[l] += tx;
+                ay[l] += ty;
+                az[l] += tz;
+                if constexpr (T::diffusion) {
+                  float psi = rho_j - rho_i;
+                  // (x_j - x_i).g = -(r_ij . g): hydrostatic density difference rho0 g.(x_j - x_i) / c^2.
+                  if constexpr (T::hydrostatic) psi += rest_i * (gxf * rx + gyf * ry + gzf * rz) * inverse_c2;
+                  diffuse[l] += psi * (-f * r2) * inverse_r2 * m_j / rho_j;
+                }
+              }
+            }
+          }
+        }
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+#pragma omp simd
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float rho_b = brho[j], m_b = rho_b * bvol[j];
+                const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+                const float inverse_r2 = 1.0f / (r2 + eta2);
+                const float mu = h * vr * inverse_r2;
+                mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+                neighbours[l] += inside ? 1 : 0;
+                float ux = 0, uy = 0, uz = 0;
+                if constexpr (T::viscous) {
+                  ux = vx - bvx[j];
+                  uy = vy - bvy[j];
+                  uz = vz - bvz[j];
+                }
+                float tx, ty, tz;
+                wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy, uz,
+                             alpha_hc, tx, ty, tz);
+                ax[l] += tx;
+                ay[l] += ty;
+                az[l] += tz;
+              }
+            }
+          }
+        }
+        double sum_x = 0, sum_y = 0, sum_z = 0, sum_diffuse = 0;
+        float lane_mu = 0;
+        std::int64_t lane_neighbours = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          sum_x += ax[l];
+          sum_y += ay[l];
+          sum_z += az[l];
+          sum_diffuse += diffuse[l];
+          lane_mu = std::max(lane_mu, mu_max[l]);
+          lane_neighbours += neighbours[l];
+        }
+        const Vec3 a(sum_x + gx, sum_y + gy, sum_z + gz);
+        acceleration_[id] = a;
+        out_drho_[i] = T::diffusion ? diffusion_scale * sum_diffuse : 0.0;
+        max_mu = std::max(max_mu, double{lane_mu});
+        max_acceleration = std::max(max_acceleration, a.norm());
+        neighbour_count += lane_neighbours;
       }
     });
-    for_neighbours(x, y, z, b_cell_start_, [&](std::uint32_t j) {
-      const double rx = x - bx_[j], ry = y - by_[j], rz = z - bz_[j];
-      const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 >= support2) return;
-      neighbours += 1;
-      const double f = kernel_.gradient_factor(std::sqrt(r2));
-      const double rho_j = brho_[j], m_j = rho_j * bvol_[j];
-      const double dvx = vx - bwx_[j], dvy = vy - bwy_[j], dvz = vz - bwz_[j];
-      const double vr = dvx * rx + dvy * ry + dvz * rz;
-      const double mu = h * vr / (r2 + eta2);
-      max_mu = std::max(max_mu, std::abs(mu));
-      double scalar = -m_j * (p_over_rho2_i + bp_[j] / (rho_j * rho_j));
-      if (vr < 0) scalar += m_j * alpha_hc * vr / ((r2 + eta2) * 0.5 * (rho_i + rho_j));
-      ax += scalar * f * rx;
-      ay += scalar * f * ry;
-      az += scalar * f * rz;
-      if (eta_i > 0) {
-        const double viscous = m_j * 2.0 * eta_i / (rho_i * rho_j) * f * r2 / (r2 + eta2);
-        ax += viscous * (vx - bvx_[j]);
-        ay += viscous * (vy - bvy_[j]);
-        az += viscous * (vz - bvz_[j]);
-      }
-      if (s_i != nullptr) add_wall_stress(s_i, m_j, rho_i, rho_j, f, rx, ry, rz, ax, ay, az);
-    });
-    out_ax_[i] = ax + gx;
-    out_ay_[i] = ay + gy;
-    out_az_[i] = az + gz;
-    out_drho_[i] = diffusion ? diffusion_scale * diffuse : 0.0;
-    out_dtcv_[i] = max_mu;
-    out_neigh_[i] = neighbours;
   }
+  max_mu_ = max_mu;
+  max_acceleration_ = max_acceleration;
+  mean_neighbours_ = n > 0 ? static_cast<double>(neighbour_count) / static_cast<double>(n) : 0.0;
 }
 
 void SphModel::compute_boundary_forces() {
-  const std::size_t nb = b_order_.size();
-  const double support2 = kernel_.support() * kernel_.support();
-  const double h = kernel_.h, c = sound_speed_, eta2 = eta_squared_;
-  const double alpha_hc = settings_.artificial_viscosity * h * c;
-  const auto count = static_cast<std::int64_t>(nb);
-  // The same pair terms as in compute_fluid_forces, from the wall particle's side: the
-  // force on the wall particle is minus the sum of the forces it puts on the fluid.
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto b = static_cast<std::size_t>(k);
-    const double x = bx_[b], y = by_[b], z = bz_[b];
-    const double rho_b = brho_[b], m_b = rho_b * bvol_[b];
-    const double p_over_rho2_b = bp_[b] / (rho_b * rho_b);
-    double fx = 0, fy = 0, fz = 0;
-    for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
-      const double rx = fx_[j] - x, ry = fy_[j] - y, rz = fz_[j] - z;  // r_ib, i the fluid particle
-      const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 >= support2) return;
-      const double f = kernel_.gradient_factor(std::sqrt(r2));
-      const double rho_i = frho_[j], m_i = fm_[j];
-      const double dvx = fvx_[j] - bwx_[b], dvy = fvy_[j] - bwy_[b], dvz = fvz_[j] - bwz_[b];
-      const double vr = dvx * rx + dvy * ry + dvz * rz;
-      double scalar = -m_b * (fp_[j] / (rho_i * rho_i) + p_over_rho2_b);
-      if (vr < 0) scalar += m_b * alpha_hc * vr / ((r2 + eta2) * 0.5 * (rho_i + rho_b));
-      double ax = scalar * f * rx, ay = scalar * f * ry, az = scalar * f * rz;
-      const double eta_i = feta_[j];
-      if (eta_i > 0) {
-        const double viscous = m_b * 2.0 * eta_i / (rho_i * rho_b) * f * r2 / (r2 + eta2);
-        ax += viscous * (fvx_[j] - bvx_[b]);
-        ay += viscous * (fvy_[j] - bvy_[b]);
-        az += viscous * (fvz_[j] - bvz_[b]);
-      }
-      if (has_stress_) add_wall_stress(&fstress_[6 * j], m_b, rho_i, rho_b, f, rx, ry, rz, ax, ay, az);
-      fx -= m_i * ax;
-      fy -= m_i * ay;
-      fz -= m_i * az;
-    });
-    out_bfx_[b] = fx;
-    out_bfy_[b] = fy;
-    out_bfz_[b] = fz;
-  }
   boundary_force_.assign(boundary_.size(), Vec3::Zero());
-  for (std::size_t s = 0; s < nb; ++s) boundary_force_[b_order_[s]] = Vec3(out_bfx_[s], out_bfy_[s], out_bfz_[s]);
+  with_terms(kernel_.type, any_gradient_, has_stress_, DensityDiffusion::none,
+             [&](auto terms) { boundary_forces(terms); });
+}
+
+// The same pair terms as in fluid_forces, from the wall particle's side: the force on
+// the wall particle is minus the sum of the forces it puts on the fluid.
+template <class T>
+void SphModel::boundary_forces(T) {
+  const std::size_t nb = b_order_.size();
+  const KernelF kernel(kernel_);
+  const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
+  const auto eta2 = static_cast<float>(eta_squared_);
+  const auto alpha_hc = static_cast<float>(settings_.artificial_viscosity * kernel_.h * sound_speed_);
+  const float* fx = fx_.data();
+  const float* fy = fy_.data();
+  const float* fz = fz_.data();
+  const float* fvx = fvx_.data();
+  const float* fvy = fvy_.data();
+  const float* fvz = fvz_.data();
+  const float* frho = frho_.data();
+  const float* fpr = fpr_.data();
+  const float* feta = feta_.data();
+  const float* fstress = fstress_.data();
+  const double* fm = fm_.data();
+  const auto count = static_cast<std::int64_t>(nb);
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto b = static_cast<std::size_t>(k);
+        const std::uint32_t id = b_order_[b];
+        const float x = bx_[b], y = by_[b], z = bz_[b];
+        const float rho_b = brho_[b], m_b = rho_b * bvol_[b], pr_b = bpr_[b];
+        const float wx = bwx_[b], wy = bwy_[b], wz = bwz_[b];
+        float vx_b = 0, vy_b = 0, vz_b = 0;
+        if constexpr (T::viscous) {
+          vx_b = bvx_[b];
+          vy_b = bvy_[b];
+          vz_b = bvz_[b];
+        }
+        alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
+        const Vec3& position = boundary_.position[id];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+#pragma omp simd
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
+                const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
+                const float inverse_r2 = 1.0f / (r2 + eta2);
+                float ux = 0, uy = 0, uz = 0, eta_i = 0;
+                const float* s_i = nullptr;
+                if constexpr (T::viscous) {
+                  ux = vx - vx_b;
+                  uy = vy - vy_b;
+                  uz = vz - vz_b;
+                  eta_i = feta[j];
+                }
+                if constexpr (T::stress) s_i = &fstress[6 * j];
+                float tx, ty, tz;
+                wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
+                             uz, alpha_hc, tx, ty, tz);
+                const double m_i = inside ? fm[j] : 0.0;
+                fbx[l] -= m_i * tx;
+                fby[l] -= m_i * ty;
+                fbz[l] -= m_i * tz;
+              }
+            }
+          }
+        }
+        double sum_x = 0, sum_y = 0, sum_z = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          sum_x += fbx[l];
+          sum_y += fby[l];
+          sum_z += fbz[l];
+        }
+        boundary_force_[id] = Vec3(sum_x, sum_y, sum_z);
+      }
+    });
+  }
 }
 
 // Continuity at x_n with the new velocities v_{n+1/2} (the density is a position-like
 // variable of the leapfrog: with v_{n-1/2} the acoustic modes would grow).
 void SphModel::compute_velocity_divergence() {
   const std::size_t n = f_order_.size();
-  const double support2 = kernel_.support() * kernel_.support();
   for (std::size_t s = 0; s < n; ++s) {
     const Vec3& v = velocity_[f_order_[s]];
-    fvx_[s] = v.x();
-    fvy_[s] = v.y();
-    fvz_[s] = v.z();
+    fvx_[s] = static_cast<float>(v.x());
+    fvy_[s] = static_cast<float>(v.y());
+    fvz_[s] = static_cast<float>(v.z());
   }
-  const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
-  for (std::int64_t k = 0; k < count; ++k) {
-    const auto i = static_cast<std::size_t>(k);
-    const double x = fx_[i], y = fy_[i], z = fz_[i];
-    const double vx = fvx_[i], vy = fvy_[i], vz = fvz_[i];
-    double drho = 0;
-    for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
-      const double rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
-      const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 >= support2 || j == i) return;
-      const double vr = (vx - fvx_[j]) * rx + (vy - fvy_[j]) * ry + (vz - fvz_[j]) * rz;
-      drho += fm_[j] * vr * kernel_.gradient_factor(std::sqrt(r2));
-    });
-    for_neighbours(x, y, z, b_cell_start_, [&](std::uint32_t j) {
-      const double rx = x - bx_[j], ry = y - by_[j], rz = z - bz_[j];
-      const double r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 >= support2) return;
-      const double vr = (vx - bwx_[j]) * rx + (vy - bwy_[j]) * ry + (vz - bwz_[j]) * rz;
-      drho += brho_[j] * bvol_[j] * vr * kernel_.gradient_factor(std::sqrt(r2));
-    });
-    out_drho_[i] += drho;
-  }
-  for (std::size_t s = 0; s < n; ++s) density_rate_[f_order_[s]] = out_drho_[s];
+  with_terms(kernel_.type, false, false, DensityDiffusion::none, [&](auto terms) { velocity_divergence(terms); });
 }
 
-void SphModel::scatter_and_stable_dt() {
+template <class T>
+void SphModel::velocity_divergence(T) {
   const std::size_t n = f_order_.size();
-  const double h = kernel_.h;
-  double dt_cv = std::numeric_limits<double>::infinity(), dt_force = dt_cv, dt_viscous = dt_cv;
-  double neighbour_sum = 0;
+  const KernelF kernel(kernel_);
+  const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
+  const float* fx = fx_.data();
+  const float* fy = fy_.data();
+  const float* fz = fz_.data();
+  const float* fvx = fvx_.data();
+  const float* fvy = fvy_.data();
+  const float* fvz = fvz_.data();
+  const double* fm = fm_.data();
+  const float* bx = bx_.data();
+  const float* by = by_.data();
+  const float* bz = bz_.data();
+  const float* bwx = bwx_.data();
+  const float* bwy = bwy_.data();
+  const float* bwz = bwz_.data();
+  const float* bvol = bvol_.data();
+  const float* brho = brho_.data();
+  const auto count = static_cast<std::int64_t>(n);
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto i = static_cast<std::uint32_t>(k);
+        const float x = fx[i], y = fy[i], z = fz[i];
+        const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
+        alignas(64) float drho[kLanes] = {};
+        const Vec3& position = position_[f_order_[i]];
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+              const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
+#pragma omp simd
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (l != self) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float vr = (vx - fvx[j]) * rx + (vy - fvy[j]) * ry + (vz - fvz[j]) * rz;
+                drho[l] += static_cast<float>(fm[j]) * vr * f;
+              }
+            }
+          }
+        }
+        {
+          NeighbourRow rows[9];
+          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
+          for (int r = 0; r < row_count; ++r) {
+            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
+            // Blocks wholly outside the x window hold no neighbour: skipped.
+            std::uint32_t j0 = begin;
+            while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+            std::uint32_t stop = j0;
+            while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
+            for (; j0 < stop; j0 += kLanes) {
+              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
+              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+#pragma omp simd
+              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+                const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+                const float r2 = rx * rx + ry * ry + rz * rz;
+                const bool inside = (l < valid) & (r2 < support2);
+                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+                const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+                drho[l] += brho[j] * bvol[j] * vr * f;
+              }
+            }
+          }
+        }
+        double sum = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) sum += drho[l];
+        out_drho_[i] += sum;
+      }
+    });
+  }
+}
+
+// Jaumann rate dS/dt = 2 G D' + W S - S W, W = (L - L^T)/2, of the elastic-plastic particles.
+void SphModel::stress_rates() {
+  const std::size_t n = f_order_.size();
+  std::fill(stress_rate_.begin(), stress_rate_.end(), 0.0);
   for (std::size_t s = 0; s < n; ++s) {
     const std::uint32_t i = f_order_[s];
-    acceleration_[i] = Vec3(out_ax_[s], out_ay_[s], out_az_[s]);
-    dt_cv = std::min(dt_cv, h / (sound_speed_ + out_dtcv_[s]));
-    const double a = acceleration_[i].norm();
-    if (a > 0) dt_force = std::min(dt_force, std::sqrt(h / a));
-    if (feta_[s] > 0) dt_viscous = std::min(dt_viscous, frho_[s] * h * h / (8.0 * feta_[s]));
-    neighbour_sum += out_neigh_[s];
-  }
-  dt_cv = std::min(dt_cv, elastic_wave_dt_);
-  mean_neighbours_ = n > 0 ? neighbour_sum / static_cast<double>(n) : 0.0;
-  if (n == 0) dt_cv = h / sound_speed_;
-  stable_dt_ = settings_.cfl * std::min({dt_cv, dt_force, dt_viscous});
-
-  if (has_stress_) {
-    // Jaumann rate dS/dt = 2 G D' + W S - S W, W = (L - L^T)/2.
-    for (std::size_t s = 0; s < n; ++s) {
-      const std::uint32_t i = f_order_[s];
-      double* rate = &stress_rate_[6 * i];
-      std::fill_n(rate, 6, 0.0);
-      const FluidMaterial& material = materials_[material_[i]];
-      if (material.rheology != Rheology::elastic_plastic) continue;
-      const double* L = &fgrad_[9 * s];
-      Mat3 grad;
-      grad << L[0], L[1], L[2], L[3], L[4], L[5], L[6], L[7], L[8];
-      const Mat3 d = 0.5 * (grad + grad.transpose());
-      const Mat3 w = 0.5 * (grad - grad.transpose());
-      const double* st = &stress_[6 * i];
-      Mat3 stress;
-      stress << st[0], st[3], st[5], st[3], st[1], st[4], st[5], st[4], st[2];
-      const Mat3 deviatoric = d - (d.trace() / 3.0) * Mat3::Identity();
-      const Mat3 r = 2.0 * material.shear_modulus * deviatoric + w * stress - stress * w;
-      rate[0] = r(0, 0);
-      rate[1] = r(1, 1);
-      rate[2] = r(2, 2);
-      rate[3] = r(0, 1);
-      rate[4] = r(1, 2);
-      rate[5] = r(2, 0);
-    }
+    double* rate = &stress_rate_[6 * i];
+    const FluidMaterial& material = materials_[material_[i]];
+    if (material.rheology != Rheology::elastic_plastic) continue;
+    const double* L = &fgrad_[9 * s];
+    Mat3 grad;
+    grad << L[0], L[1], L[2], L[3], L[4], L[5], L[6], L[7], L[8];
+    const Mat3 d = 0.5 * (grad + grad.transpose());
+    const Mat3 w = 0.5 * (grad - grad.transpose());
+    const double* st = &stress_[6 * i];
+    Mat3 stress;
+    stress << st[0], st[3], st[5], st[3], st[1], st[4], st[5], st[4], st[2];
+    const Mat3 deviatoric = d - (d.trace() / 3.0) * Mat3::Identity();
+    const Mat3 r = 2.0 * material.shear_modulus * deviatoric + w * stress - stress * w;
+    rate[0] = r(0, 0);
+    rate[1] = r(1, 1);
+    rate[2] = r(2, 2);
+    rate[3] = r(0, 1);
+    rate[4] = r(1, 2);
+    rate[5] = r(2, 0);
   }
 }
 
@@ -581,7 +1067,14 @@ void SphModel::compute_internal_forces(double dt_previous) {
   compute_velocity_gradients();
   compute_fluid_forces();
   compute_boundary_forces();
-  scatter_and_stable_dt();
+  if (has_stress_) stress_rates();
+  const std::size_t n = f_order_.size();
+  const double h = kernel_.h;
+  double dt_cv = n > 0 ? h / (sound_speed_ + max_mu_) : h / sound_speed_;
+  dt_cv = std::min(dt_cv, elastic_wave_dt_);
+  const double dt_force =
+      max_acceleration_ > 0 ? std::sqrt(h / max_acceleration_) : std::numeric_limits<double>::infinity();
+  stable_dt_ = settings_.cfl * std::min({dt_cv, dt_force, min_viscous_dt_});
   forces_ready_ = true;
 }
 
@@ -591,6 +1084,7 @@ void SphModel::add_external_forces(std::span<const std::uint32_t> index, std::sp
         fmt::format("sph_solver: {} particle indices but {} force values; 3 values per particle expected", index.size(),
                     force.size()));
   }
+  if (external_force_.empty() && !index.empty()) external_force_.assign(size(), Vec3::Zero());
   for (std::size_t k = 0; k < index.size(); ++k) {
     const std::uint32_t i = index[k];
     if (i >= size()) {
@@ -605,38 +1099,57 @@ void SphModel::integrate(double dt_previous, double dt) {
   assert(dt > 0 && dt_previous >= 0);
   const bool first_step = dt_previous == 0;
   const double dt_update = first_step ? 0.5 * dt : 0.5 * (dt_previous + dt);
-  const auto n = static_cast<std::int64_t>(size());
-  const bool parallel = size() > kParallelThreshold;
+  const std::size_t n = size();
+  const bool parallel = n > kParallelThreshold;
+  const bool external = !external_force_.empty();
+  // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
+  const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
+  energy_block_.assign(3 * blocks, 0.0);
+  const auto block_count = static_cast<std::int64_t>(blocks);
 #pragma omp parallel for schedule(static) if (parallel)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto i = static_cast<std::size_t>(k);
-    if (!active_[i]) {
-      particle_kinetic_[i] = 0;
-      external_force_[i].setZero();
-      continue;
+  for (std::int64_t block = 0; block < block_count; ++block) {
+    const std::size_t first = static_cast<std::size_t>(block) * kEnergyBlock;
+    const std::size_t last = std::min(n, first + kEnergyBlock);
+    double kinetic = 0, potential = 0, elastic = 0;
+    for (std::size_t i = first; i < last; ++i) {
+      if (!active_[i]) {
+        if (external) external_force_[i].setZero();
+        continue;
+      }
+      const FluidMaterial& material = materials_[material_[i]];
+      potential += -mass_[i] * gravity_.dot(position_[i]);
+      const double c_rho = material.eos.rest_density * sound_speed_;
+      elastic += mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
+      Vec3 a = acceleration_[i];
+      if (external) {
+        a += external_force_[i] / mass_[i];
+        external_force_[i].setZero();
+      }
+      const Vec3 velocity = velocity_[i] + dt_update * a;
+      kinetic += first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
+      velocity_[i] = velocity;
     }
-    const FluidMaterial& material = materials_[material_[i]];
-    particle_potential_[i] = -mass_[i] * gravity_.dot(position_[i]);
-    const double c_rho = material.eos.rest_density * sound_speed_;
-    particle_elastic_[i] = mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
-    const Vec3 a = acceleration_[i] + external_force_[i] / mass_[i];
-    const Vec3 velocity = velocity_[i] + dt_update * a;
-    particle_kinetic_[i] =
-        first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
-    velocity_[i] = velocity;
-    external_force_[i].setZero();
+    energy_block_[3 * static_cast<std::size_t>(block)] = kinetic;
+    energy_block_[3 * static_cast<std::size_t>(block) + 1] = potential;
+    energy_block_[3 * static_cast<std::size_t>(block) + 2] = elastic;
   }
   compute_velocity_divergence();
+  const auto sorted = static_cast<std::int64_t>(f_order_.size());
 #pragma omp parallel for schedule(static) if (parallel)
-  for (std::int64_t k = 0; k < n; ++k) {
+  for (std::int64_t k = 0; k < sorted; ++k) {
+    const auto s = static_cast<std::size_t>(k);
+    density_[f_order_[s]] += dt * out_drho_[s];
+  }
+  const auto count = static_cast<std::int64_t>(n);
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::int64_t k = 0; k < count; ++k) {
     const auto i = static_cast<std::size_t>(k);
     if (!active_[i]) continue;
     const FluidMaterial& material = materials_[material_[i]];
     position_[i] += dt * velocity_[i];
-    density_[i] += dt * density_rate_[i];
     if (has_stress_ && material.rheology == Rheology::elastic_plastic) {
       double* s = &stress_[6 * i];
-      for (int q = 0; q < 6; ++q) s[q] += dt * stress_rate_[6 * i + q];
+      for (int q = 0; q < 6; ++q) s[q] += dt * stress_rate_[6 * i + static_cast<std::size_t>(q)];
       // Radial return onto the von Mises surface sqrt(3/2 S:S) = sigma_y.
       const double ss = s[0] * s[0] + s[1] * s[1] + s[2] * s[2] + 2.0 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]);
       const double equivalent = std::sqrt(1.5 * ss);
@@ -647,8 +1160,13 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
     pressure_[i] = material.eos.pressure(density_[i]);
   }
-  double kinetic = 0, potential = 0, elastic = 0;
-  for (std::size_t i = 0; i < size(); ++i) {
+  Energies energies;
+  for (std::size_t block = 0; block < blocks; ++block) {
+    energies.kinetic += energy_block_[3 * block];
+    energies.potential += energy_block_[3 * block + 1];
+    energies.elastic += energy_block_[3 * block + 2];
+  }
+  for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
     if (!std::isfinite(position_[i].x() + position_[i].y() + position_[i].z() + density_[i])) {
       throw Error(
@@ -656,16 +1174,13 @@ void SphModel::integrate(double dt_previous, double dt) {
                       "step of {:.3e} s. Fix: lower [solvers.sph] beta or sph.cfl.",
                       i, position_[i].x(), position_[i].y(), position_[i].z(), density_[i], dt));
     }
-    kinetic += particle_kinetic_[i];
-    potential += particle_potential_[i];
-    elastic += particle_elastic_[i];
     if (settings_.domain && !settings_.domain->contains(position_[i])) {
       active_[i] = 0;
       velocity_[i].setZero();
       ++lost_;
     }
   }
-  energies_ = {kinetic, potential, elastic};
+  energies_ = energies;
   forces_ready_ = false;
 }
 

@@ -23,18 +23,27 @@
 // Ids: a particle's index is its global id, stable for the whole run: fluid
 // bodies in scene order, within a body lattice order (z, then y, then x).
 // Internally the particles are gathered into cell order every step (a
-// counting sort on a uniform grid of cell size 2h): each neighbour search
-// visits 27 cells of contiguous memory, and the cost is linear in the count.
+// counting sort on a uniform grid of cell size 2h) as single-precision
+// structure-of-arrays copies: each neighbour search visits 9 rows of 3 cells of
+// contiguous memory in blocks of kLanes slots (vectorised), and the cost is
+// linear in the count. Pair terms are single precision; the accelerations and
+// the wall forces are summed in double, and a fluid-wall pair term is the same
+// float on both sides, so that action equals reaction to double rounding.
 //
-// Determinism: every particle sums its own neighbours in a fixed order (cells
-// in grid order, particles in id order inside a cell); the per-particle
-// results are scattered back by id; every reduction over particles is serial.
+// Inside a cell the particles are sorted by x (ties by id), so that a row of 3
+// cells is x-sorted and the blocks outside a particle's x window are skipped.
+//
+// Determinism: every particle sums its own neighbours in a fixed order (rows
+// in grid order, lane k of a block summing slots begin + k + kLanes m, lanes
+// added in lane order); the per-particle results are written back by id;
+// every floating-point reduction over particles is serial (or a max).
 // Same input, same bits, for any number of threads.
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "libsabo/core/types.hpp"
@@ -96,7 +105,7 @@ class SphModel {
   [[nodiscard]] std::span<const std::uint32_t> material_index() const { return material_; }
   [[nodiscard]] std::span<const std::uint32_t> body_index() const { return body_; }
   [[nodiscard]] std::span<const Vec3> accelerations() const { return acceleration_; }  // m/s^2, a_n
-  // Deviatoric stress (Pa), xx yy zz xy yz zx per particle; zero unless elastic-plastic.
+  // Deviatoric stress (Pa), xx yy zz xy yz zx per particle; empty unless has_stress().
   [[nodiscard]] std::span<const double> deviatoric_stress() const { return stress_; }
   [[nodiscard]] bool has_stress() const { return has_stress_; }
   // 0 for particles that left the domain (taken out of the simulation).
@@ -104,7 +113,8 @@ class SphModel {
   [[nodiscard]] std::size_t lost_count() const { return lost_; }
 
   // Wall particles for the next compute_internal_forces() (Adami et al. 2012).
-  void set_boundary(const physics::BoundaryParticles& boundary);
+  // Taken by value: a caller that no longer needs its copy moves it in.
+  void set_boundary(physics::BoundaryParticles boundary);
   [[nodiscard]] const physics::BoundaryParticles& boundary() const { return boundary_; }
   // Force (N) the fluid exerted on each boundary particle in the last
   // compute_internal_forces(); their sum is minus the wall force on the fluid.
@@ -135,12 +145,21 @@ class SphModel {
   void compute_fluid_forces();
   void compute_boundary_forces();
   void compute_velocity_divergence();
-  void scatter_and_stable_dt();
+  void stress_rates();
+  template <class Terms>
+  void fluid_forces(Terms terms);
+  template <class Terms>
+  void boundary_forces(Terms terms);
+  template <class Terms>
+  void boundary_state(Terms terms);
+  template <class Terms>
+  void velocity_divergence(Terms terms);
   [[nodiscard]] double initial_stable_dt() const;
-  // Calls visit(slot) for every slot of the cell-ordered particles of `start` (fluid or
-  // boundary) in the 27 cells around (x, y, z), cells in grid order.
+  // Calls visit(begin, end) for each of the 9 rows of 3 cells around the cell of (x, y, z)
+  // (m, absolute): [begin, end) are slots of the cell-ordered particles of `start` (fluid
+  // or boundary), rows in grid order.
   template <class Visit>
-  void for_neighbours(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {
+  void for_neighbour_rows(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {
     const double inverse_cell = inverse_cell_;
     const auto cx = static_cast<std::int64_t>((x - grid_origin_.x()) * inverse_cell);
     const auto cy = static_cast<std::int64_t>((y - grid_origin_.y()) * inverse_cell);
@@ -151,9 +170,52 @@ class SphModel {
         const std::int64_t row = (kz * ny_ + ky) * nx_;
         const std::uint32_t begin = start[static_cast<std::size_t>(row + x0)];
         const std::uint32_t end = start[static_cast<std::size_t>(row + x1 + 1)];
-        for (std::uint32_t j = begin; j < end; ++j) visit(j);
+        if (begin < end) {
+          if constexpr (std::is_invocable_v<Visit, std::uint32_t, std::uint32_t, std::int64_t, std::int64_t>) {
+            visit(begin, end, ky, kz);
+          } else {
+            visit(begin, end);
+          }
+        }
       }
     }
+  }
+  // One row of 3 cells for a particle: slots [begin, end), x-sorted, and the x window
+  // (m, relative to grid_origin_) outside which no slot of the row is within 2h.
+  struct NeighbourRow {
+    std::uint32_t begin, end;
+    float x_min, x_max;
+  };
+  // The rows of for_neighbour_rows() that can hold a neighbour of (x, y, z); returns how many.
+  int neighbour_rows(double x, double y, double z, const std::vector<std::uint32_t>& start,
+                     NeighbourRow (&rows)[9]) const {
+    const double cell = kernel_.support(), support2 = cell * cell;
+    const double px = x - grid_origin_.x(), py = y - grid_origin_.y(), pz = z - grid_origin_.z();
+    const auto cy = static_cast<std::int64_t>(py * inverse_cell_);
+    const auto cz = static_cast<std::int64_t>(pz * inverse_cell_);
+    // Distance from p to the band [k cell, (k + 1) cell] of offset k - c: 0 inside, else to its nearer side.
+    const auto band_distance = [&](double p, std::int64_t k, std::int64_t c) {
+      if (k < c) return p - static_cast<double>(k + 1) * cell;
+      if (k > c) return static_cast<double>(k) * cell - p;
+      return 0.0;
+    };
+    int count = 0;
+    for_neighbour_rows(x, y, z, start, [&](std::uint32_t begin, std::uint32_t end, std::int64_t ky, std::int64_t kz) {
+      const double dy = std::max(0.0, band_distance(py, ky, cy)), dz = std::max(0.0, band_distance(pz, kz, cz));
+      const double w2 = support2 - dy * dy - dz * dz;
+      if (w2 <= 0) return;
+      // The margin covers the float positions and the cell index rounding.
+      const double w = std::sqrt(w2) + 1e-4 * cell;
+      rows[count++] = {begin, end, static_cast<float>(px - w), static_cast<float>(px + w)};
+    });
+    return count;
+  }
+  // Calls visit(slot) for every slot in the 27 cells around (x, y, z), cells in grid order.
+  template <class Visit>
+  void for_neighbours(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {
+    for_neighbour_rows(x, y, z, start, [&](std::uint32_t begin, std::uint32_t end) {
+      for (std::uint32_t j = begin; j < end; ++j) visit(j);
+    });
   }
 
   scene::SphSettings settings_;
@@ -166,10 +228,11 @@ class SphModel {
   std::vector<FluidMaterial> materials_;
   bool any_gradient_ = false, has_stress_ = false;
 
-  // Per particle, by id.
-  std::vector<Vec3> position_, velocity_, acceleration_, external_force_;
-  std::vector<double> density_, pressure_, density_rate_, mass_;
-  std::vector<double> stress_, stress_rate_;  // 6 per particle
+  // Per particle, by id: the state in double precision.
+  std::vector<Vec3> position_, velocity_, acceleration_;
+  std::vector<Vec3> external_force_;  // N; empty until add_external_forces() is first called
+  std::vector<double> density_, pressure_, mass_;
+  std::vector<double> stress_, stress_rate_;  // 6 per particle; empty unless has_stress_
   std::vector<std::uint32_t> material_, body_;
   std::vector<std::uint8_t> active_;
   std::size_t lost_ = 0;
@@ -179,28 +242,33 @@ class SphModel {
   std::vector<Vec3> boundary_force_;
   std::vector<double> boundary_pressure_;
 
-  // Uniform grid and the cell-ordered copies (fluid f_*, boundary b_*).
+  // Uniform grid (cell size 2h) and the cell-ordered working copies, single precision,
+  // structure of arrays (fluid f*, boundary b*), padded by kLanes entries so that the
+  // inner loops read whole blocks of kLanes slots. Positions are relative to grid_origin_.
   Vec3 grid_origin_ = Vec3::Zero();
   double inverse_cell_ = 1;
   std::int64_t nx_ = 0, ny_ = 0, nz_ = 0;
   std::vector<std::uint32_t> f_cell_start_, b_cell_start_;  // per cell + 1
   std::vector<std::uint32_t> f_order_, b_order_;            // sorted slot -> id
-  std::vector<std::uint32_t> f_cell_of_, b_cell_of_;        // per id (fluid) / per boundary index
   std::vector<std::uint32_t> cell_next_;                    // build_grid() scratch: next free slot per cell
-  std::vector<double> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_, fp_, fm_;
+  std::vector<float> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_;
+  std::vector<double> fm_;  // kg: the wall forces use the exact masses (action = reaction)
+  std::vector<float> fpr_;  // p / rho^2, Pa m^6/kg^2
   std::vector<std::uint32_t> fmat_;
-  std::vector<double> bx_, by_, bz_, bvx_, bvy_, bvz_, bvol_, bp_, brho_;  // bv: wall velocity for viscosity
-  std::vector<double> bwx_, bwy_, bwz_;                                    // prescribed wall velocity
-  std::vector<double> fgrad_;    // 9 per sorted fluid particle: velocity gradient L = dv/dx
-  std::vector<double> fstress_;  // 6 per sorted fluid particle
-  std::vector<double> feta_;     // effective viscosity per sorted fluid particle, Pa s
-  std::vector<double> out_ax_, out_ay_, out_az_, out_drho_, out_dtcv_, out_neigh_;
-  std::vector<double> out_bfx_, out_bfy_, out_bfz_;
+  std::vector<float> bx_, by_, bz_, bwx_, bwy_, bwz_, bvol_, bpr_, brho_;  // bw: prescribed wall velocity
+  std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)
+  std::vector<double> fgrad_;           // 9 per sorted fluid particle: L = dv/dx (only with gradients)
+  std::vector<float> fstress_;          // 6 per sorted fluid particle (only with stress)
+  std::vector<float> feta_;             // effective viscosity per sorted fluid particle, Pa s (only with gradients)
+  std::vector<double> out_drho_;        // drho/dt per sorted fluid particle, kg/m^3/s
+  double max_mu_ = 0;                   // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s
+  double max_acceleration_ = 0;         // m/s^2, largest |a| in the last compute
+  double min_viscous_dt_ = std::numeric_limits<double>::infinity();  // s
 
   double stable_dt_ = 0;
   double mean_neighbours_ = 0;
   bool forces_ready_ = false;
-  std::vector<double> particle_kinetic_, particle_potential_, particle_elastic_;  // J, by id
+  std::vector<double> energy_block_;  // J: kinetic, potential, elastic per block of particles
   Energies energies_;
 };
 
