@@ -1,12 +1,12 @@
-// Stability and throughput of a dense pile: the paper's boulders (granite, diameters 1-2 m,
-// Hertz-Mindlin e 0.3, friction 0.5, rolling friction 0.1) filled into a closed box at 25 %
-// solid fraction and settling under gravity (dem_solver/dem_pile.hpp). Prints one JSON line:
+// Stability and throughput of a dense pile: boulders of the paper's size (diameters 1-2 m, granite
+// with intact-rock moduli, Hertz-Mindlin e 0.3, friction 0.5, rolling friction 0.1) filled into a closed box at 25 %
+// solid fraction and settling under gravity (tests/support/dem_pile.hpp). Prints one JSON line:
 // the largest rise of the total energy over its initial value (<= 0: never above), sphere-steps
 // that left the box (tunnelling), and at the end the largest speed and the largest and mean
 // overlap over the radius, with the sphere-steps per second of the whole run.
 //
 //   bench_dem_pile --spheres 10000 --time 10
-#include "dem_solver/dem_pile.hpp"
+#include "tests/support/dem_pile.hpp"
 
 #include <fmt/format.h>
 #include <omp.h>

@@ -1,6 +1,7 @@
 #include "dem_solver/dem_model.hpp"
 
 #include <fmt/format.h>
+#include <omp.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -51,8 +52,8 @@ struct ContactOutput {
 // law's constants precomputed. kLaw: 0 linear, 1 hertz, 2 from law.hertz. kRolling: 0 none, 1 constant,
 // 2 viscous, 3 from law.rolling.
 template <int kLaw, int kRolling>
-inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& in, double dt_previous, Vec3& tangential,
-                             Vec3& rolling_history) {
+[[gnu::always_inline]] inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& in,
+                                                    double dt_previous, Vec3& tangential, Vec3& rolling_history) {
   const bool hertz = kLaw == 2 ? law.hertz : kLaw == 1;
   const Vec3& n = in.normal;
   const double normal_speed = in.relative_velocity.dot(n);
@@ -228,13 +229,18 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
     }
   }
 
-  for (std::uint32_t i = 0; i < size(); ++i) {
-    const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
-    energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm();
-    energies_.potential -= mass_[i] * gravity_.dot(position_[i]);
+  // Summed in the blocks and order of integrate(), so that a first step without motion gives the same bits.
+  for (std::size_t first = 0; first < size(); first += kSumBlock) {
+    BlockSums sums;
+    for (std::size_t i = first; i < std::min(size(), first + kSumBlock); ++i) {
+      const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
+      sums.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm();
+      sums.potential -= mass_[i] * gravity_.dot(position_[i]);
+    }
+    energies_.kinetic += sums.kinetic;
+    energies_.potential += sums.potential;
   }
-  for (auto* values : {&sphere_elastic_, &sphere_released_, &sphere_kinetic_, &sphere_potential_, &sphere_dissipated_})
-    values->assign(size(), 0);
+  for (auto* values : {&sphere_elastic_, &sphere_released_}) values->assign(size(), 0);
   dissipative_force_.assign(size(), Vec3::Zero());
   dissipative_torque_.assign(size(), Vec3::Zero());
   sphere_contacts_.assign(size(), 0);
@@ -500,6 +506,8 @@ void DemModel::build_neighbours() {
   ++neighbour_builds_;
   rebuild_ = false;
   build_position_.assign(position_.begin(), position_.end());
+  largest_displacement_squared_ = 0;
+  displacement_known_ = true;
   std::vector<std::uint32_t> old_start = std::move(start_), old_neighbour = std::move(neighbour_);
   std::vector<Vec3> old_tangential = std::move(tangential_), old_rolling = std::move(rolling_);
   std::vector<std::uint8_t> old_in_contact = std::move(in_contact_);
@@ -512,38 +520,43 @@ void DemModel::build_neighbours() {
     const double reach = radius_[i] + radius_[j] + skin_;
     return (position_[i] - position_[j]).squaredNorm() < reach * reach;
   };
-#pragma omp parallel for schedule(static) if (parallel_)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto i = static_cast<std::uint32_t>(k);
-    std::uint32_t count = 0;
-    cells_.for_each_near(position_[i], [&](std::uint32_t j) { count += near(i, j) ? 1 : 0; });
-    count_scratch_[i] = count;
-  }
-  for (std::size_t i = 0; i < size(); ++i) start_[i + 1] = start_[i] + count_scratch_[i];
-  const std::size_t slots = start_.back();
-  neighbour_.resize(slots);
-  tangential_.assign(slots, Vec3::Zero());
-  rolling_.assign(slots, Vec3::Zero());
-  in_contact_.assign(slots, 0);
-  spring_energy_.assign(slots, 0);
-  slot_force_.resize(slots);
-  slot_torque_.resize(slots);
-  slot_dissipative_force_.resize(slots);
-  slot_dissipative_torque_.resize(slots);
   const bool from_pending = !pending_.empty();
-#pragma omp parallel for schedule(static) if (parallel_)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto i = static_cast<std::uint32_t>(k);
-    std::uint32_t slot = start_[i];
-    cells_.for_each_near(position_[i], [&](std::uint32_t j) {
-      if (near(i, j)) neighbour_[slot++] = j;
-    });
-    std::sort(neighbour_.begin() + start_[i], neighbour_.begin() + start_[i + 1]);
-    if (from_pending) continue;
+  thread_neighbours_.resize(static_cast<std::size_t>(parallel_ ? omp_get_max_threads() : 1));
+  // One search per sphere: each thread lists the neighbours of a contiguous range of spheres, then copies
+  // them to their place once the counts are summed.
+#pragma omp parallel if (parallel_)
+  {
+    const auto thread = static_cast<std::int64_t>(omp_get_thread_num());
+    const auto threads = static_cast<std::int64_t>(omp_get_num_threads());
+    const std::int64_t first = n * thread / threads, last = n * (thread + 1) / threads;
+    std::vector<std::uint32_t>& local = thread_neighbours_[static_cast<std::size_t>(thread)];
+    local.clear();
+    for (std::int64_t k = first; k < last; ++k) {
+      const auto i = static_cast<std::uint32_t>(k);
+      const std::size_t begin = local.size();
+      cells_.for_each_near(position_[i], [&](std::uint32_t j) {
+        if (near(i, j)) local.push_back(j);
+      });
+      std::sort(local.begin() + static_cast<std::ptrdiff_t>(begin), local.end());
+      count_scratch_[i] = static_cast<std::uint32_t>(local.size() - begin);
+    }
+#pragma omp barrier
+#pragma omp single
+    {
+      for (std::size_t i = 0; i < size(); ++i) start_[i + 1] = start_[i] + count_scratch_[i];
+      const std::size_t slots = start_.back();
+      neighbour_.resize(slots);
+      tangential_.assign(slots, Vec3::Zero());
+      rolling_.assign(slots, Vec3::Zero());
+      in_contact_.assign(slots, 0);
+      spring_energy_.assign(slots, 0);
+    }
+    std::copy(local.begin(), local.end(), neighbour_.begin() + start_[static_cast<std::size_t>(first)]);
     // Carry the histories over: both lists are sorted by neighbour. A contact dropped from the list
     // (its spheres moved apart by more than the skin at once) releases its springs.
-    double released = 0;
-    if (!old_start.empty()) {
+    for (std::int64_t k = first; k < last && !from_pending && !old_start.empty(); ++k) {
+      const auto i = static_cast<std::uint32_t>(k);
+      double released = 0;
       std::uint32_t s = start_[i];
       for (std::uint32_t old = old_start[i]; old < old_start[i + 1]; ++old) {
         if (!old_in_contact[old]) continue;
@@ -557,8 +570,8 @@ void DemModel::build_neighbours() {
           released += old_energy[old];
         }
       }
+      sphere_released_[i] += released;
     }
-    sphere_released_[i] += released;
   }
   if (from_pending) {
     for (const auto& [key, record] : pending_) {
@@ -578,14 +591,15 @@ void DemModel::build_neighbours() {
     pending_.clear();
   }
 
-  // Reverse list, in slot order.
+  // Reverse list, in slot order: where each slot's reaction goes.
+  const std::size_t slots = start_.back();
   reverse_start_.assign(size() + 1, 0);
   for (std::size_t s = 0; s < slots; ++s) ++reverse_start_[neighbour_[s] + 1];
   for (std::size_t i = 0; i < size(); ++i) reverse_start_[i + 1] += reverse_start_[i];
-  reverse_slot_.resize(slots);
+  reaction_index_.resize(slots);
   count_scratch_.assign(reverse_start_.begin(), reverse_start_.end() - 1);
-  for (std::size_t s = 0; s < slots; ++s)
-    reverse_slot_[count_scratch_[neighbour_[s]]++] = static_cast<std::uint32_t>(s);
+  for (std::size_t s = 0; s < slots; ++s) reaction_index_[s] = count_scratch_[neighbour_[s]]++;
+  reaction_.assign(slots, Reaction{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()});
 }
 
 template <int kLaw, int kRolling>
@@ -619,6 +633,7 @@ void DemModel::pair_forces(double dt_previous) {
           spring_energy_[s] = 0;
           tangential_[s].setZero();
           if constexpr (kRolling != 0) rolling_[s].setZero();
+          reaction_[reaction_index_[s]] = Reaction{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
         }
         continue;
       }
@@ -660,10 +675,11 @@ void DemModel::pair_forces(double dt_previous) {
       torque += out.rolling_torque - lever_a * n_cross_f;
       dissipative_force += out.dissipative_force;
       dissipative_torque += out.dissipative_torque - lever_a * n_cross_d;
-      slot_force_[s] = -out.force;
-      slot_torque_[s] = -lever_b * n_cross_f - out.rolling_torque;
-      slot_dissipative_force_[s] = -out.dissipative_force;
-      slot_dissipative_torque_[s] = -lever_b * n_cross_d - out.dissipative_torque;
+      Reaction& reaction = reaction_[reaction_index_[s]];
+      reaction.force = -out.force;
+      reaction.torque = -lever_b * n_cross_f - out.rolling_torque;
+      reaction.dissipative_force = -out.dissipative_force;
+      reaction.dissipative_torque = -lever_b * n_cross_d - out.dissipative_torque;
     }
     std::uint32_t wall_contacts = 0;
     for (std::size_t w = 0; w < wall_count; ++w) {
@@ -729,25 +745,29 @@ void DemModel::pair_forces(double dt_previous) {
     sphere_contacts_[a] = contacts;
     sphere_wall_contacts_[a] = wall_contacts;
   }
-  // Reactions, each sphere over the slots where it is b, in slot order.
-#pragma omp parallel for schedule(static) if (parallel_)
+  // Reactions, each sphere over the slots where it is b, in slot order (zero where not in contact).
+  std::size_t contacts = 0, wall_contacts = 0;  // integer sums: exact in any order
+#pragma omp parallel for schedule(static) reduction(+ : contacts, wall_contacts) if (parallel_)
   for (std::int64_t k = 0; k < n; ++k) {
     const auto b = static_cast<std::uint32_t>(k);
+    contacts += sphere_contacts_[b];
+    wall_contacts += sphere_wall_contacts_[b];
     Vec3 force = Vec3::Zero(), torque = Vec3::Zero(), dissipative_force = Vec3::Zero(),
          dissipative_torque = Vec3::Zero();
     for (std::uint32_t r = reverse_start_[b]; r < reverse_start_[b + 1]; ++r) {
-      const std::uint32_t s = reverse_slot_[r];
-      if (!in_contact_[s]) continue;
-      force += slot_force_[s];
-      torque += slot_torque_[s];
-      dissipative_force += slot_dissipative_force_[s];
-      dissipative_torque += slot_dissipative_torque_[s];
+      const Reaction& reaction = reaction_[r];
+      force += reaction.force;
+      torque += reaction.torque;
+      dissipative_force += reaction.dissipative_force;
+      dissipative_torque += reaction.dissipative_torque;
     }
     force_[b] += force;
     torque_[b] += torque;
     dissipative_force_[b] += dissipative_force;
     dissipative_torque_[b] += dissipative_torque;
   }
+  contact_count_ = contacts;
+  wall_contact_count_ = wall_contacts;
 }
 
 void DemModel::compute_internal_forces(double dt_previous) {
@@ -755,13 +775,17 @@ void DemModel::compute_internal_forces(double dt_previous) {
   parallel_ = size() >= kParallelThreshold;
   const auto n = static_cast<std::int64_t>(size());
   // Rebuild the neighbour list once a sphere may have come within reach of one not listed.
+  // integrate() measures the displacements as it moves the spheres; positions() may have changed them since.
   if (!rebuild_ && build_position_.size() == size()) {
-    double largest_squared = 0;
+    if (!displacement_known_) {
+      double largest_squared = 0;
 #pragma omp parallel for schedule(static) reduction(max : largest_squared) if (parallel_)
-    for (std::int64_t k = 0; k < n; ++k) {
-      largest_squared = std::max(largest_squared, (position_[k] - build_position_[k]).squaredNorm());
+      for (std::int64_t k = 0; k < n; ++k) {
+        largest_squared = std::max(largest_squared, (position_[k] - build_position_[k]).squaredNorm());
+      }
+      largest_displacement_squared_ = largest_squared;
     }
-    if (4 * largest_squared > skin_ * skin_) rebuild_ = true;
+    if (4 * largest_displacement_squared_ > skin_ * skin_) rebuild_ = true;
   } else {
     rebuild_ = true;
   }
@@ -781,11 +805,6 @@ void DemModel::compute_internal_forces(double dt_previous) {
       case 10: pair_forces<2, 2>(dt_previous); break;
       default: pair_forces<2, 3>(dt_previous); break;
     }
-  }
-  contact_count_ = wall_contact_count_ = 0;
-  for (std::size_t i = 0; i < size(); ++i) {
-    contact_count_ += sphere_contacts_[i];
-    wall_contact_count_ += sphere_wall_contacts_[i];
   }
   forces_ready_ = true;
 }
@@ -815,43 +834,56 @@ void DemModel::integrate(double dt_previous, double dt) {
   const bool first_step = dt_previous == 0;
   const double dt_update = first_step ? 0.5 * dt : 0.5 * (dt_previous + dt);
 
-  const auto n = static_cast<std::int64_t>(size());
-#pragma omp parallel for schedule(static) if (parallel_)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto i = static_cast<std::uint32_t>(k);
-    if (fixed_[i]) {
-      sphere_kinetic_[i] = sphere_potential_[i] = sphere_dissipated_[i] = 0;
-    } else {
-      const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
-      const Vec3 velocity = velocity_[i] + (dt_update / mass_[i]) * force_[i];
-      const Vec3 spin = spin_[i] + (dt_update / inertia) * torque_[i];
-      sphere_kinetic_[i] = first_step
-                               ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
-                               : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
-      sphere_potential_[i] = -mass_[i] * gravity_.dot(position_[i]);
-      // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
-      // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
-      sphere_dissipated_[i] =
-          -0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
-      velocity_[i] = velocity;
-      spin_[i] = spin;
-      position_[i] += dt * velocity;
+  // Energies are summed per block of spheres, then the blocks in order: the same bits for any thread count.
+  const std::size_t blocks = (size() + kSumBlock - 1) / kSumBlock;
+  block_sums_.resize(blocks);
+  const auto block_count = static_cast<std::int64_t>(blocks);
+  const bool measure = build_position_.size() == size();
+  double largest_squared = 0;
+#pragma omp parallel for schedule(static) reduction(max : largest_squared) if (parallel_)
+  for (std::int64_t block = 0; block < block_count; ++block) {
+    BlockSums sums;
+    const std::size_t first = static_cast<std::size_t>(block) * kSumBlock;
+    const std::size_t last = std::min(size(), first + kSumBlock);
+    for (std::size_t i = first; i < last; ++i) {
+      if (!fixed_[i]) {
+        const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
+        const Vec3 velocity = velocity_[i] + (dt_update / mass_[i]) * force_[i];
+        const Vec3 spin = spin_[i] + (dt_update / inertia) * torque_[i];
+        sums.kinetic += first_step
+                            ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
+                            : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
+        sums.potential -= mass_[i] * gravity_.dot(position_[i]);
+        // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
+        // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
+        sums.dissipated_power -=
+            0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
+        velocity_[i] = velocity;
+        spin_[i] = spin;
+        position_[i] += dt * velocity;
+        if (measure) largest_squared = std::max(largest_squared, (position_[i] - build_position_[i]).squaredNorm());
+      }
+      force_[i].setZero();
+      torque_[i].setZero();
+      sums.elastic += sphere_elastic_[i];
+      sums.released += sphere_released_[i];
+      sphere_released_[i] = 0;
     }
-    force_[i].setZero();
-    torque_[i].setZero();
+    block_sums_[static_cast<std::size_t>(block)] = sums;
   }
 
   double dissipated_power = 0, elastic = 0, released = dropped_released_;
   energies_.kinetic = energies_.potential = 0;
-  for (std::size_t i = 0; i < size(); ++i) {
-    energies_.kinetic += sphere_kinetic_[i];
-    energies_.potential += sphere_potential_[i];
-    dissipated_power += sphere_dissipated_[i];
-    elastic += sphere_elastic_[i];
-    released += sphere_released_[i];
-    sphere_released_[i] = 0;
+  for (const BlockSums& sums : block_sums_) {
+    energies_.kinetic += sums.kinetic;
+    energies_.potential += sums.potential;
+    dissipated_power += sums.dissipated_power;
+    elastic += sums.elastic;
+    released += sums.released;
   }
   dropped_released_ = 0;
+  largest_displacement_squared_ = largest_squared;
+  displacement_known_ = measure;
   energies_.elastic = elastic;
   energies_.dissipated += dt_update * dissipated_power + released;
   forces_ready_ = false;

@@ -55,7 +55,8 @@
 // Determinism: each pair is computed once, by the thread of its lower-id sphere,
 // which sums its own pairs in list order; the other sphere takes the pair's
 // reaction in a second pass over its pairs in slot order; energies are summed per
-// sphere, then serially. Same input, same bits, for any number of threads.
+// block of kSumBlock spheres, then the blocks in order. Same input, same bits, for
+// any number of threads.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -117,7 +118,10 @@ class DemModel {
   [[nodiscard]] std::span<const Vec3> positions() const { return position_; }       // m, x_n
   [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }      // m/s, v_{n-1/2}
   [[nodiscard]] std::span<const Vec3> angular_velocities() const { return spin_; }  // rad/s, w_{n-1/2}
-  [[nodiscard]] std::span<Vec3> positions() { return position_; }                   // for restarts
+  [[nodiscard]] std::span<Vec3> positions() {                                       // for restarts
+    displacement_known_ = false;  // the next step measures the moves since the list was built
+    return position_;
+  }
   [[nodiscard]] std::span<Vec3> velocities() { return velocity_; }
   [[nodiscard]] std::span<Vec3> angular_velocities() { return spin_; }
   [[nodiscard]] std::span<const double> radii() const { return radius_; }                    // m
@@ -236,14 +240,24 @@ class DemModel {
   bool rebuild_ = true;
   std::size_t neighbour_builds_ = 0;
   std::vector<Vec3> build_position_;  // positions at the last build
+  // Largest squared move since the last build (m^2), measured by integrate(); unknown once positions() was
+  // handed out for writing.
+  double largest_displacement_squared_ = 0;
+  bool displacement_known_ = false;
   std::vector<std::uint32_t> start_, neighbour_, count_scratch_;
-  // Per slot: contact histories and the results the higher-id sphere takes.
+  std::vector<std::vector<std::uint32_t>> thread_neighbours_;  // per thread, while building
+  // Per slot: contact histories.
   std::vector<Vec3> tangential_, rolling_;
   std::vector<std::uint8_t> in_contact_;
   std::vector<double> spring_energy_;  // J, tangential + rolling springs after the last evaluation
-  std::vector<Vec3> slot_force_, slot_torque_, slot_dissipative_force_, slot_dissipative_torque_;  // on b
-  // Reverse list: the slots where sphere j is b, in slot order.
-  std::vector<std::uint32_t> reverse_start_, reverse_slot_;
+  // What a pair puts on its higher-id sphere b, stored in reverse-list order (the slots where b is the
+  // neighbour, in slot order): the force loop writes each slot's at reaction_index_[slot], the gather reads
+  // them sequentially. Zero while the pair is not in contact.
+  struct Reaction {
+    Vec3 force, torque, dissipative_force, dissipative_torque;  // N, N m
+  };
+  std::vector<Reaction> reaction_;
+  std::vector<std::uint32_t> reverse_start_, reaction_index_;
   // Restored histories waiting for the next build, sorted by key.
   std::vector<std::pair<std::uint64_t, ContactRecord>> pending_;
 
@@ -262,7 +276,13 @@ class DemModel {
   bool forces_ready_ = false;
   std::size_t contact_count_ = 0, wall_contact_count_ = 0;
   std::vector<Vec3> dissipative_force_, dissipative_torque_;  // N, N m: on each sphere, this step
-  std::vector<double> sphere_elastic_, sphere_released_, sphere_kinetic_, sphere_potential_, sphere_dissipated_;
+  std::vector<double> sphere_elastic_, sphere_released_;      // J
+  // Energies summed per block of kSumBlock spheres (the block sums then added in order).
+  static constexpr std::size_t kSumBlock = 512;
+  struct BlockSums {
+    double kinetic = 0, potential = 0, dissipated_power = 0, elastic = 0, released = 0;
+  };
+  std::vector<BlockSums> block_sums_;
   std::vector<std::uint32_t> sphere_contacts_, sphere_wall_contacts_;
   double dropped_released_ = 0;  // J, springs of contacts dropped by a rebuild
   Energies energies_;

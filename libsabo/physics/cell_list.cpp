@@ -76,6 +76,7 @@ CellList::CellRange CellList::range_of(const Aabb& box) const {
 }
 
 std::uint32_t CellList::insert_cell(const CellKey& key) {
+  if (dense_) return static_cast<std::uint32_t>((std::int64_t{key.z} * dims_[1] + key.y) * dims_[0] + key.x);
   const std::size_t mask = table_keys_.size() - 1;
   std::size_t slot = hash(key.x, key.y, key.z) & mask;
   while (table_keys_[slot].x != kFree && table_keys_[slot] != key) slot = (slot + 1) & mask;
@@ -88,14 +89,19 @@ std::uint32_t CellList::insert_cell(const CellKey& key) {
 }
 
 std::span<const std::uint32_t> CellList::items_in(std::int64_t ix, std::int64_t iy, std::int64_t iz) const {
-  const CellKey key{static_cast<std::int32_t>(ix), static_cast<std::int32_t>(iy), static_cast<std::int32_t>(iz)};
-  const std::size_t mask = table_keys_.size() - 1;
-  std::size_t slot = hash(key.x, key.y, key.z) & mask;
-  while (table_keys_[slot] != key) {
-    if (table_keys_[slot].x == kFree) return {};
-    slot = (slot + 1) & mask;
+  std::uint32_t cell;
+  if (dense_) {
+    cell = static_cast<std::uint32_t>((iz * dims_[1] + iy) * dims_[0] + ix);
+  } else {
+    const CellKey key{static_cast<std::int32_t>(ix), static_cast<std::int32_t>(iy), static_cast<std::int32_t>(iz)};
+    const std::size_t mask = table_keys_.size() - 1;
+    std::size_t slot = hash(key.x, key.y, key.z) & mask;
+    while (table_keys_[slot] != key) {
+      if (table_keys_[slot].x == kFree) return {};
+      slot = (slot + 1) & mask;
+    }
+    cell = table_cells_[slot];
   }
-  const std::uint32_t cell = table_cells_[slot];
   return std::span<const std::uint32_t>(cell_items_)
       .subspan(cell_start_[cell], cell_start_[cell + 1] - cell_start_[cell]);
 }
@@ -111,10 +117,18 @@ void CellList::finish(std::size_t item_count) {
   cell_items_.resize(entry_item_.size());
   cursor_.assign(cell_start_.begin(), cell_start_.end() - 1);
   for (std::size_t e = 0; e < entry_item_.size(); ++e) cell_items_[cursor_[entry_cell_[e]]++] = entry_item_[e];
+  occupied_cells_ = 0;
+  for (std::size_t c = 0; c < cells; ++c) occupied_cells_ += cell_start_[c + 1] > cell_start_[c] ? 1 : 0;
 }
 
-void CellList::reset_table(std::size_t max_cells) {
-  const std::size_t size = std::bit_ceil(std::max<std::size_t>(2 * max_cells, 16));
+void CellList::reset_table(std::size_t entries) {
+  const double cells = static_cast<double>(dims_[0]) * static_cast<double>(dims_[1]) * static_cast<double>(dims_[2]);
+  dense_ = cells <= static_cast<double>(std::max<std::size_t>(4 * entries, 4096));
+  if (dense_) {
+    cell_start_.assign(static_cast<std::size_t>(cells), 0);  // every cell, filled in finish()
+    return;
+  }
+  const std::size_t size = std::bit_ceil(std::max<std::size_t>(2 * entries, 16));
   table_keys_.assign(size, CellKey{kFree, 0, 0});
   table_cells_.resize(size);
   cell_start_.clear();

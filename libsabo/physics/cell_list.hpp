@@ -1,8 +1,11 @@
 #pragma once
 // Uniform-grid neighbour search. Items (points, or boxes such as triangle
-// bounds) are binned into cubic cells; only occupied cells are stored, in a
-// hash table keyed by exact cell coordinates, so far outliers cost nothing and
-// the build is linear in the number of items. Buffers are kept between builds.
+// bounds) are binned into cubic cells. When the grid over the items' extent
+// has few cells for the items (at most 4 per binning), every cell is stored in
+// a dense array (z, then y, then x), and the cells of a query along x are one
+// contiguous run of items; otherwise only occupied cells are stored, in a hash
+// table keyed by exact cell coordinates, so far outliers cost nothing. Either
+// way the build is linear in the number of items. Buffers are kept between builds.
 //
 // Determinism: cells are visited in a fixed order (z, then y, then x
 // ascending) and the items of a cell in ascending item index.
@@ -43,7 +46,7 @@ class CellList {
   // extent would need more than 2^30 cells along an axis.
   [[nodiscard]] double cell_size() const { return cell_size_; }
   [[nodiscard]] std::size_t item_count() const { return item_count_; }
-  [[nodiscard]] std::size_t occupied_cell_count() const { return cell_start_.empty() ? 0 : cell_start_.size() - 1; }
+  [[nodiscard]] std::size_t occupied_cell_count() const { return occupied_cells_; }
 
  private:
   struct CellKey {
@@ -58,7 +61,8 @@ class CellList {
   void prepare(const Aabb& extent, double cell_size);
   [[nodiscard]] CellKey cell_of(const Vec3& p) const;       // p inside the extent
   [[nodiscard]] CellRange range_of(const Aabb& box) const;  // clipped to occupied cells
-  void reset_table(std::size_t max_cells);
+  // Chooses the dense grid or the hash table for `entries` binnings, and clears the cells.
+  void reset_table(std::size_t entries);
   std::uint32_t insert_cell(const CellKey& key);
   [[nodiscard]] std::span<const std::uint32_t> items_in(std::int64_t ix, std::int64_t iy, std::int64_t iz) const;
   void finish(std::size_t item_count);  // counting sort of the entries by cell
@@ -67,6 +71,8 @@ class CellList {
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t item_count_ = 0;
+  std::size_t occupied_cells_ = 0;
+  bool dense_ = false;  // cell id = (z * dims_[1] + y) * dims_[0] + x, no table
   // (cell id, item) per binning, in item order; then counting-sorted into cell_items_.
   std::vector<std::uint32_t> entry_cell_;  // cell id of each entry
   std::vector<std::uint32_t> entry_item_;
@@ -91,6 +97,14 @@ void CellList::for_each_in(const Aabb& box, Visit&& visit) const {
   if (range.empty()) return;
   for (std::int64_t iz = range.lo[2]; iz <= range.hi[2]; ++iz) {
     for (std::int64_t iy = range.lo[1]; iy <= range.hi[1]; ++iy) {
+      if (dense_) {
+        // The run of cells along x is one run of items.
+        const auto row = static_cast<std::size_t>((iz * dims_[1] + iy) * dims_[0]);
+        const std::uint32_t first = cell_start_[row + static_cast<std::size_t>(range.lo[0])];
+        const std::uint32_t last = cell_start_[row + static_cast<std::size_t>(range.hi[0]) + 1];
+        for (std::uint32_t e = first; e < last; ++e) visit(cell_items_[e]);
+        continue;
+      }
       for (std::int64_t ix = range.lo[0]; ix <= range.hi[0]; ++ix) {
         for (std::uint32_t item : items_in(ix, iy, iz)) visit(item);
       }

@@ -1492,12 +1492,19 @@ class Builder {
               "give the full path of the program, add its folder to PATH, or " + fallback);
   }
 
-  // The law of a sphere-structure pair: penalty (eqs. 3-6) or Hertz-Mindlin.
-  static void read_surface_contact_law(Reader& r, SurfaceContact& contact) {
+  // The law of a sphere-structure pair: penalty (eqs. 3-6) or Hertz-Mindlin. `contact` holds the law this
+  // table starts from (the defaults, or [contact.dem_fem] for an interaction); restitution is refused where
+  // the resulting law is the penalty one, which has no use for it.
+  void read_surface_contact_law(Reader& r, SurfaceContact& contact, const char* model_fix) {
     if (auto v = r.string("model")) {
       contact.model = *v == "hertz_mindlin" ? SurfaceContact::Model::hertz_mindlin : SurfaceContact::Model::penalty;
     }
     if (auto v = r.number("restitution")) contact.restitution = *v;
+    if (r.has("restitution") && contact.model != SurfaceContact::Model::hertz_mindlin) {
+      diag_.add(r.line("restitution"), r.key_path("restitution"), value_text(*r.node("restitution")),
+                "restitution applies to model = \"hertz_mindlin\", and this contact uses the penalty law",
+                fmt::format("remove restitution, or set model = \"hertz_mindlin\" {}", model_fix));
+    }
   }
 
   // The penalty keys every particle-structure pair has.
@@ -1625,7 +1632,7 @@ class Builder {
                 "remove [contact.dem_fem] or add the missing [[particles]] or [[structures]]");
     }
     Reader df(diag_, spec("contact-dem_fem"), dem_fem != nullptr ? *dem_fem : empty_table(), "contact.dem_fem");
-    read_surface_contact_law(df, scene_.dem_fem_default);
+    read_surface_contact_law(df, scene_.dem_fem_default, "in [contact.dem_fem]");
     read_surface_contact(df, scene_.dem_fem_default);
 
     const toml::table* sph_fem = contact.table("sph_fem");
@@ -1671,7 +1678,7 @@ class Builder {
           }
         }
       } else {
-        read_surface_contact_law(r, interaction.contact);
+        read_surface_contact_law(r, interaction.contact, "in this interaction or in [contact.dem_fem]");
       }
       read_surface_contact(r, interaction.contact);
       if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;

@@ -848,7 +848,7 @@ class Schema {
             .def("0.5")
             .gt(0)
             .le(1)
-            .doc("Coefficient of restitution (hertz_mindlin); 1: no damping."),
+            .doc("Coefficient of restitution (hertz_mindlin only; refused with the penalty law); 1: no damping."),
         K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
         K("penalty_scale", Type::number)
             .def("0.1")
@@ -893,7 +893,7 @@ class Schema {
             .example("0.5")
             .gt(0)
             .le(1)
-            .doc("Coefficient of restitution (hertz_mindlin; particle sets only)."),
+            .doc("Coefficient of restitution (particle sets only; refused unless the pair's law is hertz_mindlin)."),
         K("friction", Type::number).absent(from_default).example("0.4").ge(0).doc("Coulomb friction coefficient."),
         K("penalty_scale", Type::number).absent(from_default).example("0.1").gt(0).doc("k1 of eq. 6."),
         K("normal_stiffness", Type::number)
@@ -1077,7 +1077,9 @@ const std::vector<std::string>& cross_checks() {
       "found on `PATH`.",
       "`[contact.dem_dem]` needs particles; `[contact.dem_fem]` and `[[interactions]]` need particles and "
       "structures. `[contact.dem_dem]` gives `normal_stiffness` or `normal_stiffness_scale`, not both.",
-      "An interaction's `pair` names one particle set or fluid body and one structure; no pair appears twice.",
+      "An interaction's `pair` names one particle set or fluid body and one structure; no pair appears twice. "
+      "`restitution` in `[contact.dem_fem]` or a particle set's interaction is given only where that contact uses "
+      "`model = \"hertz_mindlin\"` (an interaction's model is its own or, when absent, `[contact.dem_fem]`'s).",
       "`[sph]` is given exactly when there are `[[fluids]]`; `[contact.sph_fem]` needs fluids and structures. "
       "`domain_min` and `domain_max` come together, min < max on every axis, and the domain holds every fluid.",
       "A fluid material: `eos = \"polynomial\"` needs `eos_c1`; `newtonian` and `bingham` need `viscosity` > 0; "

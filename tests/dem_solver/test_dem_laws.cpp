@@ -13,7 +13,7 @@
 #include <numbers>
 
 #include "dem_solver/dem_model.hpp"
-#include "dem_solver/dem_pile.hpp"
+#include "tests/support/dem_pile.hpp"
 #include "dem_test_scene.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
