@@ -115,12 +115,23 @@ inline float pair_scalar(float m_j, float pr_i, float pr_j, float vr, float inve
   return vr < 0.0f ? pressure + viscosity : pressure;
 }
 
-// Adds S . (f r) to t, S symmetric 3x3 stored as xx yy zz xy yz zx.
-inline void add_stress_dot(const float* s, float f, float rx, float ry, float rz, float& tx, float& ty, float& tz) {
+// A symmetric 3x3 tensor (stress, Pa, or stress over density squared): six scalars,
+// which the vectoriser keeps in registers (arrays it would not).
+struct Sym6 {
+  float xx = 0, yy = 0, zz = 0, xy = 0, yz = 0, zx = 0;
+};
+
+// Component q of slot j at s[q * stride + j] (component-major: contiguous vector loads).
+inline Sym6 load_sym6(const float* s, std::size_t stride, std::size_t j) {
+  return {s[j], s[stride + j], s[2 * stride + j], s[3 * stride + j], s[4 * stride + j], s[5 * stride + j]};
+}
+
+// Adds S . (f r) to t.
+inline void add_stress_dot(const Sym6& s, float f, float rx, float ry, float rz, float& tx, float& ty, float& tz) {
   const float gx = f * rx, gy = f * ry, gz = f * rz;
-  tx += s[0] * gx + s[3] * gy + s[5] * gz;
-  ty += s[3] * gx + s[1] * gy + s[4] * gz;
-  tz += s[5] * gx + s[4] * gy + s[2] * gz;
+  tx += s.xx * gx + s.xy * gy + s.zx * gz;
+  ty += s.xy * gx + s.yy * gy + s.yz * gz;
+  tz += s.zx * gx + s.yz * gy + s.zz * gz;
 }
 
 // Acceleration t of fluid particle i (density rho_i, p_i / rho_i^2 = pr_i, viscosity
@@ -129,7 +140,7 @@ inline void add_stress_dot(const float* s, float f, float rx, float ry, float rz
 // stress of the fluid next to it (zero normal gradient). One function for both sides
 // of the pair: the force on the wall particle is minus m_i times the same float.
 template <class T>
-inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_i, float eta_i, const float* s_i,
+inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_i, float eta_i, const Sym6& s_i,
                       float f, float rx, float ry, float rz, float r2, float vr, float inverse_r2, float ux, float uy,
                       float uz, float alpha_hc, float& tx, float& ty, float& tz) {
   const float sf = pair_scalar(m_b, pr_i, pr_b, vr, inverse_r2, rho_i, rho_b, alpha_hc) * f;
@@ -143,8 +154,9 @@ inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_
     tz += viscous * uz;
   }
   if constexpr (T::stress) {
-    float sum[6];
-    for (int q = 0; q < 6; ++q) sum[q] = m_b * s_i[q] * (1.0f / (rho_i * rho_i) + 1.0f / (rho_b * rho_b));
+    const float factor = m_b * (1.0f / (rho_i * rho_i) + 1.0f / (rho_b * rho_b));
+    const Sym6 sum{s_i.xx * factor, s_i.yy * factor, s_i.zz * factor,
+                   s_i.xy * factor, s_i.yz * factor, s_i.zx * factor};
     add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
   }
 }
@@ -403,7 +415,7 @@ void SphModel::gather() {
   resize_padded(frho_, n, 1.0f);
   resize_padded(fmat_, n, std::uint32_t{0});
   if (any_gradient_) resize_padded(feta_, n, 0.0f);
-  if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);
+  if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);  // component-major, stride n + kLanes
   out_drho_.resize(n);
   const auto count = static_cast<std::int64_t>(n);
 #pragma omp parallel for schedule(static) if (n > kParallelThreshold)
@@ -423,9 +435,7 @@ void SphModel::gather() {
     fmat_[s] = material_[i];
     if (any_gradient_) feta_[s] = 0;
     if (has_stress_) {
-      for (int q = 0; q < 6; ++q)
-        fstress_[6 * s + static_cast<std::size_t>(q)] =
-            static_cast<float>(stress_[6 * i + static_cast<std::size_t>(q)]);
+      for (std::size_t q = 0; q < 6; ++q) fstress_[q * (n + kLanes) + s] = static_cast<float>(stress_[6 * i + q]);
     }
   }
   const std::size_t nb = b_order_.size();
@@ -666,6 +676,7 @@ void SphModel::fluid_forces(T) {
   const double* fm = fm_.data();
   const float* feta = feta_.data();
   const float* fstress = fstress_.data();
+  const std::size_t stress_stride = f_order_.size() + kLanes;
   const float* bx = bx_.data();
   const float* by = by_.data();
   const float* bz = bz_.data();
@@ -696,8 +707,12 @@ void SphModel::fluid_forces(T) {
         if constexpr (T::viscous) eta_i = feta[i];
         float rest_i = 0;
         if constexpr (T::hydrostatic) rest_i = static_cast<float>(materials_[fmat_[i]].eos.rest_density);
-        float s_i[6] = {0, 0, 0, 0, 0, 0};
-        if constexpr (T::stress) std::copy_n(&fstress[6 * i], 6, s_i);
+        Sym6 s_i, s_i_rho2;  // S_i and S_i / rho_i^2
+        if constexpr (T::stress) {
+          s_i = load_sym6(fstress, stress_stride, i);
+          const float a = 1.0f / (rho_i * rho_i);
+          s_i_rho2 = {s_i.xx * a, s_i.yy * a, s_i.zz * a, s_i.xy * a, s_i.yz * a, s_i.zx * a};
+        }
         alignas(64) double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
         alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
         alignas(64) std::int32_t neighbours[kLanes] = {};
@@ -739,9 +754,11 @@ void SphModel::fluid_forces(T) {
                   tz += viscous * dvz;
                 }
                 if constexpr (T::stress) {
-                  const float* s_j = &fstress[6 * j];
-                  float sum[6];
-                  for (int q = 0; q < 6; ++q) sum[q] = m_j * (s_i[q] / (rho_i * rho_i) + s_j[q] / (rho_j * rho_j));
+                  const Sym6 s_j = load_sym6(fstress, stress_stride, j);
+                  const float aj = 1.0f / (rho_j * rho_j);
+                  const Sym6 sum{m_j * (s_i_rho2.xx + s_j.xx * aj), m_j * (s_i_rho2.yy + s_j.yy * aj),
+                                 m_j * (s_i_rho2.zz + s_j.zz * aj), m_j * (s_i_rho2.xy + s_j.xy * aj),
+                                 m_j * (s_i_rho2.yz + s_j.yz * aj), m_j * (s_i_rho2.zx + s_j.zx * aj)};
                   add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
                 }
                 ax[l] += tx;
@@ -849,6 +866,7 @@ void SphModel::boundary_forces(T) {
   const float* fpr = fpr_.data();
   const float* feta = feta_.data();
   const float* fstress = fstress_.data();
+  const std::size_t stress_stride = f_order_.size() + kLanes;
   const double* fm = fm_.data();
   const auto count = static_cast<std::int64_t>(nb);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
@@ -894,14 +912,14 @@ void SphModel::boundary_forces(T) {
                 const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
                 const float inverse_r2 = 1.0f / (r2 + eta2);
                 float ux = 0, uy = 0, uz = 0, eta_i = 0;
-                const float* s_i = nullptr;
+                Sym6 s_i;
                 if constexpr (T::viscous) {
                   ux = vx - vx_b;
                   uy = vy - vy_b;
                   uz = vz - vz_b;
                   eta_i = feta[j];
                 }
-                if constexpr (T::stress) s_i = &fstress[6 * j];
+                if constexpr (T::stress) s_i = load_sym6(fstress, stress_stride, j);
                 float tx, ty, tz;
                 wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
                              uz, alpha_hc, tx, ty, tz);

@@ -258,7 +258,7 @@ class SphModel {
   std::vector<float> bx_, by_, bz_, bwx_, bwy_, bwz_, bvol_, bpr_, brho_;  // bw: prescribed wall velocity
   std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)
   std::vector<double> fgrad_;           // 9 per sorted fluid particle: L = dv/dx (only with gradients)
-  std::vector<float> fstress_;          // 6 per sorted fluid particle (only with stress)
+  std::vector<float> fstress_;          // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
   std::vector<float> feta_;             // effective viscosity per sorted fluid particle, Pa s (only with gradients)
   std::vector<double> out_drho_;        // drho/dt per sorted fluid particle, kg/m^3/s
   double max_mu_ = 0;                   // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s
