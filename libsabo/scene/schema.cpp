@@ -460,7 +460,7 @@ class Schema {
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
                  "(cheapest, exact in bending with a few elements through the depth); `fully_integrated`, 2 x 2 "
                  "x 2 points with the volume change at the element mean (no hourglass modes: for concentrated "
-                 "impact loads; about 4 times the cost, stiffer in bending). Shells accept only `one_point`."),
+                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells accept only `one_point`."),
         K("floors", Type::integer)
             .def("1")
             .ge(1)
