@@ -51,6 +51,7 @@ struct SurfaceContact::Scratch {
   std::vector<std::size_t> kept;
   std::vector<char> history_used;
   std::vector<Vec3> displacement;
+  std::vector<double> normal_offset;
   std::vector<char> has_history;
 };
 
@@ -550,6 +551,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   scratch.history_used.assign(previous.size(), 0);
   scratch.has_history.assign(count, 0);
   scratch.displacement.assign(count, Vec3::Zero());
+  scratch.normal_offset.assign(count, 0.0);
   for (std::size_t c = 0; c < count; ++c) {
     ActiveContact& contact = result.contacts[c];
     contact.hit = scratch.hits[scratch.kept[c]];
@@ -559,6 +561,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         scratch.history_used[e] = 1;
         scratch.has_history[c] = 1;
         scratch.displacement[c] = previous[e].displacement;
+        scratch.normal_offset[c] = previous[e].normal_offset;
         break;
       }
     }
@@ -577,9 +580,13 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         }
       }
     }
+    const double overlap = result.contacts[c].hit.gap.overlap;
     if (best < previous.size()) {
       scratch.history_used[best] = 1;
       scratch.displacement[c] = previous[best].displacement;
+      scratch.normal_offset[c] = std::max(0.0, overlap - previous[best].spring_overlap);
+    } else if (!previous.empty()) {
+      scratch.normal_offset[c] = overlap;  // born inside a lasting contact: no stored energy
     }
   }
 
@@ -600,6 +607,8 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
     const Vec3 relative_velocity = velocity + spin.cross(lever) - surface_velocity;
     physics::TangentialHistory spring{scratch.displacement[c]};
+    contact.normal_offset = std::min(scratch.normal_offset[c], hit.gap.overlap);
+    const double spring_overlap = hit.gap.overlap - contact.normal_offset;
     if (settings.hertz) {
       const physics::HertzMindlin law{.effective_modulus = settings.effective_modulus,
                                       .effective_radius = radius,
@@ -607,8 +616,8 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
                                       .effective_shear_modulus = settings.effective_shear_modulus,
                                       .restitution = settings.restitution,
                                       .friction = settings.friction};
-      contact.law = physics::hertz_mindlin_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
-      contact.normal_stiffness = physics::hertz_normal_stiffness(law, hit.gap.overlap);
+      contact.law = physics::hertz_mindlin_force(law, spring_overlap, n, relative_velocity, dt_previous, spring);
+      contact.normal_stiffness = physics::hertz_normal_stiffness(law, spring_overlap);
     } else {
       const double k = face_stiffness(hit.face, source);
       physics::SpringDashpot law{};
@@ -617,7 +626,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
       law.tangential_stiffness = k;
       law.tangential_damping = physics::damping_coefficient(k, mass, settings.tangential_damping_ratio);
       law.friction = settings.friction;
-      contact.law = physics::spring_dashpot_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
+      contact.law = physics::spring_dashpot_force(law, spring_overlap, n, relative_velocity, dt_previous, spring);
       contact.normal_stiffness = k;
     }
     contact.displacement = spring.displacement;
@@ -747,7 +756,8 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
       record.sliding = contact.law.sliding;
       records_.push_back(record);
 
-      next_history_.push_back(HistoryEntry{particles.id[i], contact.key, contact.displacement, hit.gap.normal});
+      next_history_.push_back(HistoryEntry{particles.id[i], contact.key, contact.displacement, hit.gap.normal,
+                                           contact.normal_offset, hit.gap.overlap - contact.normal_offset});
     }
   }
   std::stable_sort(next_history_.begin(), next_history_.end(),
