@@ -190,6 +190,7 @@ void SurfaceContact::refresh_geometry() {
   const std::size_t faces = surface_.triangle.size();
   face_normal_.resize(faces);
   face_stiffness_factor_.resize(faces);
+  face_shortest_edge_.resize(faces);
   face_mass_.resize(faces);
   for (std::size_t f = 0; f < faces; ++f) {
     const auto& t = surface_.triangle[f];
@@ -211,6 +212,7 @@ void SurfaceContact::refresh_geometry() {
     const Vec3 cross = (b - a).cross(c - a);
     const double twice_area = cross.norm();
     const double longest = std::sqrt(std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
+    face_shortest_edge_[f] = std::sqrt(std::min({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
     const bool degenerate = merged || !(twice_area > kDegenerateAreaRatio * longest * longest);
     degenerate_[f] = degenerate ? 1 : 0;
     face_box_[f] = Aabb{};
@@ -497,7 +499,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   // only take energy out).
   const std::uint64_t id = particles.id[i];
   const auto range =
-      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}},
+      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}, 0.0, 0.0},
                        [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
   const auto previous = std::span<const HistoryEntry>(history_).subspan(
       static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
@@ -692,6 +694,9 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   out.dissipated_power = 0;
   out.max_contact_stiffness = 0;
   out.min_contact_mass = std::numeric_limits<double>::infinity();
+  out.deepest_overlap_ratio = 0;
+  out.deepest_overlap = 0;
+  out.deepest_face_edge = 0;
   records_.clear();
   stable_dt_ = std::numeric_limits<double>::infinity();
   if (surface_.triangle.empty()) {
@@ -741,6 +746,12 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
       out.dissipated_power += contact.dissipated_power;
       out.max_contact_stiffness = std::max(out.max_contact_stiffness, contact.normal_stiffness);
       out.min_contact_mass = std::min(out.min_contact_mass, particles.mass[i]);
+      const double overlap_ratio = hit.gap.overlap / face_shortest_edge_[hit.face];
+      if (overlap_ratio > out.deepest_overlap_ratio) {
+        out.deepest_overlap_ratio = overlap_ratio;
+        out.deepest_overlap = hit.gap.overlap;
+        out.deepest_face_edge = face_shortest_edge_[hit.face];
+      }
       ++out.contact_count;
 
       ContactRecord record;

@@ -119,6 +119,13 @@ struct ContactOutput {
   double dissipated_power = 0;       // W dissipated now by the dashpots and by Coulomb slip
   double max_contact_stiffness = 0;  // N/m, stiffest active contact (0: none)
   double min_contact_mass = std::numeric_limits<double>::infinity();  // kg, lightest particle in contact
+  // Deepest contact relative to its face: overlap / the face triangle's
+  // shortest edge (a quad face's side). Beyond about 0.5 the particle sinks
+  // through the element scale: the penalty spring is too soft for the mesh
+  // (the coupler warns; docs/physics.md).
+  double deepest_overlap_ratio = 0;
+  double deepest_overlap = 0;    // m, of that contact
+  double deepest_face_edge = 0;  // m, its face's shortest edge
   [[nodiscard]] Vec3 force_on_part(std::size_t part, std::size_t source) const {
     return part_source_force[part * source_count + source];
   }
@@ -288,6 +295,7 @@ class SurfaceContact {
   std::vector<std::uint32_t> node_faces_;
   std::vector<Vec3> face_normal_;              // unit, outward
   std::vector<double> face_stiffness_factor_;  // eq. 6 without k1: K s / L_max or K s^2 / V, N/m
+  std::vector<double> face_shortest_edge_;     // m
   std::vector<double> face_mass_;              // kg: lightest node of the face (infinity: rigid)
   std::vector<char> degenerate_;               // zero-area faces take no part
   std::vector<Aabb> face_box_;
