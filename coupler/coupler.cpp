@@ -330,6 +330,21 @@ Coupler::PenaltyPair* Coupler::penalty_pair_of(const Peer* peer) const {
   return nullptr;
 }
 
+void Coupler::warn_deep_overlap(PenaltyPair& pair) const {
+  constexpr double kDeepOverlapRatio = 0.5;
+  if (pair.warned_deep_overlap || !(pair.out.deepest_overlap_ratio > kDeepOverlapRatio)) return;
+  pair.warned_deep_overlap = true;
+  spdlog::warn(
+      "t = {:.6g} s, contact of the {} with the structures: a particle overlaps a face by {:.3g} m, {:.2f} times the "
+      "face's edge ({:.3g} m; "
+      "warned once per run above {}). The penalty spring (paper eq. 6, k = k1 K A^2 / V, softer on finer meshes) "
+      "is too soft for this mesh: the particle sinks through the element scale and contact forces and energies "
+      "become unreliable. Fix: raise penalty_scale (k1) or set model = \"hertz_mindlin\" in [contact.dem_fem] "
+      "([contact.sph_fem] for fluids; or the pair's [[interactions]]), or coarsen the structure's element_size",
+      time_, force_sources_.at(pair.source), pair.out.deepest_overlap, pair.out.deepest_overlap_ratio,
+      pair.out.deepest_face_edge, kDeepOverlapRatio);
+}
+
 void Coupler::prepare_contacts() {
   if (dem_ != nullptr) force_sources_.emplace_back("particles");
   if (sph_ != nullptr) force_sources_.emplace_back("fluid");
@@ -400,6 +415,7 @@ void Coupler::compute_contacts(double dt_previous) {
     pair->gather.gather(pair->solver->registration.particles(), pair->solver->state);
     pair->contact->compute(pair->gather.view(), dt_previous, pair->out);
     contacts += pair->out.contact_count;
+    warn_deep_overlap(*pair);
     if (pair->out.contact_count > 0) {
       fem_node_force_nonzero_ = true;
       for (std::size_t i = 0; i < fem_node_force_.size(); ++i) fem_node_force_[i] += pair->out.node_force[i];

@@ -86,8 +86,11 @@ class Coupler {
     std::unique_ptr<SurfaceContact> contact;
     ParticleGather gather;
     ContactOutput out;
+    bool warned_deep_overlap = false;  // once per run
   };
   [[nodiscard]] PenaltyPair* penalty_pair_of(const Peer* peer) const;
+  // Warns (once per pair and run) when a contact overlaps beyond half its face's edge.
+  void warn_deep_overlap(PenaltyPair& pair) const;
   std::vector<std::unique_ptr<PenaltyPair>> penalty_pairs_;  // DEM-FEM, SPH-FEM (wall_model = penalty)
   std::unique_ptr<BoundaryWalls> walls_;                     // SPH-FEM (wall_model = boundary_particles)
   std::size_t walls_source_ = 0;

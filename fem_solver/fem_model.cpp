@@ -121,6 +121,12 @@ void fix_faces(Body& body, const std::vector<std::string>& fixed, unsigned dofs)
   }
 }
 
+HexFormulation hex_formulation(const scene::Structure& structure) {
+  return structure.element_formulation == scene::Structure::ElementFormulation::fully_integrated
+             ? HexFormulation::fully_integrated
+             : HexFormulation::one_point;
+}
+
 // Gravity, the fixed faces and the initial velocity of a new body.
 template <class Body>
 void set_up(Body& body, const scene::Structure& structure, const Vec3& gravity, unsigned fixed_dofs) {
@@ -140,7 +146,7 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
     bulk_modulus_ = {scene.materials[material].bulk_modulus(), scene.materials[material].bulk_modulus()};
     const MaterialParameters parameters = material_parameters(scene.materials[material]);
     if (!gmsh.hexahedra.element.empty()) {
-      solid_ = std::make_unique<SolidBody>(std::move(gmsh.hexahedra), parameters);
+      solid_ = std::make_unique<SolidBody>(std::move(gmsh.hexahedra), parameters, hex_formulation(structure));
       set_up(*solid_, structure, scene.run.gravity, dof_all);
     } else {
       if (!(structure.thickness > 0)) {
@@ -171,7 +177,8 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
   } else {
     scene_material_ = {static_cast<std::uint32_t>(material)};
     bulk_modulus_ = {scene.materials[material].bulk_modulus()};
-    solid_ = std::make_unique<SolidBody>(structure_mesh(structure), material_parameters(scene.materials[material]));
+    solid_ = std::make_unique<SolidBody>(structure_mesh(structure), material_parameters(scene.materials[material]),
+                                         hex_formulation(structure));
     set_up(*solid_, structure, scene.run.gravity, dof_all);
   }
   refresh_surface();

@@ -7,7 +7,14 @@
 namespace sabo::fem {
 
 SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double hourglass_scale)
-    : mesh_(std::move(mesh)), material_(material), hourglass_scale_(hourglass_scale) {
+    : SolidBody(std::move(mesh), material, hourglass_scale, HexFormulation::one_point) {}
+
+SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, HexFormulation formulation)
+    : SolidBody(std::move(mesh), material, 1.0, formulation) {}
+
+SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double hourglass_scale,
+                     HexFormulation formulation)
+    : mesh_(std::move(mesh)), material_(material), hourglass_scale_(hourglass_scale), formulation_(formulation) {
   const std::size_t nodes = mesh_.node.size();
   const std::size_t elements = mesh_.element.size();
   position_ = mesh_.node;
@@ -16,6 +23,7 @@ SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double ho
   mass_.assign(nodes, 0.0);
   fixed_.assign(nodes, 0);
   state_.assign(elements, Hex8State{});
+  if (formulation_ == HexFormulation::fully_integrated) gauss_.assign(elements, Hex8GaussPoints{});
   active_.assign(elements, 1);
   element_force_.assign(8 * elements, Vec3::Zero());
   element_dt_.assign(elements, std::numeric_limits<double>::infinity());
@@ -72,7 +80,9 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
       x[a] = position_[mesh_.element[e][a]];
       v[a] = velocity_[mesh_.element[e][a]];
     }
-    const bool ok = hex8_internal_force(material_, hourglass_scale_, x, v, dt_previous, state_[e], force);
+    const bool ok = formulation_ == HexFormulation::fully_integrated
+                        ? hex8_full_internal_force(material_, x, v, dt_previous, state_[e], gauss_[e], force)
+                        : hex8_internal_force(material_, hourglass_scale_, x, v, dt_previous, state_[e], force);
     // An inverted element has failed too: it can carry no stress.
     element_failed_[e] = (!ok || (material_.erodes() && failed(material_, state_[e].point))) ? 1 : 0;
     for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a] = force[a];
@@ -150,6 +160,9 @@ BodyState SolidBody::save_state() const {
     }
   }
   for (const Hex8State& s : state_) for_each_value_of_hex(s, put);
+  for (const Hex8GaussPoints& points : gauss_) {
+    for (const MaterialPoint& point : points) for_each_value_of_point(point, put);
+  }
   for (double value : {kinetic_, external_work_, eroded_energy_, stable_dt_}) put(value);
   out.active = active_;
   out.counters = {topology_revision_, eroded_count_};
@@ -161,13 +174,20 @@ void SolidBody::restore_state(const BodyState& state, const std::string& what) {
   std::size_t per_element = 0;
   const Hex8State probe{};
   for_each_value_of_hex(probe, [&](const double&) { ++per_element; });
-  reader.expect_sizes(6 * position_.size() + per_element * state_.size() + 4, state_.size(), 2);
+  std::size_t per_point = 0;
+  const MaterialPoint probe_point{};
+  for_each_value_of_point(probe_point, [&](const double&) { ++per_point; });
+  reader.expect_sizes(6 * position_.size() + per_element * state_.size() + 8 * per_point * gauss_.size() + 4,
+                      state_.size(), 2);
   for (auto* field : {&position_, &velocity_}) {
     for (Vec3& v : *field) {
       for (int d = 0; d < 3; ++d) v(d) = reader.next();
     }
   }
   for (Hex8State& s : state_) for_each_value_of_hex(s, [&](double& value) { value = reader.next(); });
+  for (Hex8GaussPoints& points : gauss_) {
+    for (MaterialPoint& point : points) for_each_value_of_point(point, [&](double& value) { value = reader.next(); });
+  }
   for (double* value : {&kinetic_, &external_work_, &eroded_energy_, &stable_dt_}) *value = reader.next();
   active_ = state.active;
   topology_revision_ = state.counters[0];

@@ -1,7 +1,8 @@
 #pragma once
 // A deformable solid: hexahedra of one material, lumped nodal masses, fixed
 // degrees of freedom, gravity, explicit central-difference integration and
-// element erosion (docs/physics.md "FEM solids").
+// element erosion (docs/physics.md "FEM solids"); one-point or fully
+// integrated hexahedra (HexFormulation).
 //
 // Step n (the CoupledSolver contract, DESIGN.md §2): the body holds x_n and
 // v_{n-1/2}.
@@ -27,16 +28,26 @@
 
 namespace sabo::fem {
 
+// How the hexahedra integrate their stress (scene key element_formulation).
+enum class HexFormulation {
+  one_point,         // one point, hourglass stabilised (hex8_internal_force)
+  fully_integrated,  // 2 x 2 x 2 points, mean dilatation (hex8_full_internal_force)
+};
+
 enum Dof : unsigned { dof_x = 1, dof_y = 2, dof_z = 4, dof_all = 7 };
 
 class SolidBody {
  public:
   SolidBody(HexMesh mesh, const MaterialParameters& material, double hourglass_scale = 1.0);
+  SolidBody(HexMesh mesh, const MaterialParameters& material, HexFormulation formulation);
+  // hourglass_scale applies to one-point elements only.
+  SolidBody(HexMesh mesh, const MaterialParameters& material, double hourglass_scale, HexFormulation formulation);
 
   [[nodiscard]] std::size_t node_count() const { return position_.size(); }
   [[nodiscard]] std::size_t element_count() const { return mesh_.element.size(); }
   [[nodiscard]] const HexMesh& mesh() const { return mesh_; }
   [[nodiscard]] const MaterialParameters& material() const { return material_; }
+  [[nodiscard]] HexFormulation formulation() const { return formulation_; }
 
   // Fixes the DOFs in `dofs` (Dof bits) of a node; its velocity there stays zero.
   void fix(std::size_t node, unsigned dofs);
@@ -81,15 +92,17 @@ class SolidBody {
   HexMesh mesh_;
   MaterialParameters material_;
   double hourglass_scale_;
+  HexFormulation formulation_ = HexFormulation::one_point;
   Vec3 gravity_ = Vec3::Zero();
   std::ptrdiff_t parallel_minimum_ = 4096;
   std::vector<Vec3> position_, velocity_, internal_force_;
   std::vector<double> mass_;
   std::vector<std::uint8_t> fixed_;  // Dof bits per node
   std::vector<Hex8State> state_;
-  std::vector<std::uint8_t> active_;  // 1: not eroded
-  std::vector<Vec3> element_force_;   // 8 per element
-  std::vector<double> element_dt_;    // per element
+  std::vector<Hex8GaussPoints> gauss_;  // per element, fully integrated only
+  std::vector<std::uint8_t> active_;    // 1: not eroded
+  std::vector<Vec3> element_force_;     // 8 per element
+  std::vector<double> element_dt_;      // per element
   std::vector<std::uint8_t> element_failed_;
   NodeGather gather_;
   double stable_dt_ = 0;

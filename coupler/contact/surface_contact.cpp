@@ -51,6 +51,7 @@ struct SurfaceContact::Scratch {
   std::vector<std::size_t> kept;
   std::vector<char> history_used;
   std::vector<Vec3> displacement;
+  std::vector<double> normal_offset;
   std::vector<char> has_history;
 };
 
@@ -189,6 +190,7 @@ void SurfaceContact::refresh_geometry() {
   const std::size_t faces = surface_.triangle.size();
   face_normal_.resize(faces);
   face_stiffness_factor_.resize(faces);
+  face_shortest_edge_.resize(faces);
   face_mass_.resize(faces);
   for (std::size_t f = 0; f < faces; ++f) {
     const auto& t = surface_.triangle[f];
@@ -210,6 +212,7 @@ void SurfaceContact::refresh_geometry() {
     const Vec3 cross = (b - a).cross(c - a);
     const double twice_area = cross.norm();
     const double longest = std::sqrt(std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
+    face_shortest_edge_[f] = std::sqrt(std::min({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
     const bool degenerate = merged || !(twice_area > kDegenerateAreaRatio * longest * longest);
     degenerate_[f] = degenerate ? 1 : 0;
     face_box_[f] = Aabb{};
@@ -496,7 +499,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   // only take energy out).
   const std::uint64_t id = particles.id[i];
   const auto range =
-      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}},
+      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}, 0.0, 0.0},
                        [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
   const auto previous = std::span<const HistoryEntry>(history_).subspan(
       static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
@@ -550,6 +553,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   scratch.history_used.assign(previous.size(), 0);
   scratch.has_history.assign(count, 0);
   scratch.displacement.assign(count, Vec3::Zero());
+  scratch.normal_offset.assign(count, 0.0);
   for (std::size_t c = 0; c < count; ++c) {
     ActiveContact& contact = result.contacts[c];
     contact.hit = scratch.hits[scratch.kept[c]];
@@ -559,6 +563,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         scratch.history_used[e] = 1;
         scratch.has_history[c] = 1;
         scratch.displacement[c] = previous[e].displacement;
+        scratch.normal_offset[c] = previous[e].normal_offset;
         break;
       }
     }
@@ -577,9 +582,13 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         }
       }
     }
+    const double overlap = result.contacts[c].hit.gap.overlap;
     if (best < previous.size()) {
       scratch.history_used[best] = 1;
       scratch.displacement[c] = previous[best].displacement;
+      scratch.normal_offset[c] = std::max(0.0, overlap - previous[best].spring_overlap);
+    } else if (!previous.empty()) {
+      scratch.normal_offset[c] = overlap;  // born inside a lasting contact: no stored energy
     }
   }
 
@@ -600,6 +609,8 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
     const Vec3 relative_velocity = velocity + spin.cross(lever) - surface_velocity;
     physics::TangentialHistory spring{scratch.displacement[c]};
+    contact.normal_offset = std::min(scratch.normal_offset[c], hit.gap.overlap);
+    const double spring_overlap = hit.gap.overlap - contact.normal_offset;
     if (settings.hertz) {
       const physics::HertzMindlin law{.effective_modulus = settings.effective_modulus,
                                       .effective_radius = radius,
@@ -607,8 +618,8 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
                                       .effective_shear_modulus = settings.effective_shear_modulus,
                                       .restitution = settings.restitution,
                                       .friction = settings.friction};
-      contact.law = physics::hertz_mindlin_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
-      contact.normal_stiffness = physics::hertz_normal_stiffness(law, hit.gap.overlap);
+      contact.law = physics::hertz_mindlin_force(law, spring_overlap, n, relative_velocity, dt_previous, spring);
+      contact.normal_stiffness = physics::hertz_normal_stiffness(law, spring_overlap);
     } else {
       const double k = face_stiffness(hit.face, source);
       physics::SpringDashpot law{};
@@ -617,7 +628,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
       law.tangential_stiffness = k;
       law.tangential_damping = physics::damping_coefficient(k, mass, settings.tangential_damping_ratio);
       law.friction = settings.friction;
-      contact.law = physics::spring_dashpot_force(law, hit.gap.overlap, n, relative_velocity, dt_previous, spring);
+      contact.law = physics::spring_dashpot_force(law, spring_overlap, n, relative_velocity, dt_previous, spring);
       contact.normal_stiffness = k;
     }
     contact.displacement = spring.displacement;
@@ -683,6 +694,9 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   out.dissipated_power = 0;
   out.max_contact_stiffness = 0;
   out.min_contact_mass = std::numeric_limits<double>::infinity();
+  out.deepest_overlap_ratio = 0;
+  out.deepest_overlap = 0;
+  out.deepest_face_edge = 0;
   records_.clear();
   stable_dt_ = std::numeric_limits<double>::infinity();
   if (surface_.triangle.empty()) {
@@ -732,6 +746,12 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
       out.dissipated_power += contact.dissipated_power;
       out.max_contact_stiffness = std::max(out.max_contact_stiffness, contact.normal_stiffness);
       out.min_contact_mass = std::min(out.min_contact_mass, particles.mass[i]);
+      const double overlap_ratio = hit.gap.overlap / face_shortest_edge_[hit.face];
+      if (overlap_ratio > out.deepest_overlap_ratio) {
+        out.deepest_overlap_ratio = overlap_ratio;
+        out.deepest_overlap = hit.gap.overlap;
+        out.deepest_face_edge = face_shortest_edge_[hit.face];
+      }
       ++out.contact_count;
 
       ContactRecord record;
@@ -747,7 +767,8 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
       record.sliding = contact.law.sliding;
       records_.push_back(record);
 
-      next_history_.push_back(HistoryEntry{particles.id[i], contact.key, contact.displacement, hit.gap.normal});
+      next_history_.push_back(HistoryEntry{particles.id[i], contact.key, contact.displacement, hit.gap.normal,
+                                           contact.normal_offset, hit.gap.overlap - contact.normal_offset});
     }
   }
   std::stable_sort(next_history_.begin(), next_history_.end(),

@@ -48,6 +48,64 @@ bool geometry(const HexNodes& x, Geometry& g) {
   return true;
 }
 
+// Shape function derivatives at the 2 x 2 x 2 Gauss points, d N_a / d xi_j.
+struct GaussTable {
+  std::array<std::array<Vec3, 8>, 8> natural_gradient;  // [g][a]
+};
+
+const GaussTable& gauss_table() {
+  static const GaussTable table = [] {
+    GaussTable t;
+    const double r = 1.0 / std::sqrt(3.0);
+    for (std::size_t g = 0; g < 8; ++g) {
+      const auto& gn = kNatural[g];
+      const std::array<double, 3> xi{r * gn[0], r * gn[1], r * gn[2]};
+      for (std::size_t a = 0; a < 8; ++a) {
+        const auto& n = kNatural[a];
+        const std::array<double, 3> factor{1 + n[0] * xi[0], 1 + n[1] * xi[1], 1 + n[2] * xi[2]};
+        t.natural_gradient[g][a] =
+            Vec3(n[0] * factor[1] * factor[2], n[1] * factor[0] * factor[2], n[2] * factor[0] * factor[1]) / 8.0;
+      }
+    }
+    return t;
+  }();
+  return table;
+}
+
+// Cartesian gradients and det J (the point's volume weight) at the Gauss points;
+// false when any det J is not positive.
+struct GaussGeometry {
+  std::array<std::array<Vec3, 8>, 8> gradient;  // [g][a]
+  std::array<double, 8> weight{};               // det J_g, m^3
+  std::array<Vec3, 8> mean_gradient;            // b_a
+  double volume = 0;
+};
+
+bool gauss_geometry(const HexNodes& x, GaussGeometry& g) {
+  const GaussTable& table = gauss_table();
+  g.volume = 0;
+  for (auto& b : g.mean_gradient) b.setZero();
+  for (std::size_t p = 0; p < 8; ++p) {
+    Mat3 jacobian = Mat3::Zero();
+    for (std::size_t a = 0; a < 8; ++a) jacobian += x[a] * table.natural_gradient[p][a].transpose();
+    const double det = jacobian.determinant();
+    if (!(det > 0)) return false;
+    const Mat3 inverse_transpose = jacobian.inverse().transpose();
+    g.weight[p] = det;
+    g.volume += det;
+    for (std::size_t a = 0; a < 8; ++a) {
+      g.gradient[p][a] = inverse_transpose * table.natural_gradient[p][a];
+      g.mean_gradient[a] += det * g.gradient[p][a];
+    }
+  }
+  for (auto& b : g.mean_gradient) b /= g.volume;
+  return true;
+}
+
+Mat3 deviator(const Mat3& m) {
+  return m - (m.trace() / 3.0) * Mat3::Identity();
+}
+
 }  // namespace
 
 double hex8_volume(const HexNodes& x) {
@@ -184,6 +242,48 @@ bool hex8_internal_force(const MaterialParameters& material, double hourglass_sc
     }
   }
   for (std::size_t a = 0; a < 8; ++a) force[a] += frame * local_force[a];
+  return true;
+}
+
+bool hex8_full_internal_force(const MaterialParameters& material, const HexNodes& x, const HexNodes& velocity,
+                              double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force) {
+  for (auto& f : force) f.setZero();
+  if (dt_previous > 0) {
+    HexNodes mid;
+    for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt_previous * velocity[a];
+    GaussGeometry gm;
+    if (!gauss_geometry(mid, gm)) return false;
+    double mean_divergence = 0;
+    for (std::size_t a = 0; a < 8; ++a) mean_divergence += velocity[a].dot(gm.mean_gradient[a]);
+    for (std::size_t p = 0; p < 8; ++p) {
+      Mat3 velocity_gradient = Mat3::Zero();
+      for (std::size_t a = 0; a < 8; ++a) velocity_gradient += velocity[a] * gm.gradient[p][a].transpose();
+      const Mat3 rate = deviator(0.5 * (velocity_gradient + velocity_gradient.transpose())) +
+                        (mean_divergence / 3.0) * Mat3::Identity();
+      const Mat3 spin = 0.5 * (velocity_gradient - velocity_gradient.transpose());
+      const Mat3 old_stress = gauss[p].stress;
+      const MaterialUpdate update = update_stress(material, rate, spin, dt_previous, gauss[p]);
+      state.internal_energy +=
+          dt_previous * gm.weight[p] * 0.5 * (old_stress + gauss[p].stress).cwiseProduct(rate).sum();
+      state.plastic_work += gm.weight[p] * update.plastic_work_density;
+    }
+  }
+  GaussGeometry g;
+  if (!gauss_geometry(x, g)) return false;
+  state.volume = g.volume;
+  MaterialPoint mean;
+  for (std::size_t p = 0; p < 8; ++p) {
+    const Mat3& stress = gauss[p].stress;
+    const Mat3 stress_deviator = deviator(stress);
+    const double pressure_weight = g.weight[p] * stress.trace() / 3.0;
+    for (std::size_t a = 0; a < 8; ++a)
+      force[a] += g.weight[p] * (stress_deviator * g.gradient[p][a]) + pressure_weight * g.mean_gradient[a];
+    mean.stress += stress / 8.0;
+    mean.back_stress += gauss[p].back_stress / 8.0;
+    mean.strain += gauss[p].strain / 8.0;
+    mean.plastic_strain += gauss[p].plastic_strain / 8.0;
+  }
+  state.point = mean;
   return true;
 }
 

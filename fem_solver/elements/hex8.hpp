@@ -1,5 +1,5 @@
 #pragma once
-// The 8-node hexahedron with one-point integration (uniform strain at the
+// The 8-node hexahedron, with one-point integration (uniform strain at the
 // centre) and physical hourglass stabilisation (docs/physics.md "FEM solids").
 //
 // Node order: 0..3 the face zeta = -1 counter-clockwise seen from outside...
@@ -54,5 +54,21 @@ struct Hex8State {
 // unchanged and force is zero.
 bool hex8_internal_force(const MaterialParameters& material, double hourglass_scale, const HexNodes& x,
                          const HexNodes& velocity, double dt_previous, Hex8State& state, HexNodes& force);
+
+// The fully integrated hexahedron: 2 x 2 x 2 Gauss points, each with its own
+// material history, and the volumetric strain rate and pressure taken at the
+// element mean (mean dilatation, Nagtegaal-Parks-Rice / Hughes B-bar):
+//   D_g = dev(sym L_g) + (1/3) div_mean I,  div_mean = sum_a v_a . b_a,
+//   b_a = (1/V) sum_g det J_g grad N_a(g)   (exact volume average of grad N_a),
+//   f_a = sum_g det J_g (dev(sigma_g) grad N_a(g) + p_g b_a).
+// No zero-energy modes, hence no hourglass control (state.hourglass_energy
+// stays 0), and no volumetric locking (plastic flow is isochoric). Like every
+// fully integrated linear hexahedron it stiffens in bending with few elements
+// through the depth (parasitic shear). `gauss` holds the points' histories;
+// state.point receives their mean (output, erosion). Same return and time
+// levels as hex8_internal_force.
+using Hex8GaussPoints = std::array<MaterialPoint, 8>;
+bool hex8_full_internal_force(const MaterialParameters& material, const HexNodes& x, const HexNodes& velocity,
+                              double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force);
 
 }  // namespace sabo::fem

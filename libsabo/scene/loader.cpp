@@ -935,6 +935,19 @@ class Builder {
   void read_deformable(Reader& r, Structure& structure, const std::optional<std::string>& shape) {
     if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
     if (auto v = r.vec3("velocity")) structure.velocity = *v;
+    if (auto v = r.string("element_formulation")) {
+      structure.element_formulation = *v == "fully_integrated" ? Structure::ElementFormulation::fully_integrated
+                                                               : Structure::ElementFormulation::one_point;
+      if (!structure.rigid && structure.thickness > 0 &&
+          structure.element_formulation != Structure::ElementFormulation::one_point) {
+        diag_.add(r.line("element_formulation"), r.key_path("element_formulation"),
+                  value_text(*r.node("element_formulation")),
+                  "fully integrated elements exist for solids (hexahedra) only; this structure has a thickness "
+                  "(shells)",
+                  "remove element_formulation (shells are one-point elements), or remove the thickness for a "
+                  "solid of hexahedra");
+      }
+    }
     const bool building_keys = shape && *shape == "box";
     if (building_keys) {
       if (auto v = r.integer("floors")) structure.floors = static_cast<std::size_t>(*v);
@@ -967,8 +980,8 @@ class Builder {
       }
     }
     if (structure.rigid) {
-      for (const char* key : {"fixed", "velocity", "floors", "roof_thickness", "roof_material", "slit_count",
-                              "slit_width", "slit_depth", "slit_axis"}) {
+      for (const char* key : {"fixed", "velocity", "element_formulation", "floors", "roof_thickness", "roof_material",
+                              "slit_count", "slit_width", "slit_depth", "slit_axis"}) {
         if (r.has(key)) {
           diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                     "belongs to deformable structures, but this one is rigid",

@@ -223,7 +223,11 @@ struct Structure {
   int slit_axis = 1;
   std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
   Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
-  double thickness = 0;                  // m: shell thickness for the eq. 3 offset (0: solid face)
+  // Deformable solids: one-point hexahedra with hourglass control, or fully
+  // integrated (2 x 2 x 2 points, mean dilatation) without zero-energy modes.
+  enum class ElementFormulation { one_point, fully_integrated };
+  ElementFormulation element_formulation = ElementFormulation::one_point;
+  double thickness = 0;  // m: shell thickness for the eq. 3 offset (0: solid face)
   Shape shape;
 };
 

@@ -462,6 +462,67 @@ TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
   expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.05, 0, k * 0.02), 1e-6, "concave corner (wall + floor)");
 }
 
+// A contact born while the particle already touches starts slack (normal
+// offset = its overlap at birth) and stiffens only with further approach: the
+// spring energy does not jump (a dent turning concave under a sphere).
+TEST(SurfaceContact, ContactBornDuringAContactStartsSlack) {
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  MeshBuilder b;
+  const auto part = b.part("channel");
+  const auto p0 = b.node({0, -1, 0}), p1 = b.node({0, 1, 0});
+  const auto f0 = b.node({2, -1, 0}), f1 = b.node({2, 1, 0});
+  const auto w0 = b.node({0, -1, 2}), w1 = b.node({0, 1, 2});
+  b.triangle(p0, f0, f1, part);
+  b.triangle(p0, f1, p1, part);
+  b.triangle(p0, p1, w1, part);
+  b.triangle(p0, w1, w0, part);
+  contact.set_surface(b.mesh());
+  ContactOutput out;
+  const auto step = [&](double x) {
+    Cloud cloud;
+    cloud.add({x, 0.1, 0.48}, 0.5);
+    contact.compute(cloud.view(), 1e-4, out);
+  };
+  step(0.6);  // the floor only, overlap 0.02
+  ASSERT_EQ(out.contact_count, 1u);
+  EXPECT_NEAR(out.deepest_overlap_ratio, 0.02 / 2.0, 1e-12);  // the floor triangles' shortest edge: 2 m
+  step(0.45);                                                 // the wall appears with overlap 0.05: slack
+  ASSERT_EQ(out.contact_count, 2u);
+  const double elastic_floor = 0.5 * k * 0.02 * 0.02;
+  std::cout << "wall contact born with 0.05 m overlap: force x measured " << vec_at(out.particle_force, 0).x()
+            << " N expected 0; elastic energy measured " << out.elastic_energy << " J expected " << elastic_floor
+            << " J (" << elastic_floor + 0.5 * k * 0.05 * 0.05 << " J with a full spring)\n";
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.02), 1e-6, "slack wall at birth");
+  EXPECT_NEAR(out.elastic_energy, elastic_floor, 1e-9);
+  step(0.43);  // 0.02 further into the wall
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.02, 0, k * 0.02), 1e-6, "wall stiffens from birth");
+  step(0.47);  // back out past the birth overlap: the offset shrinks to 0.03
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.02), 1e-6, "slack again");
+  step(0.46);  // 0.01 in from the shrunken offset
+  expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.01, 0, k * 0.02), 1e-6, "offset followed the overlap");
+}
+
+// A particle sunk deeper than half a small face's edge is reported (the
+// coupler warns: the penalty spring is too soft for the mesh).
+TEST(SurfaceContact, DeepOverlapRelativeToTheFaceIsReported) {
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(1e6)));
+  MeshBuilder b;
+  const auto part = b.part("block");
+  b.triangle(b.node({-0.05, -0.05, 0}), b.node({0.05, -0.05, 0}), b.node({0.05, 0.05, 0}), part);
+  b.triangle(b.node({-0.05, -0.05, 0}), b.node({0.05, 0.05, 0}), b.node({-0.05, 0.05, 0}), part);
+  contact.set_surface(b.mesh());
+  Cloud cloud;
+  cloud.add({0.01, 0.0, 0.44}, 0.5);  // overlap 0.06 m on faces with 0.1 m sides
+  ContactOutput out;
+  contact.compute(cloud.view(), 0.0, out);
+  ASSERT_GE(out.contact_count, 1u);
+  std::cout << "overlap / face edge: measured " << out.deepest_overlap_ratio << " expected 0.6\n";
+  EXPECT_NEAR(out.deepest_overlap_ratio, 0.6, 1e-9);
+  EXPECT_NEAR(out.deepest_overlap, 0.06, 1e-12);
+  EXPECT_NEAR(out.deepest_face_edge, 0.1, 1e-12);
+}
+
 TEST(SurfaceContact, ShallowFoldIsOneContact) {
   // Two floor panels meeting in a 5 degree valley: one contact (the deeper), never both.
   const double k = 1e6;

@@ -17,7 +17,9 @@ using sabo::fem::FemModel;
 
 namespace {
 
-sabo::scene::Scene restart_scene() {
+using Formulation = sabo::scene::Structure::ElementFormulation;
+
+sabo::scene::Scene restart_scene(Formulation formulation = Formulation::one_point) {
   sabo::scene::Scene scene;
   sabo::scene::Material steel;
   steel.name = "steel";
@@ -37,10 +39,12 @@ sabo::scene::Scene restart_scene() {
   bar.shape.box = sabo::Aabb{Vec3(0, 0, 0), Vec3(0.4, 0.1, 0.1)};
   bar.shape.element_size = 0.05;
   bar.fixed_faces = {"x-"};
+  bar.element_formulation = formulation;
   scene.structures.push_back(bar);
   sabo::scene::Structure panel = bar;
   panel.name = "panel";
   panel.thickness = 0.01;
+  panel.element_formulation = Formulation::one_point;
   panel.shape = {};
   panel.shape.type = sabo::scene::Shape::Type::plane;
   panel.shape.origin = Vec3(0.5, 0.25, 1.0);
@@ -120,11 +124,13 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
 
 }  // namespace
 
-TEST(FemRestart, RestoredModelContinuesWithTheSameBits) {
+namespace {
+
+void check_restart(Formulation formulation, const std::string& name) {
   // The loaded end elements yield from the first steps and erode at steps 30-40.
   constexpr int kBefore = 25, kAfter = 300;
-  const auto file = sabo::testing::scratch("checkpoint_fem.h5");
-  FemModel uninterrupted(restart_scene());
+  const auto file = sabo::testing::scratch(name);
+  FemModel uninterrupted(restart_scene(formulation));
   double dt_previous = 0;
   for (int n = 0; n < kBefore; ++n) dt_previous = advance(uninterrupted, dt_previous);
   uninterrupted.write_checkpoint(file, kBefore);
@@ -133,7 +139,7 @@ TEST(FemRestart, RestoredModelContinuesWithTheSameBits) {
   for (int n = 0; n < kAfter; ++n) dt_previous = advance(uninterrupted, dt_previous);
   const Snapshot expected = snapshot(uninterrupted);
 
-  FemModel restarted(restart_scene());
+  FemModel restarted(restart_scene(formulation));
   EXPECT_EQ(restarted.read_checkpoint(file), static_cast<std::uint64_t>(kBefore));
   const Snapshot restored = snapshot(restarted, false);
   EXPECT_TRUE(same_bits(restored.values, at_checkpoint.values)) << "the restored state differs from the saved one";
@@ -153,6 +159,17 @@ TEST(FemRestart, RestoredModelContinuesWithTheSameBits) {
   EXPECT_EQ(measured.active, expected.active);
   EXPECT_EQ(measured.revision, expected.revision);
   EXPECT_EQ(restarted.surface().face_count(), uninterrupted.surface().face_count());
+}
+
+}  // namespace
+
+TEST(FemRestart, RestoredModelContinuesWithTheSameBits) {
+  check_restart(Formulation::one_point, "checkpoint_fem.h5");
+}
+
+// The fully integrated hexahedra's eight material histories per element travel too.
+TEST(FemRestart, FullyIntegratedRestoredModelContinuesWithTheSameBits) {
+  check_restart(Formulation::fully_integrated, "checkpoint_fem_full.h5");
 }
 
 TEST(FemRestart, CheckpointOfAnotherSceneIsRefused) {
