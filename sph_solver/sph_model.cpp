@@ -38,6 +38,17 @@ inline void add_wall_stress(const double* s_i, double m_wall, double rho_i, doub
   add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
 }
 
+// Density difference that delta-SPH diffuses between fluid particles i and j (Fourtakas et
+// al. 2019, in its dynamic-pressure form): the pressure difference less the hydrostatic
+// one, (p_j - p_i - rho_mean g.(x_j - x_i)) / c^2. It vanishes in a fluid at rest for any
+// EOS; the density difference less rho0 g.(x_j - x_i) / c^2 does not: Tait stiffens by
+// (rho/rho0)^(gamma-1), 6 % at rho = 1.01 rho0. r = x_i - x_j.
+inline double dynamic_density_difference(double p_i, double p_j, double rho_i, double rho_j, double gx, double gy,
+                                         double gz, double rx, double ry, double rz, double inverse_c2) {
+  const double hydrostatic = -0.5 * (rho_i + rho_j) * (gx * rx + gy * ry + gz * rz);
+  return (p_j - p_i - hydrostatic) * inverse_c2;
+}
+
 }  // namespace
 
 double FluidMaterial::max_viscosity() const {
@@ -93,7 +104,7 @@ SphModel::SphModel(const scene::Scene& scene)
   acceleration_.assign(n, Vec3::Zero());
   external_force_.assign(n, Vec3::Zero());
   density_rate_.assign(n, 0.0);
-  stress_.assign(6 * n, 0.0);
+  stress_ = std::move(fill.stress);
   stress_rate_.assign(6 * n, 0.0);
   active_.assign(n, 1);
   particle_kinetic_.assign(n, 0.0);
@@ -370,7 +381,6 @@ void SphModel::compute_fluid_forces() {
     const double rho_i = frho_[i], p_i = fp_[i];
     const double p_over_rho2_i = p_i / (rho_i * rho_i);
     const double eta_i = feta_[i];
-    const double rest_i = materials_[fmat_[i]].eos.rest_density;
     const double* s_i = has_stress_ ? &fstress_[6 * i] : nullptr;
     double ax = 0, ay = 0, az = 0, diffuse = 0, max_mu = 0, neighbours = 0;
     for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
@@ -404,9 +414,9 @@ void SphModel::compute_fluid_forces() {
         add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
       }
       if (diffusion) {
-        double psi = rho_j - rho_i;
-        // (x_j - x_i).g = -(r_ij . g): hydrostatic density difference rho0 g.(x_j - x_i) / c^2.
-        if (hydrostatic_diffusion) psi -= -rest_i * (gx * rx + gy * ry + gz * rz) * inverse_c2;
+        const double psi = hydrostatic_diffusion ? dynamic_density_difference(p_i, fp_[j], rho_i, rho_j, gx, gy, gz, rx,
+                                                                              ry, rz, inverse_c2)
+                                                 : rho_j - rho_i;
         diffuse += psi * (-f * r2) / (r2 + eta2) * m_j / rho_j;
       }
     });

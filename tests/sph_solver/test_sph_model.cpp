@@ -90,11 +90,16 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   // The triangle's area over dx^2 times the 4 rows across: 100 * 4 = 400, within the boundary cells.
   std::cout << "wedge particles: measured " << wedge_count << " expected about 400 (+-10%)\n";
   EXPECT_NEAR(static_cast<double>(wedge_count), 400.0, 40.0);
-  // Bottom row of the tank: p = rho g (H - z) with H = 0.4, z = 0.05.
+  // Bottom row of the tank, depth d = 0.35 m: dp/dd = rho(p) g with Tait's rho(p), in closed form
+  // p = B ((1 + (gamma - 1) rho0 g d / (gamma B))^(gamma / (gamma - 1)) - 1), B = rho0 c^2 / gamma.
+  const double gamma = 7, tait_b = 1000 * 20.0 * 20.0 / gamma, depth = 0.35;
+  const double expected =
+      tait_b * (std::pow(1 + (gamma - 1) * 1000 * 9.81 * depth / (gamma * tait_b), gamma / (gamma - 1)) - 1);
   for (std::size_t i = 0; i < model.size(); ++i) {
     if (model.body_index()[i] != 0 || model.positions()[i].z() > 0.06) continue;
-    EXPECT_NEAR(model.pressures()[i], 1000 * 9.81 * 0.35, 1e-6 * 1000 * 9.81 * 0.35);
+    EXPECT_NEAR(model.pressures()[i], expected, 1e-7 * expected);
   }
+  std::cout << "bottom-row pressure: expected " << expected << " Pa (rho0 g d = " << 1000 * 9.81 * depth << " Pa)\n";
 }
 
 // S4 hydrostatic tank, reduced: H = 0.2 m, dx = H/10, to t = 10 sqrt(H/g) (the
