@@ -1,7 +1,7 @@
 // Stability runs of SphModel (issue 3): a hydrostatic tank for 100 000 steps,
 // and a dam break that strikes the end wall of a short tank at full speed.
 // Prints, for each: steps, largest speed, particles that left the domain, the
-// largest total energy (kinetic + potential + linearised compression) over the
+// largest total energy (kinetic + potential + compression) over the
 // initial one, and the density range at the end.
 //   bench_sph_stability [--steps N] [--impact-time T]
 #include <fmt/format.h>

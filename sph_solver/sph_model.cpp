@@ -29,13 +29,26 @@ inline void add_stress_dot(const double* s, double f, double rx, double ry, doub
 }
 
 // Stress term of a fluid particle (stress s_i, density rho_i) and a wall particle
-// (mass m_wall, density rho_wall): the wall carries the stress of the fluid next to it
-// (zero normal gradient).
-inline void add_wall_stress(const double* s_i, double m_wall, double rho_i, double rho_wall, double f, double rx,
-                            double ry, double rz, double& ax, double& ay, double& az) {
+// (mass m_wall, density rho_wall, stress s_wall extrapolated in compute_boundary_state).
+inline void add_wall_stress(const double* s_i, const double* s_wall, double m_wall, double rho_i, double rho_wall,
+                            double f, double rx, double ry, double rz, double& ax, double& ay, double& az) {
   double sum[6];
-  for (int q = 0; q < 6; ++q) sum[q] = m_wall * s_i[q] * (1.0 / (rho_i * rho_i) + 1.0 / (rho_wall * rho_wall));
+  for (int q = 0; q < 6; ++q) sum[q] = m_wall * (s_i[q] / (rho_i * rho_i) + s_wall[q] / (rho_wall * rho_wall));
   add_stress_dot(sum, f, rx, ry, rz, ax, ay, az);
+}
+
+// Adds to s (xx yy zz xy yz zx) the deviatoric stress that the shear traction grows by
+// over the distance d_n (m) along the wall normal n: t n + n t, t = rho (a_w - g)
+// less its part along n, times d_n (the tangential momentum balance next to a wall,
+// d(S.n)/dn = rho (a - g) along the wall; its normal part is the pressure's, eq. 27).
+inline void add_wall_shear(double rho, const Vec3& a_minus_g, const Vec3& n, double d_n, double* s) {
+  const Vec3 t = rho * d_n * (a_minus_g - a_minus_g.dot(n) * n);
+  s[0] += 2.0 * t.x() * n.x();
+  s[1] += 2.0 * t.y() * n.y();
+  s[2] += 2.0 * t.z() * n.z();
+  s[3] += t.x() * n.y() + n.x() * t.y();
+  s[4] += t.y() * n.z() + n.y() * t.z();
+  s[5] += t.z() * n.x() + n.z() * t.x();
 }
 
 // Density difference that delta-SPH diffuses between fluid particles i and j (Fourtakas et
@@ -115,8 +128,7 @@ SphModel::SphModel(const scene::Scene& scene)
   for (std::size_t i = 0; i < n; ++i) {
     energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm();
     energies_.potential -= mass_[i] * gravity_.dot(position_[i]);
-    const double c_rho = materials_[material_[i]].eos.rest_density * sound_speed_;
-    energies_.elastic += mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
+    energies_.elastic += mass_[i] * materials_[material_[i]].eos.specific_energy(density_[i]);
   }
 }
 
@@ -237,6 +249,7 @@ void SphModel::gather() {
     if (has_stress_) std::copy_n(&stress_[6 * i], 6, &fstress_[6 * s]);
   }
   const std::size_t nb = b_order_.size();
+  bstress_.assign(has_stress_ ? 6 * nb : 0, 0.0);
   for (auto* v : {&bx_, &by_, &bz_, &bvx_, &bvy_, &bvz_, &bvol_, &bp_, &brho_, &bwx_, &bwy_, &bwz_, &out_bfx_,
                   &out_bfy_, &out_bfz_}) {
     v->resize(nb);
@@ -284,6 +297,26 @@ void SphModel::compute_boundary_state() {
       }
     });
     const EquationOfState& eos = materials_.empty() ? EquationOfState() : materials_[material].eos;
+    if (has_stress_) {
+      // Elastic-plastic fluids: the wall carries the fluid's deviatoric stress extrapolated
+      // like the pressure, S_w = sum_f (S_f + shear growth over (x_w - x_f).n) W / sum W.
+      // With S_w = S_f (no growth) a layer on a slope slipped along its bed at 0.8 tau_y.
+      double* s_w = &bstress_[6 * s];
+      std::fill_n(s_w, 6, 0.0);
+      if (sum_w > 0) {
+        const Vec3& n = boundary_.normal[id];
+        for_neighbours(x, y, z, f_cell_start_, [&](std::uint32_t j) {
+          const double rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
+          const double r2 = rx * rx + ry * ry + rz * rz;
+          if (r2 >= support2) return;
+          const double w = kernel_.value(std::sqrt(r2));
+          double s_f[6];
+          std::copy_n(&fstress_[6 * j], 6, s_f);
+          add_wall_shear(frho_[j], -g_minus_a, n, rx * n.x() + ry * n.y() + rz * n.z(), s_f);
+          for (int q = 0; q < 6; ++q) s_w[q] += s_f[q] * w / sum_w;
+        });
+      }
+    }
     if (sum_w > 0) {
       // Adami et al. 2012 eq. 27; negative wall pressure would glue the fluid to the wall.
       const double p = std::max(0.0, (sum_pw + sum_rho_r_g) / sum_w);
@@ -442,7 +475,7 @@ void SphModel::compute_fluid_forces() {
         ay += viscous * (vy - bvy_[j]);
         az += viscous * (vz - bvz_[j]);
       }
-      if (s_i != nullptr) add_wall_stress(s_i, m_j, rho_i, rho_j, f, rx, ry, rz, ax, ay, az);
+      if (s_i != nullptr) add_wall_stress(s_i, &bstress_[6 * j], m_j, rho_i, rho_j, f, rx, ry, rz, ax, ay, az);
     });
     out_ax_[i] = ax + gx;
     out_ay_[i] = ay + gy;
@@ -486,7 +519,9 @@ void SphModel::compute_boundary_forces() {
         ay += viscous * (fvy_[j] - bvy_[b]);
         az += viscous * (fvz_[j] - bvz_[b]);
       }
-      if (has_stress_) add_wall_stress(&fstress_[6 * j], m_b, rho_i, rho_b, f, rx, ry, rz, ax, ay, az);
+      if (has_stress_) {
+        add_wall_stress(&fstress_[6 * j], &bstress_[6 * b], m_b, rho_i, rho_b, f, rx, ry, rz, ax, ay, az);
+      }
       fx -= m_i * ax;
       fy -= m_i * ay;
       fz -= m_i * az;
@@ -627,8 +662,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
     const FluidMaterial& material = materials_[material_[i]];
     particle_potential_[i] = -mass_[i] * gravity_.dot(position_[i]);
-    const double c_rho = material.eos.rest_density * sound_speed_;
-    particle_elastic_[i] = mass_[i] * pressure_[i] * pressure_[i] / (2.0 * c_rho * c_rho);
+    particle_elastic_[i] = mass_[i] * material.eos.specific_energy(density_[i]);
     const Vec3 a = acceleration_[i] + external_force_[i] / mass_[i];
     const Vec3 velocity = velocity_[i] + dt_update * a;
     particle_kinetic_[i] =

@@ -48,7 +48,7 @@ namespace sabo::sph {
 struct Energies {
   double kinetic = 0;    // J, 1/2 m v_{n-1/2}.v_{n+1/2} at the last integrate()
   double potential = 0;  // J, -m g.x_n
-  double elastic = 0;    // J, compression: sum m p^2 / (2 rho0^2 c^2) (linearised EOS)
+  double elastic = 0;    // J, compression: sum m e(rho), e = integral of p / rho^2 drho from rho0
   [[nodiscard]] double total() const { return kinetic + potential + elastic; }
 };
 
@@ -194,6 +194,7 @@ class SphModel {
   std::vector<double> bwx_, bwy_, bwz_;                                    // prescribed wall velocity
   std::vector<double> fgrad_;    // 9 per sorted fluid particle: velocity gradient L = dv/dx
   std::vector<double> fstress_;  // 6 per sorted fluid particle
+  std::vector<double> bstress_;  // 6 per sorted boundary particle: the fluid's stress extrapolated
   std::vector<double> feta_;     // effective viscosity per sorted fluid particle, Pa s
   std::vector<double> out_ax_, out_ay_, out_az_, out_drho_, out_dtcv_, out_neigh_;
   std::vector<double> out_bfx_, out_bfy_, out_bfz_;

@@ -71,6 +71,29 @@ TEST(SphEos, InverseOfTaitAndPolynomial) {
   EXPECT_NEAR(poly.density(poly.pressure(2030.0)), 2030.0, 1e-9);
 }
 
+// The compression energy's derivative is p / rho^2 (the work the symmetric pressure force does).
+TEST(SphEos, CompressionEnergyDerivativeIsPressureOverDensitySquared) {
+  scene::Material m;
+  m.density = 2000;
+  const EquationOfState tait(m, 40.0);
+  m.eos = scene::Material::Eos::polynomial;
+  m.eos_c0 = 100;
+  m.eos_c1 = 20e9;
+  m.eos_c2 = 5e9;
+  m.eos_c3 = 2e9;
+  const EquationOfState poly(m, 40.0);
+  for (const EquationOfState* eos : {&tait, &poly}) {
+    EXPECT_DOUBLE_EQ(eos->specific_energy(2000.0), 0.0);
+    for (double rho : {1990.0, 2004.0, 2060.0}) {
+      const double d = 1e-4;
+      const double derivative = (eos->specific_energy(rho + d) - eos->specific_energy(rho - d)) / (2 * d);
+      const double expected = eos->pressure(rho) / (rho * rho);
+      std::cout << "de/drho at " << rho << ": measured " << derivative << " expected " << expected << "\n";
+      EXPECT_NEAR(derivative, expected, 1e-6 * std::abs(expected) + 1e-9);
+    }
+  }
+}
+
 TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   scene::Scene s = water_scene(0.1, 20.0);
   s.fluids.push_back(box_body("tank", Vec3(0, 0, 0), Vec3(1.0, 0.5, 0.4)));
@@ -103,12 +126,17 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
 }
 
 // S4 hydrostatic tank, reduced: H = 0.2 m, dx = H/10, to t = 10 sqrt(H/g) (the
-// benchmark asks for 100 sqrt(H/g)). Wall particles of the test's own.
-// Known shortfall: the spurious speed at this resolution is about 1e-2 sqrt(gH),
-// twenty times the benchmark's bound; the test holds it to 3e-2 sqrt(gH).
+// benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own.
+// Cubic spline at h = 1.3 dx: with the default Wendland C2 at h = 1.3 dx a cubic lattice at
+// rest is unstable (the kinetic energy grows twentyfold between t = 2 and 5 sqrt(H/g) as the
+// particles rearrange; largest speed 1.9e-2 sqrt(gH)); the cubic spline at 1.3 dx and Wendland
+// at 1.73 dx decay. Known shortfall: the start-up transient (2.5e-2 sqrt(gH) at the free
+// surface beside the walls in the first sqrt(H/g)) and 1.8e-3 sqrt(gH) in the second half are
+// above the benchmark's 1e-3; the test holds the second half to 2.5e-3 sqrt(gH).
 TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
   scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
+  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
   s.sph.artificial_viscosity = 0.1;
   s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
   SphModel model(s);
@@ -118,8 +146,9 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   // Wall forces averaged over the last quarter of the run (the tank still sloshes a little).
   // Corner particles belong to both walls: the bottom takes every particle below z = 0,
   // the side x = 0 every particle behind it.
-  double max_speed_late = 0, bottom = 0, side = 0, samples = 0;
+  double max_speed = 0, max_speed_late = 0, bottom = 0, side = 0, samples = 0;
   run_until(model, t_end, [&](double t) {
+    for (const Vec3& v : model.velocities()) max_speed = std::max(max_speed, v.norm());
     if (t < 0.5 * t_end) return;
     for (const Vec3& v : model.velocities()) max_speed_late = std::max(max_speed_late, v.norm());
     if (t < 0.75 * t_end) return;
@@ -144,8 +173,9 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double weight = 1000 * g * H * L * W;
   const double side_expected = 1000 * g * H * H * W / 2;
   std::cout << "S4 pressure L2 error: measured " << 100 * error << " % of rho g H, expected <= 2 %\n";
-  std::cout << "S4 largest speed (second half): measured " << max_speed_late << " m/s, benchmark bound "
-            << 1e-3 * std::sqrt(g * H) << " m/s, held here to " << 3e-2 * std::sqrt(g * H) << " m/s\n";
+  std::cout << "S4 largest speed / sqrt(gH): measured " << max_speed / std::sqrt(g * H) << " over the run, "
+            << max_speed_late / std::sqrt(g * H) << " in the second half; benchmark bound 1e-3, held here to 2.5e-3 "
+            << "in the second half\n";
   std::cout << "S4 bottom force (mean of the last quarter): measured " << bottom << " N, expected " << weight
             << " N (+-1.5% here, benchmark 1%)\n";
   std::cout << "S4 side force (mean of the last quarter): measured " << side << " N, expected " << side_expected
@@ -155,7 +185,7 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   EXPECT_LT(error, 0.02);
   EXPECT_NEAR(bottom / weight, 1.0, 0.015);  // reduced resolution: 1.5 % (benchmark: 1 %)
   EXPECT_NEAR(side / side_expected, 1.0, 0.02);
-  EXPECT_LT(max_speed_late, 3e-2 * std::sqrt(g * H));
+  EXPECT_LT(max_speed_late, 2.5e-3 * std::sqrt(g * H));
 }
 
 // Newton's third law between fluid and walls, and the same bits on 1 and 2 threads.
@@ -241,8 +271,8 @@ TEST(SphValidation, S1DamBreakFrontWithBoundaryParticles) {
     out << "T,Z\n";
     for (const auto& [T, Z] : front) out << T << "," << Z << "\n";
   }
-  std::cout << "S1 energy (kinetic + potential + linearised compression): initial " << e0 << " J, largest " << e_max
-            << " J (expected not above initial by more than 0.1 %, the error of the linearised compression energy)\n";
+  std::cout << "S1 energy (kinetic + potential + compression): initial " << e0 << " J, largest " << e_max
+            << " J (expected not above initial by more than 0.1 %: density diffusion changes density without work)\n";
   EXPECT_LT(best, 0.08);
   EXPECT_LE(std::abs(best_shift), 0.3);
   EXPECT_LE(e_max, e0 * 1.001);
