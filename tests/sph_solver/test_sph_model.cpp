@@ -221,6 +221,75 @@ TEST(SphModelContract, WallForcesBalanceAndRunsAreDeterministic) {
   EXPECT_LT((fluid + wall).norm(), 1e-9 * fluid.norm());
 }
 
+// Penalty walls as the coupler computes them for an sph_fem pair (SurfaceContact, paper
+// eqs. 3-6): contact radius dx/2 (what the sph_solver sends), no friction, an explicit
+// stiffness k_n (N/m) and damping ratio zeta. One part per plane, so that out.part_force gives each wall's load.
+struct PenaltyWalls {
+  PenaltyWalls(SphModel& fluid, const std::string& source, const geometry::SurfaceMesh& surface, double stiffness,
+               double damping_ratio = 0.0)
+      : model(fluid),
+        contact({source},
+                [stiffness, damping_ratio](const std::string&, const std::string&) {
+                  scene::SurfaceContact pair;
+                  pair.friction = 0;
+                  pair.normal_stiffness = stiffness;
+                  pair.normal_damping_ratio = damping_ratio;
+                  return pair;
+                }),
+        ids(fluid.size()),
+        indices(fluid.size()),
+        radius(fluid.size(), 0.5 * fluid.settings().particle_spacing),
+        position(3 * fluid.size()),
+        velocity(3 * fluid.size()) {
+    contact.set_surface(surface);
+    for (std::size_t i = 0; i < fluid.size(); ++i) ids[i] = indices[i] = static_cast<std::uint32_t>(i);
+  }
+  // Adds the contact forces at x_n to the model (after compute_internal_forces); returns the
+  // contact's stable dt.
+  double apply(double dt_previous) {
+    for (std::size_t i = 0; i < model.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        position[3 * i + k] = model.positions()[i][k];
+        velocity[3 * i + k] = model.velocities()[i][k];
+      }
+    }
+    const coupler::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}};
+    contact.compute(view, dt_previous, out);
+    model.add_external_forces(indices, out.particle_force);
+    return contact.stable_dt();
+  }
+  SphModel& model;
+  coupler::SurfaceContact contact;
+  std::vector<std::uint64_t> ids;
+  std::vector<std::uint32_t> indices;
+  std::vector<double> radius, position, velocity;
+  coupler::ContactOutput out;
+};
+
+// The floor and four sides of the container [min, max] as planes, normals inward, parts
+// "floor", "x_min", "x_max", "y_min", "y_max" in that order.
+geometry::SurfaceMesh container_planes(const Vec3& min, const Vec3& max) {
+  geometry::SurfaceMesh planes;
+  const Vec3 size = max - min, centre = 0.5 * (min + max);
+  const auto plane = [&](const std::string& name, const Vec3& origin, const Vec3& normal, const Vec3& direction,
+                         double length, double width) {
+    scene::Shape shape;
+    shape.type = scene::Shape::Type::plane;
+    shape.origin = origin;
+    shape.normal = normal;
+    shape.direction = direction;
+    shape.length = length;
+    shape.width = width;
+    planes.append(geometry::triangulate(shape, name));
+  };
+  plane("floor", Vec3(centre.x(), centre.y(), min.z()), Vec3(0, 0, 1), Vec3(1, 0, 0), size.x(), size.y());
+  plane("x_min", Vec3(min.x(), centre.y(), centre.z()), Vec3(1, 0, 0), Vec3(0, 1, 0), size.y(), size.z());
+  plane("x_max", Vec3(max.x(), centre.y(), centre.z()), Vec3(-1, 0, 0), Vec3(0, 1, 0), size.y(), size.z());
+  plane("y_min", Vec3(centre.x(), min.y(), centre.z()), Vec3(0, 1, 0), Vec3(1, 0, 0), size.x(), size.z());
+  plane("y_max", Vec3(centre.x(), max.y(), centre.z()), Vec3(0, -1, 0), Vec3(1, 0, 0), size.x(), size.z());
+  return planes;
+}
+
 // S1 dam break (Martin & Moyce 1952, n^2 = 2), reduced: a = 0.1 m, dx = a/10, a
 // channel 4 dx wide with free-slip side walls (inviscid fluid: quasi 2-D), walls
 // either boundary particles or the coupler's penalty contact (SurfaceContact, the
@@ -239,40 +308,9 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
   // Penalty: planes of the channel, normals into the fluid; contact radius dx/2 (what the
   // sph_solver sends), no friction, k = 4000 N/m: the bottom particle's share of the
   // column's weight, rho g H dx^2 = 0.2 N, presses it 5e-5 m = dx/200 in.
-  geometry::SurfaceMesh channel;
-  const auto plane = [&](const Vec3& centre, const Vec3& normal, const Vec3& direction, double l, double w) {
-    scene::Shape shape;
-    shape.type = scene::Shape::Type::plane;
-    shape.origin = centre;
-    shape.normal = normal;
-    shape.direction = direction;
-    shape.length = l;
-    shape.width = w;
-    channel.append(geometry::triangulate(shape, "channel"));
-  };
   const double top = 1.5 * H;
-  plane(Vec3(0.5 * length, 0.5 * W, 0), Vec3(0, 0, 1), Vec3(1, 0, 0), length, W);
-  plane(Vec3(0, 0.5 * W, 0.5 * top), Vec3(1, 0, 0), Vec3(0, 1, 0), W, top);
-  plane(Vec3(length, 0.5 * W, 0.5 * top), Vec3(-1, 0, 0), Vec3(0, 1, 0), W, top);
-  plane(Vec3(0.5 * length, 0, 0.5 * top), Vec3(0, 1, 0), Vec3(1, 0, 0), length, top);
-  plane(Vec3(0.5 * length, W, 0.5 * top), Vec3(0, -1, 0), Vec3(1, 0, 0), length, top);
-  coupler::SurfaceContact contact({"column"}, [](const std::string&, const std::string&) {
-    scene::SurfaceContact pair;
-    pair.friction = 0;
-    pair.normal_stiffness = 4000.0;
-    return pair;
-  });
-  if (penalty_walls) {
-    contact.set_surface(channel);
-  } else {
-    model.set_boundary(container_walls(Vec3(0, 0, 0), Vec3(length, W, top), dx, 3));
-  }
-  std::vector<std::uint64_t> ids(model.size());
-  std::vector<std::uint32_t> indices(model.size());
-  for (std::size_t i = 0; i < model.size(); ++i) ids[i] = indices[i] = static_cast<std::uint32_t>(i);
-  const std::vector<double> radius(model.size(), 0.5 * dx);
-  std::vector<double> position(3 * model.size()), velocity(3 * model.size());
-  coupler::ContactOutput out;
+  PenaltyWalls walls(model, "column", container_planes(Vec3(0, 0, 0), Vec3(length, W, top)), 4000.0);
+  if (!penalty_walls) model.set_boundary(container_walls(Vec3(0, 0, 0), Vec3(length, W, top), dx, 3));
 
   const double time_scale = std::sqrt(a / (2 * g));  // t = T * time_scale
   const double T_ref[] = {0.41, 0.84, 1.19, 1.43, 1.63, 1.83, 1.98, 2.20, 2.32, 2.51, 2.65, 2.83, 2.98, 3.11, 3.33};
@@ -284,26 +322,15 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
   while (t < 3.6 * time_scale) {
     model.compute_internal_forces(dt_previous);
     double dt = model.stable_dt();
-    if (penalty_walls) {
-      for (std::size_t i = 0; i < model.size(); ++i) {
-        for (int k = 0; k < 3; ++k) {
-          position[3 * i + k] = model.positions()[i][k];
-          velocity[3 * i + k] = model.velocities()[i][k];
-        }
-      }
-      const coupler::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}};
-      contact.compute(view, dt_previous, out);
-      model.add_external_forces(indices, out.particle_force);
-      // The contact's elastic energy belongs to the total, as in the coupler's accounting.
-      dt = std::min(dt, contact.stable_dt());
-    }
+    if (penalty_walls) dt = std::min(dt, walls.apply(dt_previous));
     model.integrate(dt_previous, dt);
     t += dt;
     dt_previous = dt;
     double x_max = 0;
     for (std::size_t i = 0; i < model.size(); ++i) x_max = std::max(x_max, model.positions()[i].x());
     front.emplace_back(t / time_scale, (x_max + 0.5 * dx) / a);
-    result.e_max = std::max(result.e_max, model.energies().total() + (penalty_walls ? out.elastic_energy : 0.0));
+    // The contact springs' energy belongs to the total, as in the coupler's accounting.
+    result.e_max = std::max(result.e_max, model.energies().total() + (penalty_walls ? walls.out.elastic_energy : 0.0));
   }
   // RMS relative error over 0.84 <= T <= 3.33, best time shift |s| <= 0.3 (gate lag).
   const auto error_with_shift = [&](double shift) {
@@ -357,6 +384,66 @@ TEST(SphValidation, S1DamBreakFrontWithBoundaryParticles) {
 
 TEST(SphValidation, S1DamBreakFrontWithPenaltyWalls) {
   check_dam_break("penalty walls", dam_break(true, "SABO_S1_PENALTY_FRONT_CSV"));
+}
+
+// S4 with penalty walls (the paper's way), the same tank and run as above, cubic spline at
+// h = 1.3 dx: the figures the benchmark asks to report. The wall keeps the fluid out but the
+// kernel sums of the particles next to it are cut off: the fluid next to the walls is pushed
+// towards them, the lattice churns (0.4 sqrt(gH)), the pressure is off by 13 % of rho g H and
+// the side walls carry 9 % too little. Held here to those figures (regressions) and to the
+// tank's equilibrium: the floor carries the weight within the benchmark's 1 %.
+TEST(SphValidation, S4HydrostaticTankWithPenaltyWalls) {
+  const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
+  scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
+  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
+  s.sph.artificial_viscosity = 0.1;
+  s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
+  SphModel model(s);
+  // k = 4000 N/m: the bottom particle's share of the weight, rho g H dx^2 = 0.78 N, presses it
+  // 2e-4 m = dx/100 in; zeta = 0.5 as in configs/tests/sph_tank_penalty.toml.
+  PenaltyWalls walls(model, "water", container_planes(Vec3(0, 0, 0), Vec3(L, W, H + 4 * dx)), 4000.0, 0.5);
+  const double t_end = 10.0 * std::sqrt(H / g);
+  double t = 0, dt_previous = 0, max_speed = 0, max_speed_late = 0, bottom = 0, side = 0, samples = 0;
+  while (t < t_end) {
+    model.compute_internal_forces(dt_previous);
+    const double dt = std::min(model.stable_dt(), walls.apply(dt_previous));
+    model.integrate(dt_previous, dt);
+    t += dt;
+    dt_previous = dt;
+    for (const Vec3& v : model.velocities()) max_speed = std::max(max_speed, v.norm());
+    if (t < 0.5 * t_end) continue;
+    for (const Vec3& v : model.velocities()) max_speed_late = std::max(max_speed_late, v.norm());
+    if (t < 0.75 * t_end) continue;
+    bottom -= walls.out.part_force[0].z();  // parts: floor, x_min, x_max, y_min, y_max
+    side -= walls.out.part_force[1].x();
+    samples += 1;
+  }
+  bottom /= samples;
+  side /= samples;
+  double error2 = 0;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
+  }
+  const double error = std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
+  const double weight = 1000 * g * H * L * W, side_expected = 1000 * g * H * H * W / 2;
+  double vertical = 0;
+  for (const Vec3& f : walls.out.part_force) vertical -= f.z();
+  std::cout << "S4 penalty walls, pressure L2 error: measured " << 100 * error
+            << " % of rho g H (benchmark 2 %, held here to 15 %)\n";
+  std::cout << "S4 penalty walls, largest speed / sqrt(gH): measured " << max_speed / std::sqrt(g * H)
+            << " over the run, " << max_speed_late / std::sqrt(g * H)
+            << " in the second half (benchmark 1e-3, held here to 0.5)\n";
+  std::cout << "S4 penalty walls, bottom force (mean of the last quarter): measured " << bottom << " N, expected "
+            << weight << " N (benchmark 1 %)\n";
+  std::cout << "S4 penalty walls, side force (mean of the last quarter): measured " << side << " N, expected "
+            << side_expected << " N (benchmark 2 %, held here to 12 %)\n";
+  std::cout << "S4 penalty walls, vertical force on all walls at the last step: " << vertical << " N vs weight "
+            << weight << " N\n";
+  EXPECT_LT(error, 0.15);
+  EXPECT_LT(max_speed_late, 0.5 * std::sqrt(g * H));
+  EXPECT_NEAR(bottom / weight, 1.0, 0.01);
+  EXPECT_NEAR(side / side_expected, 1.0, 0.12);
+  EXPECT_EQ(model.lost_count(), 0u);
 }
 
 }  // namespace
