@@ -454,13 +454,16 @@ namespace {
 
 // S8 arrest on a slope, elastic-plastic (the paper's slurry model): a layer on a
 // floor under gravity tilted by theta (the slope) stops when thinner than
-// h_c = tau_y / (rho g sin theta). Known shortfall, documented in docs/physics.md:
-// at this resolution, with open ends that slump, the 0.9 h_c layer does not come
-// to rest (its centre creeps at about a quarter of the 1.2 h_c layer's speed); the
-// test holds the ordering the criterion implies, thick at least twice as far. Here the von Mises yield stress sigma_y
-// gives tau_y = sigma_y / sqrt(3) in simple shear. Layer 0.9 h_c and 1.2 h_c thick, open at both ends; the mean
-// downslope displacement of its central third between t_end / 3 and t_end is compared (the elastic start-up transient,
-// speeds of about tau_y / (rho c_shear), averages out of a displacement).
+// h_c = tau_y / (rho g sin theta). Here the von Mises yield stress sigma_y gives
+// tau_y = sigma_y / sqrt(3) in simple shear. Layers 0.9 h_c and 1.2 h_c thick, 24 x 8 dx,
+// open at both ends and sides; the mean downslope displacement of the central third between
+// t_end / 3 and t_end is compared. The layers start in their static shear state and the floor
+// carries the extrapolated stress (without it the bed slipped). Known shortfall, documented in
+// docs/physics.md: the 0.9 h_c layer still creeps (11 mm against 37 mm), because a finite
+// layer is not the benchmark's infinite one: its free ends and sides need S_xx = p to stand,
+// more than sigma_y at this depth, so they collapse and drag the whole 24 x 8 dx layer past
+// yield (a 48 x 8 dx layer as well: von Mises at yield in the bottom rows after 8 ms with S_xz
+// at 0.44 tau_y). The test holds the ordering the criterion implies, thick at least twice as far.
 double central_displacement_on_slope(double thickness_ratio, double t_end) {
   const double dx = 0.015, h_c = 0.1, theta = 20.0 * std::numbers::pi / 180.0, g = 9.81, rho = 1000;
   const double tau_y = rho * g * std::sin(theta) * h_c;
