@@ -19,9 +19,9 @@ std::size_t lattice_count(double extent, double dx) {
 }
 
 // Pressure at `depth` (m) below the free surface of a fluid at rest: dp/d(depth) = rho(p) g
-// integrated with the EOS (RK4), so that the density follows the pressure; rho0 g depth
-// would leave the column too light by the mean compression (1 % at c = 10 sqrt(g H)) and
-// set it sinking at the start.
+// integrated with the EOS (RK4), so that the pressure carries the weight of the compressed
+// column above; rho0 g depth falls short by half the compression (0.5 % at the bottom at
+// c = 10 sqrt(g H)).
 double hydrostatic_pressure(const EquationOfState& eos, double g, double depth) {
   constexpr int kSteps = 4;
   const double step = depth / kSteps;
@@ -113,8 +113,8 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
       const double rho = body.hydrostatic ? material.eos.density(p) : rest;
       // An elastic-plastic layer under gravity with a component along the bed (a slope by
       // tilted gravity) starts in its static state: dS_xz/dz = -rho g_x, so S_xz = p g_x / |g_z|
-      // (likewise yz), returned onto the yield surface. From S = 0 the sudden load would
-      // overshoot the static shear twice over and yield a layer that the criterion holds.
+      // (likewise yz), returned onto the yield surface, rather than building it from S = 0
+      // under a sudden load, whose dynamic overshoot can reach twice the static shear.
       double shear_xz = 0, shear_yz = 0;
       if (body.hydrostatic && material.rheology == scene::Material::Rheology::elastic_plastic && g > 0) {
         shear_xz = p * scene.run.gravity.x() / g;
