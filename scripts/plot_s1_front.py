@@ -2,8 +2,10 @@
 """Draws the S1 dam-break surge front (Z = z/a against T = t sqrt(2g/a)) against
 Martin & Moyce 1952 (n^2 = 2) as a PNG.
 
-    SABO_S1_FRONT_CSV=/tmp/s1.csv build/bin/test_sph_model --gtest_filter='*S1*'
-    scripts/plot_s1_front.py /tmp/s1.csv s1_front.png [--shift S] [--label TEXT]
+    SABO_S1_FRONT_CSV=/tmp/s1.csv SABO_S1_PENALTY_FRONT_CSV=/tmp/s1_penalty.csv \
+        build/bin/test_sph_model --gtest_filter='*S1*'
+    scripts/plot_s1_front.py /tmp/s1.csv /tmp/s1_penalty.csv s1_front.png \
+        --label "boundary particles" --label "penalty walls" [--shift S]
 
 The CSV has a header T,Z; several CSVs may be given (one line each) with the
 PNG path last.

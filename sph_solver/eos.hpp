@@ -35,6 +35,24 @@ struct EquationOfState {
     return c0 + mu * (c1 + mu * (c2 + mu * c3));
   }
 
+  // Compression energy per unit mass, J/kg: e(rho) = integral of p / rho^2 from rest_density
+  // to rho, the internal energy whose rate p/rho^2 drho/dt the symmetric pressure force
+  // balances, so that kinetic + potential + sum m e is conserved (up to the dissipation).
+  [[nodiscard]] double specific_energy(double density) const {
+    const double mu = density / rest_density - 1.0;
+    const double log_x = std::log1p(mu);
+    if (kind == scene::Material::Eos::tait) {
+      return tait_b / rest_density * (std::expm1((gamma - 1.0) * log_x) / (gamma - 1.0) - mu / (1.0 + mu));
+    }
+    // (1/rho0) integral over m from 0 to mu of p(m) / (1 + m)^2, term by term with u = 1 + m.
+    const double u = 1.0 + mu;
+    const double i0 = mu / u;                                                 // of 1 / u^2
+    const double i1 = log_x - mu / u;                                         // of (u - 1) / u^2
+    const double i2 = mu - 2.0 * log_x + mu / u;                              // of (u - 1)^2 / u^2
+    const double i3 = 0.5 * (u * u - 1.0) - 3.0 * mu + 3.0 * log_x - mu / u;  // of (u - 1)^3 / u^2
+    return (c0 * i0 + c1 * i1 + c2 * i2 + c3 * i3) / rest_density;
+  }
+
   // The density at which pressure(density) == p (Newton on the polynomial, from the linear guess).
   [[nodiscard]] double density(double p) const {
     if (kind == scene::Material::Eos::tait) {

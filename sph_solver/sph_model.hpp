@@ -57,7 +57,7 @@ namespace sabo::sph {
 struct Energies {
   double kinetic = 0;    // J, 1/2 m v_{n-1/2}.v_{n+1/2} at the last integrate()
   double potential = 0;  // J, -m g.x_n
-  double elastic = 0;    // J, compression: sum m p^2 / (2 rho0^2 c^2) (linearised EOS)
+  double elastic = 0;    // J, compression: sum m e(rho), e = integral of p / rho^2 drho from rho0
   [[nodiscard]] double total() const { return kinetic + potential + elastic; }
 };
 
@@ -79,6 +79,7 @@ struct FluidMaterial {
 struct FluidFill {
   std::vector<Vec3> position, velocity;
   std::vector<double> density, pressure, mass;
+  std::vector<double> stress;  // Pa, deviatoric, 6 per particle (xx yy zz xy yz zx)
   std::vector<std::uint32_t> material, body;
 };
 [[nodiscard]] FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
@@ -141,6 +142,7 @@ class SphModel {
   void build_grid();
   void gather();
   void compute_boundary_state();
+  void extrapolate_wall_stress();
   void compute_velocity_gradients();
   void compute_fluid_forces();
   void compute_boundary_forces();
@@ -259,6 +261,7 @@ class SphModel {
   std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)
   std::vector<double> fgrad_;           // 9 per sorted fluid particle: L = dv/dx (only with gradients)
   std::vector<float> fstress_;          // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
+  std::vector<float> bstress_;          // Pa, per sorted wall slot like fstress_: the fluid's stress extrapolated
   std::vector<float> feta_;             // effective viscosity per sorted fluid particle, Pa s (only with gradients)
   std::vector<double> out_drho_;        // drho/dt per sorted fluid particle, kg/m^3/s
   double max_mu_ = 0;                   // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s

@@ -9,6 +9,8 @@
 #include <iostream>
 #include <numbers>
 
+#include "coupler/contact/surface_contact.hpp"
+#include "libsabo/geometry/primitives.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "sph_test_support.hpp"
 
@@ -71,6 +73,29 @@ TEST(SphEos, InverseOfTaitAndPolynomial) {
   EXPECT_NEAR(poly.density(poly.pressure(2030.0)), 2030.0, 1e-9);
 }
 
+// The compression energy's derivative is p / rho^2 (the work the symmetric pressure force does).
+TEST(SphEos, CompressionEnergyDerivativeIsPressureOverDensitySquared) {
+  scene::Material m;
+  m.density = 2000;
+  const EquationOfState tait(m, 40.0);
+  m.eos = scene::Material::Eos::polynomial;
+  m.eos_c0 = 100;
+  m.eos_c1 = 20e9;
+  m.eos_c2 = 5e9;
+  m.eos_c3 = 2e9;
+  const EquationOfState poly(m, 40.0);
+  for (const EquationOfState* eos : {&tait, &poly}) {
+    EXPECT_DOUBLE_EQ(eos->specific_energy(2000.0), 0.0);
+    for (double rho : {1990.0, 2004.0, 2060.0}) {
+      const double d = 1e-4;
+      const double derivative = (eos->specific_energy(rho + d) - eos->specific_energy(rho - d)) / (2 * d);
+      const double expected = eos->pressure(rho) / (rho * rho);
+      std::cout << "de/drho at " << rho << ": measured " << derivative << " expected " << expected << "\n";
+      EXPECT_NEAR(derivative, expected, 1e-6 * std::abs(expected) + 1e-9);
+    }
+  }
+}
+
 TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   scene::Scene s = water_scene(0.1, 20.0);
   s.fluids.push_back(box_body("tank", Vec3(0, 0, 0), Vec3(1.0, 0.5, 0.4)));
@@ -90,20 +115,30 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   // The triangle's area over dx^2 times the 4 rows across: 100 * 4 = 400, within the boundary cells.
   std::cout << "wedge particles: measured " << wedge_count << " expected about 400 (+-10%)\n";
   EXPECT_NEAR(static_cast<double>(wedge_count), 400.0, 40.0);
-  // Bottom row of the tank: p = rho g (H - z) with H = 0.4, z = 0.05.
+  // Bottom row of the tank, depth d = 0.35 m: dp/dd = rho(p) g with Tait's rho(p), in closed form
+  // p = B ((1 + (gamma - 1) rho0 g d / (gamma B))^(gamma / (gamma - 1)) - 1), B = rho0 c^2 / gamma.
+  const double gamma = 7, tait_b = 1000 * 20.0 * 20.0 / gamma, depth = 0.35;
+  const double expected =
+      tait_b * (std::pow(1 + (gamma - 1) * 1000 * 9.81 * depth / (gamma * tait_b), gamma / (gamma - 1)) - 1);
   for (std::size_t i = 0; i < model.size(); ++i) {
     if (model.body_index()[i] != 0 || model.positions()[i].z() > 0.06) continue;
-    EXPECT_NEAR(model.pressures()[i], 1000 * 9.81 * 0.35, 1e-6 * 1000 * 9.81 * 0.35);
+    EXPECT_NEAR(model.pressures()[i], expected, 1e-7 * expected);
   }
+  std::cout << "bottom-row pressure: expected " << expected << " Pa (rho0 g d = " << 1000 * 9.81 * depth << " Pa)\n";
 }
 
 // S4 hydrostatic tank, reduced: H = 0.2 m, dx = H/10, to t = 10 sqrt(H/g) (the
-// benchmark asks for 100 sqrt(H/g)). Wall particles of the test's own.
-// Known shortfall: the spurious speed at this resolution is about 1e-2 sqrt(gH),
-// twenty times the benchmark's bound; the test holds it to 3e-2 sqrt(gH).
+// benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own.
+// Cubic spline at h = 1.3 dx: with the default Wendland C2 at h = 1.3 dx a cubic lattice at
+// rest is unstable (the kinetic energy grows twentyfold between t = 2 and 5 sqrt(H/g) as the
+// particles rearrange; largest speed 1.9e-2 sqrt(gH)); the cubic spline at 1.3 dx and Wendland
+// at 1.73 dx decay. Known shortfall: the start-up transient (2.5e-2 sqrt(gH) at the free
+// surface beside the walls in the first sqrt(H/g)) and 1.8e-3 sqrt(gH) in the second half are
+// above the benchmark's 1e-3; the test holds the second half to 2.5e-3 sqrt(gH).
 TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
   scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
+  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
   s.sph.artificial_viscosity = 0.1;
   s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
   SphModel model(s);
@@ -113,8 +148,9 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   // Wall forces averaged over the last quarter of the run (the tank still sloshes a little).
   // Corner particles belong to both walls: the bottom takes every particle below z = 0,
   // the side x = 0 every particle behind it.
-  double max_speed_late = 0, bottom = 0, side = 0, samples = 0;
+  double max_speed = 0, max_speed_late = 0, bottom = 0, side = 0, samples = 0;
   run_until(model, t_end, [&](double t) {
+    for (const Vec3& v : model.velocities()) max_speed = std::max(max_speed, v.norm());
     if (t < 0.5 * t_end) return;
     for (const Vec3& v : model.velocities()) max_speed_late = std::max(max_speed_late, v.norm());
     if (t < 0.75 * t_end) return;
@@ -139,8 +175,9 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double weight = 1000 * g * H * L * W;
   const double side_expected = 1000 * g * H * H * W / 2;
   std::cout << "S4 pressure L2 error: measured " << 100 * error << " % of rho g H, expected <= 2 %\n";
-  std::cout << "S4 largest speed (second half): measured " << max_speed_late << " m/s, benchmark bound "
-            << 1e-3 * std::sqrt(g * H) << " m/s, held here to " << 3e-2 * std::sqrt(g * H) << " m/s\n";
+  std::cout << "S4 largest speed / sqrt(gH): measured " << max_speed / std::sqrt(g * H) << " over the run, "
+            << max_speed_late / std::sqrt(g * H) << " in the second half; benchmark bound 1e-3, held here to 2.5e-3 "
+            << "in the second half\n";
   std::cout << "S4 bottom force (mean of the last quarter): measured " << bottom << " N, expected " << weight
             << " N (+-1.5% here, benchmark 1%)\n";
   std::cout << "S4 side force (mean of the last quarter): measured " << side << " N, expected " << side_expected
@@ -150,7 +187,7 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   EXPECT_LT(error, 0.02);
   EXPECT_NEAR(bottom / weight, 1.0, 0.015);  // reduced resolution: 1.5 % (benchmark: 1 %)
   EXPECT_NEAR(side / side_expected, 1.0, 0.02);
-  EXPECT_LT(max_speed_late, 3e-2 * std::sqrt(g * H));
+  EXPECT_LT(max_speed_late, 2.5e-3 * std::sqrt(g * H));
 }
 
 // Newton's third law between fluid and walls, and the same bits on 1 and 2 threads.
@@ -184,27 +221,117 @@ TEST(SphModelContract, WallForcesBalanceAndRunsAreDeterministic) {
   EXPECT_LT((fluid + wall).norm(), 1e-9 * fluid.norm());
 }
 
+// Penalty walls as the coupler computes them for an sph_fem pair (SurfaceContact, paper
+// eqs. 3-6): contact radius dx/2 (what the sph_solver sends), no friction, an explicit
+// stiffness k_n (N/m) and damping ratio zeta. One part per plane, so that out.part_force gives each wall's load.
+struct PenaltyWalls {
+  PenaltyWalls(SphModel& fluid, const std::string& source, const geometry::SurfaceMesh& surface, double stiffness,
+               double damping_ratio = 0.0)
+      : model(fluid),
+        contact({source},
+                [stiffness, damping_ratio](const std::string&, const std::string&) {
+                  scene::SurfaceContact pair;
+                  pair.friction = 0;
+                  pair.normal_stiffness = stiffness;
+                  pair.normal_damping_ratio = damping_ratio;
+                  return pair;
+                }),
+        ids(fluid.size()),
+        indices(fluid.size()),
+        radius(fluid.size(), 0.5 * fluid.settings().particle_spacing),
+        position(3 * fluid.size()),
+        velocity(3 * fluid.size()) {
+    contact.set_surface(surface);
+    for (std::size_t i = 0; i < fluid.size(); ++i) ids[i] = indices[i] = static_cast<std::uint32_t>(i);
+  }
+  // Adds the contact forces at x_n to the model (after compute_internal_forces); returns the
+  // contact's stable dt.
+  double apply(double dt_previous) {
+    for (std::size_t i = 0; i < model.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        position[3 * i + k] = model.positions()[i][k];
+        velocity[3 * i + k] = model.velocities()[i][k];
+      }
+    }
+    const coupler::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}};
+    contact.compute(view, dt_previous, out);
+    model.add_external_forces(indices, out.particle_force);
+    return contact.stable_dt();
+  }
+  SphModel& model;
+  coupler::SurfaceContact contact;
+  std::vector<std::uint64_t> ids;
+  std::vector<std::uint32_t> indices;
+  std::vector<double> radius, position, velocity;
+  coupler::ContactOutput out;
+};
+
+// The floor and four sides of the container [min, max] as planes, normals inward, parts
+// "floor", "x_min", "x_max", "y_min", "y_max" in that order.
+geometry::SurfaceMesh container_planes(const Vec3& min, const Vec3& max) {
+  geometry::SurfaceMesh planes;
+  const Vec3 size = max - min, centre = 0.5 * (min + max);
+  const auto plane = [&](const std::string& name, const Vec3& origin, const Vec3& normal, const Vec3& direction,
+                         double length, double width) {
+    scene::Shape shape;
+    shape.type = scene::Shape::Type::plane;
+    shape.origin = origin;
+    shape.normal = normal;
+    shape.direction = direction;
+    shape.length = length;
+    shape.width = width;
+    planes.append(geometry::triangulate(shape, name));
+  };
+  plane("floor", Vec3(centre.x(), centre.y(), min.z()), Vec3(0, 0, 1), Vec3(1, 0, 0), size.x(), size.y());
+  plane("x_min", Vec3(min.x(), centre.y(), centre.z()), Vec3(1, 0, 0), Vec3(0, 1, 0), size.y(), size.z());
+  plane("x_max", Vec3(max.x(), centre.y(), centre.z()), Vec3(-1, 0, 0), Vec3(0, 1, 0), size.y(), size.z());
+  plane("y_min", Vec3(centre.x(), min.y(), centre.z()), Vec3(0, 1, 0), Vec3(1, 0, 0), size.x(), size.z());
+  plane("y_max", Vec3(centre.x(), max.y(), centre.z()), Vec3(0, -1, 0), Vec3(1, 0, 0), size.x(), size.z());
+  return planes;
+}
+
 // S1 dam break (Martin & Moyce 1952, n^2 = 2), reduced: a = 0.1 m, dx = a/10, a
-// channel 4 dx wide with free-slip side walls (inviscid fluid: quasi 2-D).
-TEST(SphValidation, S1DamBreakFrontWithBoundaryParticles) {
+// channel 4 dx wide with free-slip side walls (inviscid fluid: quasi 2-D), walls
+// either boundary particles or the coupler's penalty contact (SurfaceContact, the
+// kernel the coupler runs for sph_fem pairs) against the five planes of the channel.
+struct DamBreakResult {
+  double error = 0, error_unshifted = 0, shift = 0, e0 = 0, e_max = 0;
+  std::size_t lost = 0;
+};
+
+DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
   const double a = 0.1, H = 2 * a, dx = a / 10, g = 9.81, W = 4 * dx, length = 6 * a;
   scene::Scene s = water_scene(dx, 10.0 * std::sqrt(2 * g * H));
   s.sph.artificial_viscosity = 0.02;
   s.fluids.push_back(box_body("column", Vec3(0, 0, 0), Vec3(a, W, H)));
   SphModel model(s);
-  model.set_boundary(container_walls(Vec3(0, 0, 0), Vec3(length, W, 1.5 * H), dx, 3));
+  // Penalty: planes of the channel, normals into the fluid; contact radius dx/2 (what the
+  // sph_solver sends), no friction, k = 4000 N/m: the bottom particle's share of the
+  // column's weight, rho g H dx^2 = 0.2 N, presses it 5e-5 m = dx/200 in.
+  const double top = 1.5 * H;
+  PenaltyWalls walls(model, "column", container_planes(Vec3(0, 0, 0), Vec3(length, W, top)), 4000.0);
+  if (!penalty_walls) model.set_boundary(container_walls(Vec3(0, 0, 0), Vec3(length, W, top), dx, 3));
+
   const double time_scale = std::sqrt(a / (2 * g));  // t = T * time_scale
   const double T_ref[] = {0.41, 0.84, 1.19, 1.43, 1.63, 1.83, 1.98, 2.20, 2.32, 2.51, 2.65, 2.83, 2.98, 3.11, 3.33};
   const double Z_ref[] = {1.11, 1.22, 1.44, 1.67, 1.89, 2.11, 2.33, 2.56, 2.78, 3.00, 3.22, 3.44, 3.67, 3.89, 4.11};
   std::vector<std::pair<double, double>> front;  // (T, Z)
-  const double e0 = model.energies().total();
-  double e_max = e0;
-  run_until(model, 3.6 * time_scale, [&](double t) {
+  DamBreakResult result;
+  result.e0 = result.e_max = model.energies().total();
+  double t = 0, dt_previous = 0;
+  while (t < 3.6 * time_scale) {
+    model.compute_internal_forces(dt_previous);
+    double dt = model.stable_dt();
+    if (penalty_walls) dt = std::min(dt, walls.apply(dt_previous));
+    model.integrate(dt_previous, dt);
+    t += dt;
+    dt_previous = dt;
     double x_max = 0;
     for (std::size_t i = 0; i < model.size(); ++i) x_max = std::max(x_max, model.positions()[i].x());
     front.emplace_back(t / time_scale, (x_max + 0.5 * dx) / a);
-    e_max = std::max(e_max, model.energies().total());
-  });
+    // The contact springs' energy belongs to the total, as in the coupler's accounting.
+    result.e_max = std::max(result.e_max, model.energies().total() + (penalty_walls ? walls.out.elastic_energy : 0.0));
+  }
   // RMS relative error over 0.84 <= T <= 3.33, best time shift |s| <= 0.3 (gate lag).
   const auto error_with_shift = [&](double shift) {
     double sum = 0;
@@ -221,26 +348,101 @@ TEST(SphValidation, S1DamBreakFrontWithBoundaryParticles) {
     }
     return std::sqrt(sum / count);
   };
-  double best_shift = 0, best = error_with_shift(0);
+  result.error_unshifted = result.error = error_with_shift(0);
   for (double shift = -0.3; shift <= 0.3001; shift += 0.01) {
-    if (const double e = error_with_shift(shift); e < best) {
-      best = e;
-      best_shift = shift;
+    if (const double e = error_with_shift(shift); e < result.error) {
+      result.error = e;
+      result.shift = shift;
     }
   }
-  std::cout << "S1 front RMS error: measured " << 100 * error_with_shift(0) << " % without shift, " << 100 * best
-            << " % with shift " << best_shift << " in T; expected <= 8 %\n";
-  // SABO_S1_FRONT_CSV=FILE keeps the front history for scripts/plot_s1_front.py.
-  if (const char* csv = std::getenv("SABO_S1_FRONT_CSV")) {
-    std::ofstream out(csv);
-    out << "T,Z\n";
-    for (const auto& [T, Z] : front) out << T << "," << Z << "\n";
+  // SABO_S1_FRONT_CSV=FILE (boundary particles) and SABO_S1_PENALTY_FRONT_CSV=FILE keep the
+  // front history for scripts/plot_s1_front.py.
+  if (const char* csv = std::getenv(csv_variable)) {
+    std::ofstream file(csv);
+    file << "T,Z\n";
+    for (const auto& [T, Z] : front) file << T << "," << Z << "\n";
   }
-  std::cout << "S1 energy (kinetic + potential + linearised compression): initial " << e0 << " J, largest " << e_max
-            << " J (expected not above initial by more than 0.1 %, the error of the linearised compression energy)\n";
-  EXPECT_LT(best, 0.08);
-  EXPECT_LE(std::abs(best_shift), 0.3);
-  EXPECT_LE(e_max, e0 * 1.001);
+  result.lost = model.lost_count();
+  return result;
+}
+
+void check_dam_break(const char* walls, const DamBreakResult& r) {
+  std::cout << "S1 front RMS error, " << walls << ": measured " << 100 * r.error_unshifted << " % without shift, "
+            << 100 * r.error << " % with shift " << r.shift << " in T; expected <= 8 %\n";
+  std::cout << "S1 energy, " << walls << " (kinetic + potential + compression): initial " << r.e0 << " J, largest "
+            << r.e_max << " J (expected not above initial by more than 0.1 %: density diffusion changes density "
+            << "without work)\n";
+  EXPECT_LT(r.error, 0.08);
+  EXPECT_LE(std::abs(r.shift), 0.3);
+  EXPECT_LE(r.e_max, r.e0 * 1.001);
+  EXPECT_EQ(r.lost, 0u);
+}
+
+TEST(SphValidation, S1DamBreakFrontWithBoundaryParticles) {
+  check_dam_break("boundary particles", dam_break(false, "SABO_S1_FRONT_CSV"));
+}
+
+TEST(SphValidation, S1DamBreakFrontWithPenaltyWalls) {
+  check_dam_break("penalty walls", dam_break(true, "SABO_S1_PENALTY_FRONT_CSV"));
+}
+
+// S4 with penalty walls (the paper's way), the same tank and run as above, cubic spline at
+// h = 1.3 dx: the figures the benchmark asks to report. The wall keeps the fluid out but the
+// kernel sums of the particles next to it are cut off: the fluid next to the walls is pushed
+// towards them, the lattice churns (0.4 sqrt(gH)), the pressure is off by 13 % of rho g H and
+// the side walls carry 9 % too little. Held here to those figures (regressions) and to the
+// tank's equilibrium: the floor carries the weight within the benchmark's 1 %.
+TEST(SphValidation, S4HydrostaticTankWithPenaltyWalls) {
+  const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
+  scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
+  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
+  s.sph.artificial_viscosity = 0.1;
+  s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
+  SphModel model(s);
+  // k = 4000 N/m: the bottom particle's share of the weight, rho g H dx^2 = 0.78 N, presses it
+  // 2e-4 m = dx/100 in; zeta = 0.5 as in configs/tests/sph_tank_penalty.toml.
+  PenaltyWalls walls(model, "water", container_planes(Vec3(0, 0, 0), Vec3(L, W, H + 4 * dx)), 4000.0, 0.5);
+  const double t_end = 10.0 * std::sqrt(H / g);
+  double t = 0, dt_previous = 0, max_speed = 0, max_speed_late = 0, bottom = 0, side = 0, samples = 0;
+  while (t < t_end) {
+    model.compute_internal_forces(dt_previous);
+    const double dt = std::min(model.stable_dt(), walls.apply(dt_previous));
+    model.integrate(dt_previous, dt);
+    t += dt;
+    dt_previous = dt;
+    for (const Vec3& v : model.velocities()) max_speed = std::max(max_speed, v.norm());
+    if (t < 0.5 * t_end) continue;
+    for (const Vec3& v : model.velocities()) max_speed_late = std::max(max_speed_late, v.norm());
+    if (t < 0.75 * t_end) continue;
+    bottom -= walls.out.part_force[0].z();  // parts: floor, x_min, x_max, y_min, y_max
+    side -= walls.out.part_force[1].x();
+    samples += 1;
+  }
+  bottom /= samples;
+  side /= samples;
+  double error2 = 0;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
+  }
+  const double error = std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
+  const double weight = 1000 * g * H * L * W, side_expected = 1000 * g * H * H * W / 2;
+  double vertical = 0;
+  for (const Vec3& f : walls.out.part_force) vertical -= f.z();
+  std::cout << "S4 penalty walls, pressure L2 error: measured " << 100 * error
+            << " % of rho g H (benchmark 2 %, held here to 15 %)\n";
+  std::cout << "S4 penalty walls, largest speed / sqrt(gH): measured " << max_speed / std::sqrt(g * H)
+            << " over the run, " << max_speed_late / std::sqrt(g * H)
+            << " in the second half (benchmark 1e-3, held here to 0.5)\n";
+  std::cout << "S4 penalty walls, bottom force (mean of the last quarter): measured " << bottom << " N, expected "
+            << weight << " N (benchmark 1 %)\n";
+  std::cout << "S4 penalty walls, side force (mean of the last quarter): measured " << side << " N, expected "
+            << side_expected << " N (benchmark 2 %, held here to 12 %)\n";
+  std::cout << "S4 penalty walls, vertical force on all walls at the last step: " << vertical << " N vs weight "
+            << weight << " N\n";
+  EXPECT_LT(error, 0.15);
+  EXPECT_LT(max_speed_late, 0.5 * std::sqrt(g * H));
+  EXPECT_NEAR(bottom / weight, 1.0, 0.01);
+  EXPECT_NEAR(side / side_expected, 1.0, 0.12);
   EXPECT_EQ(model.lost_count(), 0u);
 }
 
@@ -252,13 +454,16 @@ namespace {
 
 // S8 arrest on a slope, elastic-plastic (the paper's slurry model): a layer on a
 // floor under gravity tilted by theta (the slope) stops when thinner than
-// h_c = tau_y / (rho g sin theta). Known shortfall, documented in docs/physics.md:
-// at this resolution, with open ends that slump, the 0.9 h_c layer does not come
-// to rest (its centre creeps at about a quarter of the 1.2 h_c layer's speed); the
-// test holds the ordering the criterion implies, thick at least twice as far. Here the von Mises yield stress sigma_y
-// gives tau_y = sigma_y / sqrt(3) in simple shear. Layer 0.9 h_c and 1.2 h_c thick, open at both ends; the mean
-// downslope displacement of its central third between t_end / 3 and t_end is compared (the elastic start-up transient,
-// speeds of about tau_y / (rho c_shear), averages out of a displacement).
+// h_c = tau_y / (rho g sin theta). Here the von Mises yield stress sigma_y gives
+// tau_y = sigma_y / sqrt(3) in simple shear. Layers 0.9 h_c and 1.2 h_c thick, 24 x 8 dx,
+// open at both ends and sides; the mean downslope displacement of the central third between
+// t_end / 3 and t_end is compared. The layers start in their static shear state and the floor
+// carries the extrapolated stress (without it the bed slipped). Known shortfall, documented in
+// docs/physics.md: the 0.9 h_c layer still creeps (11 mm against 37 mm), because a finite
+// layer is not the benchmark's infinite one: its free ends and sides need S_xx = p to stand,
+// more than sigma_y at this depth, so they collapse and drag the whole 24 x 8 dx layer past
+// yield (a 48 x 8 dx layer as well: von Mises at yield in the bottom rows after 8 ms with S_xz
+// at 0.44 tau_y). The test holds the ordering the criterion implies, thick at least twice as far.
 double central_displacement_on_slope(double thickness_ratio, double t_end) {
   const double dx = 0.015, h_c = 0.1, theta = 20.0 * std::numbers::pi / 180.0, g = 9.81, rho = 1000;
   const double tau_y = rho * g * std::sin(theta) * h_c;
