@@ -10,6 +10,7 @@
 #include <string>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/core/isa.hpp"
 
 namespace sabo::sph {
 namespace {
@@ -163,66 +164,6 @@ inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_
 
 // Particles per unit of work handed to with_best_isa() by the parallel loops.
 constexpr std::int64_t kChunk = 64;
-
-// The pair loops are compiled for three instruction sets (x86-64 baseline, x86-64-v3:
-// AVX2 + FMA, x86-64-v4: AVX-512) and the best one the CPU has runs, the same one for
-// every call: the same bits on any thread count (not across instruction sets: FMA).
-enum class Isa { generic, avx2, avx512 };
-
-// SABO_SPH_ISA=generic or avx2 asks for a lower one than the CPU's best (to test those copies).
-Isa best_isa() {
-  static const Isa isa = [] {
-    Isa best = Isa::generic;
-#if defined(__x86_64__) && defined(__GNUC__)
-    __builtin_cpu_init();
-    if (__builtin_cpu_supports("x86-64-v4")) {
-      best = Isa::avx512;
-    } else if (__builtin_cpu_supports("x86-64-v3")) {
-      best = Isa::avx2;
-    }
-#endif
-    const char* asked = std::getenv("SABO_SPH_ISA");
-    if (asked == nullptr || *asked == '\0') return best;
-    const std::string name(asked);
-    const Isa wanted = name == "generic" ? Isa::generic
-                       : name == "avx2"  ? Isa::avx2
-                       : name == "avx512"
-                           ? Isa::avx512
-                           : throw Error(fmt::format("SABO_SPH_ISA={}: unknown instruction set. Fix: generic, avx2, "
-                                                     "avx512 or unset (the best the CPU has)",
-                                                     name));
-    return std::min(wanted, best);
-  }();
-  return isa;
-}
-
-// f() with every call inside inlined (flatten), compiled for the named instruction set.
-#if defined(__x86_64__) && defined(__GNUC__)
-template <class F>
-[[gnu::target("arch=x86-64-v4,prefer-vector-width=512"), gnu::flatten]] void run_avx512(F f) {
-  f();
-}
-template <class F>
-[[gnu::target("arch=x86-64-v3"), gnu::flatten]] void run_avx2(F f) {
-  f();
-}
-#endif
-template <class F>
-[[gnu::flatten]] void run_generic(F f) {
-  f();
-}
-
-template <class F>
-void with_best_isa(F f) {
-#if defined(__x86_64__) && defined(__GNUC__)
-  switch (best_isa()) {
-    case Isa::avx512: run_avx512(f); return;
-    case Isa::avx2: run_avx2(f); return;
-    case Isa::generic: break;
-  }
-#endif
-  run_generic(f);
-}
 
 // Resizes a cell-ordered array to count + kLanes entries, the padding set to `pad`.
 template <class V>
