@@ -41,6 +41,10 @@ double hydrostatic_pressure(const EquationOfState& eos, double g, double depth) 
 FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
                       const std::vector<std::uint32_t>& body_material) {
   FluidFill fill;
+  // Stresses only where a body is elastic-plastic (else 48 bytes a particle for nothing).
+  const bool with_stress = std::any_of(body_material.begin(), body_material.end(), [&](std::uint32_t m) {
+    return materials[m].rheology == scene::Material::Rheology::elastic_plastic;
+  });
   const double dx = scene.sph.particle_spacing;
   const double g = std::abs(scene.run.gravity.z());
   for (std::size_t b = 0; b < scene.fluids.size(); ++b) {
@@ -125,7 +129,7 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
           shear_yz *= material.yield_stress / equivalent;
         }
       }
-      fill.stress.insert(fill.stress.end(), {0.0, 0.0, 0.0, 0.0, shear_yz, shear_xz});
+      if (with_stress) fill.stress.insert(fill.stress.end(), {0.0, 0.0, 0.0, 0.0, shear_yz, shear_xz});
       fill.velocity.push_back(body.velocity);
       fill.density.push_back(rho);
       fill.pressure.push_back(material.eos.pressure(rho));

@@ -79,7 +79,8 @@ struct FluidMaterial {
 struct FluidFill {
   std::vector<Vec3> position, velocity;
   std::vector<double> density, pressure, mass;
-  std::vector<double> stress;  // Pa, deviatoric, 6 per particle (xx yy zz xy yz zx)
+  std::vector<double>
+      stress;  // Pa, deviatoric, 6 per particle (xx yy zz xy yz zx); empty without elastic-plastic bodies
   std::vector<std::uint32_t> material, body;
 };
 [[nodiscard]] FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
