@@ -858,20 +858,10 @@ class Builder {
         return;
       }
     }
-    const auto cross = [](std::array<double, 2> o, std::array<double, 2> a, std::array<double, 2> b) {
-      return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    };
-    for (std::size_t a = 0; a < n; ++a) {
-      for (std::size_t b = a + 2; b < n; ++b) {
-        if (a == 0 && b == n - 1) continue;  // neighbouring edges through point 0
-        const auto p1 = point(a), p2 = point(a + 1), q1 = point(b), q2 = point(b + 1);
-        const double d1 = cross(p1, p2, q1), d2 = cross(p1, p2, q2), d3 = cross(q1, q2, p1), d4 = cross(q1, q2, p2);
-        if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) {
-          diag_.add(line, key, value, fmt::format("edge {}-{} crosses edge {}-{}", a, (a + 1) % n, b, (b + 1) % n),
-                    "list the points in order around the polygon, without crossings");
-          return;
-        }
-      }
+    if (const auto edges = geometry::first_crossing_edges(profile, /*touching=*/false)) {
+      const auto [a, b] = *edges;
+      diag_.add(line, key, value, fmt::format("edge {}-{} crosses edge {}-{}", a, (a + 1) % n, b, (b + 1) % n),
+                "list the points in order around the polygon, without crossings");
     }
   }
 
@@ -1221,19 +1211,14 @@ class Builder {
                 "list the vertices [x, z] of the region's outline in order");
       return;
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t j = i + 1; j < n; ++j) {
-        const bool adjacent = j == i + 1 || (i == 0 && j == n - 1);
-        if (adjacent) continue;
-        if (geometry::segments_meet((*polygon)[i], (*polygon)[(i + 1) % n], (*polygon)[j], (*polygon)[(j + 1) % n])) {
-          diag_.add(line, f.key_path("polygon_xz"), value,
-                    fmt::format("the polygon is not simple: edge {} (vertices {} and {}) meets edge {} (vertices {} "
-                                "and {})",
-                                i, i, (i + 1) % n, j, j, (j + 1) % n),
-                    "list the vertices in order around the outline, without crossing edges");
-          return;
-        }
-      }
+    if (const auto edges = geometry::first_crossing_edges(*polygon, /*touching=*/true)) {
+      const auto [i, j] = *edges;
+      diag_.add(
+          line, f.key_path("polygon_xz"), value,
+          fmt::format("the polygon is not simple: edge {} (vertices {} and {}) meets edge {} (vertices {} and {})", i,
+                      i, (i + 1) % n, j, j, (j + 1) % n),
+          "list the vertices in order around the outline, without crossing edges");
+      return;
     }
     set.polygon_xz = *polygon;
     Vec3 low((*polygon)[0][0], (*y_range)[0], (*polygon)[0][1]);
