@@ -89,10 +89,6 @@ void EnergyHistory::close() {
   file_ = nullptr;
 }
 
-}  // namespace sabo::coupler
-
-namespace sabo::coupler {
-
 void PartEnergyHistory::observe(const PartEnergySample& sample, const std::string& part, bool keep) {
   Series& series = parts_[part];
   series.last = sample;

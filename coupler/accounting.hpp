@@ -81,10 +81,6 @@ class EnergyHistory {
   double max_total_ = 0;
 };
 
-}  // namespace sabo::coupler
-
-namespace sabo::coupler {
-
 // One deformable FEM part's energies at one time (StepState.part_energies), J.
 struct PartEnergySample {
   double time = 0;  // s

@@ -182,6 +182,12 @@ void SurfaceContact::set_surface(const geometry::SurfaceMesh& surface) {
       node_faces_[cursor[canonical_[node]]++] = static_cast<std::uint32_t>(f);
   }
 
+  // Node masses do not change while the surface moves.
+  face_mass_.resize(faces);
+  for (std::size_t f = 0; f < faces; ++f) {
+    const auto& t = surface_.triangle[f];
+    face_mass_[f] = std::min({surface_.mass_of(t[0]), surface_.mass_of(t[1]), surface_.mass_of(t[2])});
+  }
   refresh_geometry();
   resolve_pairs();
 }
@@ -191,11 +197,6 @@ void SurfaceContact::refresh_geometry() {
   face_normal_.resize(faces);
   face_stiffness_factor_.resize(faces);
   face_shortest_edge_.resize(faces);
-  face_mass_.resize(faces);
-  for (std::size_t f = 0; f < faces; ++f) {
-    const auto& t = surface_.triangle[f];
-    face_mass_[f] = std::min({surface_.mass_of(t[0]), surface_.mass_of(t[1]), surface_.mass_of(t[2])});
-  }
   degenerate_.resize(faces);
   face_box_.resize(faces);
   surface_bounds_ = surface_.bounds();
@@ -269,11 +270,9 @@ void SurfaceContact::resolve_pairs() {
             "model = \"penalty\" for this pair",
             source_names_[s], surface_.part_name[p]));
       }
-      // (1 - nu^2) / E and 2 (2 - nu)(1 + nu) / E of each body; 0 for a rigid one.
-      pair.effective_modulus =
-          1.0 / ((1 - sphere_nu * sphere_nu) / sphere_youngs + (1 - wall_nu * wall_nu) / wall_youngs);
-      pair.effective_shear_modulus = 1.0 / (2 * (2 - sphere_nu) * (1 + sphere_nu) / sphere_youngs +
-                                            2 * (2 - wall_nu) * (1 + wall_nu) / wall_youngs);
+      pair.effective_modulus = physics::hertz_effective_modulus(sphere_youngs, sphere_nu, wall_youngs, wall_nu);
+      pair.effective_shear_modulus =
+          physics::mindlin_effective_shear_modulus(sphere_youngs, sphere_nu, wall_youngs, wall_nu);
       const double sphere_shear = sphere_youngs / (2 * (1 + sphere_nu));
       pair.rayleigh_factor = 1.0 / (std::sqrt(sphere_shear) * (0.1631 * sphere_nu + 0.8766));
     }

@@ -440,12 +440,11 @@ TEST(SurfaceContact, RollingOverConvexEdgeIsContinuous) {
   EXPECT_LE(max_deviation, 1e-6 * k * 0.05);
 }
 
-TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
-  const double k = 1e6;
-  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+// A concave corner: the floor z = 0 for x in [0, 2] and a wall x = 0 for z in [0, 2],
+// sharing the edge x = 0, z = 0 (part "channel").
+geometry::SurfaceMesh floor_and_wall() {
   MeshBuilder b;
   const auto part = b.part("channel");
-  // Floor z = 0 for x in [0, 2] and a wall x = 0 for z in [0, 2], sharing the edge x = 0, z = 0.
   const auto p0 = b.node({0, -1, 0}), p1 = b.node({0, 1, 0});
   const auto f0 = b.node({2, -1, 0}), f1 = b.node({2, 1, 0});
   const auto w0 = b.node({0, -1, 2}), w1 = b.node({0, 1, 2});
@@ -453,7 +452,13 @@ TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
   b.triangle(p0, f1, p1, part);
   b.triangle(p0, p1, w1, part);
   b.triangle(p0, w1, w0, part);
-  contact.set_surface(b.mesh());
+  return b.mesh();
+}
+
+TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
+  const double k = 1e6;
+  SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
+  contact.set_surface(floor_and_wall());
   Cloud cloud;
   cloud.add({0.45, 0.1, 0.48}, 0.5);
   ContactOutput out;
@@ -468,16 +473,7 @@ TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
 TEST(SurfaceContact, ContactBornDuringAContactStartsSlack) {
   const double k = 1e6;
   SurfaceContact contact({"boulders"}, uniform(explicit_stiffness(k)));
-  MeshBuilder b;
-  const auto part = b.part("channel");
-  const auto p0 = b.node({0, -1, 0}), p1 = b.node({0, 1, 0});
-  const auto f0 = b.node({2, -1, 0}), f1 = b.node({2, 1, 0});
-  const auto w0 = b.node({0, -1, 2}), w1 = b.node({0, 1, 2});
-  b.triangle(p0, f0, f1, part);
-  b.triangle(p0, f1, p1, part);
-  b.triangle(p0, p1, w1, part);
-  b.triangle(p0, w1, w0, part);
-  contact.set_surface(b.mesh());
+  contact.set_surface(floor_and_wall());
   ContactOutput out;
   const auto step = [&](double x) {
     Cloud cloud;
