@@ -163,8 +163,8 @@ class DemThroughput(Case):
         return {"OMP_NUM_THREADS": str(self.threads)}
 
 
-def dem_threads_env(threads):
-    """OpenMP settings of the DEM cases. With more than one thread the waiting is passive: a thread that
+def passive_threads_env(threads):
+    """OpenMP settings of the DEM and SPH cases. With more than one thread the waiting is passive: a thread that
     finishes a loop first sleeps instead of spinning on a core that the other thread (or another process)
     may need."""
     env = {"OMP_NUM_THREADS": str(threads)}
@@ -208,7 +208,7 @@ class DemBox(Case):
         ]
 
     def env(self):
-        return dem_threads_env(self.threads)
+        return passive_threads_env(self.threads)
 
 
 class FemThroughput(Case):
@@ -278,8 +278,7 @@ class SphThroughput(Case):
         ]
 
     def env(self):
-        # Passive waiting: with as many threads as cores, spinning threads only steal time.
-        return {"OMP_NUM_THREADS": str(self.threads), "OMP_WAIT_POLICY": "passive"}
+        return passive_threads_env(self.threads)
 
 
 class DemPile(Case):
@@ -309,7 +308,7 @@ class DemPile(Case):
         ]
 
     def env(self):
-        return dem_threads_env(self.threads)
+        return passive_threads_env(self.threads)
 
 
 class WholeRun(Case):
