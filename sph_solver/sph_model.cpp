@@ -208,6 +208,23 @@ double FluidMaterial::max_viscosity() const {
   return 0;
 }
 
+// The inner loops index slots in 64 bits and test lanes in 32 bits: contiguous vector loads.
+template <class Block>
+void SphModel::for_neighbour_blocks(const Vec3& position, const std::vector<std::uint32_t>& start,
+                                    const float* sorted_x, Block&& block) const {
+  NeighbourRow rows[9];
+  const int row_count = neighbour_rows(position.x(), position.y(), position.z(), start, rows);
+  for (int r = 0; r < row_count; ++r) {
+    const std::uint32_t end = rows[r].end;
+    // Blocks wholly outside the x window hold no neighbour: skipped.
+    std::uint32_t j0 = rows[r].begin;
+    while (j0 < end && sorted_x[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
+    std::uint32_t stop = j0;
+    while (stop < end && sorted_x[stop] <= rows[r].x_max) stop += kLanes;
+    for (; j0 < stop; j0 += kLanes) block(j0, static_cast<std::int32_t>(std::min(end - j0, kLanes)));
+  }
+}
+
 SphModel::SphModel(const scene::Scene& scene)
     : settings_(scene.sph),
       kernel_(scene.sph.kernel, scene.sph.smoothing_length()),
@@ -499,39 +516,25 @@ void SphModel::boundary_state(T) {
         alignas(64) float svx[kLanes] = {}, svy[kLanes] = {}, svz[kLanes] = {};
         const float x = bx_[s], y = by_[s], z = bz_[s];
         const Vec3& position = boundary_.position[id];
-        {
-          NeighbourRow rows[9];
-          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-          for (int r = 0; r < row_count; ++r) {
-            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-            // Blocks wholly outside the x window hold no neighbour: skipped.
-            std::uint32_t j0 = begin;
-            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-            std::uint32_t stop = j0;
-            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-            for (; j0 < stop; j0 += kLanes) {
-              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
-              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+        for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
-              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-                const float r2 = rx * rx + ry * ry + rz * rz;
-                const bool inside = (l < valid) & (r2 < support2);
-                const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
-                const float rho_j = frho[j];
-                sum_w[l] += w;
-                sum_pw[l] += fpr[j] * rho_j * rho_j * w;
-                sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
-                if constexpr (T::viscous) {
-                  svx[l] += fvx[j] * w;
-                  svy[l] += fvy[j] * w;
-                  svz[l] += fvz[j] * w;
-                }
-              }
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
+            const float rho_j = frho[j];
+            sum_w[l] += w;
+            sum_pw[l] += fpr[j] * rho_j * rho_j * w;
+            sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
+            if constexpr (T::viscous) {
+              svx[l] += fvx[j] * w;
+              svy[l] += fvy[j] * w;
+              svz[l] += fvz[j] * w;
             }
           }
-        }
+        });
         double total_w = 0, total_pw = 0, total_rho_r_g = 0, total_vx = 0, total_vy = 0, total_vz = 0;
         for (std::uint32_t l = 0; l < kLanes; ++l) {
           total_w += sum_w[l];
@@ -722,109 +725,81 @@ void SphModel::fluid_forces(T) {
         alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
         alignas(64) std::int32_t neighbours[kLanes] = {};
         const Vec3& position = position_[id];
-        {
-          NeighbourRow rows[9];
-          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-          for (int r = 0; r < row_count; ++r) {
-            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-            // Blocks wholly outside the x window hold no neighbour: skipped.
-            std::uint32_t j0 = begin;
-            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-            std::uint32_t stop = j0;
-            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-            for (; j0 < stop; j0 += kLanes) {
-              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
-              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
-              const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
+        for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
+          const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
 #pragma omp simd
-              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-                const float r2 = rx * rx + ry * ry + rz * rz;
-                const bool inside = (l < valid) & (l != self) & (r2 < support2);
-                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-                const float m_j = static_cast<float>(fm[j]), rho_j = frho[j];
-                const float dvx = vx - fvx[j], dvy = vy - fvy[j], dvz = vz - fvz[j];
-                const float vr = dvx * rx + dvy * ry + dvz * rz;
-                const float inverse_r2 = 1.0f / (r2 + eta2);
-                const float mu = h * vr * inverse_r2;
-                mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
-                neighbours[l] += inside ? 1 : 0;
-                const float sf = pair_scalar(m_j, pr_i, fpr[j], vr, inverse_r2, rho_i, rho_j, alpha_hc) * f;
-                float tx = sf * rx, ty = sf * ry, tz = sf * rz;
-                if constexpr (T::viscous) {
-                  const float viscous = m_j * (eta_i + feta[j]) / (rho_i * rho_j) * f * r2 * inverse_r2;
-                  tx += viscous * dvx;
-                  ty += viscous * dvy;
-                  tz += viscous * dvz;
-                }
-                if constexpr (T::stress) {
-                  const Sym6 s_j = load_sym6(fstress, stress_stride, j);
-                  const float aj = 1.0f / (rho_j * rho_j);
-                  const Sym6 sum{m_j * (s_i_rho2.xx + s_j.xx * aj), m_j * (s_i_rho2.yy + s_j.yy * aj),
-                                 m_j * (s_i_rho2.zz + s_j.zz * aj), m_j * (s_i_rho2.xy + s_j.xy * aj),
-                                 m_j * (s_i_rho2.yz + s_j.yz * aj), m_j * (s_i_rho2.zx + s_j.zx * aj)};
-                  add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
-                }
-                ax[l] += tx;
-                ay[l] += ty;
-                az[l] += tz;
-                if constexpr (T::diffusion) {
-                  float psi = rho_j - rho_i;
-                  if constexpr (T::hydrostatic) {
-                    psi = dynamic_density_difference(p_i, fpr[j] * rho_j * rho_j, rho_i, rho_j,
-                                                     gxf * rx + gyf * ry + gzf * rz, inverse_c2);
-                  }
-                  diffuse[l] += psi * (-f * r2) * inverse_r2 * m_j / rho_j;
-                }
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (l != self) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float m_j = static_cast<float>(fm[j]), rho_j = frho[j];
+            const float dvx = vx - fvx[j], dvy = vy - fvy[j], dvz = vz - fvz[j];
+            const float vr = dvx * rx + dvy * ry + dvz * rz;
+            const float inverse_r2 = 1.0f / (r2 + eta2);
+            const float mu = h * vr * inverse_r2;
+            mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+            neighbours[l] += inside ? 1 : 0;
+            const float sf = pair_scalar(m_j, pr_i, fpr[j], vr, inverse_r2, rho_i, rho_j, alpha_hc) * f;
+            float tx = sf * rx, ty = sf * ry, tz = sf * rz;
+            if constexpr (T::viscous) {
+              const float viscous = m_j * (eta_i + feta[j]) / (rho_i * rho_j) * f * r2 * inverse_r2;
+              tx += viscous * dvx;
+              ty += viscous * dvy;
+              tz += viscous * dvz;
+            }
+            if constexpr (T::stress) {
+              const Sym6 s_j = load_sym6(fstress, stress_stride, j);
+              const float aj = 1.0f / (rho_j * rho_j);
+              const Sym6 sum{m_j * (s_i_rho2.xx + s_j.xx * aj), m_j * (s_i_rho2.yy + s_j.yy * aj),
+                             m_j * (s_i_rho2.zz + s_j.zz * aj), m_j * (s_i_rho2.xy + s_j.xy * aj),
+                             m_j * (s_i_rho2.yz + s_j.yz * aj), m_j * (s_i_rho2.zx + s_j.zx * aj)};
+              add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
+            }
+            ax[l] += tx;
+            ay[l] += ty;
+            az[l] += tz;
+            if constexpr (T::diffusion) {
+              float psi = rho_j - rho_i;
+              if constexpr (T::hydrostatic) {
+                psi = dynamic_density_difference(p_i, fpr[j] * rho_j * rho_j, rho_i, rho_j,
+                                                 gxf * rx + gyf * ry + gzf * rz, inverse_c2);
               }
+              diffuse[l] += psi * (-f * r2) * inverse_r2 * m_j / rho_j;
             }
           }
-        }
-        {
-          NeighbourRow rows[9];
-          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
-          for (int r = 0; r < row_count; ++r) {
-            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-            // Blocks wholly outside the x window hold no neighbour: skipped.
-            std::uint32_t j0 = begin;
-            while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-            std::uint32_t stop = j0;
-            while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
-            for (; j0 < stop; j0 += kLanes) {
-              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
-              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+        });
+        for_neighbour_blocks(position, b_cell_start_, bx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
-              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-                const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
-                const float r2 = rx * rx + ry * ry + rz * rz;
-                const bool inside = (l < valid) & (r2 < support2);
-                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-                const float rho_b = brho[j], m_b = rho_b * bvol[j];
-                const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
-                const float inverse_r2 = 1.0f / (r2 + eta2);
-                const float mu = h * vr * inverse_r2;
-                mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
-                neighbours[l] += inside ? 1 : 0;
-                float ux = 0, uy = 0, uz = 0;
-                if constexpr (T::viscous) {
-                  ux = vx - bvx[j];
-                  uy = vy - bvy[j];
-                  uz = vz - bvz[j];
-                }
-                Sym6 s_b;
-                if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, j);
-                float tx, ty, tz;
-                wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, s_b, f, rx, ry, rz, r2, vr, inverse_r2, ux,
-                             uy, uz, alpha_hc, tx, ty, tz);
-                ax[l] += tx;
-                ay[l] += ty;
-                az[l] += tz;
-              }
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float rho_b = brho[j], m_b = rho_b * bvol[j];
+            const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+            const float inverse_r2 = 1.0f / (r2 + eta2);
+            const float mu = h * vr * inverse_r2;
+            mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+            neighbours[l] += inside ? 1 : 0;
+            float ux = 0, uy = 0, uz = 0;
+            if constexpr (T::viscous) {
+              ux = vx - bvx[j];
+              uy = vy - bvy[j];
+              uz = vz - bvz[j];
             }
+            Sym6 s_b;
+            if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, j);
+            float tx, ty, tz;
+            wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, s_b, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
+                         uz, alpha_hc, tx, ty, tz);
+            ax[l] += tx;
+            ay[l] += ty;
+            az[l] += tz;
           }
-        }
+        });
         double sum_x = 0, sum_y = 0, sum_z = 0, sum_diffuse = 0;
         float lane_mu = 0;
         std::int64_t lane_neighbours = 0;
@@ -901,49 +876,35 @@ void SphModel::boundary_forces(T) {
         }
         alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
         const Vec3& position = boundary_.position[id];
-        {
-          NeighbourRow rows[9];
-          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-          for (int r = 0; r < row_count; ++r) {
-            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-            // Blocks wholly outside the x window hold no neighbour: skipped.
-            std::uint32_t j0 = begin;
-            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-            std::uint32_t stop = j0;
-            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-            for (; j0 < stop; j0 += kLanes) {
-              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
-              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+        for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
-              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-                const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
-                const float r2 = rx * rx + ry * ry + rz * rz;
-                const bool inside = (l < valid) & (r2 < support2);
-                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-                const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
-                const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
-                const float inverse_r2 = 1.0f / (r2 + eta2);
-                float ux = 0, uy = 0, uz = 0, eta_i = 0;
-                Sym6 s_i;
-                if constexpr (T::viscous) {
-                  ux = vx - vx_b;
-                  uy = vy - vy_b;
-                  uz = vz - vz_b;
-                  eta_i = feta[j];
-                }
-                if constexpr (T::stress) s_i = load_sym6(fstress, stress_stride, j);
-                float tx, ty, tz;
-                wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, s_b, f, rx, ry, rz, r2, vr, inverse_r2, ux,
-                             uy, uz, alpha_hc, tx, ty, tz);
-                const double m_i = inside ? fm[j] : 0.0;
-                fbx[l] -= m_i * tx;
-                fby[l] -= m_i * ty;
-                fbz[l] -= m_i * tz;
-              }
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
+            const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
+            const float inverse_r2 = 1.0f / (r2 + eta2);
+            float ux = 0, uy = 0, uz = 0, eta_i = 0;
+            Sym6 s_i;
+            if constexpr (T::viscous) {
+              ux = vx - vx_b;
+              uy = vy - vy_b;
+              uz = vz - vz_b;
+              eta_i = feta[j];
             }
+            if constexpr (T::stress) s_i = load_sym6(fstress, stress_stride, j);
+            float tx, ty, tz;
+            wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, s_b, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
+                         uz, alpha_hc, tx, ty, tz);
+            const double m_i = inside ? fm[j] : 0.0;
+            fbx[l] -= m_i * tx;
+            fby[l] -= m_i * ty;
+            fbz[l] -= m_i * tz;
           }
-        }
+        });
         double sum_x = 0, sum_y = 0, sum_z = 0;
         for (std::uint32_t l = 0; l < kLanes; ++l) {
           sum_x += fbx[l];
@@ -1001,59 +962,31 @@ void SphModel::velocity_divergence(T) {
         const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
         alignas(64) float drho[kLanes] = {};
         const Vec3& position = position_[f_order_[i]];
-        {
-          NeighbourRow rows[9];
-          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), f_cell_start_, rows);
-          for (int r = 0; r < row_count; ++r) {
-            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-            // Blocks wholly outside the x window hold no neighbour: skipped.
-            std::uint32_t j0 = begin;
-            while (j0 < end && fx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-            std::uint32_t stop = j0;
-            while (stop < end && fx[stop] <= rows[r].x_max) stop += kLanes;
-            for (; j0 < stop; j0 += kLanes) {
-              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
-              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
-              const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
+        for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
+          const std::int32_t self = i >= j0 && i - j0 < kLanes ? static_cast<std::int32_t>(i - j0) : -1;
 #pragma omp simd
-              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-                const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
-                const float r2 = rx * rx + ry * ry + rz * rz;
-                const bool inside = (l < valid) & (l != self) & (r2 < support2);
-                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-                const float vr = (vx - fvx[j]) * rx + (vy - fvy[j]) * ry + (vz - fvz[j]) * rz;
-                drho[l] += static_cast<float>(fm[j]) * vr * f;
-              }
-            }
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = x - fx[j], ry = y - fy[j], rz = z - fz[j];
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (l != self) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float vr = (vx - fvx[j]) * rx + (vy - fvy[j]) * ry + (vz - fvz[j]) * rz;
+            drho[l] += static_cast<float>(fm[j]) * vr * f;
           }
-        }
-        {
-          NeighbourRow rows[9];
-          const int row_count = neighbour_rows(position.x(), position.y(), position.z(), b_cell_start_, rows);
-          for (int r = 0; r < row_count; ++r) {
-            const std::uint32_t begin = rows[r].begin, end = rows[r].end;
-            // Blocks wholly outside the x window hold no neighbour: skipped.
-            std::uint32_t j0 = begin;
-            while (j0 < end && bx[std::min(j0 + kLanes, end) - 1] < rows[r].x_min) j0 += kLanes;
-            std::uint32_t stop = j0;
-            while (stop < end && bx[stop] <= rows[r].x_max) stop += kLanes;
-            for (; j0 < stop; j0 += kLanes) {
-              // 64-bit slot index, 32-bit lane tests: contiguous vector loads.
-              const std::int32_t valid = static_cast<std::int32_t>(std::min(end - j0, kLanes));
+        });
+        for_neighbour_blocks(position, b_cell_start_, bx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
-              for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-                const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-                const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
-                const float r2 = rx * rx + ry * ry + rz * rz;
-                const bool inside = (l < valid) & (r2 < support2);
-                const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-                const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
-                drho[l] += brho[j] * bvol[j] * vr * f;
-              }
-            }
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+            drho[l] += brho[j] * bvol[j] * vr * f;
           }
-        }
+        });
         double sum = 0;
         for (std::uint32_t l = 0; l < kLanes; ++l) sum += drho[l];
         out_drho_[i] += sum;

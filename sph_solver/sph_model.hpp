@@ -213,6 +213,13 @@ class SphModel {
     });
     return count;
   }
+  // Calls block(j0, valid) for each block of kLanes slots [j0, j0 + kLanes) of the rows of
+  // neighbour_rows() around `position` (m) that meets the row's x window; sorted_x: the
+  // slots' x as in the window. The first `valid` slots of the block lie in the row, the rest
+  // are the next row's or padding. Defined in sph_model.cpp (its only user).
+  template <class Block>
+  void for_neighbour_blocks(const Vec3& position, const std::vector<std::uint32_t>& start, const float* sorted_x,
+                            Block&& block) const;
   // Calls visit(slot) for every slot in the 27 cells around (x, y, z), cells in grid order.
   template <class Visit>
   void for_neighbours(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {

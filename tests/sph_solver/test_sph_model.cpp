@@ -127,6 +127,25 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   std::cout << "bottom-row pressure: expected " << expected << " Pa (rho0 g d = " << 1000 * 9.81 * depth << " Pa)\n";
 }
 
+// The reduced S4 tank of both S4 tests: water H deep in an L x W box (m), c = 10 sqrt(g H),
+// cubic spline at h = 1.3 dx (see S4HydrostaticTankWithBoundaryParticles), artificial viscosity 0.1.
+scene::Scene s4_tank_scene(double dx, double L, double W, double H, double g) {
+  scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
+  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
+  s.sph.artificial_viscosity = 0.1;
+  s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
+  return s;
+}
+
+// Pressure error against rho g (H - z), as an L2 norm over the particles, relative to rho g H.
+double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
+  double error2 = 0;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
+  }
+  return std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
+}
+
 // S4 hydrostatic tank, reduced: H = 0.2 m, dx = H/10, to t = 10 sqrt(H/g) (the
 // benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own.
 // Cubic spline at h = 1.3 dx: with the default Wendland C2 at h = 1.3 dx a cubic lattice at
@@ -137,11 +156,7 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
 // above the benchmark's 1e-3; the test holds the second half to 2.5e-3 sqrt(gH).
 TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
-  scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
-  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
-  s.sph.artificial_viscosity = 0.1;
-  s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
-  SphModel model(s);
+  SphModel model(s4_tank_scene(dx, L, W, H, g));
   model.set_boundary(container_walls(Vec3(0, 0, 0), Vec3(L, W, H + 4 * dx), dx, 3));
   const double t_end = 10.0 * std::sqrt(H / g);
   const auto& walls = model.boundary();
@@ -163,13 +178,7 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   bottom /= samples;
   side /= samples;
   model.compute_internal_forces(0);
-  // Pressure error against rho g (H - z), as an L2 norm over the particles, relative to rho g H.
-  double error2 = 0;
-  for (std::size_t i = 0; i < model.size(); ++i) {
-    const double expected = 1000 * g * (H - model.positions()[i].z());
-    error2 += std::pow(model.pressures()[i] - expected, 2);
-  }
-  const double error = std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
+  const double error = hydrostatic_pressure_error(model, H, g);
   Vec3 total = Vec3::Zero();
   for (const Vec3& f : model.boundary_forces()) total += f;
   const double weight = 1000 * g * H * L * W;
@@ -394,11 +403,7 @@ TEST(SphValidation, S1DamBreakFrontWithPenaltyWalls) {
 // tank's equilibrium: the floor carries the weight within the benchmark's 1 %.
 TEST(SphValidation, S4HydrostaticTankWithPenaltyWalls) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
-  scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * H));
-  s.sph.kernel = scene::SphSettings::Kernel::cubic_spline;
-  s.sph.artificial_viscosity = 0.1;
-  s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
-  SphModel model(s);
+  SphModel model(s4_tank_scene(dx, L, W, H, g));
   // k = 4000 N/m: the bottom particle's share of the weight, rho g H dx^2 = 0.78 N, presses it
   // 2e-4 m = dx/100 in; zeta = 0.5 as in configs/tests/sph_tank_penalty.toml.
   PenaltyWalls walls(model, "water", container_planes(Vec3(0, 0, 0), Vec3(L, W, H + 4 * dx)), 4000.0, 0.5);
@@ -420,11 +425,7 @@ TEST(SphValidation, S4HydrostaticTankWithPenaltyWalls) {
   }
   bottom /= samples;
   side /= samples;
-  double error2 = 0;
-  for (std::size_t i = 0; i < model.size(); ++i) {
-    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
-  }
-  const double error = std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
+  const double error = hydrostatic_pressure_error(model, H, g);
   const double weight = 1000 * g * H * L * W, side_expected = 1000 * g * H * H * W / 2;
   double vertical = 0;
   for (const Vec3& f : walls.out.part_force) vertical -= f.z();
