@@ -1,6 +1,7 @@
 #pragma once
-// Node and energy bookkeeping shared by SolidBody and ShellBody.
+// Node, energy and erosion bookkeeping shared by SolidBody and ShellBody.
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -39,13 +40,55 @@ std::size_t fix_nodes_in_box(std::span<const Vec3> positions, const Aabb& box, F
   return sum;
 }
 
-// Element energies (plastic work of every element, internal and hourglass of
-// the active ones) and the gravity potential; the caller fills kinetic,
-// eroded and external work.
+// Erosion accounts of a body.
+struct ErosionAccounts {
+  double energy = 0;                    // J, internal + hourglass energy of eroded elements when they failed
+  std::size_t count = 0;                // elements eroded so far
+  std::uint64_t topology_revision = 0;  // incremented whenever elements erode (the exterior surface changed)
+};
+
+// Erodes the still active elements that `failed` flags (after the element
+// loop): their energy goes to `accounts`, clear_slots(e) zeroes their nodal
+// forces, their step no longer limits dt. Returns the number eroded now.
+template <typename ElementState, typename ClearSlots>
+std::size_t erode_failed_elements(std::span<const std::uint8_t> failed, const std::vector<ElementState>& states,
+                                  std::vector<std::uint8_t>& active, std::vector<double>& element_dt,
+                                  ErosionAccounts& accounts, ClearSlots clear_slots) {
+  std::size_t newly_eroded = 0;
+  for (std::size_t e = 0; e < states.size(); ++e) {
+    if (failed[e] == 0 || active[e] == 0) continue;
+    active[e] = 0;
+    accounts.energy += states[e].internal_energy + states[e].hourglass_energy;
+    clear_slots(e);
+    element_dt[e] = std::numeric_limits<double>::infinity();
+    ++newly_eroded;
+  }
+  if (newly_eroded > 0) {
+    accounts.count += newly_eroded;
+    ++accounts.topology_revision;
+  }
+  return newly_eroded;
+}
+
+// The step's per-node kinetic energies and external works, summed in node
+// order (the same bits on any number of threads): kinetic replaced, work added.
+inline void add_step_energies(std::span<const double> node_kinetic, std::span<const double> node_work, double& kinetic,
+                              double& external_work) {
+  kinetic = 0;
+  for (std::size_t i = 0; i < node_kinetic.size(); ++i) {
+    kinetic += node_kinetic[i];
+    external_work += node_work[i];
+  }
+}
+
+// The body's energies: element energies (plastic work of every element,
+// internal and hourglass of the active ones), the gravity potential and the
+// body's own accounts.
 template <typename ElementState>
-[[nodiscard]] SolidEnergies element_energies(const std::vector<ElementState>& states,
-                                             std::span<const std::uint8_t> active, std::span<const double> masses,
-                                             std::span<const Vec3> positions, const Vec3& gravity) {
+[[nodiscard]] SolidEnergies body_energies(const std::vector<ElementState>& states, std::span<const std::uint8_t> active,
+                                          std::span<const double> masses, std::span<const Vec3> positions,
+                                          const Vec3& gravity, double kinetic, double external_work,
+                                          const ErosionAccounts& erosion) {
   SolidEnergies e;
   for (std::size_t k = 0; k < states.size(); ++k) {
     e.plastic_work += states[k].plastic_work;
@@ -54,6 +97,9 @@ template <typename ElementState>
     e.hourglass += states[k].hourglass_energy;
   }
   for (std::size_t i = 0; i < positions.size(); ++i) e.potential -= masses[i] * gravity.dot(positions[i]);
+  e.kinetic = kinetic;
+  e.eroded = erosion.energy;
+  e.external_work = external_work;
   return e;
 }
 

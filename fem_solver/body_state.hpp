@@ -21,6 +21,13 @@ struct BodyState {
   std::vector<std::uint64_t> counters;  // topology revision, eroded elements
 };
 
+// Appends the x, y, z of every vector of `field` (positions, velocities).
+inline void append_vectors(BodyState& state, const std::vector<Vec3>& field) {
+  for (const Vec3& v : field) {
+    for (int d = 0; d < 3; ++d) state.real.push_back(v(d));
+  }
+}
+
 // Calls f(value) for every double of a material point / element state, in a
 // fixed order (the checkpoint layout). Works on const and mutable states.
 template <typename Point, typename F>
@@ -67,6 +74,12 @@ class BodyStateReader {
     }
   }
   double next() { return state_.real[position_++]; }
+  // Reads back what append_vectors wrote.
+  void read_vectors(std::vector<Vec3>& field) {
+    for (Vec3& v : field) {
+      for (int d = 0; d < 3; ++d) v(d) = next();
+    }
+  }
 
  private:
   const BodyState& state_;

@@ -44,11 +44,6 @@ MaterialParameters material_parameters(const scene::Material& m) {
   return p;
 }
 
-// Elements along an edge of `length` (m) for the shape's element size (one when none is given).
-std::size_t element_divisions(double length, double element_size) {
-  return element_size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / element_size))) : std::size_t{1};
-}
-
 HexMesh structure_mesh(const scene::Structure& structure) {
   const Aabb& box = structure.shape.box;
   if (structure.slit_count > 0) {
@@ -627,8 +622,7 @@ void FemModel::write_energy_history(const std::filesystem::path& run_folder, dou
     total.hourglass += e.hourglass;
     total.eroded += e.eroded;
     total.external_work += e.external_work;
-    const auto active = deformable->solid() ? deformable->solid()->active() : deformable->shell()->active();
-    eroded += static_cast<std::size_t>(std::count(active.begin(), active.end(), std::uint8_t{0}));
+    eroded += deformable->eroded_count();
   }
   if (!any) return;
   const std::filesystem::path file = run_folder / "fem_energy.csv";

@@ -122,22 +122,13 @@ std::size_t ShellBody::compute_internal_forces(double dt_previous) {
     }
     element_dt_[e] = shell4_characteristic_length(x) / material.plate_wave_speed();
   }
-  std::size_t newly_eroded = 0;
-  for (std::size_t e = 0; e < mesh_.element.size(); ++e) {
-    if (element_failed_[e] == 0 || active_[e] == 0) continue;
-    active_[e] = 0;
-    eroded_energy_ += state_[e].internal_energy + state_[e].hourglass_energy;
-    for (std::size_t a = 0; a < 4; ++a) {
-      element_force_[4 * e + a].setZero();
-      element_moment_[4 * e + a].setZero();
-    }
-    element_dt_[e] = std::numeric_limits<double>::infinity();
-    ++newly_eroded;
-  }
-  if (newly_eroded > 0) {
-    eroded_count_ += newly_eroded;
-    ++topology_revision_;
-  }
+  const std::size_t newly_eroded =
+      erode_failed_elements(element_failed_, state_, active_, element_dt_, erosion_, [&](std::size_t e) {
+        for (std::size_t a = 0; a < 4; ++a) {
+          element_force_[4 * e + a].setZero();
+          element_moment_[4 * e + a].setZero();
+        }
+      });
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
 #pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
@@ -178,33 +169,21 @@ void ShellBody::integrate(double dt_previous, double dt, std::span<const Vec3> e
     work[i] = dt_average * f_external.dot(mid);
     position_[i] += dt * velocity_[i];
   }
-  kinetic_ = 0;
-  for (std::size_t i = 0; i < kinetic.size(); ++i) {
-    kinetic_ += kinetic[i];
-    external_work_ += work[i];
-  }
+  add_step_energies(kinetic, work, kinetic_, external_work_);
 }
 
 SolidEnergies ShellBody::energies() const {
-  SolidEnergies e = element_energies(state_, active_, mass_, position_, gravity_);
-  e.kinetic = kinetic_;
-  e.eroded = eroded_energy_;
-  e.external_work = external_work_;
-  return e;
+  return body_energies(state_, active_, mass_, position_, gravity_, kinetic_, external_work_, erosion_);
 }
 
 BodyState ShellBody::save_state() const {
   BodyState out;
   const auto put = [&](double value) { out.real.push_back(value); };
-  for (const auto* field : {&position_, &velocity_, &angular_velocity_}) {
-    for (const Vec3& v : *field) {
-      for (int d = 0; d < 3; ++d) put(v(d));
-    }
-  }
+  for (const auto* field : {&position_, &velocity_, &angular_velocity_}) append_vectors(out, *field);
   for (const Shell4State& s : state_) for_each_value_of_shell(s, put);
-  for (double value : {kinetic_, external_work_, eroded_energy_, stable_dt_}) put(value);
+  for (double value : {kinetic_, external_work_, erosion_.energy, stable_dt_}) put(value);
   out.active = active_;
-  out.counters = {topology_revision_, eroded_count_};
+  out.counters = {erosion_.topology_revision, erosion_.count};
   return out;
 }
 
@@ -214,16 +193,12 @@ void ShellBody::restore_state(const BodyState& state, const std::string& what) {
   const Shell4State probe{};
   for_each_value_of_shell(probe, [&](const double&) { ++per_element; });
   reader.expect_sizes(9 * position_.size() + per_element * state_.size() + 4, state_.size(), 2);
-  for (auto* field : {&position_, &velocity_, &angular_velocity_}) {
-    for (Vec3& v : *field) {
-      for (int d = 0; d < 3; ++d) v(d) = reader.next();
-    }
-  }
+  for (auto* field : {&position_, &velocity_, &angular_velocity_}) reader.read_vectors(*field);
   for (Shell4State& s : state_) for_each_value_of_shell(s, [&](double& value) { value = reader.next(); });
-  for (double* value : {&kinetic_, &external_work_, &eroded_energy_, &stable_dt_}) *value = reader.next();
+  for (double* value : {&kinetic_, &external_work_, &erosion_.energy, &stable_dt_}) *value = reader.next();
   active_ = state.active;
-  topology_revision_ = state.counters[0];
-  eroded_count_ = static_cast<std::size_t>(state.counters[1]);
+  erosion_.topology_revision = state.counters[0];
+  erosion_.count = static_cast<std::size_t>(state.counters[1]);
 }
 
 }  // namespace sabo::fem

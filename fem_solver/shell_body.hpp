@@ -71,8 +71,9 @@ class ShellBody {
   // continues with the same bits; FileError when the sizes do not match.
   [[nodiscard]] BodyState save_state() const;
   void restore_state(const BodyState& state, const std::string& what);
-  [[nodiscard]] std::uint64_t topology_revision() const { return topology_revision_; }
-  [[nodiscard]] std::size_t eroded_count() const { return eroded_count_; }
+  // Incremented whenever elements erode (the exterior surface changed).
+  [[nodiscard]] std::uint64_t topology_revision() const { return erosion_.topology_revision; }
+  [[nodiscard]] std::size_t eroded_count() const { return erosion_.count; }
 
  private:
   ShellMesh mesh_;
@@ -89,9 +90,8 @@ class ShellBody {
   std::vector<Vec3> element_force_, element_moment_;  // 4 per element
   std::vector<double> element_dt_;
   NodeGather gather_;
-  double stable_dt_ = 0, kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
-  std::uint64_t topology_revision_ = 0;
-  std::size_t eroded_count_ = 0;
+  double stable_dt_ = 0, kinetic_ = 0, external_work_ = 0;
+  ErosionAccounts erosion_;
 };
 
 inline constexpr unsigned rotation_x = 8, rotation_y = 16, rotation_z = 32, rotations_all = 56;

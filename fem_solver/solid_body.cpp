@@ -88,19 +88,10 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
     for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a] = force[a];
     element_dt_[e] = ok ? hex8_characteristic_length(x) / wave_speed : std::numeric_limits<double>::infinity();
   }
-  std::size_t newly_eroded = 0;
-  for (std::size_t e = 0; e < mesh_.element.size(); ++e) {
-    if (element_failed_[e] == 0 || active_[e] == 0) continue;
-    active_[e] = 0;
-    eroded_energy_ += state_[e].internal_energy + state_[e].hourglass_energy;
-    for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a].setZero();
-    element_dt_[e] = std::numeric_limits<double>::infinity();
-    ++newly_eroded;
-  }
-  if (newly_eroded > 0) {
-    eroded_count_ += newly_eroded;
-    ++topology_revision_;
-  }
+  const std::size_t newly_eroded =
+      erode_failed_elements(element_failed_, state_, active_, element_dt_, erosion_, [&](std::size_t e) {
+        for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a].setZero();
+      });
   const auto nodes = static_cast<std::ptrdiff_t>(position_.size());
 #pragma omp parallel for schedule(static) if (nodes >= parallel_minimum_)
   for (std::ptrdiff_t signed_i = 0; signed_i < nodes; ++signed_i) {
@@ -136,36 +127,24 @@ void SolidBody::integrate(double dt_previous, double dt, std::span<const Vec3> e
     work[i] = dt_average * f_working.dot(mid_velocity);
     position_[i] += dt * velocity_[i];
   }
-  kinetic_ = 0;
-  for (std::size_t i = 0; i < kinetic.size(); ++i) {
-    kinetic_ += kinetic[i];
-    external_work_ += work[i];
-  }
+  add_step_energies(kinetic, work, kinetic_, external_work_);
 }
 
 SolidEnergies SolidBody::energies() const {
-  SolidEnergies e = element_energies(state_, active_, mass_, position_, gravity_);
-  e.kinetic = kinetic_;
-  e.eroded = eroded_energy_;
-  e.external_work = external_work_;
-  return e;
+  return body_energies(state_, active_, mass_, position_, gravity_, kinetic_, external_work_, erosion_);
 }
 
 BodyState SolidBody::save_state() const {
   BodyState out;
   const auto put = [&](double value) { out.real.push_back(value); };
-  for (const auto* field : {&position_, &velocity_}) {
-    for (const Vec3& v : *field) {
-      for (int d = 0; d < 3; ++d) put(v(d));
-    }
-  }
+  for (const auto* field : {&position_, &velocity_}) append_vectors(out, *field);
   for (const Hex8State& s : state_) for_each_value_of_hex(s, put);
   for (const Hex8GaussPoints& points : gauss_) {
     for (const MaterialPoint& point : points) for_each_value_of_point(point, put);
   }
-  for (double value : {kinetic_, external_work_, eroded_energy_, stable_dt_}) put(value);
+  for (double value : {kinetic_, external_work_, erosion_.energy, stable_dt_}) put(value);
   out.active = active_;
-  out.counters = {topology_revision_, eroded_count_};
+  out.counters = {erosion_.topology_revision, erosion_.count};
   return out;
 }
 
@@ -179,19 +158,15 @@ void SolidBody::restore_state(const BodyState& state, const std::string& what) {
   for_each_value_of_point(probe_point, [&](const double&) { ++per_point; });
   reader.expect_sizes(6 * position_.size() + per_element * state_.size() + 8 * per_point * gauss_.size() + 4,
                       state_.size(), 2);
-  for (auto* field : {&position_, &velocity_}) {
-    for (Vec3& v : *field) {
-      for (int d = 0; d < 3; ++d) v(d) = reader.next();
-    }
-  }
+  for (auto* field : {&position_, &velocity_}) reader.read_vectors(*field);
   for (Hex8State& s : state_) for_each_value_of_hex(s, [&](double& value) { value = reader.next(); });
   for (Hex8GaussPoints& points : gauss_) {
     for (MaterialPoint& point : points) for_each_value_of_point(point, [&](double& value) { value = reader.next(); });
   }
-  for (double* value : {&kinetic_, &external_work_, &eroded_energy_, &stable_dt_}) *value = reader.next();
+  for (double* value : {&kinetic_, &external_work_, &erosion_.energy, &stable_dt_}) *value = reader.next();
   active_ = state.active;
-  topology_revision_ = state.counters[0];
-  eroded_count_ = static_cast<std::size_t>(state.counters[1]);
+  erosion_.topology_revision = state.counters[0];
+  erosion_.count = static_cast<std::size_t>(state.counters[1]);
 }
 
 }  // namespace sabo::fem

@@ -79,14 +79,14 @@ class SolidBody {
   // Smallest element's L / c (eq. 7's FEM term without beta), s; after compute_internal_forces.
   [[nodiscard]] double stable_dt() const { return stable_dt_; }
   [[nodiscard]] SolidEnergies energies() const;
-  // Incremented whenever elements erode (the exterior surface changed).
   // Checkpoint and restart: the evolving state (body_state.hpp). restore_state
   // takes a state saved by a body built from the same mesh and settings and
   // continues with the same bits; FileError when the sizes do not match.
   [[nodiscard]] BodyState save_state() const;
   void restore_state(const BodyState& state, const std::string& what);
-  [[nodiscard]] std::uint64_t topology_revision() const { return topology_revision_; }
-  [[nodiscard]] std::size_t eroded_count() const { return eroded_count_; }
+  // Incremented whenever elements erode (the exterior surface changed).
+  [[nodiscard]] std::uint64_t topology_revision() const { return erosion_.topology_revision; }
+  [[nodiscard]] std::size_t eroded_count() const { return erosion_.count; }
 
  private:
   HexMesh mesh_;
@@ -106,9 +106,8 @@ class SolidBody {
   std::vector<std::uint8_t> element_failed_;
   NodeGather gather_;
   double stable_dt_ = 0;
-  double kinetic_ = 0, external_work_ = 0, eroded_energy_ = 0;
-  std::uint64_t topology_revision_ = 0;
-  std::size_t eroded_count_ = 0;
+  double kinetic_ = 0, external_work_ = 0;
+  ErosionAccounts erosion_;
 };
 
 }  // namespace sabo::fem

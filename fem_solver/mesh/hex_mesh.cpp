@@ -13,6 +13,10 @@ const std::array<std::array<int, 4>, 6>& hex_faces() {
   return faces;
 }
 
+std::size_t element_divisions(double length, double element_size) {
+  return element_size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / element_size))) : std::size_t{1};
+}
+
 namespace {
 
 // Structured grid topology over (n0 + 1) (n1 + 1) (n2 + 1) nodes indexed i + (n0 + 1) (j + (n1 + 1) k).
@@ -75,8 +79,7 @@ namespace {
 // Node lines over [from, to] in about `element_size` steps (at least one), `from` excluded.
 void append_lines(std::vector<double>& lines, double from, double to, double element_size) {
   const double length = to - from;
-  const auto n =
-      element_size > 0 ? static_cast<std::size_t>(std::max(1.0, std::round(length / element_size))) : std::size_t{1};
+  const std::size_t n = element_divisions(length, element_size);
   for (std::size_t k = 1; k < n; ++k) lines.push_back(from + length * static_cast<double>(k) / static_cast<double>(n));
   lines.push_back(to);
 }

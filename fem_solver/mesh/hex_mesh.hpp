@@ -16,6 +16,10 @@ struct HexMesh {
   std::vector<std::array<std::uint32_t, 8>> element;
 };
 
+// Elements along an edge of `length` (m) for a target `element_size` (m): the
+// nearest whole number, at least one (one when element_size is 0).
+[[nodiscard]] std::size_t element_divisions(double length, double element_size);
+
 // The box [min, max] cut into divisions[0] x divisions[1] x divisions[2] equal hexahedra (each >= 1).
 [[nodiscard]] HexMesh structured_box(const Aabb& box, const std::array<std::size_t, 3>& divisions);
 

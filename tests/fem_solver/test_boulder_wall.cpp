@@ -20,26 +20,13 @@ namespace {
 
 sabo::scene::Scene wall_scene() {
   sabo::scene::Scene scene;
-  sabo::scene::Material brick;
-  brick.name = "brick";
-  brick.density = 2300;
-  brick.youngs_modulus = 8e9;
-  brick.poisson_ratio = 0.23;
+  sabo::scene::Material brick = sabo::fem::test::scene_material("brick", 2300, 8e9, 0.23);
   brick.yield_stress = 8e6;
   brick.failure_strain = 0.0033;
   scene.materials.push_back(brick);
-  sabo::scene::Structure wall;
-  wall.name = "wall";
-  wall.material = "brick";
-  wall.rigid = false;
+  sabo::scene::Structure wall = sabo::fem::test::deformable_structure("wall", "brick");
   wall.thickness = 0.24;
-  wall.shape.type = sabo::scene::Shape::Type::plane;
-  wall.shape.origin = Vec3(0, 0, 1.5);
-  wall.shape.normal = Vec3(0, -1, 0);
-  wall.shape.direction = Vec3(1, 0, 0);
-  wall.shape.length = 4.0;
-  wall.shape.width = 3.0;
-  wall.shape.element_size = 0.25;
+  wall.shape = sabo::fem::test::plane_shape(Vec3(0, 0, 1.5), Vec3(0, -1, 0), Vec3(1, 0, 0), 4.0, 3.0, 0.25);
   wall.fixed_faces = {"z-", "x-", "x+"};
   scene.structures.push_back(wall);
   scene.run.gravity = Vec3::Zero();
@@ -105,8 +92,7 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
     if (!finite) break;
   }
   const auto* shell = model.deformable(0)->shell();
-  std::size_t eroded = 0;
-  for (std::size_t e = 0; e < shell->element_count(); ++e) eroded += shell->eroded(e) ? 1 : 0;
+  const std::size_t eroded = shell->eroded_count();
   std::cout << "boulder final velocity: " << velocity.transpose() << " m/s, centre y " << centre.y() << " m\n";
   std::cout << "eroded shell elements: " << eroded << " of " << shell->element_count() << "\n";
   std::cout << "fastest wall node: measured " << fastest_node << " m/s limit " << 3 * speed << " m/s\n";

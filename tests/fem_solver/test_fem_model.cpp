@@ -14,6 +14,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "libsabo/scene/loader.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 #include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
@@ -24,15 +25,6 @@ using sabo::scene::Shape;
 namespace {
 
 using sabo::testing::scratch;
-
-sabo::scene::Material material(const std::string& name, double density, double youngs, double poisson) {
-  sabo::scene::Material m;
-  m.name = name;
-  m.density = density;
-  m.youngs_modulus = youngs;
-  m.poisson_ratio = poisson;
-  return m;
-}
 
 sabo::scene::Structure structure(const std::string& name, const std::string& material_name, double thickness,
                                  const Shape& shape) {
@@ -71,7 +63,8 @@ Shape box_shape() {
 // Materials sorted by name: brick = 0, concrete = 1.
 sabo::scene::Scene test_scene() {
   sabo::scene::Scene scene;
-  scene.materials = {material("brick", 2300, 8e9, 0.23), material("concrete", 3000, 30e9, 0.24)};
+  scene.materials = {sabo::fem::test::scene_material("brick", 2300, 8e9, 0.23),
+                     sabo::fem::test::scene_material("concrete", 3000, 30e9, 0.24)};
   scene.structures = {structure("channel", "concrete", 0.0, chute_shape()),
                       structure("house", "brick", 0.24, box_shape())};
   return scene;

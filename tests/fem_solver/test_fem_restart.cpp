@@ -10,6 +10,7 @@
 
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/core/error.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 #include "tests/support/scratch.hpp"
 
 using sabo::Vec3;
@@ -21,23 +22,14 @@ using Formulation = sabo::scene::Structure::ElementFormulation;
 
 sabo::scene::Scene restart_scene(Formulation formulation = Formulation::one_point) {
   sabo::scene::Scene scene;
-  sabo::scene::Material steel;
-  steel.name = "steel";
-  steel.density = 7850;
-  steel.youngs_modulus = 210e9;
-  steel.poisson_ratio = 0.3;
+  sabo::scene::Material steel = sabo::fem::test::scene_steel();
   steel.yield_stress = 100e6;
   steel.tangent_modulus = 1e9;
   steel.hardening = 0.5;  // mixed: back stresses and a growing yield surface
   steel.failure_strain = 6e-3;
   scene.materials.push_back(steel);
-  sabo::scene::Structure bar;
-  bar.name = "bar";
-  bar.material = "steel";
-  bar.rigid = false;
-  bar.shape.type = sabo::scene::Shape::Type::box;
-  bar.shape.box = sabo::Aabb{Vec3(0, 0, 0), Vec3(0.4, 0.1, 0.1)};
-  bar.shape.element_size = 0.05;
+  sabo::scene::Structure bar = sabo::fem::test::deformable_structure("bar", "steel");
+  bar.shape = sabo::fem::test::box_shape(sabo::Aabb{Vec3(0, 0, 0), Vec3(0.4, 0.1, 0.1)}, 0.05);
   bar.fixed_faces = {"x-"};
   bar.element_formulation = formulation;
   scene.structures.push_back(bar);
@@ -45,14 +37,7 @@ sabo::scene::Scene restart_scene(Formulation formulation = Formulation::one_poin
   panel.name = "panel";
   panel.thickness = 0.01;
   panel.element_formulation = Formulation::one_point;
-  panel.shape = {};
-  panel.shape.type = sabo::scene::Shape::Type::plane;
-  panel.shape.origin = Vec3(0.5, 0.25, 1.0);
-  panel.shape.normal = Vec3(0, 0, 1);
-  panel.shape.direction = Vec3(1, 0, 0);
-  panel.shape.length = 1.0;
-  panel.shape.width = 0.5;
-  panel.shape.element_size = 0.125;
+  panel.shape = sabo::fem::test::plane_shape(Vec3(0.5, 0.25, 1.0), Vec3(0, 0, 1), Vec3(1, 0, 0), 1.0, 0.5, 0.125);
   scene.structures.push_back(panel);
   scene.run.gravity = Vec3(0, 0, -9.81);
   return scene;

@@ -10,6 +10,10 @@
 #include "fem_solver/fem_model.hpp"
 #include "fem_solver/mesh/gmsh.hpp"
 #include "libsabo/core/error.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
+
+using sabo::fem::test::deformable_structure;
+using sabo::fem::test::scene_steel;
 
 namespace {
 std::filesystem::path data(const char* name) {
@@ -43,16 +47,8 @@ TEST(Gmsh, MissingFileIsAFileError) {
 
 TEST(Gmsh, DeformableStructureFromAMshFile) {
   sabo::scene::Scene scene;
-  sabo::scene::Material steel;
-  steel.name = "steel";
-  steel.density = 7850;
-  steel.youngs_modulus = 210e9;
-  steel.poisson_ratio = 0.3;
-  scene.materials.push_back(steel);
-  sabo::scene::Structure block;
-  block.name = "block";
-  block.material = "steel";
-  block.rigid = false;
+  scene.materials.push_back(scene_steel());
+  sabo::scene::Structure block = deformable_structure("block", "steel");
   block.shape.type = sabo::scene::Shape::Type::mesh;
   block.shape.file = data("two_hexes.msh");
   block.shape.scale = 2.0;
@@ -74,28 +70,15 @@ TEST(Gmsh, DeformableStructureFromAMshFile) {
 TEST(Gmsh, ShellStripFromAMshFileMatchesTheGeneratedPanel) {
   auto make_scene = [](bool from_file) {
     sabo::scene::Scene scene;
-    sabo::scene::Material steel;
-    steel.name = "steel";
-    steel.density = 7850;
-    steel.youngs_modulus = 210e9;
-    steel.poisson_ratio = 0.3;
-    scene.materials.push_back(steel);
-    sabo::scene::Structure strip;
-    strip.name = "strip";
-    strip.material = "steel";
-    strip.rigid = false;
+    scene.materials.push_back(scene_steel());
+    sabo::scene::Structure strip = deformable_structure("strip", "steel");
     strip.thickness = 0.01;
     if (from_file) {
       strip.shape.type = sabo::scene::Shape::Type::mesh;
       strip.shape.file = data("shell_strip.msh");
     } else {
-      strip.shape.type = sabo::scene::Shape::Type::plane;
-      strip.shape.origin = sabo::Vec3(0.5, 0.05, 0);
-      strip.shape.normal = sabo::Vec3(0, 0, 1);
-      strip.shape.direction = sabo::Vec3(1, 0, 0);
-      strip.shape.length = 1.0;
-      strip.shape.width = 0.1;
-      strip.shape.element_size = 0.05;
+      strip.shape = sabo::fem::test::plane_shape(sabo::Vec3(0.5, 0.05, 0), sabo::Vec3(0, 0, 1), sabo::Vec3(1, 0, 0),
+                                                 1.0, 0.1, 0.05);
     }
     strip.fixed_faces = {"x-"};
     scene.structures.push_back(strip);

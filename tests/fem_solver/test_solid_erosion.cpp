@@ -93,20 +93,11 @@ TEST(SolidErosion, CantileverBreaksAtTheRootTensionFibre) {
 
 TEST(FemModelErosion, NewTopologyReachesTheCombinedSurface) {
   sabo::scene::Scene scene;
-  sabo::scene::Material steel;
-  steel.name = "steel";
-  steel.density = 7850;
-  steel.youngs_modulus = 210e9;
-  steel.poisson_ratio = 0.3;
+  sabo::scene::Material steel = test::scene_steel();
   steel.failure_strain = 1e-3;
   scene.materials.push_back(steel);
-  sabo::scene::Structure bar;
-  bar.name = "bar";
-  bar.material = "steel";
-  bar.rigid = false;
-  bar.shape.type = sabo::scene::Shape::Type::box;
-  bar.shape.box = Aabb{Vec3(0, 0, 0), Vec3(0.4, 0.1, 0.1)};
-  bar.shape.element_size = 0.1;
+  sabo::scene::Structure bar = test::deformable_structure("bar", "steel");
+  bar.shape = test::box_shape(Aabb{Vec3(0, 0, 0), Vec3(0.4, 0.1, 0.1)}, 0.1);
   bar.fixed_faces = {"x-"};
   bar.velocity = Vec3(0, 0, 0);
   scene.structures.push_back(bar);

@@ -14,6 +14,7 @@
 
 #include "coupler/contact/surface_contact.hpp"
 #include "fem_solver/fem_model.hpp"
+#include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Vec3;
 
@@ -23,25 +24,15 @@ using Formulation = sabo::scene::Structure::ElementFormulation;
 
 sabo::scene::Scene block_scene(double element_size, bool plastic, Formulation formulation) {
   sabo::scene::Scene scene;
-  sabo::scene::Material concrete;
-  concrete.name = "soft_concrete";
-  concrete.density = 2000;
-  concrete.youngs_modulus = 1e9;
-  concrete.poisson_ratio = 0.3;
+  sabo::scene::Material concrete = sabo::fem::test::scene_material("soft_concrete", 2000, 1e9, 0.3);
   if (plastic) {
     concrete.yield_stress = 5e6;
     concrete.tangent_modulus = 1e8;
     concrete.hardening = 1.0;
   }
   scene.materials.push_back(concrete);
-  sabo::scene::Structure block;
-  block.name = "block";
-  block.material = "soft_concrete";
-  block.rigid = false;
-  block.shape.type = sabo::scene::Shape::Type::box;
-  block.shape.box.min = Vec3(0, 0, 0);
-  block.shape.box.max = Vec3(1, 1, 0.5);
-  block.shape.element_size = element_size;
+  sabo::scene::Structure block = sabo::fem::test::deformable_structure("block", "soft_concrete");
+  block.shape = sabo::fem::test::box_shape(sabo::Aabb{Vec3(0, 0, 0), Vec3(1, 1, 0.5)}, element_size);
   block.fixed_faces = {"z-"};
   block.element_formulation = formulation;
   scene.structures.push_back(block);
