@@ -24,6 +24,7 @@
 #include <cmath>
 #include <cstdint>
 #include <ctime>
+#include <numbers>
 
 #include "dem_solver/dem_model.hpp"
 

@@ -25,6 +25,14 @@ std::string origin_text(const scene::ParticleSet& set) {
   return fmt::format("{}:{}: particle set '{}'", set.origin.file.string(), set.origin.line, set.name);
 }
 
+// The Hertz-Mindlin constants of a pair law for bodies of (E, nu) a and b: E*, G* and sqrt(4 G* / E*).
+void set_elastic_constants(DemModel::PairLaw& law, double youngs_a, double poisson_a, double youngs_b,
+                           double poisson_b) {
+  law.effective_modulus = physics::hertz_effective_modulus(youngs_a, poisson_a, youngs_b, poisson_b);
+  law.effective_shear_modulus = physics::mindlin_effective_shear_modulus(youngs_a, poisson_a, youngs_b, poisson_b);
+  law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
+}
+
 // What one contact needs besides its law: geometry and the pair's effective inertia.
 struct ContactInput {
   Vec3 normal;               // unit, from b to a
@@ -280,12 +288,8 @@ void DemModel::build_law_table(const scene::Scene& scene) {
       law.tangential_damping_ratio = source.tangential_damping_ratio;
       const auto& ma = scene.materials[a];
       const auto& mb = scene.materials[b];
-      law.effective_modulus =
-          physics::hertz_effective_modulus(ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus, mb.poisson_ratio);
-      law.effective_shear_modulus = physics::mindlin_effective_shear_modulus(ma.youngs_modulus, ma.poisson_ratio,
-                                                                             mb.youngs_modulus, mb.poisson_ratio);
+      set_elastic_constants(law, ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus, mb.poisson_ratio);
       law.damping = physics::hertz_damping_factor(source.restitution);
-      law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
       law.rolling = !source.has_rolling() ? 0 : source.rolling == scene::RollingModel::constant ? 1 : 2;
       law.rolling_friction = source.rolling_friction;
       law.rolling_viscosity = source.rolling_viscosity;
@@ -370,11 +374,8 @@ void DemModel::set_fixed(std::uint32_t id, bool fixed) {
   }
   if ((fixed_[id] != 0) != fixed) rebuild_ = true;  // pairs of two fixed spheres are left out of the list
   fixed_[id] = fixed ? 1 : 0;
+  stable_dt_.reset();
   update_inverse_mass(id);
-}
-
-double DemModel::inverse_inertia(std::uint32_t id) const {
-  return inverse_inertia_[id];
 }
 
 const scene::DemContactLaw& DemModel::law(std::uint32_t a, std::uint32_t b) const {
@@ -407,7 +408,7 @@ physics::RollingSpring DemModel::rolling_law(std::uint32_t a, std::uint32_t b) c
   const PairLaw& pair = pair_law_[material_[a] * material_count_ + material_[b]];
   const double effective_radius = radius_[a] * radius_[b] / (radius_[a] + radius_[b]);
   const double stiffness = physics::rolling_stiffness(normal_stiffness(a, b), pair.rolling_friction, effective_radius);
-  const double inverse_inertia_sum = inverse_inertia(a) + inverse_inertia(b);
+  const double inverse_inertia_sum = inverse_inertia_[a] + inverse_inertia_[b];
   const double effective_inertia = inverse_inertia_sum > 0 ? 1.0 / inverse_inertia_sum : 0.0;
   return physics::RollingSpring{
       .stiffness = stiffness,
@@ -435,11 +436,7 @@ void DemModel::add_wall(const Wall& wall) {
   for (std::size_t m = 0; m < material_count_; ++m) {
     PairLaw law = pair_law_[m * material_count_ + m];
     if (wall.youngs_modulus > 0) {
-      const double nu = material_poisson_[m], youngs = material_youngs_[m];
-      law.effective_modulus = physics::hertz_effective_modulus(youngs, nu, wall.youngs_modulus, wall.poisson_ratio);
-      law.effective_shear_modulus =
-          physics::mindlin_effective_shear_modulus(youngs, nu, wall.youngs_modulus, wall.poisson_ratio);
-      law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
+      set_elastic_constants(law, material_youngs_[m], material_poisson_[m], wall.youngs_modulus, wall.poisson_ratio);
     }
     wall_law_.push_back(law);
   }
@@ -901,6 +898,12 @@ void DemModel::integrate(double dt_previous, double dt) {
 }
 
 double DemModel::stable_dt() const {
+  // Called every coupled step; it changes only with the fixed spheres.
+  if (!stable_dt_) stable_dt_ = compute_stable_dt();
+  return *stable_dt_;
+}
+
+double DemModel::compute_stable_dt() const {
   double lightest = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < size(); ++i) {
     if (!fixed_[i]) lightest = std::min(lightest, mass_[i]);

@@ -59,6 +59,7 @@
 // any number of threads.
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -152,7 +153,7 @@ class DemModel {
   // the rolling spring as 5.625 mu_r^2 k_n (the largest k_r / I relative to k_n / m).
   // With Hertz-Mindlin pairs also at most a fifth of the Rayleigh time of the smallest free
   // sphere, pi r sqrt(rho / G) / (0.1631 nu + 0.8766), divided by sqrt(5.625 mu_r^2) when that
-  // exceeds 1. Infinity when no sphere is free.
+  // exceeds 1. Infinity when no sphere is free. Computed once, again after set_fixed().
   [[nodiscard]] double stable_dt() const;
 
   // Energies at the step of the last integrate() (before any: the initial state).
@@ -212,8 +213,8 @@ class DemModel {
   // Orders filled spheres by cell (z, y, x; cells 2 r_max wide), stable.
   static void sort_by_cell(std::vector<scene::Sphere>& spheres);
   void build_law_table(const scene::Scene& scene);
+  [[nodiscard]] double compute_stable_dt() const;
   [[nodiscard]] double normal_stiffness(std::uint32_t a, std::uint32_t b) const;
-  [[nodiscard]] double inverse_inertia(std::uint32_t id) const;
   void update_inverse_mass(std::uint32_t id);
 
   scene::DemContact settings_;
@@ -233,6 +234,7 @@ class DemModel {
   std::vector<std::uint32_t> material_, body_;
   std::vector<std::uint8_t> fixed_;
   double largest_radius_ = 0;
+  mutable std::optional<double> stable_dt_;  // s, stable_dt() once computed; cleared by set_fixed()
 
   // Verlet half list: the neighbours of sphere i are neighbour_[start_[i] .. start_[i+1]), ascending.
   physics::CellList cells_;

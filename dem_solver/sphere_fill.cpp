@@ -92,7 +92,12 @@ double unit_uniform(std::uint64_t bits) {
   return static_cast<double>(bits >> 11) * 0x1.0p-53;
 }
 
-double draw_diameter(const scene::ParticleSet& set, std::mt19937_64& random) {
+namespace {
+
+// One diameter of the set's distribution (uniform, clipped normal, or sieve grading: a class drawn
+// with sieve_probability, the set's sieve_class_probabilities(), then uniform in it), m.
+double draw_diameter(const scene::ParticleSet& set, std::span<const double> sieve_probability,
+                     std::mt19937_64& random) {
   const double low = set.diameter_min, high = set.diameter_max;
   switch (set.distribution) {
     case scene::SizeDistribution::uniform: return low + (high - low) * unit_uniform(random());
@@ -109,25 +114,26 @@ double draw_diameter(const scene::ParticleSet& set, std::mt19937_64& random) {
       }
     }
     case scene::SizeDistribution::sieve: {
-      const auto probability = set.sieve_class_probabilities();
       const double pick = unit_uniform(random());
       const double within = unit_uniform(random());
       double cumulative = 0;
       std::size_t chosen = set.sieve.size() - 1;
       for (std::size_t k = 1; k < set.sieve.size(); ++k) {
-        cumulative += probability[k];
-        if (pick < cumulative && probability[k] > 0) {
+        cumulative += sieve_probability[k];
+        if (pick < cumulative && sieve_probability[k] > 0) {
           chosen = k;
           break;
         }
       }
-      while (chosen > 1 && !(probability[chosen] > 0)) --chosen;  // round-off at the top end
+      while (chosen > 1 && !(sieve_probability[chosen] > 0)) --chosen;  // round-off at the top end
       const double a = set.sieve[chosen - 1][0], b = set.sieve[chosen][0];
       return a + (b - a) * within;
     }
   }
   return low;
 }
+
+}  // namespace
 
 std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<const scene::Sphere> obstacles,
                                        int attempts_per_sphere) {
@@ -136,7 +142,9 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
   std::mt19937_64 random(set.seed);
 
   std::vector<double> radii(set.count);
-  for (double& radius : radii) radius = 0.5 * draw_diameter(set, random);
+  const std::vector<double> sieve_probability =
+      set.distribution == scene::SizeDistribution::sieve ? set.sieve_class_probabilities() : std::vector<double>{};
+  for (double& radius : radii) radius = 0.5 * draw_diameter(set, sieve_probability, random);
   // Largest first: small spheres then fill the gaps left between large ones.
   std::stable_sort(radii.begin(), radii.end(), std::greater<>());
 

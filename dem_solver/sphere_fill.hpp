@@ -1,7 +1,6 @@
 #pragma once
 // Random non-overlapping placement of the spheres of a `fill` particle set.
 #include <cstdint>
-#include <random>
 #include <span>
 #include <vector>
 
@@ -13,13 +12,11 @@ namespace sabo::dem {
 // on every standard library (std::uniform_real_distribution is not portable).
 double unit_uniform(std::uint64_t bits);
 
-// One diameter of the set's distribution (uniform, clipped normal, or sieve grading:
-// a class drawn with sieve_class_probabilities, then uniform in it), m.
-double draw_diameter(const scene::ParticleSet& set, std::mt19937_64& random);
-
-// Places set.count spheres (diameters from draw_diameter, drawn from
-// std::mt19937_64 seeded with set.seed) entirely inside the set's region (the box,
-// or the polygon extruded along y: centres drawn in its bounding box, kept if inside),
+// Places set.count spheres (diameters of the set's distribution: uniform, clipped
+// normal, or sieve grading, a class drawn with sieve_class_probabilities then
+// uniform in it; drawn from std::mt19937_64 seeded with set.seed) entirely inside
+// the set's region (the box, or the polygon extruded along y: centres drawn in its
+// bounding box, kept if inside),
 // overlapping neither each other nor `obstacles`. The largest spheres are
 // placed first, each at the first of up to `attempts_per_sphere` random
 // centres that fits; the spheres are returned in placement order with the

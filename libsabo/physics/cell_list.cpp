@@ -89,19 +89,15 @@ std::uint32_t CellList::insert_cell(const CellKey& key) {
 }
 
 std::span<const std::uint32_t> CellList::items_in(std::int64_t ix, std::int64_t iy, std::int64_t iz) const {
-  std::uint32_t cell;
-  if (dense_) {
-    cell = static_cast<std::uint32_t>((iz * dims_[1] + iy) * dims_[0] + ix);
-  } else {
-    const CellKey key{static_cast<std::int32_t>(ix), static_cast<std::int32_t>(iy), static_cast<std::int32_t>(iz)};
-    const std::size_t mask = table_keys_.size() - 1;
-    std::size_t slot = hash(key.x, key.y, key.z) & mask;
-    while (table_keys_[slot] != key) {
-      if (table_keys_[slot].x == kFree) return {};
-      slot = (slot + 1) & mask;
-    }
-    cell = table_cells_[slot];
+  assert(!dense_);  // the dense grid is read by rows in for_each_in
+  const CellKey key{static_cast<std::int32_t>(ix), static_cast<std::int32_t>(iy), static_cast<std::int32_t>(iz)};
+  const std::size_t mask = table_keys_.size() - 1;
+  std::size_t slot = hash(key.x, key.y, key.z) & mask;
+  while (table_keys_[slot] != key) {
+    if (table_keys_[slot].x == kFree) return {};
+    slot = (slot + 1) & mask;
   }
+  const std::uint32_t cell = table_cells_[slot];
   return std::span<const std::uint32_t>(cell_items_)
       .subspan(cell_start_[cell], cell_start_[cell + 1] - cell_start_[cell]);
 }
@@ -117,8 +113,12 @@ void CellList::finish(std::size_t item_count) {
   cell_items_.resize(entry_item_.size());
   cursor_.assign(cell_start_.begin(), cell_start_.end() - 1);
   for (std::size_t e = 0; e < entry_item_.size(); ++e) cell_items_[cursor_[entry_cell_[e]]++] = entry_item_[e];
-  occupied_cells_ = 0;
-  for (std::size_t c = 0; c < cells; ++c) occupied_cells_ += cell_start_[c + 1] > cell_start_[c] ? 1 : 0;
+}
+
+std::size_t CellList::occupied_cell_count() const {
+  std::size_t occupied = 0;
+  for (std::size_t c = 0; c + 1 < cell_start_.size(); ++c) occupied += cell_start_[c + 1] > cell_start_[c] ? 1 : 0;
+  return occupied;
 }
 
 void CellList::reset_table(std::size_t entries) {

@@ -46,7 +46,7 @@ class CellList {
   // extent would need more than 2^30 cells along an axis.
   [[nodiscard]] double cell_size() const { return cell_size_; }
   [[nodiscard]] std::size_t item_count() const { return item_count_; }
-  [[nodiscard]] std::size_t occupied_cell_count() const { return occupied_cells_; }
+  [[nodiscard]] std::size_t occupied_cell_count() const;  // counted on demand (diagnostics)
 
  private:
   struct CellKey {
@@ -71,7 +71,6 @@ class CellList {
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t item_count_ = 0;
-  std::size_t occupied_cells_ = 0;
   bool dense_ = false;  // cell id = (z * dims_[1] + y) * dims_[0] + x, no table
   // (cell id, item) per binning, in item order; then counting-sorted into cell_items_.
   std::vector<std::uint32_t> entry_cell_;  // cell id of each entry

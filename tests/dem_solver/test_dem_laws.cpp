@@ -13,14 +13,15 @@
 #include <numbers>
 
 #include "dem_solver/dem_model.hpp"
-#include "tests/support/dem_pile.hpp"
 #include "dem_test_scene.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
+#include "tests/support/dem_pile.hpp"
 
 namespace sabo::dem {
 namespace {
 
+using testing::fill_set;
 using testing::list_set;
 
 void step(DemModel& model, double& dt_previous, double dt) {
@@ -54,6 +55,13 @@ scene::Scene undamped_hertz_scene(double density, double youngs, double poisson)
 
 scene::ParticleSet spheres(std::vector<scene::Sphere> list) {
   scene::ParticleSet set = list_set("s", std::move(list));
+  set.material = "m";
+  return set;
+}
+
+scene::ParticleSet fill(std::string name, const Aabb& region, std::size_t count, double diameter_min,
+                        double diameter_max, std::uint64_t seed) {
+  scene::ParticleSet set = fill_set(std::move(name), region, count, diameter_min, diameter_max, seed);
   set.material = "m";
   return set;
 }
@@ -278,19 +286,11 @@ TEST(DemLawsScene, PerPairLawsAndTheirCost) {
 
 TEST(DemLawsFill, SizeDistributionsAndPolygonRegions) {
   scene::Scene scene = material_scene(2500, 1e8, 0.3);
-  scene::ParticleSet set;
-  set.name = "graded";
-  set.material = "m";
-  set.kind = scene::ParticleSet::Kind::fill;
+  scene::ParticleSet set = fill("graded", Aabb{Vec3(0, 0, 0), Vec3(4, 2, 3)}, 400, 0.1, 0.2, 3);
   set.polygon_xz = {{0.0, 0.0}, {4.0, 0.0}, {4.0, 1.0}, {0.0, 3.0}};
-  set.region = Aabb{Vec3(0, 0, 0), Vec3(4, 2, 3)};
-  set.count = 400;
   set.distribution = scene::SizeDistribution::sieve;
   set.sieve = {{0.1, 0.0}, {0.15, 0.5}, {0.2, 1.0}};
   set.sieve_by_mass = false;
-  set.diameter_min = 0.1;
-  set.diameter_max = 0.2;
-  set.seed = 3;
   scene.particle_sets.push_back(set);
   DemModel model(scene);
   std::size_t fine = 0, outside = 0;
@@ -324,14 +324,7 @@ TEST(DemLawsFill, SettlingIsBoundedDeterministicAndAtRest) {
   scene.dem_contact.model = scene::DemLaw::hertz_mindlin;
   scene.dem_contact.restitution = 0.3;
   scene.dem_contact.friction = 0.5;
-  scene::ParticleSet set;
-  set.name = "beads";
-  set.material = "m";
-  set.kind = scene::ParticleSet::Kind::fill;
-  set.region = Aabb{Vec3(0, 0, 0), Vec3(0.1, 0.1, 0.1)};
-  set.count = 300;
-  set.diameter_min = set.diameter_max = 0.01;
-  set.seed = 5;
+  scene::ParticleSet set = fill("beads", Aabb{Vec3(0, 0, 0), Vec3(0.1, 0.1, 0.1)}, 300, 0.01, 0.01, 5);
   set.settle_time = 0.3;
   scene.particle_sets.push_back(set);
   auto build = [&](int threads) {
@@ -356,12 +349,6 @@ TEST(DemLawsFill, SettlingIsBoundedDeterministicAndAtRest) {
   }
   EXPECT_EQ(std::memcmp(one.positions().data(), two.positions().data(), one.size() * sizeof(Vec3)), 0);
 }
-
-}  // namespace
-}  // namespace sabo::dem
-
-namespace sabo::dem {
-namespace {
 
 TEST(DemStability, DensePileSettlesBoundedAndAtRest) {
   // Reduced variant of the 10 000-sphere, 10 s case in bench/dem_pile.cpp.

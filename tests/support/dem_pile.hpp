@@ -9,9 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <functional>
 #include <limits>
-#include <numbers>
 
 #include "dem_solver/dem_model.hpp"
 
@@ -58,9 +56,8 @@ inline scene::Scene pile_scene(std::size_t count, double height_over_side, std::
   return scene;
 }
 
-// Settles the pile for `duration` s at beta * stable_dt; `every_step` sees the model after each step.
-inline PileReport settle_pile(const scene::Scene& scene, double duration, double beta,
-                              const std::function<void(const DemModel&)>& every_step = {}) {
+// Settles the pile for `duration` s at beta * stable_dt.
+inline PileReport settle_pile(const scene::Scene& scene, double duration, double beta) {
   const scene::ParticleSet& set = scene.particle_sets.front();
   DemModel model(scene);
   model.add_region_walls(set);
@@ -80,7 +77,6 @@ inline PileReport settle_pile(const scene::Scene& scene, double duration, double
         report.escaped += set.contains_sphere(model.positions()[i], 0.5 * model.radii()[i]) ? 0 : 1;
       }
     }
-    if (every_step) every_step(model);
   }
   for (const auto& v : model.velocities()) report.final_largest_speed = std::max(report.final_largest_speed, v.norm());
   double sum = 0;
