@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/covering_boxes.hpp"
 
 namespace sabo::coupler {
 
@@ -27,12 +28,11 @@ void BoundaryWalls::set_surface(const geometry::SurfaceMesh& surface) {
 
 void BoundaryWalls::place_all() {
   all_position_.resize(sampling_.size());
-  bounds_ = Aabb{};
   for (std::size_t k = 0; k < sampling_.size(); ++k) {
     all_position_[k] = geometry::boundary_particle_position(surface_, sampling_, k);
-    bounds_.extend(all_position_[k]);
   }
   grid_valid_ = false;
+  cover_.reset();
 }
 
 void BoundaryWalls::update_nodes(std::span<const double> position, std::span<const double> velocity,
@@ -103,8 +103,11 @@ void BoundaryWalls::select_near(std::span<const double> fluid_position) {
   geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
 }
 
-Aabb BoundaryWalls::interest_region() const {
-  return bounds_.inflated(2 * support_);
+std::vector<Aabb> BoundaryWalls::interest_regions() const {
+  if (!cover_) cover_ = geometry::covering_boxes(all_position_, geometry::kMaxInterestBoxes);
+  std::vector<Aabb> boxes = *cover_;
+  for (Aabb& box : boxes) box = box.inflated(2 * support_);
+  return boxes;
 }
 
 }  // namespace sabo::coupler

@@ -6,6 +6,7 @@
 // within the kernel support of a fluid particle, and spreads the forces the
 // fluid put on them back onto the FEM nodes (action = reaction, exactly).
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -49,9 +50,10 @@ class BoundaryWalls {
   [[nodiscard]] const geometry::SurfaceSampling& sampling() const { return sampling_; }
   [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
   [[nodiscard]] std::size_t layers() const { return layers_; }
-  // Where fluid particles must be sent from: the boundary particles' bounds
-  // inflated by the support, plus one support of wall motion.
-  [[nodiscard]] Aabb interest_region() const;
+  // Where fluid particles must be sent from: at most geometry::kMaxInterestBoxes
+  // boxes covering the boundary particles (geometry::covering_boxes), inflated by
+  // the support, plus one support of wall motion.
+  [[nodiscard]] std::vector<Aabb> interest_regions() const;
 
  private:
   void place_all();
@@ -62,8 +64,8 @@ class BoundaryWalls {
   geometry::SurfaceMesh surface_;
   geometry::SurfaceSampling sampling_;
   std::vector<Vec3> node_velocity_, previous_node_velocity_, node_acceleration_;
-  std::vector<Vec3> all_position_;  // every sampled particle, m
-  Aabb bounds_;                     // of all_position_
+  std::vector<Vec3> all_position_;                  // every sampled particle, m
+  mutable std::optional<std::vector<Aabb>> cover_;  // of all_position_, uninflated; reset when they move
   std::vector<std::uint32_t> selection_, previous_selection_;
   physics::BoundaryParticles selected_;
   std::vector<char> near_;  // per sampled particle: within the support of a fluid particle

@@ -476,10 +476,13 @@ void Coupler::check_newton_third_law(std::uint64_t step) {
 }
 
 namespace {
-void set_interest(sabo::v1::StepForces& f, const Aabb& box) {
-  auto* b = f.add_interest();
-  b->set_min_x(box.min.x()), b->set_min_y(box.min.y()), b->set_min_z(box.min.z());
-  b->set_max_x(box.max.x()), b->set_max_y(box.max.y()), b->set_max_z(box.max.z());
+// Adds the boxes to the peer's interest regions (it sends what lies in any of them).
+void add_interest(sabo::v1::StepForces& f, const std::vector<Aabb>& boxes) {
+  for (const Aabb& box : boxes) {
+    auto* b = f.add_interest();
+    b->set_min_x(box.min.x()), b->set_min_y(box.min.y()), b->set_min_z(box.min.z());
+    b->set_max_x(box.max.x()), b->set_max_y(box.max.y()), b->set_max_z(box.max.z());
+  }
   f.set_interest_all(false);
 }
 
@@ -508,7 +511,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
       if (pair != nullptr) {
         f.mutable_force()->Assign(pair->out.particle_force.begin(), pair->out.particle_force.end());
         if (torque) f.mutable_torque()->Assign(pair->out.particle_torque.begin(), pair->out.particle_torque.end());
-        set_interest(f, pair->contact->interest_region());
+        add_interest(f, pair->contact->interest_regions());
       } else {
         f.mutable_force()->Resize(3 * peer->state.index_size(), 0.0);
         if (torque) f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
@@ -521,7 +524,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
         assign_vectors(*f.mutable_boundary_normal(), b.normal);
         assign_vectors(*f.mutable_boundary_acceleration(), b.acceleration);
         f.mutable_boundary_volume()->Assign(b.volume.begin(), b.volume.end());
-        set_interest(f, walls_->interest_region());
+        add_interest(f, walls_->interest_regions());
       }
     } else if (peer.get() == fem_) {
       if (fem_node_force_nonzero_) f.mutable_node_force()->Assign(fem_node_force_.begin(), fem_node_force_.end());

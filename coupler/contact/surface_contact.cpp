@@ -11,6 +11,7 @@
 #include <numeric>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/covering_boxes.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
 
 namespace sabo::coupler {
@@ -199,7 +200,7 @@ void SurfaceContact::refresh_geometry() {
   face_shortest_edge_.resize(faces);
   degenerate_.resize(faces);
   face_box_.resize(faces);
-  surface_bounds_ = surface_.bounds();
+  cover_.reset();
   max_thickness_ = 0;
   std::vector<double> sizes;
   sizes.reserve(faces);
@@ -339,8 +340,12 @@ void SurfaceContact::build_grid(double query_reach) {
   grid_valid_ = true;
 }
 
-Aabb SurfaceContact::interest_region(double max_radius) const {
-  return surface_bounds_.inflated(max_radius * (2.0 + options_.potential_margin) + 0.5 * max_thickness_);
+std::vector<Aabb> SurfaceContact::interest_regions(double max_radius) const {
+  if (!cover_) cover_ = geometry::covering_boxes(face_box_, geometry::kMaxInterestBoxes);
+  std::vector<Aabb> boxes = *cover_;
+  const double reach = max_radius * (2.0 + options_.potential_margin) + 0.5 * max_thickness_;
+  for (Aabb& box : boxes) box = box.inflated(reach);
+  return boxes;
 }
 
 // ------------------------------------------------------------- per particle --

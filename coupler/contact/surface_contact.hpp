@@ -81,6 +81,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -193,10 +194,12 @@ class SurfaceContact {
   // 0.2 pi sqrt(m / k_n) over every particle-face pair within reach of
   // contact (see SurfaceContactOptions::potential_margin), infinity if none.
   [[nodiscard]] double stable_dt() const { return stable_dt_; }
-  // Where particles must be sent from: the surface's bounds inflated by the
-  // reach of the largest particle seen so far, plus one such radius of motion margin.
-  [[nodiscard]] Aabb interest_region() const { return interest_region(max_radius_seen_); }
-  [[nodiscard]] Aabb interest_region(double max_radius) const;
+  // Where particles must be sent from: at most kMaxInterestBoxes boxes covering the
+  // faces (geometry::covering_boxes), each inflated by the reach of the largest particle
+  // seen so far plus one such radius of motion margin and half the largest thickness.
+  // Every particle that can touch a face before the next step lies in one of them.
+  [[nodiscard]] std::vector<Aabb> interest_regions() const { return interest_regions(max_radius_seen_); }
+  [[nodiscard]] std::vector<Aabb> interest_regions(double max_radius) const;
 
   [[nodiscard]] const std::vector<ContactRecord>& contacts() const { return records_; }
   [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
@@ -299,9 +302,9 @@ class SurfaceContact {
   std::vector<double> face_mass_;              // kg: lightest node of the face (infinity: rigid)
   std::vector<char> degenerate_;               // zero-area faces take no part
   std::vector<Aabb> face_box_;
+  mutable std::optional<std::vector<Aabb>> cover_;  // of face_box_, uninflated; reset with the geometry
   double median_face_size_ = 0;
   double max_thickness_ = 0;
-  Aabb surface_bounds_;      // of the node positions, updated with the geometry
   std::vector<Pair> pairs_;  // [source * parts + part]
 
   physics::CellList grid_;

@@ -1,5 +1,6 @@
 # Sources of libsabo/geometry.
 target_sources(sabo_core PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/covering_boxes.cpp
   ${CMAKE_CURRENT_LIST_DIR}/node_welder.cpp
   ${CMAKE_CURRENT_LIST_DIR}/primitives.cpp
   ${CMAKE_CURRENT_LIST_DIR}/surface_mesh.cpp

@@ -28,13 +28,16 @@ double seconds_since(Clock::time_point start) {
 void Interest::update(const google::protobuf::RepeatedPtrField<sabo::v1::Box>& boxes, bool all) {
   all_ = all;
   boxes_.clear();
+  bounds_ = Aabb{};
   for (const auto& box : boxes) {
     boxes_.push_back(Aabb{Vec3(box.min_x(), box.min_y(), box.min_z()), Vec3(box.max_x(), box.max_y(), box.max_z())});
+    bounds_.extend(boxes_.back());
   }
 }
 
 bool Interest::contains(const Vec3& point) const {
   if (all_) return true;
+  if (!bounds_.contains(point)) return false;  // most entities far from every region stop here
   for (const auto& box : boxes_) {
     if (box.contains(point)) return true;
   }

@@ -25,6 +25,7 @@ class Interest {
  private:
   bool all_ = true;
   std::vector<Aabb> boxes_;
+  Aabb bounds_;  // of boxes_
 };
 
 // The contract of one solver step. At step n the solver holds positions x_n and

@@ -188,7 +188,7 @@ void SphFixture::run_penalty_slide(sabo::v1::StepForces& last_sph) {
     const Vec3 on_floor = sum3(last_fem.node_force());
     EXPECT_LT((on_particles + on_floor).norm(), 1e-10 * on_particles.norm()) << "Newton, step " << step;
     ASSERT_FALSE(last_sph.interest_all());
-    ASSERT_EQ(last_sph.interest_size(), 1);
+    ASSERT_GE(last_sph.interest_size(), 1);
     steps = step + 1;
     if (last_sph.stop()) break;
     time += last_sph.dt();
@@ -322,8 +322,8 @@ void SphFixture::run_boundary_exchange(std::uint64_t steps_back) {
               << returned_sum.transpose() << " N\n";
     EXPECT_LT((on_floor - returned_sum).norm(), 1e-12 * (1 + returned_sum.norm()));
     ASSERT_FALSE(forces.interest_all());
-    ASSERT_EQ(forces.interest_size(), 1);
-    EXPECT_LT(forces.interest(0).max_z(), 1.0) << "the far particle need not be sent";
+    ASSERT_GE(forces.interest_size(), 1);
+    for (const auto& box : forces.interest()) EXPECT_LT(box.max_z(), 1.0) << "the far particle need not be sent";
     steps = step + 1;
     if (forces.stop()) break;
     time += forces.dt();

@@ -13,6 +13,7 @@
 
 #include "contact_fixtures.hpp"
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/covering_boxes.hpp"
 
 namespace sabo::coupler {
 namespace {
@@ -802,9 +803,53 @@ TEST(SurfaceContact, StableStepOverPotentialContacts) {
   EXPECT_NEAR(contact.stable_dt(), expected, 1e-15);
   EXPECT_EQ(out.contact_count, 0u);
 
-  const Aabb region = contact.interest_region();
+  Aabb region;
+  for (const Aabb& box : contact.interest_regions()) region.extend(box);
   EXPECT_NEAR(region.max.z(), 0.5 * 3.0, 1e-12);
   EXPECT_NEAR(region.min.x(), -2.0 - 1.5, 1e-12);
+}
+
+TEST(SurfaceContact, InterestRegionsHugASlopingFloor) {
+  // A 30 degree ramp, 40 m by 4 m, under a lattice of particles that fills its bounding box: only those
+  // within reach of the ramp need to travel (DESIGN.md §3), and none of those may be left out.
+  const double radius = 0.1, slope = std::numbers::pi / 6;
+  SurfaceContact contact({"slurry"}, uniform(explicit_stiffness(1e6)));
+  MeshBuilder b;
+  b.grid({0, 0, 0}, 40, 4, 1.0, b.part("floor"));
+  geometry::SurfaceMesh mesh = b.mesh();
+  const Eigen::Matrix3d rise = Eigen::AngleAxisd(-slope, Vec3::UnitY()).toRotationMatrix();
+  for (Vec3& x : mesh.node_position) x = rise * x;
+  contact.set_surface(mesh);
+  Cloud cloud;
+  const Vec3 top = rise * Vec3(40, 4, 0);
+  for (double x = -1; x <= top.x() + 1; x += 0.5) {
+    for (double y = -1; y <= 5; y += 0.5) {
+      for (double z = -1; z <= top.z() + 1; z += 0.5) cloud.add({x, y, z}, radius, 1.0);
+    }
+  }
+  const std::vector<Aabb> regions = contact.interest_regions(radius);
+  Aabb one_box;
+  for (const Aabb& box : regions) one_box.extend(box);
+  const double reach = radius * (2.0 + SurfaceContactOptions{}.potential_margin);
+  std::size_t sent = 0, sent_by_one_box = 0, within_reach = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3 p = cloud.at(i);
+    const Vec3 local = rise.transpose() * p;  // ramp frame: the floor is z = 0, 0 <= x <= 40, 0 <= y <= 4
+    const Vec3 nearest(std::clamp(local.x(), 0.0, 40.0), std::clamp(local.y(), 0.0, 4.0), 0.0);
+    bool inside = false;
+    for (const Aabb& box : regions) inside = inside || box.contains(p);
+    sent += inside ? 1 : 0;
+    sent_by_one_box += one_box.contains(p) ? 1 : 0;
+    if ((local - nearest).norm() <= reach) {
+      ++within_reach;
+      ASSERT_TRUE(inside) << "a particle within reach of the ramp is left out: " << p.transpose();
+    }
+  }
+  std::cout << regions.size() << " interest boxes: " << sent << " of " << cloud.size() << " particles sent, "
+            << within_reach << " within reach; one box would send " << sent_by_one_box << " (ratio "
+            << static_cast<double>(sent) / static_cast<double>(sent_by_one_box) << ", expected <= 0.25)\n";
+  EXPECT_LE(regions.size(), geometry::kMaxInterestBoxes);
+  EXPECT_LE(4 * sent, sent_by_one_box);
 }
 
 TEST(SurfaceContact, RejectsInconsistentInput) {
