@@ -19,6 +19,14 @@ bool covered(const Aabb& piece, const std::vector<Aabb>& boxes) {
   return false;
 }
 
+void expect_same_boxes(const std::vector<Aabb>& a, const std::vector<Aabb>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].min, b[k].min) << "box " << k;
+    EXPECT_EQ(a[k].max, b[k].max) << "box " << k;
+  }
+}
+
 // Pieces 0.5 m long along a 30° ramp 40 m long and 4 m wide (a sloping channel floor).
 std::vector<Aabb> ramp() {
   std::vector<Aabb> pieces;
@@ -48,13 +56,7 @@ TEST(CoveringBoxes, EveryPieceIsInsideABoxAndTheCountIsBounded) {
     EXPECT_LE(boxes.size(), limit);
     for (std::size_t k = 0; k + 1 < pieces.size(); ++k) ASSERT_TRUE(covered(pieces[k], boxes)) << "piece " << k;
   }
-  const std::vector<Aabb> again = covering_boxes(pieces, 16);
-  const std::vector<Aabb> first = covering_boxes(pieces, 16);
-  ASSERT_EQ(again.size(), first.size());
-  for (std::size_t b = 0; b < first.size(); ++b) {
-    EXPECT_EQ(again[b].min, first[b].min);
-    EXPECT_EQ(again[b].max, first[b].max);
-  }
+  expect_same_boxes(covering_boxes(pieces, 16), covering_boxes(pieces, 16));
   EXPECT_TRUE(covering_boxes(std::vector<Aabb>{}, 16).empty());
   EXPECT_TRUE(covering_boxes(std::vector<Aabb>{Aabb{}}, 16).empty());
 }
@@ -83,11 +85,7 @@ TEST(CoveringBoxes, PointsAreCoveredLikeZeroSizePieces) {
   }
   const std::vector<Aabb> from_points = covering_boxes(points, 16);
   const std::vector<Aabb> from_pieces = covering_boxes(as_pieces, 16);
-  ASSERT_EQ(from_points.size(), from_pieces.size());
-  for (std::size_t b = 0; b < from_points.size(); ++b) {
-    EXPECT_EQ(from_points[b].min, from_pieces[b].min);
-    EXPECT_EQ(from_points[b].max, from_pieces[b].max);
-  }
+  expect_same_boxes(from_points, from_pieces);
   for (const Vec3& p : points) ASSERT_TRUE(covered(Aabb{p, p}, from_points));
   const std::vector<Aabb> single = covering_boxes(std::vector<Vec3>{Vec3(1, 2, 3)}, 16);
   ASSERT_EQ(single.size(), 1u);
