@@ -7,10 +7,14 @@
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <fstream>
 #include <iostream>
 
+#include "fem_solver/fem_model.hpp"
 #include "fem_solver/shell_body.hpp"
+#include "libsabo/scene/loader.hpp"
 #include "tests/fem_solver/fem_test_support.hpp"
+#include "tests/support/scratch.hpp"
 
 using sabo::Aabb;
 using sabo::Vec3;
@@ -194,6 +198,33 @@ TEST(Shell, SameBitsOnOneAndTwoThreads) {
               << ": node vectors differing on 1 vs 2 threads: " << differing << " of " << one.size() << " expected 0\n";
     EXPECT_EQ(differing, 0u);
   }
+}
+
+// element_formulation = "fully_integrated" from a scene file reaches the
+// shells of a building (box with a thickness) and of a plane panel; the
+// default stays one-point.
+TEST(Shell, FormulationFromTheScene) {
+  const auto file = sabo::testing::scratch("shell_formulation.toml");
+  {
+    std::ofstream out(file);
+    out << "format_version = 1\n[run]\nend_time = 1.0\noutput_interval = 0.1\n"
+           "[materials.brick]\ndensity = 2300.0\nyoungs_modulus = 8e9\npoisson_ratio = 0.23\n"
+           "[[structures]]\nname = \"house\"\nmaterial = \"brick\"\nrigid = false\nshape = \"box\"\n"
+           "min = [0.0, 0.0, 0.0]\nmax = [6.0, 4.0, 3.0]\nthickness = 0.24\nelement_size = 1.0\n"
+           "element_formulation = \"fully_integrated\"\n"
+           "[[structures]]\nname = \"wall\"\nmaterial = \"brick\"\nrigid = false\nshape = \"plane\"\n"
+           "origin = [10.0, 0.0, 1.5]\nnormal = [0.0, -1.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\nlength = 4.0\n"
+           "width = 3.0\nthickness = 0.24\nelement_size = 0.5\nelement_formulation = \"fully_integrated\"\n"
+           "[[structures]]\nname = \"shed\"\nmaterial = \"brick\"\nrigid = false\nshape = \"plane\"\n"
+           "origin = [20.0, 0.0, 1.5]\nnormal = [0.0, -1.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\nlength = 2.0\n"
+           "width = 2.0\nthickness = 0.1\nelement_size = 0.5\n";
+  }
+  FemModel model(sabo::scene::load_scene(file));
+  ASSERT_EQ(model.part_count(), 3u);
+  for (std::size_t part = 0; part < 3; ++part) ASSERT_TRUE(model.deformable(part)->is_shell());
+  EXPECT_EQ(model.deformable(0)->shell()->formulation(), ShellFormulation::fully_integrated);
+  EXPECT_EQ(model.deformable(1)->shell()->formulation(), ShellFormulation::fully_integrated);
+  EXPECT_EQ(model.deformable(2)->shell()->formulation(), ShellFormulation::one_point);
 }
 
 // A panel pulled in its plane past the failure strain erodes.
