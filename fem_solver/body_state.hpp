@@ -60,6 +60,16 @@ void for_each_value_of_shell(State& state, F&& f) {
   f(state.plastic_work);
 }
 
+template <typename Gauss, typename F>
+void for_each_value_of_shell_gauss(Gauss& gauss, F&& f) {
+  for (auto& points : gauss.point) {
+    for (auto& point : points) for_each_value_of_point(point, f);
+  }
+  for (auto& q : gauss.shear) f(q);
+  for (auto& m : gauss.drilling) f(m);
+  f(gauss.drilling_energy);
+}
+
 // Reads a BodyState back in the order it was written; throws FileError when
 // the sizes do not match the body (a checkpoint of another scene or mesh).
 class BodyStateReader {

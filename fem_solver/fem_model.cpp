@@ -122,6 +122,12 @@ HexFormulation hex_formulation(const scene::Structure& structure) {
              : HexFormulation::one_point;
 }
 
+ShellFormulation shell_formulation(const scene::Structure& structure) {
+  return structure.element_formulation == scene::Structure::ElementFormulation::fully_integrated
+             ? ShellFormulation::fully_integrated
+             : ShellFormulation::one_point;
+}
+
 // Gravity, the fixed faces and the initial velocity of a new body.
 template <class Body>
 void set_up(Body& body, const scene::Structure& structure, const Vec3& gravity, unsigned fixed_dofs) {
@@ -155,7 +161,8 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
       shells.element = gmsh.quads;
       shells.thickness.assign(shells.element.size(), structure.thickness);
       shells.material.assign(shells.element.size(), 0);
-      shell_ = std::make_unique<ShellBody>(std::move(shells), std::vector<MaterialParameters>{parameters});
+      shell_ = std::make_unique<ShellBody>(std::move(shells), std::vector<MaterialParameters>{parameters},
+                                           shell_formulation(structure));
       set_up(*shell_, structure, scene.run.gravity, dof_all | rotations_all);
     }
   } else if (structure.thickness > 0) {
@@ -167,7 +174,7 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
       parameters.push_back(material_parameters(scene.materials[m]));
       bulk_modulus_.push_back(scene.materials[m].bulk_modulus());
     }
-    shell_ = std::make_unique<ShellBody>(structure_shells(structure), parameters);
+    shell_ = std::make_unique<ShellBody>(structure_shells(structure), parameters, shell_formulation(structure));
     set_up(*shell_, structure, scene.run.gravity, dof_all | rotations_all);
   } else {
     scene_material_ = {static_cast<std::uint32_t>(material)};

@@ -37,8 +37,12 @@ void weld(ShellMesh& mesh, double tolerance) {
   mesh.node = welder.take_positions();
 }
 
-ShellBody::ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, double hourglass_scale)
-    : mesh_(std::move(mesh)), materials_(std::move(materials)), hourglass_scale_(hourglass_scale) {
+ShellBody::ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, double hourglass_scale,
+                     ShellFormulation formulation)
+    : mesh_(std::move(mesh)),
+      materials_(std::move(materials)),
+      hourglass_scale_(hourglass_scale),
+      formulation_(formulation) {
   const std::size_t nodes = mesh_.node.size(), elements = mesh_.element.size();
   assert(mesh_.thickness.size() == elements && mesh_.material.size() == elements);
   position_ = mesh_.node;
@@ -50,6 +54,7 @@ ShellBody::ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, 
   inertia_.assign(nodes, 0.0);
   fixed_.assign(nodes, 0);
   state_.assign(elements, Shell4State{});
+  if (formulation_ == ShellFormulation::fully_integrated) gauss_.assign(elements, Shell4GaussPoints{});
   active_.assign(elements, 1);
   element_failed_.assign(elements, 0);
   element_force_.assign(4 * elements, Vec3::Zero());
@@ -108,8 +113,11 @@ std::size_t ShellBody::compute_internal_forces(double dt_previous) {
       w[a] = angular_velocity_[mesh_.element[e][a]];
     }
     const MaterialParameters& material = materials_[mesh_.material[e]];
-    const bool ok = shell4_internal_force(material, mesh_.thickness[e], hourglass_scale_, x, v, w, dt_previous,
-                                          state_[e], force, moment);
+    const bool ok = formulation_ == ShellFormulation::fully_integrated
+                        ? shell4_full_internal_force(material, mesh_.thickness[e], x, v, w, dt_previous, state_[e],
+                                                     gauss_[e], force, moment)
+                        : shell4_internal_force(material, mesh_.thickness[e], hourglass_scale_, x, v, w, dt_previous,
+                                                state_[e], force, moment);
     bool failed_now = !ok;
     if (ok && material.erodes()) {
       for (const auto& point : state_[e].point) failed_now = failed_now || failed(material, point);
@@ -176,11 +184,20 @@ SolidEnergies ShellBody::energies() const {
   return body_energies(state_, active_, mass_, position_, gravity_, kinetic_, external_work_, erosion_);
 }
 
+double ShellBody::drilling_energy() const {
+  double sum = 0;
+  for (std::size_t e = 0; e < gauss_.size(); ++e) {
+    if (active_[e] != 0) sum += gauss_[e].drilling_energy;
+  }
+  return sum;
+}
+
 BodyState ShellBody::save_state() const {
   BodyState out;
   const auto put = [&](double value) { out.real.push_back(value); };
   for (const auto* field : {&position_, &velocity_, &angular_velocity_}) append_vectors(out, *field);
   for (const Shell4State& s : state_) for_each_value_of_shell(s, put);
+  for (const Shell4GaussPoints& g : gauss_) for_each_value_of_shell_gauss(g, put);
   for (double value : {kinetic_, external_work_, erosion_.energy, stable_dt_}) put(value);
   out.active = active_;
   out.counters = {erosion_.topology_revision, erosion_.count};
@@ -192,9 +209,14 @@ void ShellBody::restore_state(const BodyState& state, const std::string& what) {
   std::size_t per_element = 0;
   const Shell4State probe{};
   for_each_value_of_shell(probe, [&](const double&) { ++per_element; });
-  reader.expect_sizes(9 * position_.size() + per_element * state_.size() + 4, state_.size(), 2);
+  std::size_t per_gauss = 0;
+  const Shell4GaussPoints gauss_probe{};
+  for_each_value_of_shell_gauss(gauss_probe, [&](const double&) { ++per_gauss; });
+  reader.expect_sizes(9 * position_.size() + per_element * state_.size() + per_gauss * gauss_.size() + 4, state_.size(),
+                      2);
   for (auto* field : {&position_, &velocity_, &angular_velocity_}) reader.read_vectors(*field);
   for (Shell4State& s : state_) for_each_value_of_shell(s, [&](double& value) { value = reader.next(); });
+  for (Shell4GaussPoints& g : gauss_) for_each_value_of_shell_gauss(g, [&](double& value) { value = reader.next(); });
   for (double* value : {&kinetic_, &external_work_, &erosion_.energy, &stable_dt_}) *value = reader.next();
   active_ = state.active;
   erosion_.topology_revision = state.counters[0];

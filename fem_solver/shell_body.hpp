@@ -1,5 +1,6 @@
 #pragma once
-// Thin-walled structures of 4-node Belytschko-Lin-Tsay shells (houses:
+// Thin-walled structures of 4-node shells, Belytschko-Lin-Tsay or fully
+// integrated (ShellFormulation; houses:
 // walls, floors, roof), each panel with its thickness and material: lumped
 // translational masses rho t A / 4 and rotational inertias, fixed DOFs,
 // gravity, explicit central difference and erosion, as SolidBody
@@ -11,6 +12,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fem_solver/elements/shell4.hpp"
@@ -31,13 +33,25 @@ void add_panel(ShellMesh& mesh, const Vec3& origin, const Vec3& edge1, const Vec
 // Merges nodes closer than `tolerance` (m): panels sharing edges become one structure.
 void weld(ShellMesh& mesh, double tolerance);
 
+// How the shells integrate their stress (scene key element_formulation):
+// Belytschko-Lin-Tsay one-point with hourglass control, or fully integrated
+// (2 x 2 points, MITC4 transverse shear, no hourglass modes; shell4.hpp).
+enum class ShellFormulation { one_point, fully_integrated };
+
 class ShellBody {
  public:
-  ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, double hourglass_scale = 1.0);
+  ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, double hourglass_scale = 1.0,
+            ShellFormulation formulation = ShellFormulation::one_point);
+  ShellBody(ShellMesh mesh, std::vector<MaterialParameters> materials, ShellFormulation formulation)
+      : ShellBody(std::move(mesh), std::move(materials), 1.0, formulation) {}
 
   [[nodiscard]] std::size_t node_count() const { return position_.size(); }
   [[nodiscard]] std::size_t element_count() const { return mesh_.element.size(); }
   [[nodiscard]] const ShellMesh& mesh() const { return mesh_; }
+  [[nodiscard]] ShellFormulation formulation() const { return formulation_; }
+  // J, energy of the fully integrated shells' drilling stiffness (part of
+  // energies().internal; 0 for one-point shells), active elements.
+  [[nodiscard]] double drilling_energy() const;
   [[nodiscard]] const MaterialParameters& material(std::size_t e) const { return materials_[mesh_.material[e]]; }
   // dofs: Dof bits for translations, and rotations in bits 3..5 (dof_all | rotations_all fixes all six).
   void fix(std::size_t node, unsigned dofs);
@@ -79,6 +93,7 @@ class ShellBody {
   ShellMesh mesh_;
   std::vector<MaterialParameters> materials_;
   double hourglass_scale_;
+  ShellFormulation formulation_;
   Vec3 gravity_ = Vec3::Zero();
   std::ptrdiff_t parallel_minimum_ = 4096;
   double damping_ = 0;
@@ -86,6 +101,7 @@ class ShellBody {
   std::vector<double> mass_, inertia_;
   std::vector<std::uint8_t> fixed_;
   std::vector<Shell4State> state_;
+  std::vector<Shell4GaussPoints> gauss_;  // per element, fully integrated only
   std::vector<std::uint8_t> active_, element_failed_;
   std::vector<Vec3> element_force_, element_moment_;  // 4 per element
   std::vector<double> element_dt_;

@@ -187,4 +187,185 @@ bool shell4_internal_force(const MaterialParameters& material, double thickness,
   return true;
 }
 
+namespace {
+
+constexpr double kGaussCoordinate = 0.5773502691896257;  // 1 / sqrt(3)
+constexpr std::array<double, 4> kNodeXi{-1, 1, 1, -1}, kNodeEta{-1, -1, 1, 1};
+
+// Local nodal rates, 5 per node: v_x, v_y, v_z, w_x, w_y (the drilling w_z apart).
+using NodalRates = Eigen::Matrix<double, 20, 1>;
+// Generalised strain rates from the nodal rates: membrane d_xx, d_yy, 2 d_xy,
+// curvatures k_xx, k_yy, 2 k_xy, transverse shears g_xz, g_yz.
+using StrainMap = Eigen::Matrix<double, 8, 20>;
+using ShearRow = Eigen::Matrix<double, 1, 20>;
+
+// Covariant transverse shear rate g_xi (along_xi) or g_eta at (xi, eta): the
+// derivative of v_z plus the rotated normal's in-plane velocity (w_y, -w_x)
+// projected on the natural base vector.
+ShearRow covariant_shear(const Frame& f, double xi, double eta, bool along_xi) {
+  std::array<double, 4> n{}, dn{};
+  double dx = 0, dy = 0;
+  for (std::size_t a = 0; a < 4; ++a) {
+    n[a] = 0.25 * (1 + kNodeXi[a] * xi) * (1 + kNodeEta[a] * eta);
+    dn[a] = along_xi ? 0.25 * kNodeXi[a] * (1 + kNodeEta[a] * eta) : 0.25 * kNodeEta[a] * (1 + kNodeXi[a] * xi);
+    dx += dn[a] * f.x[a];
+    dy += dn[a] * f.y[a];
+  }
+  ShearRow row = ShearRow::Zero();
+  for (std::size_t a = 0; a < 4; ++a) {
+    const auto i = static_cast<Eigen::Index>(5 * a);
+    row(i + 2) = dn[a];
+    row(i + 3) = -n[a] * dy;
+    row(i + 4) = n[a] * dx;
+  }
+  return row;
+}
+
+}  // namespace
+
+bool shell4_full_internal_force(const MaterialParameters& material, double thickness, const QuadNodes& x,
+                                const QuadNodes& velocity, const QuadNodes& angular_velocity, double dt_previous,
+                                Shell4State& state, Shell4GaussPoints& gauss, QuadNodes& force, QuadNodes& moment) {
+  for (auto& f : force) f.setZero();
+  for (auto& m : moment) m.setZero();
+  Frame f;
+  if (!frame_of(x, f)) return false;
+  NodalRates rate;
+  std::array<double, 4> drilling_rate{};
+  for (std::size_t a = 0; a < 4; ++a) {
+    const Vec3 v = f.axes.transpose() * velocity[a], w = f.axes.transpose() * angular_velocity[a];
+    const auto i = static_cast<Eigen::Index>(5 * a);
+    rate.segment<3>(i) = v;
+    rate(i + 3) = w.x();
+    rate(i + 4) = w.y();
+    drilling_rate[a] = w.z();
+  }
+  // MITC4 tying points: g_xi at the edge midpoints eta = -1, +1; g_eta at xi = -1, +1.
+  const ShearRow xi_low = covariant_shear(f, 0, -1, true), xi_high = covariant_shear(f, 0, 1, true);
+  const ShearRow eta_low = covariant_shear(f, -1, 0, false), eta_high = covariant_shear(f, 1, 0, false);
+  const double half = 0.5 * thickness, shear_stiffness = kShearFactor * material.shear_modulus() * thickness;
+  // The strain maps of the Gauss points first: a degenerate element changes no state.
+  std::array<StrainMap, 4> maps;
+  std::array<double, 4> jacobian{};
+  for (std::size_t g = 0; g < 4; ++g) {
+    const double xi = kGaussCoordinate * kNodeXi[g], eta = kGaussCoordinate * kNodeEta[g];
+    std::array<double, 4> dxi{}, deta{};
+    double x_xi = 0, y_xi = 0, x_eta = 0, y_eta = 0;
+    for (std::size_t a = 0; a < 4; ++a) {
+      dxi[a] = 0.25 * kNodeXi[a] * (1 + kNodeEta[a] * eta);
+      deta[a] = 0.25 * kNodeEta[a] * (1 + kNodeXi[a] * xi);
+      x_xi += dxi[a] * f.x[a];
+      y_xi += dxi[a] * f.y[a];
+      x_eta += deta[a] * f.x[a];
+      y_eta += deta[a] * f.y[a];
+    }
+    const double det = x_xi * y_eta - y_xi * x_eta;
+    if (!(det > 0)) return false;
+    // Inverse Jacobian: (d/dx, d/dy) = J^-1 (d/dxi, d/deta), J rows (x_xi, y_xi), (x_eta, y_eta).
+    const double j11 = y_eta / det, j12 = -y_xi / det, j21 = -x_eta / det, j22 = x_xi / det;
+    StrainMap b = StrainMap::Zero();
+    for (std::size_t a = 0; a < 4; ++a) {
+      const double nx = j11 * dxi[a] + j12 * deta[a], ny = j21 * dxi[a] + j22 * deta[a];
+      const auto i = static_cast<Eigen::Index>(5 * a);
+      b(0, i) = nx;
+      b(1, i + 1) = ny;
+      b(2, i) = ny;
+      b(2, i + 1) = nx;
+      b(3, i + 4) = nx;
+      b(4, i + 3) = -ny;
+      b(5, i + 3) = -nx;
+      b(5, i + 4) = ny;
+    }
+    const ShearRow g_xi = 0.5 * (1 - eta) * xi_low + 0.5 * (1 + eta) * xi_high;
+    const ShearRow g_eta = 0.5 * (1 - xi) * eta_low + 0.5 * (1 + xi) * eta_high;
+    b.row(6) = j11 * g_xi + j12 * g_eta;
+    b.row(7) = j21 * g_xi + j22 * g_eta;
+    maps[g] = b;
+    jacobian[g] = det;
+  }
+  NodalRates nodal = NodalRates::Zero();
+  double work = 0, plastic_work = 0;  // J over this step
+  for (std::size_t g = 0; g < 4; ++g) {
+    const StrainMap& b = maps[g];
+    const double det = jacobian[g];
+    auto& points = gauss.point[g];
+    double& q_x = gauss.shear[2 * g];
+    double& q_y = gauss.shear[2 * g + 1];
+    if (dt_previous > 0) {
+      const Eigen::Matrix<double, 8, 1> strain = b * rate;
+      double power = 0;
+      for (std::size_t k = 0; k < kThicknessPoints; ++k) {
+        const double z = kZeta[k] * half, weight = kWeight[k] * half;
+        const double dxx = strain(0) + z * strain(3), dyy = strain(1) + z * strain(4),
+                     dxy = 0.5 * (strain(2) + z * strain(5));
+        const Mat3 old = points[k].stress;
+        const MaterialUpdate update = plane_stress_update(material, dxx, dyy, dxy, dt_previous, points[k]);
+        const Mat3 mid = 0.5 * (old + points[k].stress);
+        power += weight * (mid(0, 0) * dxx + mid(1, 1) * dyy + 2.0 * mid(0, 1) * dxy);
+        plastic_work += det * weight * update.plastic_work_density;
+      }
+      const double old_x = q_x, old_y = q_y;
+      q_x += shear_stiffness * strain(6) * dt_previous;
+      q_y += shear_stiffness * strain(7) * dt_previous;
+      power += 0.5 * (old_x + q_x) * strain(6) + 0.5 * (old_y + q_y) * strain(7);
+      work += det * power * dt_previous;
+    }
+    Eigen::Matrix<double, 8, 1> resultant = Eigen::Matrix<double, 8, 1>::Zero();
+    for (std::size_t k = 0; k < kThicknessPoints; ++k) {
+      const double z = kZeta[k] * half, weight = kWeight[k] * half;
+      const Mat3& s = points[k].stress;
+      resultant(0) += weight * s(0, 0);
+      resultant(1) += weight * s(1, 1);
+      resultant(2) += weight * s(0, 1);
+      resultant(3) += weight * z * s(0, 0);
+      resultant(4) += weight * z * s(1, 1);
+      resultant(5) += weight * z * s(0, 1);
+    }
+    resultant(6) = q_x;
+    resultant(7) = q_y;
+    nodal.noalias() += det * (b.transpose() * resultant);
+  }
+  // Drilling: moments on the nodes' rotation rates about e3 relative to the element's in-plane spin.
+  double spin = 0;
+  for (std::size_t a = 0; a < 4; ++a)
+    spin +=
+        0.5 * (f.b1[a] * rate(static_cast<Eigen::Index>(5 * a + 1)) - f.b2[a] * rate(static_cast<Eigen::Index>(5 * a)));
+  if (dt_previous > 0) {
+    const double stiffness = kDrillingFactor * material.shear_modulus() * thickness * f.area;
+    for (std::size_t a = 0; a < 4; ++a) {
+      const double relative = drilling_rate[a] - spin, old = gauss.drilling[a];
+      gauss.drilling[a] += stiffness * relative * dt_previous;
+      const double energy = 0.5 * (old + gauss.drilling[a]) * relative * dt_previous;
+      gauss.drilling_energy += energy;
+      work += energy;
+    }
+  }
+  const double drilling_sum = gauss.drilling[0] + gauss.drilling[1] + gauss.drilling[2] + gauss.drilling[3];
+  for (std::size_t a = 0; a < 4; ++a) {
+    const auto i = static_cast<Eigen::Index>(5 * a);
+    const Vec3 local_force(nodal(i) + 0.5 * f.b2[a] * drilling_sum, nodal(i + 1) - 0.5 * f.b1[a] * drilling_sum,
+                           nodal(i + 2));
+    const Vec3 local_moment(nodal(i + 3), nodal(i + 4), gauss.drilling[a]);
+    force[a] = f.axes * local_force;
+    moment[a] = f.axes * local_moment;
+  }
+  state.area = f.area;
+  state.internal_energy += work;
+  state.plastic_work += plastic_work;
+  // Means over the Gauss points, for output and the erosion criterion.
+  for (std::size_t k = 0; k < kThicknessPoints; ++k) {
+    MaterialPoint mean;
+    for (std::size_t g = 0; g < 4; ++g) {
+      mean.stress += 0.25 * gauss.point[g][k].stress;
+      mean.back_stress += 0.25 * gauss.point[g][k].back_stress;
+      mean.strain += 0.25 * gauss.point[g][k].strain;
+      mean.plastic_strain += 0.25 * gauss.point[g][k].plastic_strain;
+    }
+    state.point[k] = mean;
+  }
+  state.shear_x = 0.25 * (gauss.shear[0] + gauss.shear[2] + gauss.shear[4] + gauss.shear[6]);
+  state.shear_y = 0.25 * (gauss.shear[1] + gauss.shear[3] + gauss.shear[5] + gauss.shear[7]);
+  return true;
+}
+
 }  // namespace sabo::fem

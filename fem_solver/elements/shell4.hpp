@@ -38,4 +38,32 @@ bool shell4_internal_force(const MaterialParameters& material, double thickness,
                            const QuadNodes& x, const QuadNodes& velocity, const QuadNodes& angular_velocity,
                            double dt_previous, Shell4State& state, QuadNodes& force, QuadNodes& moment);
 
+// The fully integrated 4-node shell (docs/physics.md "FEM shells, fully
+// integrated"): the BLT co-rotational frame and flat local geometry, 2 x 2
+// in-plane Gauss points each with kThicknessPoints through the thickness
+// (membrane and bending from the bilinear shape functions), transverse shear
+// by assumed natural strain (MITC4, Bathe-Dvorkin: covariant shears tied at
+// the edge midpoints, so thin shells do not lock), and no hourglass control:
+// the element has no spurious zero-energy modes (state.hourglass and
+// state.hourglass_energy stay 0). The drilling rotation (about e3) gets a
+// small elastic stiffness kDrillingFactor G t A per node on the difference
+// between the node's drilling rate and the element's in-plane spin, so that
+// it is no zero-energy mode either; its energy counts in
+// state.internal_energy and, separately, in gauss.drilling_energy.
+// `gauss` holds the histories; state.point and state.shear_x/y receive their
+// means over the Gauss points (output, erosion). Same time levels and return
+// as shell4_internal_force.
+inline constexpr double kDrillingFactor = 0.01;
+
+struct Shell4GaussPoints {
+  std::array<std::array<MaterialPoint, kThicknessPoints>, 4> point;  // per Gauss point, through the thickness
+  std::array<double, 8> shear{};                                     // q_xz, q_yz per Gauss point, local frame, N/m
+  std::array<double, 4> drilling{};                                  // drilling moments per node about e3, N m
+  double drilling_energy = 0;                                        // J, included in Shell4State::internal_energy
+};
+
+bool shell4_full_internal_force(const MaterialParameters& material, double thickness, const QuadNodes& x,
+                                const QuadNodes& velocity, const QuadNodes& angular_velocity, double dt_previous,
+                                Shell4State& state, Shell4GaussPoints& gauss, QuadNodes& force, QuadNodes& moment);
+
 }  // namespace sabo::fem

@@ -928,15 +928,6 @@ class Builder {
     if (auto v = r.string("element_formulation")) {
       structure.element_formulation = *v == "fully_integrated" ? Structure::ElementFormulation::fully_integrated
                                                                : Structure::ElementFormulation::one_point;
-      if (!structure.rigid && structure.thickness > 0 &&
-          structure.element_formulation != Structure::ElementFormulation::one_point) {
-        diag_.add(r.line("element_formulation"), r.key_path("element_formulation"),
-                  value_text(*r.node("element_formulation")),
-                  "fully integrated elements exist for solids (hexahedra) only; this structure has a thickness "
-                  "(shells)",
-                  "remove element_formulation (shells are one-point elements), or remove the thickness for a "
-                  "solid of hexahedra");
-      }
     }
     const bool building_keys = shape && *shape == "box";
     if (building_keys) {

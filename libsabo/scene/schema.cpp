@@ -456,11 +456,14 @@ class Schema {
         K("element_formulation", Type::string)
             .def("\"one_point\"")
             .choices({"one_point", "fully_integrated"})
-            .only_for({"box", "mesh"})
+            .only_for({"box", "mesh", "plane"})
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
                  "(cheapest, exact in bending with a few elements through the depth); `fully_integrated`, 2 x 2 "
                  "x 2 points with the volume change at the element mean (no hourglass modes: for concentrated "
-                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells accept only `one_point`."),
+                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells (a structure "
+                 "with a `thickness`): `one_point`, Belytschko-Lin-Tsay with hourglass control; "
+                 "`fully_integrated`, 2 x 2 in-plane points with MITC4 transverse shear (no hourglass modes, no "
+                 "shear locking: for concentrated impact loads; about 2.2 times the cost per element)."),
         K("floors", Type::integer)
             .def("1")
             .ge(1)

@@ -3,7 +3,10 @@
 // between the sphere and the FEM model's surface, topology changes included.
 // The run stays bounded: finite, no node faster than a few times the impact
 // speed, no energy created, and the boulder gets past the wall's plane only
-// through eroded elements.
+// through eroded elements. Both shell formulations: the one-point BLT shell
+// reports its hourglass share (the concentrated load excites its stabilised
+// modes); the fully integrated shell has no hourglass modes and is held to
+// the 10% bound (its drilling energy is reported beside).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -18,7 +21,9 @@ using sabo::Vec3;
 
 namespace {
 
-sabo::scene::Scene wall_scene() {
+using Formulation = sabo::scene::Structure::ElementFormulation;
+
+sabo::scene::Scene wall_scene(Formulation formulation) {
   sabo::scene::Scene scene;
   sabo::scene::Material brick = sabo::fem::test::scene_material("brick", 2300, 8e9, 0.23);
   brick.yield_stress = 8e6;
@@ -28,16 +33,16 @@ sabo::scene::Scene wall_scene() {
   wall.thickness = 0.24;
   wall.shape = sabo::fem::test::plane_shape(Vec3(0, 0, 1.5), Vec3(0, -1, 0), Vec3(1, 0, 0), 4.0, 3.0, 0.25);
   wall.fixed_faces = {"z-", "x-", "x+"};
+  wall.element_formulation = formulation;
   scene.structures.push_back(wall);
   scene.run.gravity = Vec3::Zero();
   return scene;
 }
 
-}  // namespace
-
-TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
-  sabo::fem::FemModel model(wall_scene());
-  ASSERT_TRUE(model.deformable(0)->is_shell());
+// Runs the impact; returns the worst hourglass share of the wall.
+double boulder_against_wall(Formulation formulation) {
+  sabo::fem::FemModel model(wall_scene(formulation));
+  EXPECT_TRUE(model.deformable(0)->is_shell());
   sabo::scene::SurfaceContact settings;
   settings.friction = 0.4;
   settings.penalty_scale = 1.0;
@@ -54,6 +59,7 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
   double dt_previous = 0, t = 0, worst_energy = 0, fastest_node = 0;
   bool finite = true;
   sabo::fem::test::HourglassMonitor hourglass;
+  double worst_drilling = 0;
   sabo::coupler::ContactOutput out;
   while (t < 0.06) {
     model.compute_internal_forces(dt_previous);
@@ -85,6 +91,8 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
     t += dt;
     const auto e = model.deformable(0)->solid_energies();
     hourglass.observe(e);
+    if (e.internal > 0)
+      worst_drilling = std::max(worst_drilling, model.deformable(0)->shell()->drilling_energy() / e.internal);
     const double total =
         0.5 * mass * velocity.squaredNorm() + e.kinetic + e.internal + e.hourglass + e.eroded + out.elastic_energy;
     worst_energy = std::max(worst_energy, total / initial);
@@ -97,9 +105,8 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
   std::cout << "eroded shell elements: " << eroded << " of " << shell->element_count() << "\n";
   std::cout << "fastest wall node: measured " << fastest_node << " m/s limit " << 3 * speed << " m/s\n";
   std::cout << "largest total energy / initial: measured " << worst_energy << " limit 1.05\n";
-  // Reported, not yet held to 10%: the boulder loads the 0.25 m shells at a few nodes (docs/physics.md).
-  std::cout << "hourglass/internal energy of the wall: measured " << hourglass.worst() << " (bound 0.1 not met)\n";
-  ASSERT_TRUE(finite);
+  std::cout << "drilling/internal energy of the wall (part of internal): largest " << worst_drilling << "\n";
+  EXPECT_TRUE(finite);
   EXPECT_LT(fastest_node, 3 * speed);
   EXPECT_LT(worst_energy, 1.05);
   // Past the wall's plane (y = 0) only through eroded elements.
@@ -108,4 +115,20 @@ TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
   }
   // Every wall node that got past the boulder's side stayed with the wall or broke away from eroded elements.
   EXPECT_LT(velocity.norm(), speed * 1.001);
+  return hourglass.worst();
+}
+
+}  // namespace
+
+TEST(BoulderAgainstShellWall, ThirtyMetresPerSecondStaysBounded) {
+  const double share = boulder_against_wall(Formulation::one_point);
+  // Reported, not held to 10%: the boulder loads the 0.25 m BLT shells at a few nodes (docs/physics.md);
+  // the fully integrated formulation below is the one for such loads.
+  std::cout << "one-point (BLT) hourglass/internal energy of the wall: measured " << share << " (bound 0.1 not met)\n";
+}
+
+TEST(BoulderAgainstShellWall, FullyIntegratedThirtyMetresPerSecondStaysBoundedWithoutHourglass) {
+  const double share = boulder_against_wall(Formulation::fully_integrated);
+  std::cout << "fully integrated hourglass/internal energy of the wall: measured " << share << " limit 0.1\n";
+  EXPECT_LT(share, 0.1);
 }

@@ -36,7 +36,7 @@ sabo::scene::Scene restart_scene(Formulation formulation = Formulation::one_poin
   sabo::scene::Structure panel = bar;
   panel.name = "panel";
   panel.thickness = 0.01;
-  panel.element_formulation = Formulation::one_point;
+  panel.element_formulation = formulation;
   panel.shape = sabo::fem::test::plane_shape(Vec3(0.5, 0.25, 1.0), Vec3(0, 0, 1), Vec3(1, 0, 0), 1.0, 0.5, 0.125);
   scene.structures.push_back(panel);
   scene.run.gravity = Vec3(0, 0, -9.81);
@@ -152,7 +152,8 @@ TEST(FemRestart, RestoredModelContinuesWithTheSameBits) {
   check_restart(Formulation::one_point, "checkpoint_fem.h5");
 }
 
-// The fully integrated hexahedra's eight material histories per element travel too.
+// The fully integrated hexahedra's eight material histories per element travel
+// too, and the fully integrated shells' Gauss-point histories.
 TEST(FemRestart, FullyIntegratedRestoredModelContinuesWithTheSameBits) {
   check_restart(Formulation::fully_integrated, "checkpoint_fem_full.h5");
 }

@@ -1,12 +1,20 @@
-// Belytschko-Lin-Tsay shells: a shell cantilever against beam theory, the
-// membrane wave speed, and a panel loaded past its failure strain erodes.
+// 4-node shells, Belytschko-Lin-Tsay and fully integrated (MITC4): shell
+// cantilevers against beam theory (a thin coarse one for shear locking), the
+// zero-energy modes of one element, the same bits on 1 and 2 threads, and a
+// panel loaded past its failure strain erodes.
 #include <gtest/gtest.h>
+#include <omp.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
+#include <fstream>
 #include <iostream>
 
+#include "fem_solver/fem_model.hpp"
 #include "fem_solver/shell_body.hpp"
+#include "libsabo/scene/loader.hpp"
 #include "tests/fem_solver/fem_test_support.hpp"
+#include "tests/support/scratch.hpp"
 
 using sabo::Aabb;
 using sabo::Vec3;
@@ -14,26 +22,33 @@ using namespace sabo::fem;
 
 using test::steel;
 
-// Strip 1 m x 0.1 m x 10 mm clamped at x = 0, 10 N at the tip:
-// P L^3 / (3 E I) = 1.905 mm with I = b t^3 / 12.
-TEST(Shell, CantileverTipDeflectionAgainstBeamTheory) {
-  const double length = 1.0, width = 0.1, thickness = 0.01, load = 10.0;
+namespace {
+
+struct CantileverResult {
+  double deflection = 0, expected = 0;  // m
+  SolidEnergies energies;
+};
+
+// Strip `length` x 0.1 m x `thickness` of n1 x n2 shells clamped at x = 0,
+// 10 N at the tip, solved by dynamic relaxation: P L^3 / (3 E I) with
+// I = b t^3 / 12.
+CantileverResult cantilever(ShellFormulation formulation, double thickness, std::size_t n1, std::size_t n2) {
+  const double length = 1.0, width = 0.1, load = 10.0;
   ShellMesh mesh;
-  add_panel(mesh, Vec3::Zero(), Vec3(length, 0, 0), Vec3(0, width, 0), 20, 2, thickness, 0);
-  ShellBody body(mesh, {steel()});
+  add_panel(mesh, Vec3::Zero(), Vec3(length, 0, 0), Vec3(0, width, 0), n1, n2, thickness, 0);
+  ShellBody body(mesh, {steel()}, formulation);
   body.fix_in_box(Aabb{Vec3(-1e-9, -1, -1), Vec3(1e-9, 1, 1)}, dof_all | rotations_all);
   std::vector<Vec3> force(body.node_count(), Vec3::Zero());
   std::vector<std::size_t> tip;
   for (std::size_t i = 0; i < body.node_count(); ++i) {
     if (body.reference_positions()[i].x() > length - 1e-9) tip.push_back(i);
   }
-  ASSERT_EQ(tip.size(), 3u);
+  EXPECT_EQ(tip.size(), n2 + 1);
   for (auto i : tip) {
     const double y = body.reference_positions()[i].y();
-    force[i] = Vec3(0, 0, -load * ((y < 1e-9 || y > width - 1e-9) ? 0.25 : 0.5));
+    force[i] = Vec3(0, 0, -load / static_cast<double>(n2) * ((y < 1e-9 || y > width - 1e-9) ? 0.5 : 1.0));
   }
   const double inertia = width * thickness * thickness * thickness / 12.0;
-  const double expected = load * length * length * length / (3 * 210e9 * inertia);
   const double omega = 1.8751 * 1.8751 * std::sqrt(210e9 * inertia / (7850 * width * thickness)) / (length * length);
   body.set_damping(2 * omega);
   const double dt = 0.9 * body.stable_dt();
@@ -43,14 +58,173 @@ TEST(Shell, CantileverTipDeflectionAgainstBeamTheory) {
     body.integrate(dt_previous, dt, force);
     dt_previous = dt;
   }
-  double deflection = 0;
-  for (auto i : tip) deflection -= body.positions()[i].z() / static_cast<double>(tip.size());
-  std::cout << "shell cantilever tip deflection: measured " << deflection * 1e3 << " mm expected " << expected * 1e3
+  CantileverResult result;
+  for (auto i : tip) result.deflection -= body.positions()[i].z() / static_cast<double>(tip.size());
+  result.expected = load * length * length * length / (3 * 210e9 * inertia);
+  result.energies = body.energies();
+  return result;
+}
+
+}  // namespace
+
+// Strip 1 m x 0.1 m x 10 mm, 20 x 2 shells: P L^3 / (3 E I) = 1.905 mm.
+TEST(Shell, CantileverTipDeflectionAgainstBeamTheory) {
+  const CantileverResult r = cantilever(ShellFormulation::one_point, 0.01, 20, 2);
+  std::cout << "shell cantilever tip deflection: measured " << r.deflection * 1e3 << " mm expected " << r.expected * 1e3
             << " mm\n";
-  EXPECT_NEAR(deflection, expected, 0.02 * expected);
-  const SolidEnergies e = body.energies();
-  std::cout << "hourglass/internal energy: measured " << e.hourglass / e.internal << " limit 0.1\n";
-  EXPECT_LT(std::abs(e.hourglass), 0.1 * e.internal);
+  EXPECT_NEAR(r.deflection, r.expected, 0.02 * r.expected);
+  std::cout << "hourglass/internal energy: measured " << r.energies.hourglass / r.energies.internal << " limit 0.1\n";
+  EXPECT_LT(std::abs(r.energies.hourglass), 0.1 * r.energies.internal);
+}
+
+TEST(Shell, FullyIntegratedCantileverTipDeflectionAgainstBeamTheory) {
+  const CantileverResult r = cantilever(ShellFormulation::fully_integrated, 0.01, 20, 2);
+  std::cout << "fully integrated shell cantilever tip deflection: measured " << r.deflection * 1e3 << " mm expected "
+            << r.expected * 1e3 << " mm\n";
+  EXPECT_NEAR(r.deflection, r.expected, 0.02 * r.expected);
+  std::cout << "hourglass energy: measured " << r.energies.hourglass << " J expected 0\n";
+  EXPECT_EQ(r.energies.hourglass, 0.0);
+}
+
+// Shear locking: 1 m x 0.1 m x 5 mm (length / thickness = 200) with only
+// 8 x 1 shells. Fully integrated transverse shear would lock (the tip moves a
+// small fraction of P L^3 / (3 E I)); the MITC4 assumed shear does not.
+TEST(Shell, ThinCoarseFullyIntegratedCantileverDoesNotLock) {
+  const CantileverResult r = cantilever(ShellFormulation::fully_integrated, 0.005, 8, 1);
+  std::cout << "thin coarse (L/t = 200, 8 x 1) fully integrated cantilever tip deflection: measured "
+            << r.deflection * 1e3 << " mm expected " << r.expected * 1e3 << " mm (ratio " << r.deflection / r.expected
+            << ")\n";
+  EXPECT_NEAR(r.deflection, r.expected, 0.03 * r.expected);
+}
+
+namespace {
+
+// Stiffness of one elastic element, 24 x 24 over the local-frame rates
+// (v_x, v_y, v_z, w_x, w_y, w_z per node): column j is the force after a unit
+// rate of DOF j over dt = 1 from the unstressed state.
+Eigen::Matrix<double, 24, 24> element_stiffness(ShellFormulation formulation, double hourglass_scale) {
+  MaterialParameters unit;
+  unit.density = 1;
+  unit.youngs_modulus = 1;
+  unit.poisson_ratio = 0.3;
+  const QuadNodes x{Vec3(0, 0, 0), Vec3(1.1, 0.1, 0), Vec3(1.2, 0.9, 0), Vec3(-0.1, 1.0, 0)};
+  Eigen::Matrix<double, 24, 24> k;
+  for (int j = 0; j < 24; ++j) {
+    QuadNodes v{}, w{}, force, moment;
+    for (auto* field : {&v, &w}) {
+      for (auto& value : *field) value.setZero();
+    }
+    const auto node = static_cast<std::size_t>(j / 6);
+    if (j % 6 < 3) {
+      v[node](j % 6) = 1;
+    } else {
+      w[node](j % 6 - 3) = 1;
+    }
+    Shell4State state;
+    if (formulation == ShellFormulation::fully_integrated) {
+      Shell4GaussPoints gauss;
+      EXPECT_TRUE(shell4_full_internal_force(unit, 0.1, x, v, w, 1.0, state, gauss, force, moment));
+    } else {
+      EXPECT_TRUE(shell4_internal_force(unit, 0.1, hourglass_scale, x, v, w, 1.0, state, force, moment));
+    }
+    for (std::size_t a = 0; a < 4; ++a) {
+      k.block<3, 1>(static_cast<Eigen::Index>(6 * a), j) = force[a];
+      k.block<3, 1>(static_cast<Eigen::Index>(6 * a + 3), j) = moment[a];
+    }
+  }
+  return k;
+}
+
+int zero_energy_modes(const Eigen::Matrix<double, 24, 24>& k) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 24, 24>> solver(0.5 * (k + k.transpose()));
+  const double largest = solver.eigenvalues().cwiseAbs().maxCoeff();
+  int zero = 0;
+  for (Eigen::Index i = 0; i < 24; ++i) zero += std::abs(solver.eigenvalues()(i)) < 1e-9 * largest ? 1 : 0;
+  return zero;
+}
+
+}  // namespace
+
+// A distorted element's stiffness has exactly the 6 rigid-body modes as zero
+// eigenvalues when fully integrated (drilling included); the one-point
+// element without its hourglass control has the spurious ones too.
+TEST(Shell, FullyIntegratedElementHasOnlyRigidBodyZeroEnergyModes) {
+  const auto full = element_stiffness(ShellFormulation::fully_integrated, 0);
+  const double asymmetry = (full - full.transpose()).cwiseAbs().maxCoeff() / full.cwiseAbs().maxCoeff();
+  const int full_zero = zero_energy_modes(full);
+  const int one_point_zero = zero_energy_modes(element_stiffness(ShellFormulation::one_point, 0));
+  std::cout << "zero-energy modes of one element: fully integrated measured " << full_zero
+            << " expected 6 (rigid body); one-point without hourglass control " << one_point_zero
+            << "; stiffness asymmetry " << asymmetry << "\n";
+  EXPECT_EQ(full_zero, 6);
+  EXPECT_GT(one_point_zero, 6);
+  EXPECT_LT(asymmetry, 1e-12);
+}
+
+// A plastic panel under gravity with an initial velocity field: the same
+// bits on 1 and 2 threads, for both formulations.
+TEST(Shell, SameBitsOnOneAndTwoThreads) {
+  auto run = [](int threads, ShellFormulation formulation) {
+    omp_set_num_threads(threads);
+    MaterialParameters material = steel();
+    material.yield_stress = 50e6;
+    material.tangent_modulus = 1e9;
+    ShellMesh mesh;
+    add_panel(mesh, Vec3::Zero(), Vec3(1, 0, 0), Vec3(0, 0.5, 0.1), 8, 4, 0.01, 0);
+    ShellBody body(mesh, {material}, formulation);
+    body.set_parallel_minimum(0);  // parallel even for this small mesh
+    body.fix_in_box(Aabb{Vec3(-1e-9, -1, -1), Vec3(1e-9, 1, 1)}, dof_all | rotations_all);
+    body.set_gravity(Vec3(0, 0, -9.81));
+    body.set_velocity(Vec3(0.5, -1.0, 20.0));
+    const double dt = 0.9 * body.stable_dt();
+    double dt_previous = 0;
+    for (int n = 0; n < 300; ++n) {
+      body.compute_internal_forces(dt_previous);
+      body.integrate(dt_previous, dt);
+      dt_previous = dt;
+    }
+    EXPECT_GT(body.energies().plastic_work, 0.0);
+    std::vector<Vec3> out(body.positions().begin(), body.positions().end());
+    out.insert(out.end(), body.angular_velocities().begin(), body.angular_velocities().end());
+    return out;
+  };
+  for (ShellFormulation formulation : {ShellFormulation::one_point, ShellFormulation::fully_integrated}) {
+    const auto one = run(1, formulation), two = run(2, formulation);
+    omp_set_num_threads(2);
+    ASSERT_EQ(one.size(), two.size());
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < one.size(); ++i) differing += one[i] == two[i] ? 0 : 1;
+    std::cout << "shell formulation " << static_cast<int>(formulation)
+              << ": node vectors differing on 1 vs 2 threads: " << differing << " of " << one.size() << " expected 0\n";
+    EXPECT_EQ(differing, 0u);
+  }
+}
+
+// element_formulation = "fully_integrated" from a scene file reaches the
+// shells of a building (box with a thickness) and of a plane panel; the
+// default stays one-point.
+TEST(Shell, FormulationFromTheScene) {
+  const auto file = sabo::testing::scratch("shell_formulation.toml");
+  {
+    std::ofstream out(file);
+    out << "format_version = 1\n[run]\nend_time = 1.0\noutput_interval = 0.1\n"
+           "[materials.brick]\ndensity = 2300.0\nyoungs_modulus = 8e9\npoisson_ratio = 0.23\n"
+           "[[structures]]\nname = \"house\"\nmaterial = \"brick\"\nrigid = false\nshape = \"box\"\n"
+           "min = [0.0, 0.0, 0.0]\nmax = [6.0, 4.0, 3.0]\nthickness = 0.24\nelement_size = 1.0\n"
+           "element_formulation = \"fully_integrated\"\n"
+           "[[structures]]\nname = \"wall\"\nmaterial = \"brick\"\nrigid = false\nshape = \"plane\"\n"
+           "origin = [10.0, 0.0, 1.5]\nnormal = [0.0, -1.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\nlength = 4.0\n"
+           "width = 3.0\nthickness = 0.24\nelement_size = 0.5\nelement_formulation = \"fully_integrated\"\n"
+           "[[structures]]\nname = \"shed\"\nmaterial = \"brick\"\nrigid = false\nshape = \"plane\"\n"
+           "origin = [20.0, 0.0, 1.5]\nnormal = [0.0, -1.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\nlength = 2.0\n"
+           "width = 2.0\nthickness = 0.1\nelement_size = 0.5\n";
+  }
+  FemModel model(sabo::scene::load_scene(file));
+  ASSERT_EQ(model.part_count(), 3u);
+  for (std::size_t part = 0; part < 3; ++part) ASSERT_TRUE(model.deformable(part)->is_shell());
+  EXPECT_EQ(model.deformable(0)->shell()->formulation(), ShellFormulation::fully_integrated);
+  EXPECT_EQ(model.deformable(1)->shell()->formulation(), ShellFormulation::fully_integrated);
+  EXPECT_EQ(model.deformable(2)->shell()->formulation(), ShellFormulation::one_point);
 }
 
 // A panel pulled in its plane past the failure strain erodes.
