@@ -202,7 +202,7 @@ TEST(Shell, FullyIntegratedCriticalStepAsOnePoint) {
   }
 }
 
-// A plastic panel under gravity with an initial velocity field, 120 steps:
+// A plastic panel under gravity with an initial velocity field, 40 steps:
 // the same bits on 1 and 2 threads, for both formulations.
 TEST(Shell, SameBitsOnOneAndTwoThreads) {
   auto run = [](int threads, ShellFormulation formulation) {
@@ -219,7 +219,7 @@ TEST(Shell, SameBitsOnOneAndTwoThreads) {
     body.set_velocity(Vec3(0.5, -1.0, 20.0));
     const double dt = 0.9 * body.stable_dt();
     double dt_previous = 0;
-    for (int n = 0; n < 120; ++n) {
+    for (int n = 0; n < 40; ++n) {
       body.compute_internal_forces(dt_previous);
       body.integrate(dt_previous, dt);
       dt_previous = dt;
@@ -244,7 +244,7 @@ TEST(Shell, SameBitsOnOneAndTwoThreads) {
 // element_formulation = "fully_integrated" from a scene file reaches the
 // shells of a building (box with a thickness) and of a plane panel; the
 // default stays one-point.
-TEST(Shell, FormulationFromTheScene) {
+TEST(Shell, FormulationFromTheSceneAndAHouseSettlingUnderGravity) {
   const auto file = sabo::testing::scratch("shell_formulation.toml");
   {
     std::ofstream out(file);
@@ -252,7 +252,7 @@ TEST(Shell, FormulationFromTheScene) {
            "[materials.brick]\ndensity = 2300.0\nyoungs_modulus = 8e9\npoisson_ratio = 0.23\n"
            "[[structures]]\nname = \"house\"\nmaterial = \"brick\"\nrigid = false\nshape = \"box\"\n"
            "min = [0.0, 0.0, 0.0]\nmax = [6.0, 4.0, 3.0]\nthickness = 0.24\nelement_size = 1.0\n"
-           "element_formulation = \"fully_integrated\"\n"
+           "fixed = [\"z-\"]\nelement_formulation = \"fully_integrated\"\n"
            "[[structures]]\nname = \"wall\"\nmaterial = \"brick\"\nrigid = false\nshape = \"plane\"\n"
            "origin = [10.0, 0.0, 1.5]\nnormal = [0.0, -1.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\nlength = 4.0\n"
            "width = 3.0\nthickness = 0.24\nelement_size = 0.5\nelement_formulation = \"fully_integrated\"\n"
@@ -266,6 +266,27 @@ TEST(Shell, FormulationFromTheScene) {
   EXPECT_EQ(model.deformable(0)->shell()->formulation(), ShellFormulation::fully_integrated);
   EXPECT_EQ(model.deformable(1)->shell()->formulation(), ShellFormulation::fully_integrated);
   EXPECT_EQ(model.deformable(2)->shell()->formulation(), ShellFormulation::one_point);
+  // The house (walls welded at the corners, slab and roof: there the drilling
+  // rotations of one panel are the bending rotations of the next) settles
+  // under gravity on its fixed base: bounded, no spurious mode growing.
+  double dt_previous = 0, fastest = 0;
+  for (int n = 0; n < 1000; ++n) {
+    model.compute_internal_forces(dt_previous);
+    model.update_surface();
+    const double dt = 0.9 * model.stable_dt();
+    model.step(dt);
+    dt_previous = dt;
+  }
+  for (const Vec3& v : model.deformable(0)->shell()->velocities()) fastest = std::max(fastest, v.norm());
+  const SolidEnergies e = model.deformable(0)->solid_energies();
+  std::cout << "house of fully integrated shells under gravity after 1000 steps: fastest node " << fastest
+            << " m/s, energy balance " << e.total() << " J (limit 3%) of external work " << e.external_work
+            << " J, drilling energy " << model.deformable(0)->shell()->drilling_energy() << " J\n";
+  EXPECT_TRUE(std::isfinite(fastest));
+  EXPECT_LT(fastest, 0.1);
+  // 0.46 J here; the same house of BLT shells misses by 0.49 J of 50 J (1.0%): the central-difference
+  // accounting of a sudden load, not the element.
+  EXPECT_LT(std::abs(e.total()), 0.03 * e.external_work);
 }
 
 // A panel pulled in its plane past the failure strain erodes.
