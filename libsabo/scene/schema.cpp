@@ -463,7 +463,7 @@ class Schema {
                  "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells (a structure "
                  "with a `thickness`): `one_point`, Belytschko-Lin-Tsay with hourglass control; "
                  "`fully_integrated`, 2 x 2 in-plane points with MITC4 transverse shear (no hourglass modes, no "
-                 "shear locking: for concentrated impact loads; about 2.2 times the cost per element)."),
+                 "shear locking: for concentrated impact loads; about twice the cost per element)."),
         K("floors", Type::integer)
             .def("1")
             .ge(1)

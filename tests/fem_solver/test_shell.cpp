@@ -102,12 +102,19 @@ namespace {
 // Stiffness of one elastic element, 24 x 24 over the local-frame rates
 // (v_x, v_y, v_z, w_x, w_y, w_z per node): column j is the force after a unit
 // rate of DOF j over dt = 1 from the unstressed state.
-Eigen::Matrix<double, 24, 24> element_stiffness(ShellFormulation formulation, double hourglass_scale) {
+MaterialParameters unit_material() {
   MaterialParameters unit;
   unit.density = 1;
   unit.youngs_modulus = 1;
   unit.poisson_ratio = 0.3;
-  const QuadNodes x{Vec3(0, 0, 0), Vec3(1.1, 0.1, 0), Vec3(1.2, 0.9, 0), Vec3(-0.1, 1.0, 0)};
+  return unit;
+}
+
+const QuadNodes kDistorted{Vec3(0, 0, 0), Vec3(1.1, 0.1, 0), Vec3(1.2, 0.9, 0), Vec3(-0.1, 1.0, 0)};
+
+Eigen::Matrix<double, 24, 24> element_stiffness(ShellFormulation formulation, double hourglass_scale,
+                                                const QuadNodes& x = kDistorted, double thickness = 0.1) {
+  const MaterialParameters unit = unit_material();
   Eigen::Matrix<double, 24, 24> k;
   for (int j = 0; j < 24; ++j) {
     QuadNodes v{}, w{}, force, moment;
@@ -123,9 +130,9 @@ Eigen::Matrix<double, 24, 24> element_stiffness(ShellFormulation formulation, do
     Shell4State state;
     if (formulation == ShellFormulation::fully_integrated) {
       Shell4GaussPoints gauss;
-      EXPECT_TRUE(shell4_full_internal_force(unit, 0.1, x, v, w, 1.0, state, gauss, force, moment));
+      EXPECT_TRUE(shell4_full_internal_force(unit, thickness, x, v, w, 1.0, state, gauss, force, moment));
     } else {
-      EXPECT_TRUE(shell4_internal_force(unit, 0.1, hourglass_scale, x, v, w, 1.0, state, force, moment));
+      EXPECT_TRUE(shell4_internal_force(unit, thickness, hourglass_scale, x, v, w, 1.0, state, force, moment));
     }
     for (std::size_t a = 0; a < 4; ++a) {
       k.block<3, 1>(static_cast<Eigen::Index>(6 * a), j) = force[a];
@@ -161,8 +168,42 @@ TEST(Shell, FullyIntegratedElementHasOnlyRigidBodyZeroEnergyModes) {
   EXPECT_LT(asymmetry, 1e-12);
 }
 
-// A plastic panel under gravity with an initial velocity field: the same
-// bits on 1 and 2 threads, for both formulations.
+// The explicit step: the fully integrated element takes the BLT element's
+// stable step (area / longest side / plate speed), so its highest frequency
+// must not exceed the one-point element's. 2 / omega_max of one free element
+// with ShellBody's lumped masses rho t A / 4 and rotational inertias
+// m (t^2 + A) / 12 (the element bound, below the mesh's critical step),
+// thin and thick, square and distorted.
+TEST(Shell, FullyIntegratedCriticalStepAsOnePoint) {
+  const MaterialParameters unit = unit_material();
+  const QuadNodes square{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)};
+  for (const QuadNodes& x : {square, kDistorted}) {
+    for (double thickness : {0.01, 0.3, 1.0}) {
+      const double area = shell4_area(x), mass = unit.density * thickness * area / 4.0;
+      Eigen::Matrix<double, 24, 1> inverse_sqrt_mass;
+      for (Eigen::Index i = 0; i < 24; ++i) {
+        inverse_sqrt_mass(i) = 1.0 / std::sqrt(i % 6 < 3 ? mass : mass * (thickness * thickness + area) / 12.0);
+      }
+      const double step = shell4_characteristic_length(x) / unit.plate_wave_speed();
+      std::array<double, 2> critical{};
+      for (ShellFormulation formulation : {ShellFormulation::one_point, ShellFormulation::fully_integrated}) {
+        const auto k = element_stiffness(formulation, 1.0, x, thickness);
+        const Eigen::Matrix<double, 24, 24> scaled =
+            inverse_sqrt_mass.asDiagonal() * (0.5 * (k + k.transpose())) * inverse_sqrt_mass.asDiagonal();
+        const double omega_max =
+            std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 24, 24>>(scaled).eigenvalues().maxCoeff());
+        critical[static_cast<std::size_t>(formulation)] = 2.0 / omega_max;
+      }
+      std::cout << (x == square ? "square" : "distorted") << " t/L " << thickness
+                << ": element critical step / stable step, one-point " << critical[0] / step
+                << ", fully integrated measured " << critical[1] / step << " limit 0.98 of one-point\n";
+      EXPECT_GT(critical[1], 0.98 * critical[0]);
+    }
+  }
+}
+
+// A plastic panel under gravity with an initial velocity field, 40 steps:
+// the same bits on 1 and 2 threads, for both formulations.
 TEST(Shell, SameBitsOnOneAndTwoThreads) {
   auto run = [](int threads, ShellFormulation formulation) {
     omp_set_num_threads(threads);
@@ -178,7 +219,7 @@ TEST(Shell, SameBitsOnOneAndTwoThreads) {
     body.set_velocity(Vec3(0.5, -1.0, 20.0));
     const double dt = 0.9 * body.stable_dt();
     double dt_previous = 0;
-    for (int n = 0; n < 300; ++n) {
+    for (int n = 0; n < 40; ++n) {
       body.compute_internal_forces(dt_previous);
       body.integrate(dt_previous, dt);
       dt_previous = dt;
@@ -203,7 +244,7 @@ TEST(Shell, SameBitsOnOneAndTwoThreads) {
 // element_formulation = "fully_integrated" from a scene file reaches the
 // shells of a building (box with a thickness) and of a plane panel; the
 // default stays one-point.
-TEST(Shell, FormulationFromTheScene) {
+TEST(Shell, FormulationFromTheSceneAndAHouseSettlingUnderGravity) {
   const auto file = sabo::testing::scratch("shell_formulation.toml");
   {
     std::ofstream out(file);
@@ -211,7 +252,7 @@ TEST(Shell, FormulationFromTheScene) {
            "[materials.brick]\ndensity = 2300.0\nyoungs_modulus = 8e9\npoisson_ratio = 0.23\n"
            "[[structures]]\nname = \"house\"\nmaterial = \"brick\"\nrigid = false\nshape = \"box\"\n"
            "min = [0.0, 0.0, 0.0]\nmax = [6.0, 4.0, 3.0]\nthickness = 0.24\nelement_size = 1.0\n"
-           "element_formulation = \"fully_integrated\"\n"
+           "fixed = [\"z-\"]\nelement_formulation = \"fully_integrated\"\n"
            "[[structures]]\nname = \"wall\"\nmaterial = \"brick\"\nrigid = false\nshape = \"plane\"\n"
            "origin = [10.0, 0.0, 1.5]\nnormal = [0.0, -1.0, 0.0]\ndirection = [1.0, 0.0, 0.0]\nlength = 4.0\n"
            "width = 3.0\nthickness = 0.24\nelement_size = 0.5\nelement_formulation = \"fully_integrated\"\n"
@@ -225,6 +266,27 @@ TEST(Shell, FormulationFromTheScene) {
   EXPECT_EQ(model.deformable(0)->shell()->formulation(), ShellFormulation::fully_integrated);
   EXPECT_EQ(model.deformable(1)->shell()->formulation(), ShellFormulation::fully_integrated);
   EXPECT_EQ(model.deformable(2)->shell()->formulation(), ShellFormulation::one_point);
+  // The house (walls welded at the corners, slab and roof: there the drilling
+  // rotations of one panel are the bending rotations of the next) settles
+  // under gravity on its fixed base: bounded, no spurious mode growing.
+  double dt_previous = 0, fastest = 0;
+  for (int n = 0; n < 1000; ++n) {
+    model.compute_internal_forces(dt_previous);
+    model.update_surface();
+    const double dt = 0.9 * model.stable_dt();
+    model.step(dt);
+    dt_previous = dt;
+  }
+  for (const Vec3& v : model.deformable(0)->shell()->velocities()) fastest = std::max(fastest, v.norm());
+  const SolidEnergies e = model.deformable(0)->solid_energies();
+  std::cout << "house of fully integrated shells under gravity after 1000 steps: fastest node " << fastest
+            << " m/s, energy balance " << e.total() << " J (limit 3%) of external work " << e.external_work
+            << " J, drilling energy " << model.deformable(0)->shell()->drilling_energy() << " J\n";
+  EXPECT_TRUE(std::isfinite(fastest));
+  EXPECT_LT(fastest, 0.1);
+  // 0.46 J here; the same house of BLT shells misses by 0.49 J of 50 J (1.0%): the central-difference
+  // accounting of a sudden load, not the element.
+  EXPECT_LT(std::abs(e.total()), 0.03 * e.external_work);
 }
 
 // A panel pulled in its plane past the failure strain erodes.
