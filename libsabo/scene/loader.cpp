@@ -926,14 +926,15 @@ class Builder {
     if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
     if (auto v = r.vec3("velocity")) structure.velocity = *v;
     if (auto v = r.string("element_formulation")) {
-      structure.element_formulation = *v == "fully_integrated" ? Structure::ElementFormulation::fully_integrated
-                                                               : Structure::ElementFormulation::one_point;
+      structure.element_formulation = *v == "fully_integrated"  ? Structure::ElementFormulation::fully_integrated
+                                      : *v == "enhanced_strain" ? Structure::ElementFormulation::enhanced_strain
+                                                                : Structure::ElementFormulation::one_point;
       if (!structure.rigid && structure.thickness > 0 &&
           structure.element_formulation != Structure::ElementFormulation::one_point) {
         diag_.add(r.line("element_formulation"), r.key_path("element_formulation"),
                   value_text(*r.node("element_formulation")),
-                  "fully integrated elements exist for solids (hexahedra) only; this structure has a thickness "
-                  "(shells)",
+                  "fully integrated and enhanced-strain elements exist for solids (hexahedra) only; this structure "
+                  "has a thickness (shells)",
                   "remove element_formulation (shells are one-point elements), or remove the thickness for a "
                   "solid of hexahedra");
       }

@@ -455,12 +455,13 @@ class Schema {
         K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Deformable: initial velocity."),
         K("element_formulation", Type::string)
             .def("\"one_point\"")
-            .choices({"one_point", "fully_integrated"})
+            .choices({"one_point", "fully_integrated", "enhanced_strain"})
             .only_for({"box", "mesh"})
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
-                 "(cheapest, exact in bending with a few elements through the depth); `fully_integrated`, 2 x 2 "
-                 "x 2 points with the volume change at the element mean (no hourglass modes: for concentrated "
-                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells accept only `one_point`."),
+                 "(cheapest, exact in bending with a few elements through the depth); `enhanced_strain`, 2 x 2 x 2 "
+                 "points with nine condensed incompatible modes (no hourglass modes and accurate in bending: for "
+                 "concentrated impact loads); `fully_integrated`, 2 x 2 x 2 points with the volume change at the "
+                 "element mean (no hourglass modes, stiffer in bending). Shells accept only `one_point`."),
         K("floors", Type::integer)
             .def("1")
             .ge(1)

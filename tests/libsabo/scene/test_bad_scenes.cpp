@@ -97,7 +97,7 @@ const std::vector<BadScene>& bad_scenes() {
        22,
        "structures[0].element_formulation",
        "\"fully_integrated\"",
-       {"fully integrated elements exist for solids (hexahedra) only", "remove element_formulation"}},
+       {"fully integrated and enhanced-strain elements exist for solids (hexahedra) only", "remove element_formulation"}},
       {"slit_on_rigid_box.toml",
        21,
        "structures[0].slit_count",
