@@ -3,8 +3,8 @@
 //
 // hex: a cube of the paper's dam material (MODEL.md: rho 2300, E 8 GPa, nu
 //   0.23, yield 8 MPa, plastic kinematic with tangent modulus 0.8 GPa) meshed
-//   n x n x n with one-point hexahedra (--formulation fully_integrated: 2 x 2
-//   x 2 points), its base fixed, moving at 5 m/s against it: elements yield
+//   n x n x n with one-point hexahedra (--formulation fully_integrated or
+//   enhanced_strain: 2 x 2 x 2 points), its base fixed, moving at 5 m/s against it: elements yield
 //   from the first steps.
 // shell: a square brick wall (240 mm BLT shells, 5 points through the
 //   thickness, the same material; --formulation fully_integrated: 2 x 2
@@ -12,7 +12,7 @@
 //   out of plane at 5 m/s.
 // dt = 0.9 * stable dt. Element-steps per second = elements * steps / wall time.
 //
-//   bench_fem_throughput --kind hex --elements 32768 --steps 50 [--formulation fully_integrated]
+//   bench_fem_throughput --kind hex --elements 32768 --steps 50 [--formulation fully_integrated|enhanced_strain]
 //   bench_fem_throughput --kind shell --elements 16384 --steps 50 [--formulation fully_integrated]
 #include <fmt/format.h>
 #include <omp.h>
@@ -73,10 +73,16 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--steps", steps, "timed steps")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--warmup", warmup, "steps before timing")->check(CLI::NonNegativeNumber)->capture_default_str();
-  app.add_option("--formulation", formulation, "one_point or fully_integrated (hexahedra and shells)")
-      ->check(CLI::IsMember({"one_point", "fully_integrated"}))
+  app.add_option("--formulation", formulation,
+                 "one_point, fully_integrated (hexahedra and shells) or enhanced_strain (hexahedra)")
+      ->check(CLI::IsMember({"one_point", "fully_integrated", "enhanced_strain"}))
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  if (kind == "shell" && formulation == "enhanced_strain") {
+    fmt::print(stderr, "--formulation enhanced_strain is for hexahedra: use --kind hex, or one_point or "
+                       "fully_integrated for shells\n");
+    return 2;
+  }
 
   double wall = 0;
   std::size_t count = 0;
@@ -86,7 +92,9 @@ int main(int argc, char** argv) {
   if (kind == "hex") {
     const auto n = static_cast<std::size_t>(std::max(1.0, std::round(std::cbrt(static_cast<double>(elements)))));
     SolidBody body(structured_box(Aabb{Vec3::Zero(), Vec3(2, 2, 2)}, {n, n, n}), dam_material(),
-                   formulation == "fully_integrated" ? HexFormulation::fully_integrated : HexFormulation::one_point);
+                   formulation == "fully_integrated"  ? HexFormulation::fully_integrated
+                   : formulation == "enhanced_strain" ? HexFormulation::enhanced_strain
+                                                      : HexFormulation::one_point);
     body.fix_in_box(Aabb{Vec3(-1, -1, -1e-9), Vec3(3, 3, 1e-9)}, dof_all);
     body.set_velocity(Vec3(0, 0, -5));
     setup = std::chrono::duration<double>(Clock::now() - setup_start).count();

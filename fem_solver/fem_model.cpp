@@ -117,9 +117,12 @@ void fix_faces(Body& body, const std::vector<std::string>& fixed, unsigned dofs)
 }
 
 HexFormulation hex_formulation(const scene::Structure& structure) {
-  return structure.element_formulation == scene::Structure::ElementFormulation::fully_integrated
-             ? HexFormulation::fully_integrated
-             : HexFormulation::one_point;
+  switch (structure.element_formulation) {
+    case scene::Structure::ElementFormulation::fully_integrated: return HexFormulation::fully_integrated;
+    case scene::Structure::ElementFormulation::enhanced_strain: return HexFormulation::enhanced_strain;
+    case scene::Structure::ElementFormulation::one_point: break;
+  }
+  return HexFormulation::one_point;
 }
 
 ShellFormulation shell_formulation(const scene::Structure& structure) {
@@ -187,11 +190,15 @@ DeformablePart::DeformablePart(const scene::Structure& structure, const scene::S
 }
 
 double DeformablePart::stable_dt() const {
-  return solid_ ? solid_->stable_dt() : shell_->stable_dt();
+  return with_body([](const auto& body) { return body.stable_dt(); });
+}
+
+std::size_t DeformablePart::eroded_count() const {
+  return with_body([](const auto& body) { return body.eroded_count(); });
 }
 
 SolidEnergies DeformablePart::solid_energies() const {
-  return solid_ ? solid_->energies() : shell_->energies();
+  return with_body([](const auto& body) { return body.energies(); });
 }
 
 Energies DeformablePart::energies() const {
@@ -205,36 +212,28 @@ Energies DeformablePart::energies() const {
 }
 
 void DeformablePart::compute_internal_forces(double dt_previous) {
-  if (solid_) {
-    solid_->compute_internal_forces(dt_previous);
-  } else {
-    shell_->compute_internal_forces(dt_previous);
-  }
+  with_body([&](auto& body) { body.compute_internal_forces(dt_previous); });
 }
 
 void DeformablePart::step(double dt, std::span<const Vec3> node_force) {
-  external_.assign(solid_ ? solid_->node_count() : shell_->node_count(), Vec3::Zero());
+  external_.assign(with_body([](const auto& body) { return body.node_count(); }), Vec3::Zero());
   for (std::size_t i = 0; i < node_force.size() && i < surface_nodes_.size(); ++i) {
     external_[surface_nodes_[i]] = node_force[i];
   }
-  if (solid_) {
-    solid_->integrate(dt_previous_, dt, external_);
-  } else {
-    shell_->integrate(dt_previous_, dt, external_);
-  }
+  with_body([&](auto& body) { body.integrate(dt_previous_, dt, external_); });
   dt_previous_ = dt;
 }
 
 Vec3 DeformablePart::position(std::size_t node) const {
-  return solid_ ? solid_->positions()[node] : shell_->positions()[node];
+  return with_body([&](const auto& body) { return body.positions()[node]; });
 }
 
 Vec3 DeformablePart::velocity(std::size_t node) const {
-  return solid_ ? solid_->velocities()[node] : shell_->velocities()[node];
+  return with_body([&](const auto& body) { return body.velocities()[node]; });
 }
 
 BodyState DeformablePart::save_state() const {
-  BodyState state = solid_ ? solid_->save_state() : shell_->save_state();
+  BodyState state = with_body([](const auto& body) { return body.save_state(); });
   state.real.push_back(dt_previous_);
   return state;
 }
@@ -244,17 +243,13 @@ void DeformablePart::restore_state(const BodyState& state, const std::string& wh
   BodyState body = state;
   dt_previous_ = body.real.back();
   body.real.pop_back();
-  if (solid_) {
-    solid_->restore_state(body, what);
-  } else {
-    shell_->restore_state(body, what);
-  }
+  with_body([&](auto& part_body) { part_body.restore_state(body, what); });
   surface_built_ = false;
   refresh_surface();
 }
 
 bool DeformablePart::refresh_surface() {
-  const std::uint64_t revision = solid_ ? solid_->topology_revision() : shell_->topology_revision();
+  const std::uint64_t revision = with_body([](const auto& body) { return body.topology_revision(); });
   if (surface_built_ && surface_revision_ == revision) return false;
   surface_built_ = true;
   surface_revision_ = revision;
@@ -284,7 +279,7 @@ bool DeformablePart::refresh_surface() {
 
 geometry::SurfaceMesh DeformablePart::surface() const {
   geometry::SurfaceMesh mesh;
-  const std::span<const double> masses = solid_ ? solid_->masses() : shell_->masses();
+  const std::span<const double> masses = with_body([](const auto& body) { return body.masses(); });
   for (std::uint32_t n : surface_nodes_) {
     mesh.node_id.push_back(n);  // the model offsets ids per part
     mesh.node_position.push_back(position(n));
@@ -314,10 +309,10 @@ geometry::SurfaceMesh DeformablePart::surface() const {
 }
 
 void DeformablePart::write_volume(const std::filesystem::path& file, const io::vtk::Options& options) const {
-  const std::size_t elements = solid_ ? solid_->element_count() : shell_->element_count();
-  const std::span<const Vec3> positions = solid_ ? solid_->positions() : shell_->positions();
-  const std::span<const Vec3> reference = solid_ ? solid_->reference_positions() : shell_->reference_positions();
-  const std::span<const Vec3> velocities = solid_ ? solid_->velocities() : shell_->velocities();
+  const std::size_t elements = with_body([](const auto& body) { return body.element_count(); });
+  const std::span<const Vec3> positions = with_body([](const auto& body) { return body.positions(); });
+  const std::span<const Vec3> reference = with_body([](const auto& body) { return body.reference_positions(); });
+  const std::span<const Vec3> velocities = with_body([](const auto& body) { return body.velocities(); });
   std::vector<std::int64_t> connectivity, offsets;
   std::vector<io::vtk::CellType> types(elements, solid_ ? io::vtk::CellType::hexahedron : io::vtk::CellType::quad);
   std::vector<double> stress(6 * elements), mises(elements), plastic(elements);

@@ -22,6 +22,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fem_solver/shell_body.hpp"
@@ -81,7 +82,7 @@ class DeformablePart final : public Part {
   [[nodiscard]] bool is_shell() const { return shell_ != nullptr; }
   [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
   [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
-  [[nodiscard]] std::size_t eroded_count() const { return solid_ ? solid_->eroded_count() : shell_->eroded_count(); }
+  [[nodiscard]] std::size_t eroded_count() const;
   // Checkpoint and restart: the body's evolving state with the part's last
   // step dt appended; restore_state also rebuilds the surface of the active elements.
   [[nodiscard]] BodyState save_state() const;
@@ -91,6 +92,18 @@ class DeformablePart final : public Part {
   void write_volume(const std::filesystem::path& file, const io::vtk::Options& options) const;
 
  private:
+  // f(body) on the solid or the shell body: the members both share.
+  template <class F>
+  decltype(auto) with_body(F&& f) const {
+    if (solid_) return f(std::as_const(*solid_));
+    return f(std::as_const(*shell_));
+  }
+  template <class F>
+  decltype(auto) with_body(F&& f) {
+    if (solid_) return f(*solid_);
+    return f(*shell_);
+  }
+
   std::unique_ptr<SolidBody> solid_;
   std::unique_ptr<ShellBody> shell_;
   std::vector<double> bulk_modulus_;           // per material of the shell mesh (solids: one)

@@ -23,7 +23,7 @@ SolidBody::SolidBody(HexMesh mesh, const MaterialParameters& material, double ho
   mass_.assign(nodes, 0.0);
   fixed_.assign(nodes, 0);
   state_.assign(elements, Hex8State{});
-  if (formulation_ == HexFormulation::fully_integrated) gauss_.assign(elements, Hex8GaussPoints{});
+  if (formulation_ != HexFormulation::one_point) gauss_.assign(elements, Hex8GaussPoints{});
   active_.assign(elements, 1);
   element_force_.assign(8 * elements, Vec3::Zero());
   element_dt_.assign(elements, std::numeric_limits<double>::infinity());
@@ -80,13 +80,24 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
       x[a] = position_[mesh_.element[e][a]];
       v[a] = velocity_[mesh_.element[e][a]];
     }
-    const bool ok = formulation_ == HexFormulation::fully_integrated
-                        ? hex8_full_internal_force(material_, x, v, dt_previous, state_[e], gauss_[e], force)
-                        : hex8_internal_force(material_, hourglass_scale_, x, v, dt_previous, state_[e], force);
+    bool ok = false;
+    switch (formulation_) {
+      case HexFormulation::one_point:
+        ok = hex8_internal_force(material_, hourglass_scale_, x, v, dt_previous, state_[e], force);
+        break;
+      case HexFormulation::fully_integrated:
+        ok = hex8_full_internal_force(material_, x, v, dt_previous, state_[e], gauss_[e], force);
+        break;
+      case HexFormulation::enhanced_strain:
+        ok = hex8_enhanced_internal_force(material_, x, v, dt_previous, state_[e], gauss_[e], force);
+        break;
+    }
     // An inverted element has failed too: it can carry no stress.
     element_failed_[e] = (!ok || (material_.erodes() && failed(material_, state_[e].point))) ? 1 : 0;
     for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a] = force[a];
-    element_dt_[e] = ok ? hex8_characteristic_length(x) / wave_speed : std::numeric_limits<double>::infinity();
+    // The one-point element's volume at x_n is hex8_volume(x), bit for bit: not computed twice.
+    const double volume = formulation_ == HexFormulation::one_point ? state_[e].volume : hex8_volume(x);
+    element_dt_[e] = ok ? hex8_characteristic_length(x, volume) / wave_speed : std::numeric_limits<double>::infinity();
   }
   const std::size_t newly_eroded =
       erode_failed_elements(element_failed_, state_, active_, element_dt_, erosion_, [&](std::size_t e) {

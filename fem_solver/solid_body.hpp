@@ -1,8 +1,8 @@
 #pragma once
 // A deformable solid: hexahedra of one material, lumped nodal masses, fixed
 // degrees of freedom, gravity, explicit central-difference integration and
-// element erosion (docs/physics.md "FEM solids"); one-point or fully
-// integrated hexahedra (HexFormulation).
+// element erosion (docs/physics.md "FEM solids"); one-point, fully integrated
+// or enhanced-strain hexahedra (HexFormulation).
 //
 // Step n (the CoupledSolver contract, DESIGN.md §2): the body holds x_n and
 // v_{n-1/2}.
@@ -32,6 +32,7 @@ namespace sabo::fem {
 enum class HexFormulation {
   one_point,         // one point, hourglass stabilised (hex8_internal_force)
   fully_integrated,  // 2 x 2 x 2 points, mean dilatation (hex8_full_internal_force)
+  enhanced_strain,   // 2 x 2 x 2 points, condensed incompatible modes (hex8_enhanced_internal_force)
 };
 
 enum Dof : unsigned { dof_x = 1, dof_y = 2, dof_z = 4, dof_all = 7 };
@@ -99,7 +100,7 @@ class SolidBody {
   std::vector<double> mass_;
   std::vector<std::uint8_t> fixed_;  // Dof bits per node
   std::vector<Hex8State> state_;
-  std::vector<Hex8GaussPoints> gauss_;  // per element, fully integrated only
+  std::vector<Hex8GaussPoints> gauss_;  // per element, 2 x 2 x 2 formulations only
   std::vector<std::uint8_t> active_;    // 1: not eroded
   std::vector<Vec3> element_force_;     // 8 per element
   std::vector<double> element_dt_;      // per element

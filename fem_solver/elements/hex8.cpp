@@ -102,6 +102,83 @@ bool gauss_geometry(const HexNodes& x, GaussGeometry& g) {
   return true;
 }
 
+// The incompatible modes' gradients at the Gauss points of a geometry and
+// their elastic condensation matrix H (factorised).
+struct EnhancedGeometry {
+  std::array<std::array<Vec3, 3>, 8> gradient;  // [p][m]: g_m(p), 1/m
+  Eigen::LLT<Eigen::Matrix<double, 9, 9>> condensation;
+};
+
+bool enhanced_geometry(const HexNodes& x, const GaussGeometry& gauss, const MaterialParameters& material,
+                       EnhancedGeometry& e) {
+  Geometry centre;
+  if (!geometry(x, centre)) return false;
+  const double centre_det = centre.volume / 8.0;
+  // Columns: grad xi_m at the centre, J_0^-T e_m.
+  const Mat3 natural_gradient = centre.jacobian.inverse().transpose();
+  const double r = 1.0 / std::sqrt(3.0);
+  for (std::size_t p = 0; p < 8; ++p) {
+    const double scale = centre_det / gauss.weight[p];
+    for (std::size_t m = 0; m < 3; ++m)
+      e.gradient[p][m] = (-2.0 * r * kNatural[p][m] * scale) * natural_gradient.col(static_cast<Eigen::Index>(m));
+  }
+  // H_(m,i)(n,j) = sum_p w_p [lambda g_m,i g_n,j + G (delta_ij g_m . g_n + g_m,j g_n,i)].
+  const double lambda = material.lame_lambda(), shear = material.shear_modulus();
+  Eigen::Matrix<double, 9, 9> h = Eigen::Matrix<double, 9, 9>::Zero();
+  for (std::size_t p = 0; p < 8; ++p) {
+    const auto& g = e.gradient[p];
+    const double w = gauss.weight[p];
+    for (Eigen::Index m = 0; m < 3; ++m) {
+      for (Eigen::Index n = 0; n < 3; ++n) {
+        const Vec3& gm = g[static_cast<std::size_t>(m)];
+        const Vec3& gn = g[static_cast<std::size_t>(n)];
+        const Mat3 block =
+            w * (lambda * gm * gn.transpose() + shear * gm.dot(gn) * Mat3::Identity() + shear * gn * gm.transpose());
+        h.block<3, 3>(3 * m, 3 * n) += block;
+      }
+    }
+  }
+  e.condensation.compute(h);
+  return e.condensation.info() == Eigen::Success;
+}
+
+// sum_p w_p Gamma_p^T tau_p: component (m, i) = sum_p w_p (tau_p g_m(p))_i.
+Eigen::Matrix<double, 9, 1> project_on_modes(const GaussGeometry& gauss, const EnhancedGeometry& e,
+                                             const std::array<Mat3, 8>& tau) {
+  Eigen::Matrix<double, 9, 1> out = Eigen::Matrix<double, 9, 1>::Zero();
+  for (std::size_t p = 0; p < 8; ++p) {
+    for (Eigen::Index m = 0; m < 3; ++m)
+      out.segment<3>(3 * m) += gauss.weight[p] * (tau[p] * e.gradient[p][static_cast<std::size_t>(m)]);
+  }
+  return out;
+}
+
+// sum_m a_m (x) g_m(p): the incompatible modes' velocity (or displacement) gradient at p.
+Mat3 enhanced_gradient(const EnhancedGeometry& e, std::size_t p, const Eigen::Matrix<double, 9, 1>& a) {
+  Mat3 out = Mat3::Zero();
+  for (Eigen::Index m = 0; m < 3; ++m)
+    out += Vec3(a.segment<3>(3 * m)) * e.gradient[p][static_cast<std::size_t>(m)].transpose();
+  return out;
+}
+
+// C : sym(m) for the isotropic elastic operator.
+Mat3 elastic_stress(const MaterialParameters& material, const Mat3& m) {
+  const Mat3 symmetric = 0.5 * (m + m.transpose());
+  return material.lame_lambda() * symmetric.trace() * Mat3::Identity() + 2.0 * material.shear_modulus() * symmetric;
+}
+
+// The mean of the points' histories (output, erosion).
+MaterialPoint mean_point(const Hex8GaussPoints& gauss) {
+  MaterialPoint mean;
+  for (const MaterialPoint& point : gauss) {
+    mean.stress += point.stress / 8.0;
+    mean.back_stress += point.back_stress / 8.0;
+    mean.strain += point.strain / 8.0;
+    mean.plastic_strain += point.plastic_strain / 8.0;
+  }
+  return mean;
+}
+
 Mat3 deviator(const Mat3& m) {
   return m - (m.trace() / 3.0) * Mat3::Identity();
 }
@@ -115,13 +192,16 @@ double hex8_volume(const HexNodes& x) {
 }
 
 double hex8_characteristic_length(const HexNodes& x) {
+  return hex8_characteristic_length(x, hex8_volume(x));
+}
+
+double hex8_characteristic_length(const HexNodes& x, double volume) {
   double largest_area = 0;
   for (const auto& face : hex_faces()) {
     const Vec3 d1 = x[static_cast<std::size_t>(face[2])] - x[static_cast<std::size_t>(face[0])];
     const Vec3 d2 = x[static_cast<std::size_t>(face[3])] - x[static_cast<std::size_t>(face[1])];
     largest_area = std::max(largest_area, 0.5 * d1.cross(d2).norm());
   }
-  const double volume = hex8_volume(x);
   return largest_area > 0 && volume > 0 ? volume / largest_area : 0.0;
 }
 
@@ -271,19 +351,56 @@ bool hex8_full_internal_force(const MaterialParameters& material, const HexNodes
   GaussGeometry g;
   if (!gauss_geometry(x, g)) return false;
   state.volume = g.volume;
-  MaterialPoint mean;
   for (std::size_t p = 0; p < 8; ++p) {
     const Mat3& stress = gauss[p].stress;
     const Mat3 stress_deviator = deviator(stress);
     const double pressure_weight = g.weight[p] * stress.trace() / 3.0;
     for (std::size_t a = 0; a < 8; ++a)
       force[a] += g.weight[p] * (stress_deviator * g.gradient[p][a]) + pressure_weight * g.mean_gradient[a];
-    mean.stress += stress / 8.0;
-    mean.back_stress += gauss[p].back_stress / 8.0;
-    mean.strain += gauss[p].strain / 8.0;
-    mean.plastic_strain += gauss[p].plastic_strain / 8.0;
   }
-  state.point = mean;
+  state.point = mean_point(gauss);
+  return true;
+}
+
+bool hex8_enhanced_internal_force(const MaterialParameters& material, const HexNodes& x, const HexNodes& velocity,
+                                  double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force) {
+  for (auto& f : force) f.setZero();
+  if (dt_previous > 0) {
+    HexNodes mid;
+    for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt_previous * velocity[a];
+    GaussGeometry gm;
+    EnhancedGeometry em;
+    if (!gauss_geometry(mid, gm) || !enhanced_geometry(mid, gm, material, em)) return false;
+    std::array<Mat3, 8> velocity_gradient, elastic_rate;
+    for (std::size_t p = 0; p < 8; ++p) {
+      velocity_gradient[p].setZero();
+      for (std::size_t a = 0; a < 8; ++a) velocity_gradient[p] += velocity[a] * gm.gradient[p][a].transpose();
+      elastic_rate[p] = elastic_stress(material, velocity_gradient[p]);
+    }
+    const Eigen::Matrix<double, 9, 1> mode_rate = -em.condensation.solve(project_on_modes(gm, em, elastic_rate));
+    for (std::size_t p = 0; p < 8; ++p) {
+      const Mat3 gradient = velocity_gradient[p] + enhanced_gradient(em, p, mode_rate);
+      const Mat3 rate = 0.5 * (gradient + gradient.transpose());
+      const Mat3 spin = 0.5 * (gradient - gradient.transpose());
+      const Mat3 old_stress = gauss[p].stress;
+      const MaterialUpdate update = update_stress(material, rate, spin, dt_previous, gauss[p]);
+      state.internal_energy +=
+          dt_previous * gm.weight[p] * 0.5 * (old_stress + gauss[p].stress).cwiseProduct(rate).sum();
+      state.plastic_work += gm.weight[p] * update.plastic_work_density;
+    }
+  }
+  GaussGeometry g;
+  EnhancedGeometry e;
+  if (!gauss_geometry(x, g) || !enhanced_geometry(x, g, material, e)) return false;
+  state.volume = g.volume;
+  std::array<Mat3, 8> stress;
+  for (std::size_t p = 0; p < 8; ++p) stress[p] = gauss[p].stress;
+  const Eigen::Matrix<double, 9, 1> residual = e.condensation.solve(project_on_modes(g, e, stress));
+  for (std::size_t p = 0; p < 8; ++p) {
+    const Mat3 effective = stress[p] - elastic_stress(material, enhanced_gradient(e, p, residual));
+    for (std::size_t a = 0; a < 8; ++a) force[a] += g.weight[p] * (effective * g.gradient[p][a]);
+  }
+  state.point = mean_point(gauss);
   return true;
 }
 

@@ -46,6 +46,8 @@ struct Hex8State {
 
 // Characteristic length for the explicit step: volume / largest face area, m.
 [[nodiscard]] double hex8_characteristic_length(const HexNodes& x);
+// The same with the volume hex8_volume(x) already known, m.
+[[nodiscard]] double hex8_characteristic_length(const HexNodes& x, double volume);
 
 // Advances the stress with v_{n-1/2} over dt_previous (nothing at dt_previous
 // = 0), then computes the internal force on each node at x_n (N; the
@@ -70,5 +72,26 @@ bool hex8_internal_force(const MaterialParameters& material, double hourglass_sc
 using Hex8GaussPoints = std::array<MaterialPoint, 8>;
 bool hex8_full_internal_force(const MaterialParameters& material, const HexNodes& x, const HexNodes& velocity,
                               double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force);
+
+// The enhanced-strain hexahedron (element_formulation = "enhanced_strain"):
+// the 2 x 2 x 2 Gauss points of the fully integrated element plus Wilson's
+// nine incompatible modes u += alpha_mi (1 - xi_m^2) e_i, with Taylor's
+// (QM6) gradients g_m(p) = (det J_0 / det J_p) J_0^-T d(1 - xi_m^2)/d xi at
+// point p, so that the constant strain patch test holds. The incompatible
+// parameters are condensed in rate form with the elastic operator C:
+//   alpha_dot = -H^-1 l,  H = sum_p w_p Gamma_p^T C Gamma_p,  l = sum_p w_p Gamma_p^T C D_p(v),
+// giving an assumed velocity gradient L_p = grad v(p) + sum_m a_m (x) g_m(p)
+// (a B-bar-type operator B~ = B - Gamma H^-1 L, linear in v, recomputed on the
+// mid-step geometry each step) and the consistent forces
+//   f_a = sum_p w_p (sigma_p - C : sym(sum_m s_m (x) g_m(p))) grad N_a(p),
+//   s = H^-1 sum_p w_p Gamma_p^T sigma_p   (zero for an elastic body).
+// Exact in pure bending of rectangular elements (the incompatible modes carry
+// the parasitic shear and the Poisson strain through the depth), no
+// zero-energy modes (the condensed stiffness is the Wilson/QM6 one: rank 18),
+// hence no hourglass control; the volume change is not averaged (no mean
+// dilatation). Same arguments, return and time levels as
+// hex8_full_internal_force.
+bool hex8_enhanced_internal_force(const MaterialParameters& material, const HexNodes& x, const HexNodes& velocity,
+                                  double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force);
 
 }  // namespace sabo::fem

@@ -926,8 +926,18 @@ class Builder {
     if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
     if (auto v = r.vec3("velocity")) structure.velocity = *v;
     if (auto v = r.string("element_formulation")) {
-      structure.element_formulation = *v == "fully_integrated" ? Structure::ElementFormulation::fully_integrated
-                                                               : Structure::ElementFormulation::one_point;
+      structure.element_formulation = *v == "fully_integrated"  ? Structure::ElementFormulation::fully_integrated
+                                      : *v == "enhanced_strain" ? Structure::ElementFormulation::enhanced_strain
+                                                                : Structure::ElementFormulation::one_point;
+      if (!structure.rigid && structure.thickness > 0 &&
+          structure.element_formulation == Structure::ElementFormulation::enhanced_strain) {
+        diag_.add(r.line("element_formulation"), r.key_path("element_formulation"),
+                  value_text(*r.node("element_formulation")),
+                  "enhanced-strain elements exist for solids (hexahedra) only; this structure has a thickness "
+                  "(shells)",
+                  "use element_formulation = \"fully_integrated\" (MITC4 shells) or \"one_point\", or remove the "
+                  "thickness for a solid of hexahedra");
+      }
     }
     const bool building_keys = shape && *shape == "box";
     if (building_keys) {

@@ -224,8 +224,9 @@ struct Structure {
   std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
   Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
   // Deformable solids: one-point hexahedra with hourglass control, or fully
-  // integrated (2 x 2 x 2 points, mean dilatation) without zero-energy modes.
-  enum class ElementFormulation { one_point, fully_integrated };
+  // integrated (2 x 2 x 2 points, mean dilatation) or enhanced-strain (2 x 2 x 2
+  // points, condensed incompatible modes) without zero-energy modes.
+  enum class ElementFormulation { one_point, fully_integrated, enhanced_strain };
   ElementFormulation element_formulation = ElementFormulation::one_point;
   double thickness = 0;  // m: shell thickness for the eq. 3 offset (0: solid face)
   Shape shape;

@@ -455,15 +455,16 @@ class Schema {
         K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Deformable: initial velocity."),
         K("element_formulation", Type::string)
             .def("\"one_point\"")
-            .choices({"one_point", "fully_integrated"})
+            .choices({"one_point", "fully_integrated", "enhanced_strain"})
             .only_for({"box", "mesh", "plane"})
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
-                 "(cheapest, exact in bending with a few elements through the depth); `fully_integrated`, 2 x 2 "
-                 "x 2 points with the volume change at the element mean (no hourglass modes: for concentrated "
-                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells (a structure "
-                 "with a `thickness`): `one_point`, Belytschko-Lin-Tsay with hourglass control; "
-                 "`fully_integrated`, 2 x 2 in-plane points with MITC4 transverse shear (no hourglass modes, no "
-                 "shear locking: for concentrated impact loads; about twice the cost per element)."),
+                 "(cheapest, exact in bending with a few elements through the depth); `enhanced_strain`, 2 x 2 x 2 "
+                 "points with nine condensed incompatible modes (no hourglass modes and accurate in bending: for "
+                 "concentrated impact loads); `fully_integrated`, 2 x 2 x 2 points with the volume change at the "
+                 "element mean (no hourglass modes, stiffer in bending). Shells (a structure with a `thickness`): "
+                 "`one_point`, Belytschko-Lin-Tsay with hourglass control; `fully_integrated`, 2 x 2 in-plane "
+                 "points with MITC4 transverse shear (no hourglass modes, no shear locking: for concentrated "
+                 "impact loads; about twice the cost per element); `enhanced_strain` is for solids only."),
         K("floors", Type::integer)
             .def("1")
             .ge(1)

@@ -158,6 +158,10 @@ TEST(FemRestart, FullyIntegratedRestoredModelContinuesWithTheSameBits) {
   check_restart(Formulation::fully_integrated, "checkpoint_fem_full.h5");
 }
 
+TEST(FemRestart, EnhancedStrainRestoredModelContinuesWithTheSameBits) {
+  check_restart(Formulation::enhanced_strain, "checkpoint_fem_enhanced.h5");
+}
+
 TEST(FemRestart, CheckpointOfAnotherSceneIsRefused) {
   const auto file = sabo::testing::scratch("checkpoint_other.h5");
   FemModel model(restart_scene());

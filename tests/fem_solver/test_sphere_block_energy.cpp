@@ -9,8 +9,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <numbers>
+#include <sstream>
+#include <vector>
 
 #include "coupler/contact/surface_contact.hpp"
 #include "fem_solver/fem_model.hpp"
@@ -51,8 +54,10 @@ struct ImpactResult {
 };
 
 // Sphere r = 0.25 m, 196 kg (granite), 10 m/s down onto the block's top; 0.07 s.
+// dt_factor: of the block's stable step (cubic elements need less than 0.9,
+// docs/physics.md "FEM solids"); the run's max_dt bounds the step too.
 ImpactResult impact(double penalty_scale, double element_size, bool plastic,
-                    Formulation formulation = Formulation::one_point) {
+                    Formulation formulation = Formulation::one_point, double dt_factor = 0.9) {
   const double max_dt = 5e-5;  // s, the scene's run.max_dt
   sabo::fem::FemModel model(block_scene(element_size, plastic, formulation));
   sabo::scene::SurfaceContact settings;
@@ -95,7 +100,7 @@ ImpactResult impact(double penalty_scale, double element_size, bool plastic,
     const sabo::coupler::ParticleView view{id, position, vel, angular, radii, masses, {}};
     contact.compute(view, dt_previous, out);
     model.apply_node_forces(out.node_force);
-    const double dt = std::min({0.9 * model.stable_dt(), contact.stable_dt(), max_dt});
+    const double dt = std::min({dt_factor * model.stable_dt(), contact.stable_dt(), max_dt});
     // The sphere as dem_solver steps it: v_{n+1/2} = v_{n-1/2} + dt_avg F_n / m.
     const Vec3 force(out.particle_force[0], out.particle_force[1], out.particle_force[2]);
     const Vec3 old_velocity = velocity;
@@ -179,4 +184,56 @@ TEST(FemSphereBlockEnergy, FullyIntegratedImpactHasNoHourglassEnergyAndIsBounded
   EXPECT_GT(one_point.worst_hourglass_share, 0.1);  // the case the formulation is for
   EXPECT_NEAR(full.deepest, one_point.deepest, 0.15 * one_point.deepest);
   EXPECT_NEAR(full.rebound_speed, one_point.rebound_speed, 0.1 * std::abs(one_point.rebound_speed));
+}
+
+// Enhanced-strain hexahedra (the e2e scene's formulation): no hourglass energy,
+// the impact energy-bounded, and the dent close to the fully integrated
+// block's (both free of hourglass modes).
+TEST(FemSphereBlockEnergy, EnhancedStrainImpactHasNoHourglassEnergyAndIsBounded) {
+  const ImpactResult enhanced = impact(1.0, 0.125, true, Formulation::enhanced_strain);
+  const ImpactResult full = impact(1.0, 0.125, true, Formulation::fully_integrated);
+  const double rise = (enhanced.largest - enhanced.initial) / enhanced.initial;
+  std::cout << "enhanced strain, 0.125 m hexahedra, k1 = 1.0: energy rise measured " << 100 * rise
+            << " % limit 1 %; hourglass/internal measured " << enhanced.worst_hourglass_share << " expected 0; depth "
+            << 1e3 * enhanced.deepest << " mm (fully integrated " << 1e3 * full.deepest << "); rebound "
+            << enhanced.rebound_speed << " m/s (fully integrated " << full.rebound_speed << "); plastic work "
+            << enhanced.plastic_work << " J (fully integrated " << full.plastic_work << ") of " << enhanced.initial
+            << " J\n";
+  EXPECT_LT(rise, 0.01);
+  EXPECT_EQ(enhanced.worst_hourglass_share, 0.0);
+  EXPECT_NEAR(enhanced.deepest, full.deepest, 0.15 * full.deepest);
+  EXPECT_NEAR(enhanced.rebound_speed, full.rebound_speed, 0.1 * std::abs(full.rebound_speed));
+}
+
+// Mesh convergence of the dent's plastic work (enhanced strain, 0.125 /
+// 0.0625 / 0.03125 m): the observed order p = log2((W1 - W2) / (W2 - W3)) and
+// the Richardson extrapolation W3 + (W3 - W2) / (2^p - 1). The finest mesh
+// takes minutes: outside the suite (--gtest_also_run_disabled_tests; the
+// element sizes can be overridden with SABO_BLOCK_SIZES="0.125 0.0625").
+// The step is 0.6 of the stable one: the 0.03125 m cubes at 0.9 of it gain
+// 15.7 % energy (the cube's step estimate is not conservative); the coarser
+// blocks run at max_dt, below 0.7 of theirs, either way.
+TEST(FemSphereBlockEnergy, DISABLED_EnhancedStrainPlasticWorkConvergence) {
+  std::vector<double> sizes{0.125, 0.0625, 0.03125};
+  if (const char* text = std::getenv("SABO_BLOCK_SIZES")) {
+    sizes.clear();
+    std::istringstream in(text);
+    for (double size = 0; in >> size;) sizes.push_back(size);
+  }
+  std::vector<double> work;
+  for (double size : sizes) {
+    const ImpactResult r = impact(1.0, size, true, Formulation::enhanced_strain, 0.6);
+    work.push_back(r.plastic_work);
+    std::cout << "enhanced strain, " << size << " m hexahedra: plastic work " << r.plastic_work << " J, depth "
+              << 1e3 * r.deepest << " mm, rebound " << r.rebound_speed << " m/s, energy rise "
+              << 100 * (r.largest - r.initial) / r.initial << " %, hourglass/internal " << r.worst_hourglass_share
+              << std::endl;
+    EXPECT_LT((r.largest - r.initial) / r.initial, 0.02);
+  }
+  ASSERT_GE(work.size(), 3u);
+  const double ratio = (work[0] - work[1]) / (work[1] - work[2]);
+  const double order = std::log2(std::abs(ratio));
+  std::cout << "plastic work change ratio (W1 - W2) / (W2 - W3): " << ratio << ", observed order " << order
+            << ", Richardson estimate " << work[2] + (work[2] - work[1]) / (std::pow(2.0, order) - 1) << " J\n";
+  EXPECT_GT(ratio, 1.0);  // converging: the change shrinks as the mesh is halved
 }
