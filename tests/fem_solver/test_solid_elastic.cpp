@@ -182,15 +182,20 @@ TEST(SolidElastic, DISABLED_CantileverTipDeflectionEnhancedStrainFourThroughTheD
   EXPECT_NEAR(deflection, expected, 0.03 * expected);
 }
 
-TEST(SolidElastic, CantileverFrequenciesEnhancedStrain) {
-  SolidBody first = cantilever(2, HexFormulation::enhanced_strain);
-  const double f1 = measured_frequency(first, 1.8751, 0.7341, 0.04);
-  SolidBody second = cantilever(2, HexFormulation::enhanced_strain);
-  const double f2 = measured_frequency(second, 4.6941, 1.0185, 0.012);
-  std::cout << "bending frequencies (enhanced strain, 2 through the depth): measured " << f1 << " / " << f2
-            << " Hz expected 41.78 / 261.8 Hz\n";
-  EXPECT_NEAR(f1, 41.78, 0.02 * 41.78);
-  EXPECT_NEAR(f2, 261.8, 0.02 * 261.8);
+TEST(SolidElastic, CantileverFirstFrequencyEnhancedStrain) {
+  SolidBody body = cantilever(2, HexFormulation::enhanced_strain);
+  const double f = measured_frequency(body, 1.8751, 0.7341, 0.04);
+  std::cout << "first bending frequency (enhanced strain, 2 through the depth): measured " << f
+            << " Hz expected 41.78 Hz\n";
+  EXPECT_NEAR(f, 41.78, 0.02 * 41.78);
+}
+
+TEST(SolidElastic, CantileverSecondFrequencyEnhancedStrain) {
+  SolidBody body = cantilever(2, HexFormulation::enhanced_strain);
+  const double f = measured_frequency(body, 4.6941, 1.0185, 0.012);
+  std::cout << "second bending frequency (enhanced strain, 2 through the depth): measured " << f
+            << " Hz expected 261.8 Hz\n";
+  EXPECT_NEAR(f, 261.8, 0.02 * 261.8);
 }
 
 TEST(SolidElastic, CantileverFirstFrequency) {

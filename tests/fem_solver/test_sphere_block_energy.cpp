@@ -213,6 +213,11 @@ TEST(FemSphereBlockEnergy, EnhancedStrainImpactHasNoHourglassEnergyAndIsBounded)
 // The step is 0.6 of the stable one: the 0.03125 m cubes at 0.9 of it gain
 // 15.7 % energy (the cube's step estimate is not conservative); the coarser
 // blocks run at max_dt, below 0.7 of theirs, either way.
+// It FAILS today (measured 2096 / 2539 / 3821 J, depth 34 / 44 / 145 mm,
+// energy rise 0.20 / 0.40 / 0.24 %: the change grows as the mesh is halved):
+// the eq. 6 face stiffness k1 K s^2 / V falls with the element size, so the
+// sphere sinks deeper on finer blocks and the contact, not only the element,
+// changes with the mesh (docs/physics.md "FEM solids").
 TEST(FemSphereBlockEnergy, DISABLED_EnhancedStrainPlasticWorkConvergence) {
   std::vector<double> sizes{0.125, 0.0625, 0.03125};
   if (const char* text = std::getenv("SABO_BLOCK_SIZES")) {
