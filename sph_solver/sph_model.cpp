@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -28,6 +29,9 @@ constexpr std::int64_t kMaxCells = std::int64_t{1} << 27;
 constexpr std::uint32_t kLanes = 16;
 // Particles per block of the energy sums (fixed: the same bits on any number of threads).
 constexpr std::size_t kEnergyBlock = 4096;
+// Kernel moments per wall slot for the stress extrapolation: W, W p, W e (3), W e e^T (6),
+// W p e (3), W S_f (6), e = x_f - x_w.
+constexpr std::size_t kWallMoments = 20;
 // Padding slots sit this far (m) from everything: outside every support.
 constexpr float kFarAway = 1e6f;
 
@@ -173,11 +177,12 @@ void resize_padded(std::vector<V>& array, std::size_t count, V pad) {
 }
 
 // Adds to s the deviatoric stress that the shear traction grows by over the distance
-// d_n (m) along the wall normal n: t n + n t, t = rho (a_w - g) less its part along n,
-// times d_n (the tangential momentum balance next to a wall, d(S.n)/dn = rho (a - g)
-// along the wall; its normal part is the pressure's, eq. 27).
-inline void add_wall_shear(float rho, const Vec3& a_minus_g, const Vec3& n, float d_n, Sym6& s) {
-  const Vec3 t = double{rho} * double{d_n} * (a_minus_g - a_minus_g.dot(n) * n);
+// d_n (m) along the wall normal n: t n + n t, t = d_n times the part of `growth` along the
+// wall, growth = rho (a_w - g) + grad p (the tangential momentum balance next to a wall,
+// d(S.n)_t/dn = rho (a - g)_t + (grad p)_t, docs/physics.md; the normal part is the
+// pressure's, eq. 27).
+inline void add_wall_shear(const Vec3& growth, const Vec3& n, double d_n, Sym6& s) {
+  const Vec3 t = d_n * (growth - growth.dot(n) * n);
   s.xx += static_cast<float>(2.0 * t.x() * n.x());
   s.yy += static_cast<float>(2.0 * t.y() * n.y());
   s.zz += static_cast<float>(2.0 * t.z() * n.z());
@@ -443,43 +448,64 @@ void SphModel::gather() {
 
 void SphModel::compute_boundary_state() {
   boundary_pressure_.assign(boundary_.size(), 0.0);
-  with_terms(kernel_.type, any_gradient_, false, DensityDiffusion::none, [&](auto terms) { boundary_state(terms); });
-  if (has_stress_) extrapolate_wall_stress();
+  if (has_stress_) bmoment_.resize(kWallMoments * b_order_.size());
+  with_terms(kernel_.type, any_gradient_, has_stress_, DensityDiffusion::none,
+             [&](auto terms) { boundary_state(terms); });
+  if (has_stress_) {
+    boundary_stress_.assign(6 * boundary_.size(), 0.0);
+    extrapolate_wall_stress();
+  }
 }
 
 // Elastic-plastic fluids: the wall carries the fluid's deviatoric stress extrapolated like
-// the pressure, S_w = sum_f (S_f + shear growth over (x_w - x_f).n) W / sum W. With S_w = S_f
-// (no growth) the bed takes too little shear: in the S8 set-up the bottom row slid at
-// 0.05 m/s at 0.8 tau_y (0.03 m/s with the growth).
+// the pressure, with its growth along the normal (docs/physics.md, "Walls"):
+//   S_w = <S_f> + t n + n t,  t = d_n (rho_w (a_w - g) + grad p) less its part along n
+// (the tangential momentum balance, less the divergence of S along the wall, which is left
+// out: estimated from the particles' stresses it fed their noise back through the wall, and
+// a column at rest no longer ran), <.> = sum_f (.) W_wf / sum_f W_wf, d_n = (x_w - <x_f>).n, and grad p the
+// weighted least-squares slope of the fluid pressures around the wall particle (along a
+// vertical wall it balances gravity: without it the wall took a false shear rho g d_n).
+// All from the kernel moments boundary_state() summed.
 void SphModel::extrapolate_wall_stress() {
   const std::size_t nb = b_order_.size();
-  const std::size_t f_stride = f_order_.size() + kLanes, b_stride = nb + kLanes;
-  const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
+  const std::size_t b_stride = nb + kLanes;
   const auto count = static_cast<std::int64_t>(nb);
 #pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto s = static_cast<std::size_t>(k);
     const std::uint32_t id = b_order_[s];
-    const Vec3& position = boundary_.position[id];
-    const Vec3& n = boundary_.normal[id];
-    const Vec3 a_minus_g = boundary_.acceleration[id] - gravity_;
-    const float x = bx_[s], y = by_[s], z = bz_[s];
-    double sum_w = 0, sum[6] = {0, 0, 0, 0, 0, 0};
-    for_neighbours(position.x(), position.y(), position.z(), f_cell_start_, [&](std::uint32_t j) {
-      const float rx = x - fx_[j], ry = y - fy_[j], rz = z - fz_[j];
-      const float r2 = rx * rx + ry * ry + rz * rz;
-      if (r2 >= support2) return;
-      const double w = kernel_.value(std::sqrt(double{r2}));
-      Sym6 s_f = load_sym6(fstress_.data(), f_stride, j);
-      add_wall_shear(frho_[j], a_minus_g, n,
-                     rx * static_cast<float>(n.x()) + ry * static_cast<float>(n.y()) + rz * static_cast<float>(n.z()),
-                     s_f);
-      sum_w += w;
-      const float components[6] = {s_f.xx, s_f.yy, s_f.zz, s_f.xy, s_f.yz, s_f.zx};
-      for (std::size_t q = 0; q < 6; ++q) sum[q] += w * components[q];
-    });
+    const double* m = &bmoment_[kWallMoments * s];
+    Sym6 s_w;
+    if (m[0] > 0) {
+      const double inverse_w = 1.0 / m[0];
+      s_w = {static_cast<float>(m[14] * inverse_w), static_cast<float>(m[15] * inverse_w),
+             static_cast<float>(m[16] * inverse_w), static_cast<float>(m[17] * inverse_w),
+             static_cast<float>(m[18] * inverse_w), static_cast<float>(m[19] * inverse_w)};
+      const Vec3 mean_e = Vec3(m[2], m[3], m[4]) * inverse_w;  // <x_f - x_w>
+      Mat3 covariance;
+      covariance << m[5], m[8], m[10], m[8], m[6], m[9], m[10], m[9], m[7];
+      covariance = covariance * inverse_w - mean_e * mean_e.transpose();
+      const Vec3 pressure_covariance = Vec3(m[11], m[12], m[13]) * inverse_w - (m[1] * inverse_w) * mean_e;
+      // Pseudo-inverse: no slope along a direction the neighbours do not span.
+      const Eigen::SelfAdjointEigenSolver<Mat3> eigen(covariance);
+      const double tolerance = 1e-3 * eigen.eigenvalues().maxCoeff();
+      Mat3 inverse = Mat3::Zero();
+      for (int e = 0; e < 3; ++e) {
+        const double lambda = eigen.eigenvalues()(e);
+        if (lambda > tolerance && lambda > 0) {
+          const Vec3 v = eigen.eigenvectors().col(e);
+          inverse += v * v.transpose() / lambda;
+        }
+      }
+      const Vec3 grad_p = inverse * pressure_covariance;
+      const Vec3& n = boundary_.normal[id];
+      const Vec3 growth = double{brho_[s]} * (boundary_.acceleration[id] - gravity_) + grad_p;
+      add_wall_shear(growth, n, -mean_e.dot(n), s_w);
+    }
+    const float components[6] = {s_w.xx, s_w.yy, s_w.zz, s_w.xy, s_w.yz, s_w.zx};
     for (std::size_t q = 0; q < 6; ++q) {
-      bstress_[q * b_stride + s] = sum_w > 0 ? static_cast<float>(sum[q] / sum_w) : 0.0f;
+      bstress_[q * b_stride + s] = components[q];
+      boundary_stress_[6 * id + q] = components[q];
     }
   }
 }
@@ -497,6 +523,8 @@ void SphModel::boundary_state(T) {
   const float* fvz = fvz_.data();
   const float* frho = frho_.data();
   const float* fpr = fpr_.data();
+  const float* fstress = fstress_.data();
+  const std::size_t stress_stride = f_order_.size() + kLanes;
   // With one fluid material the material of every wall particle is known.
   const bool one_material = std::all_of(fmat_.begin(), fmat_.begin() + static_cast<std::ptrdiff_t>(f_order_.size()),
                                         [&](std::uint32_t m) { return m == fmat_[0]; });
@@ -514,6 +542,8 @@ void SphModel::boundary_state(T) {
                    gaz = static_cast<float>(g_minus_a.z());
         alignas(64) float sum_w[kLanes] = {}, sum_pw[kLanes] = {}, sum_rho_r_g[kLanes] = {};
         alignas(64) float svx[kLanes] = {}, svy[kLanes] = {}, svz[kLanes] = {};
+        // Stress terms: sums of W e, W e e^T, W p e and W S_f, e = x_f - x_w (extrapolate_wall_stress).
+        alignas(64) float moment[kWallMoments - 2][kLanes] = {};
         const float x = bx_[s], y = by_[s], z = bz_[s];
         const Vec3& position = boundary_.position[id];
         for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
@@ -526,8 +556,31 @@ void SphModel::boundary_state(T) {
             const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
             const float rho_j = frho[j];
             sum_w[l] += w;
-            sum_pw[l] += fpr[j] * rho_j * rho_j * w;
+            const float pw = fpr[j] * rho_j * rho_j * w;
+            sum_pw[l] += pw;
             sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
+            if constexpr (T::stress) {
+              const float ex = -rx, ey = -ry, ez = -rz;
+              moment[0][l] += w * ex;
+              moment[1][l] += w * ey;
+              moment[2][l] += w * ez;
+              moment[3][l] += w * ex * ex;
+              moment[4][l] += w * ey * ey;
+              moment[5][l] += w * ez * ez;
+              moment[6][l] += w * ex * ey;
+              moment[7][l] += w * ey * ez;
+              moment[8][l] += w * ez * ex;
+              moment[9][l] += pw * ex;
+              moment[10][l] += pw * ey;
+              moment[11][l] += pw * ez;
+              const Sym6 s_j = load_sym6(fstress, stress_stride, j);
+              moment[12][l] += w * s_j.xx;
+              moment[13][l] += w * s_j.yy;
+              moment[14][l] += w * s_j.zz;
+              moment[15][l] += w * s_j.xy;
+              moment[16][l] += w * s_j.yz;
+              moment[17][l] += w * s_j.zx;
+            }
             if constexpr (T::viscous) {
               svx[l] += fvx[j] * w;
               svy[l] += fvy[j] * w;
@@ -543,6 +596,16 @@ void SphModel::boundary_state(T) {
           total_vx += svx[l];
           total_vy += svy[l];
           total_vz += svz[l];
+        }
+        if constexpr (T::stress) {
+          double* out = &bmoment_[kWallMoments * s];
+          out[0] = total_w;
+          out[1] = total_pw;
+          for (std::size_t q = 0; q + 2 < kWallMoments; ++q) {
+            double total = 0;
+            for (std::uint32_t l = 0; l < kLanes; ++l) total += moment[q][l];
+            out[q + 2] = total;
+          }
         }
         std::uint32_t material = fmat_.empty() ? 0 : fmat_[0];
         if (!one_material && total_w > 0) {

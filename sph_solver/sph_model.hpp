@@ -123,6 +123,9 @@ class SphModel {
   [[nodiscard]] std::span<const Vec3> boundary_forces() const { return boundary_force_; }
   // Pressure (Pa) extrapolated onto each boundary particle in the last compute.
   [[nodiscard]] std::span<const double> boundary_pressures() const { return boundary_pressure_; }
+  // Deviatoric stress (Pa, xx yy zz xy yz zx) extrapolated onto each boundary particle in the
+  // last compute; empty without elastic-plastic fluids.
+  [[nodiscard]] std::span<const double> boundary_stresses() const { return boundary_stress_; }
 
   void compute_internal_forces(double dt_previous);
   // force: 3 doubles per listed id, N. Throws ProtocolError on a size mismatch or an unknown id.
@@ -251,6 +254,7 @@ class SphModel {
   physics::BoundaryParticles boundary_;
   std::vector<Vec3> boundary_force_;
   std::vector<double> boundary_pressure_;
+  std::vector<double> boundary_stress_;  // Pa, 6 per boundary particle by id (only with stress)
 
   // Uniform grid (cell size 2h) and the cell-ordered working copies, single precision,
   // structure of arrays (fluid f*, boundary b*), padded by kLanes entries so that the
@@ -270,6 +274,7 @@ class SphModel {
   std::vector<double> fgrad_;           // 9 per sorted fluid particle: L = dv/dx (only with gradients)
   std::vector<float> fstress_;          // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
   std::vector<float> bstress_;          // Pa, per sorted wall slot like fstress_: the fluid's stress extrapolated
+  std::vector<double> bmoment_;         // kernel moments per sorted wall slot (only with stress; sph_model.cpp)
   std::vector<float> feta_;             // effective viscosity per sorted fluid particle, Pa s (only with gradients)
   std::vector<double> out_drho_;        // drho/dt per sorted fluid particle, kg/m^3/s
   double max_mu_ = 0;                   // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <numbers>
+#include <utility>
 
 #include "coupler/contact/surface_contact.hpp"
 #include "libsabo/geometry/primitives.hpp"
@@ -303,6 +304,7 @@ geometry::SurfaceMesh container_planes(const Vec3& min, const Vec3& max) {
 // channel 4 dx wide with free-slip side walls (inviscid fluid: quasi 2-D), walls
 // either boundary particles or the coupler's penalty contact (SurfaceContact, the
 // kernel the coupler runs for sph_fem pairs) against the five planes of the channel.
+constexpr double kMaxShift = 0.6;
 struct DamBreakResult {
   double error = 0, error_unshifted = 0, shift = 0, e0 = 0, e_max = 0;
   std::size_t lost = 0;
@@ -328,7 +330,8 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
   DamBreakResult result;
   result.e0 = result.e_max = model.energies().total();
   double t = 0, dt_previous = 0;
-  while (t < 3.6 * time_scale) {
+  // To T = 3.33 + kMaxShift: the largest shift searched below.
+  while (t < (3.33 + kMaxShift + 0.02) * time_scale) {
     model.compute_internal_forces(dt_previous);
     double dt = model.stable_dt();
     if (penalty_walls) dt = std::min(dt, walls.apply(dt_previous));
@@ -341,7 +344,8 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
     // The contact springs' energy belongs to the total, as in the coupler's accounting.
     result.e_max = std::max(result.e_max, model.energies().total() + (penalty_walls ? walls.out.elastic_energy : 0.0));
   }
-  // RMS relative error over 0.84 <= T <= 3.33, best time shift |s| <= 0.3 (gate lag).
+  // RMS relative error over 0.84 <= T <= 3.33, best time shift searched over |s| <= kMaxShift
+  // (the experiment's gate lag); the check below holds |s| <= 0.3, so it can fail.
   const auto error_with_shift = [&](double shift) {
     double sum = 0;
     int count = 0;
@@ -358,7 +362,8 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
     return std::sqrt(sum / count);
   };
   result.error_unshifted = result.error = error_with_shift(0);
-  for (double shift = -0.3; shift <= 0.3001; shift += 0.01) {
+  for (int k = -60; k <= 60; ++k) {
+    const double shift = 0.01 * k;
     if (const double e = error_with_shift(shift); e < result.error) {
       result.error = e;
       result.shift = shift;
@@ -377,7 +382,8 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
 
 void check_dam_break(const char* walls, const DamBreakResult& r) {
   std::cout << "S1 front RMS error, " << walls << ": measured " << 100 * r.error_unshifted << " % without shift, "
-            << 100 * r.error << " % with shift " << r.shift << " in T; expected <= 8 %\n";
+            << 100 * r.error << " % with shift " << r.shift << " in T (searched over +-" << kMaxShift
+            << "); expected <= 8 % and |shift| <= 0.3\n";
   std::cout << "S1 energy, " << walls << " (kinetic + potential + compression): initial " << r.e0 << " J, largest "
             << r.e_max << " J (expected not above initial by more than 0.1 %: density diffusion changes density "
             << "without work)\n";
@@ -453,6 +459,96 @@ TEST(SphValidation, S4HydrostaticTankWithPenaltyWalls) {
 namespace sabo::sph {
 namespace {
 
+// Shear traction of the stress extrapolated onto the side-wall particles (horizontal
+// normal n, 0 < z < top), |t - (t.n) n| with t = S_w n, and the same of S_w - <S_f>, the
+// growth from the fluid's kernel average <S_f> = sum_f S_f W / sum_f W to the wall (Pa):
+// returns the largest traction, the mean traction and the mean growth.
+struct WallShear {
+  double largest = 0, mean = 0, mean_growth = 0;
+};
+WallShear side_wall_shear(const SphModel& model, double top) {
+  const auto& walls = model.boundary();
+  const auto wall_stress = model.boundary_stresses();
+  const auto fluid_stress = model.deviatoric_stress();
+  const auto tangential = [](const Mat3& S, const Vec3& n) {
+    const Vec3 t = S * n;
+    return (t - t.dot(n) * n).norm();
+  };
+  const auto tensor = [](const double* s) {
+    Mat3 S;
+    S << s[0], s[3], s[5], s[3], s[1], s[4], s[5], s[4], s[2];
+    return S;
+  };
+  WallShear out;
+  int count = 0;
+  for (std::size_t b = 0; b < walls.size(); ++b) {
+    const Vec3& n = walls.normal[b];
+    const double z = walls.position[b].z();
+    if (std::abs(n.z()) > 1e-9 || z <= 0 || z >= top) continue;
+    Mat3 mean_fluid = Mat3::Zero();
+    double sum_w = 0;
+    for (std::size_t i = 0; i < model.size(); ++i) {
+      const double r = (model.positions()[i] - walls.position[b]).norm();
+      if (r >= model.kernel().support()) continue;
+      const double w = model.kernel().value(r);
+      mean_fluid += w * tensor(&fluid_stress[6 * i]);
+      sum_w += w;
+    }
+    if (sum_w <= 0) continue;
+    const Mat3 S_w = tensor(&wall_stress[6 * b]);
+    const double shear = tangential(S_w, n);
+    out.largest = std::max(out.largest, shear);
+    out.mean += shear;
+    out.mean_growth += tangential(S_w - mean_fluid / sum_w, n);
+    ++count;
+  }
+  if (count > 0) {
+    out.mean /= count;
+    out.mean_growth /= count;
+  }
+  return out;
+}
+
+// An elastic-plastic column at rest in a tank with boundary-particle walls. The wall stress
+// is the fluid's extrapolated with its growth along the normal, d(S.n)_t/dn = rho (a - g)_t +
+// (grad p)_t (docs/physics.md); without the pressure gradient the vertical walls got a false
+// shear rho g d_n: measured before the fix, at the start (S = 0 everywhere) largest 438 Pa,
+// mean 179 Pa (rho g dx = 196 Pa). After the start the column has its own stress (it settles
+// elastically against no-slip walls), and the growth from the fluid's average to the wall
+// is printed, not held: it leaves out the divergence of S along the wall (docs/physics.md),
+// which the settled column has. Not held either: the top rows of an elastic free surface
+// jitter (largest speed printed).
+TEST(SphValidation, ElasticPlasticColumnAtRestPutsNoFalseShearOnVerticalWalls) {
+  const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1, rho = 1000;
+  scene::Scene s = s4_tank_scene(dx, L, W, H, g);
+  scene::Material& m = s.materials[0];
+  m.rheology = scene::Material::Rheology::elastic_plastic;
+  m.yield_stress = 580;  // Pa, the S8 slurry's (sigma_y = sqrt(3) tau_y)
+  m.fluid_shear_modulus = 1e5;
+  SphModel model(s);
+  model.set_boundary(container_walls(Vec3(0, 0, 0), Vec3(L, W, H + 4 * dx), dx, 3));
+  model.compute_internal_forces(0);
+  // Below the top rows.
+  const double submerged = H - 2 * model.kernel().h;
+  const WallShear start = side_wall_shear(model, submerged);
+  double max_speed = 0;
+  run_until(model, 2.0 * std::sqrt(H / g), [&](double) {
+    for (const Vec3& v : model.velocities()) max_speed = std::max(max_speed, v.norm());
+  });
+  model.compute_internal_forces(0);
+  const WallShear end = side_wall_shear(model, submerged);
+  const double scale = rho * g * dx;
+  std::cout << "side-wall shear traction, elastic-plastic column at rest, at the start: measured largest "
+            << start.largest << " Pa, mean " << start.mean
+            << " Pa; expected 0 (held to 0.05 rho g dx = " << 0.05 * scale << " Pa)\n";
+  std::cout << "after 2 sqrt(H/g): traction largest " << end.largest << " Pa, mean " << end.mean
+            << " Pa; growth from the fluid's average to the wall: measured mean " << end.mean_growth
+            << " Pa (the divergence of S along the wall is left out; not held)\n";
+  std::cout << "largest speed over the run: " << max_speed / std::sqrt(g * H)
+            << " sqrt(gH) (the jitter of the top rows; not held)\n";
+  EXPECT_LT(start.largest, 0.05 * scale);
+}
+
 // S8 arrest on a slope, elastic-plastic (the paper's slurry model): a layer on a
 // floor under gravity tilted by theta (the slope) stops when thinner than
 // h_c = tau_y / (rho g sin theta). Here the von Mises yield stress sigma_y gives
@@ -460,7 +556,7 @@ namespace {
 // open at both ends and sides; the mean downslope displacement of the central third between
 // t_end / 3 and t_end is compared. The layers start in their static shear state and the floor
 // carries the extrapolated stress (without it the bed slipped). Known shortfall, documented in
-// docs/physics.md: the 0.9 h_c layer still creeps (11 mm against 37 mm), because a finite
+// docs/physics.md: the 0.9 h_c layer still creeps (9.0 mm against 35.7 mm), because a finite
 // layer is not the benchmark's infinite one: its free ends and sides need S_xx = p to stand,
 // more than sigma_y at this depth, so they collapse and drag the whole 24 x 8 dx layer past
 // yield (a 48 x 8 dx layer as well: von Mises at yield in the bottom rows after 8 ms with S_xz
