@@ -460,7 +460,8 @@ class Schema {
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
                  "(cheapest, exact in bending with a few elements through the depth); `fully_integrated`, 2 x 2 "
                  "x 2 points with the volume change at the element mean (no hourglass modes: for concentrated "
-                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells accept only `one_point`."),
+                 "impact loads; about 2.5 times the cost per element, stiffer in bending). Shells accept only "
+                 "`one_point`."),
         K("floors", Type::integer)
             .def("1")
             .ge(1)
@@ -588,7 +589,13 @@ class Schema {
         "of paper eqs. 3-6 (`[contact.sph_fem]`).";
     sph.keys = {
         K("particle_spacing", Type::number).required("0.02").unit("m").gt(0).doc("Initial particle spacing dx."),
-        K("smoothing_ratio", Type::number).def("1.3").ge(0.5).le(3).doc("h / dx."),
+        K("smoothing_ratio", Type::number)
+            .def("1.5")
+            .ge(0.5)
+            .le(3)
+            .doc("h / dx. The default 1.5 keeps a Wendland C2 lattice at rest (about 100 neighbours); at 1.3 it "
+                 "rearranges (docs/physics.md, \"The kernel at rest\"). With the cubic spline 1.3 holds and 1.5 "
+                 "does not."),
         K("kernel", Type::string)
             .def("\"wendland_c2\"")
             .choices({"wendland_c2", "cubic_spline"})
