@@ -17,7 +17,7 @@ namespace {
 using namespace sabo;
 
 scene::SphSettings::Kernel kernel_choice = scene::SphSettings::Kernel::wendland_c2;
-double smoothing_ratio = 1.3;
+double smoothing_ratio = 1.5;
 
 scene::Scene water(double dx, double c, const Aabb& domain) {
   scene::Scene s;
@@ -44,9 +44,11 @@ physics::BoundaryParticles tank(const Vec3& min, const Vec3& max, double dx, int
       for (int i = 0; i < count(hi.x() - lo.x()); ++i) {
         const Vec3 p = lo + dx * Vec3(i + 0.5, j + 0.5, k + 0.5);
         if ((p.array() > min.array()).all() && (p.array() < max.array()).all()) continue;
+        // Normal into the fluid: towards the nearest point of the container (floor, wall, edge).
+        const Vec3 inner = p.cwiseMax(min).cwiseMin(max);
         walls.position.push_back(p);
         walls.velocity.push_back(Vec3::Zero());
-        walls.normal.push_back(Vec3::UnitZ());
+        walls.normal.push_back((inner - p).normalized());
         walls.acceleration.push_back(Vec3::Zero());
         walls.volume.push_back(dx * dx * dx);
       }

@@ -540,7 +540,13 @@ void SphModel::boundary_state(T) {
         const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
         const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
                    gaz = static_cast<float>(g_minus_a.z());
-        alignas(64) float sum_w[kLanes] = {}, sum_pw[kLanes] = {}, sum_rho_r_g[kLanes] = {};
+        // Its part along the wall: the head that decides how far the wall particle stands
+        // below the fluid's free surface (the wetted fraction below).
+        const Vec3& normal = boundary_.normal[id];
+        const Vec3 g_along = g_minus_a - g_minus_a.dot(normal) * normal;
+        const auto gtx = static_cast<float>(g_along.x()), gty = static_cast<float>(g_along.y()),
+                   gtz = static_cast<float>(g_along.z());
+        alignas(64) float sum_w[kLanes] = {}, sum_pw[kLanes] = {}, sum_rho_r_g[kLanes] = {}, sum_wet[kLanes] = {};
         alignas(64) float svx[kLanes] = {}, svy[kLanes] = {}, svz[kLanes] = {};
         // Stress terms: sums of W e, W e e^T, W p e and W S_f, e = x_f - x_w (extrapolate_wall_stress).
         alignas(64) float moment[kWallMoments - 2][kLanes] = {};
@@ -556,9 +562,11 @@ void SphModel::boundary_state(T) {
             const float w = inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f;
             const float rho_j = frho[j];
             sum_w[l] += w;
-            const float pw = fpr[j] * rho_j * rho_j * w;
+            const float p_j = fpr[j] * rho_j * rho_j;
+            const float pw = p_j * w;
             sum_pw[l] += pw;
             sum_rho_r_g[l] += rho_j * w * (gax * rx + gay * ry + gaz * rz);
+            sum_wet[l] += (std::max(p_j, 0.0f) + rho_j * (gtx * rx + gty * ry + gtz * rz)) * w;
             if constexpr (T::stress) {
               const float ex = -rx, ey = -ry, ez = -rz;
               moment[0][l] += w * ex;
@@ -588,11 +596,12 @@ void SphModel::boundary_state(T) {
             }
           }
         });
-        double total_w = 0, total_pw = 0, total_rho_r_g = 0, total_vx = 0, total_vy = 0, total_vz = 0;
+        double total_w = 0, total_pw = 0, total_rho_r_g = 0, total_wet = 0, total_vx = 0, total_vy = 0, total_vz = 0;
         for (std::uint32_t l = 0; l < kLanes; ++l) {
           total_w += sum_w[l];
           total_pw += sum_pw[l];
           total_rho_r_g += sum_rho_r_g[l];
+          total_wet += sum_wet[l];
           total_vx += svx[l];
           total_vy += svy[l];
           total_vz += svz[l];
@@ -631,6 +640,18 @@ void SphModel::boundary_state(T) {
         }
         bpr_[s] = static_cast<float>(p / (rho * rho));
         brho_[s] = static_cast<float>(rho);
+        // A wall particle stands for the fluid mirrored behind the wall: where that is air
+        // (above the free surface beside a wall) it must not act. Its volume is scaled by the
+        // wetted fraction of its cell (height cbrt(V)) along the wall: the extrapolated
+        // pressure with only the along-wall head, rho0 |g_t| d, puts the free surface d above
+        // it; 1 at d >= cbrt(V)/2, 0 at d <= -cbrt(V)/2. Fluid tension does not dry a wall
+        // (max(p, 0)); walls across gravity (floors, ceilings) have no along-wall head and stay
+        // whole. Without it the wall particles above a tank's free surface push the fluid
+        // beside them down and inwards with its own p / rho^2: S4's start-up 2.6e-2 sqrt(gH).
+        const double head = eos.rest_density * g_along.norm() * std::cbrt(double{bvol_[s]}) * total_w;
+        if (total_w > 0 && head > 0) {
+          bvol_[s] *= static_cast<float>(std::clamp(0.5 + total_wet / head, 0.0, 1.0));
+        }
         if constexpr (T::viscous) {
           // No-slip wall velocity for the viscous terms: 2 v_w - v_extrapolated (Adami eq. 22).
           const bool any = total_w > 0;

@@ -265,7 +265,7 @@ struct SphSettings {
   enum class Kernel { wendland_c2, cubic_spline };
   enum class WallModel { penalty, boundary_particles };
   double particle_spacing = 0;   // m: initial particle spacing dx, > 0
-  double smoothing_ratio = 1.3;  // h / dx
+  double smoothing_ratio = 1.5;  // h / dx (Wendland C2 at 1.3 does not keep a lattice at rest)
   Kernel kernel = Kernel::wendland_c2;
   WallModel wall_model = WallModel::boundary_particles;
   double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0

@@ -592,7 +592,13 @@ class Schema {
         "of paper eqs. 3-6 (`[contact.sph_fem]`).";
     sph.keys = {
         K("particle_spacing", Type::number).required("0.02").unit("m").gt(0).doc("Initial particle spacing dx."),
-        K("smoothing_ratio", Type::number).def("1.3").ge(0.5).le(3).doc("h / dx."),
+        K("smoothing_ratio", Type::number)
+            .def("1.5")
+            .ge(0.5)
+            .le(3)
+            .doc("h / dx. The default 1.5 keeps a Wendland C2 lattice at rest (about 100 neighbours); at 1.3 it "
+                 "rearranges (docs/physics.md, \"The kernel at rest\"). With the cubic spline 1.3 holds and 1.5 "
+                 "does not."),
         K("kernel", Type::string)
             .def("\"wendland_c2\"")
             .choices({"wendland_c2", "cubic_spline"})

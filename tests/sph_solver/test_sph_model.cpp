@@ -128,6 +128,69 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   std::cout << "bottom-row pressure: expected " << expected << " Pa (rho0 g d = " << 1000 * 9.81 * depth << " Pa)\n";
 }
 
+// Density diffusion at rest, measured through one step of dt = 2e-10 s (the continuity term of
+// the velocities a_n dt / 2 is then 1e-5 of the diffusion): a hydrostatic column 0.2 m deep at
+// c = 3 sqrt(gH), compressed 8 % at the bottom so that Tait is far from linear, no walls.
+// Molteni & Colagrossi: delta-SPH's 2 delta h c sum (rho_j - rho_i) (-F r^2 / (r^2 + eta^2)) V_j,
+// summed here in double, nonzero where the column's kernel is cut off (top, sides).
+// Fourtakas (the dynamic difference, p_j - p_i + rho_mean g.(x_i - x_j)) / c^2): zero at rest,
+// where the static form (rho_j - rho_i) + rho0 g.(x_i - x_j) / c^2 would not be. Tolerances: the
+// pair terms are single precision (p to 6e-8 relative, about 1e-4 Pa here).
+TEST(SphValidation, DensityDiffusionRatesOfAHydrostaticColumn) {
+  const double H = 0.2, dx = 0.02, g = 9.81, c = 3.0 * std::sqrt(g * H), dt = 2e-10;
+  const auto rates = [&](scene::SphSettings::DensityDiffusion mode) {
+    scene::Scene s = water_scene(dx, c);
+    s.sph.density_diffusion = mode;
+    s.fluids.push_back(box_body("column", Vec3(0, 0, 0), Vec3(0.1, 0.1, H)));
+    SphModel model(s);
+    const std::vector<double> before(model.densities().begin(), model.densities().end());
+    model.compute_internal_forces(0);
+    model.integrate(0, dt);
+    std::vector<double> rate(model.size());
+    for (std::size_t i = 0; i < model.size(); ++i) rate[i] = (model.densities()[i] - before[i]) / dt;
+    return std::make_pair(SphModel(s), rate);
+  };
+  auto [model, molteni] = rates(scene::SphSettings::DensityDiffusion::molteni);
+  const auto fourtakas = rates(scene::SphSettings::DensityDiffusion::fourtakas).second;
+  const Kernel& kernel = model.kernel();
+  const double h = kernel.h, eta2 = 0.01 * h * h, scale = 2.0 * model.settings().density_diffusion_delta * h * c;
+  double largest = 0, molteni_error = 0, fourtakas_largest = 0, static_largest = 0;
+  std::size_t largest_at = 0;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    double expected = 0, static_form = 0;
+    for (std::size_t j = 0; j < model.size(); ++j) {
+      const Vec3 r = model.positions()[i] - model.positions()[j];
+      const double r2 = r.squaredNorm();
+      if (j == i || r2 >= 4 * h * h) continue;
+      const double weight =
+          -kernel.gradient_factor(std::sqrt(r2)) * r2 / (r2 + eta2) * model.masses()[j] / model.densities()[j];
+      const double drho = model.densities()[j] - model.densities()[i];
+      expected += drho * weight;
+      static_form += (drho - 1000.0 * g * r.z() / (c * c)) * weight;
+    }
+    expected *= scale;
+    static_form *= scale;
+    if (std::abs(expected) > largest) {
+      largest = std::abs(expected);
+      largest_at = i;
+    }
+    molteni_error = std::max(molteni_error, std::abs(molteni[i] - expected));
+    fourtakas_largest = std::max(fourtakas_largest, std::abs(fourtakas[i]));
+    static_largest = std::max(static_largest, std::abs(static_form));
+  }
+  std::cout << "Molteni drho/dt, largest (particle " << largest_at << ", z = " << model.positions()[largest_at].z()
+            << " m): measured " << molteni[largest_at] << " expected " << (molteni[largest_at] > 0 ? largest : -largest)
+            << " kg/m^3/s; largest difference over the column " << molteni_error << " (<= 1e-4 of the largest)\n";
+  std::cout << "Fourtakas drho/dt at rest, largest: measured " << fourtakas_largest
+            << " kg/m^3/s, expected 0 (<= 3e-4 of Molteni's largest: the pair terms' single-precision pressures); the "
+               "static difference with rho0 would give "
+            << static_largest << "\n";
+  EXPECT_GT(largest, 1.0);
+  EXPECT_LT(molteni_error, 1e-4 * largest);
+  EXPECT_LT(fourtakas_largest, 3e-4 * largest);
+  EXPECT_GT(static_largest, 1e-2 * largest);
+}
+
 // The reduced S4 tank of both S4 tests: water H deep in an L x W box (m), c = 10 sqrt(g H),
 // cubic spline at h = 1.3 dx (see S4HydrostaticTankWithBoundaryParticles), artificial viscosity 0.1.
 scene::Scene s4_tank_scene(double dx, double L, double W, double H, double g) {
@@ -148,13 +211,14 @@ double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
 }
 
 // S4 hydrostatic tank, reduced: H = 0.2 m, dx = H/10, to t = 10 sqrt(H/g) (the
-// benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own.
-// Cubic spline at h = 1.3 dx: with the default Wendland C2 at h = 1.3 dx a cubic lattice at
-// rest is unstable (the kinetic energy grows twentyfold between t = 2 and 5 sqrt(H/g) as the
-// particles rearrange; largest speed 1.9e-2 sqrt(gH)); the cubic spline at 1.3 dx and Wendland
-// at 1.73 dx decay. Known shortfall: the start-up transient (2.5e-2 sqrt(gH) at the free
-// surface beside the walls in the first sqrt(H/g)) and 1.8e-3 sqrt(gH) in the second half are
-// above the benchmark's 1e-3; the test holds the second half to 2.5e-3 sqrt(gH).
+// benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own,
+// up to 4 dx above the free surface (wetted by the fluid only up to it). Cubic spline at
+// h = 1.3 dx, the set-up the figures in docs/physics.md were first taken with (the default,
+// Wendland C2 at h = 1.5 dx, gives 6.5e-3 and 3e-4 sqrt(gH), pressure 0.9 %: bench
+// sph_rest_probe). Known shortfall: the start-up, 5.2e-3 sqrt(gH) at t = 0.25 sqrt(H/g) in
+// the second row beside the walls (the free surface's discrete equilibrium), against the
+// benchmark's 1e-3 from t = 0; the test holds it to 7.5e-3 and the second half to the
+// benchmark's 1e-3 (measured 5.2e-4).
 TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
   SphModel model(s4_tank_scene(dx, L, W, H, g));
@@ -186,18 +250,19 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double side_expected = 1000 * g * H * H * W / 2;
   std::cout << "S4 pressure L2 error: measured " << 100 * error << " % of rho g H, expected <= 2 %\n";
   std::cout << "S4 largest speed / sqrt(gH): measured " << max_speed / std::sqrt(g * H) << " over the run, "
-            << max_speed_late / std::sqrt(g * H) << " in the second half; benchmark bound 1e-3, held here to 2.5e-3 "
-            << "in the second half\n";
+            << max_speed_late / std::sqrt(g * H) << " in the second half; benchmark bound 1e-3, held here to 7.5e-3 "
+            << "over the run (the start-up) and 1e-3 in the second half\n";
   std::cout << "S4 bottom force (mean of the last quarter): measured " << bottom << " N, expected " << weight
-            << " N (+-1.5% here, benchmark 1%)\n";
+            << " N (+-1%)\n";
   std::cout << "S4 side force (mean of the last quarter): measured " << side << " N, expected " << side_expected
             << " N (+-2%)\n";
   std::cout << "S4 total wall force: measured " << -total.z() << " N vs weight "
             << model.masses()[0] * static_cast<double>(model.size()) * g << " N\n";
   EXPECT_LT(error, 0.02);
-  EXPECT_NEAR(bottom / weight, 1.0, 0.015);  // reduced resolution: 1.5 % (benchmark: 1 %)
+  EXPECT_NEAR(bottom / weight, 1.0, 0.01);
   EXPECT_NEAR(side / side_expected, 1.0, 0.02);
-  EXPECT_LT(max_speed_late, 2.5e-3 * std::sqrt(g * H));
+  EXPECT_LT(max_speed, 7.5e-3 * std::sqrt(g * H));
+  EXPECT_LT(max_speed_late, 1e-3 * std::sqrt(g * H));
 }
 
 // Newton's third law between fluid and walls, and the same bits on 1 and 2 threads.

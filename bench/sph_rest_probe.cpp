@@ -1,0 +1,159 @@
+// Where and when a fluid at rest moves (issue 3, S4): the reduced S4 tank (H = 0.2 m,
+// dx = H/res, 0.2 x 0.1 m, c = 10 sqrt(gH), wall particles 3 layers deep up to wall-top dx
+// above the free surface). Every `report` sqrt(H/g) it prints the largest speed of that
+// window over sqrt(gH), the lattice index (i, j, k; k = 9 is the top row at res 10) of the
+// particle that had it and when, the total energy (kinetic + potential + compression) less
+// the initial one, the kinetic energy and the mean neighbour count; at the end the pressure
+// L2 error against rho g (H - z) and the largest energy rise.
+//   bench_sph_rest_probe [--kernel cubic_spline|wendland_c2] [--ratio h/dx] [--alpha A]
+//                        [--diffusion none|molteni|fourtakas] [--delta D] [--periods N]
+//                        [--report P] [--res R] [--wall-top K] [--settle T --damp F]
+// --settle T runs T sqrt(H/g) first with the velocities damped by (1 - F) every step, then
+// zeroes them and starts the clock (a diagnostic of the settled state; not a scene option).
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "sph_solver/sph_model.hpp"
+
+namespace {
+
+using namespace sabo;
+
+physics::BoundaryParticles container_walls(const Vec3& min, const Vec3& max, double dx, int layers) {
+  physics::BoundaryParticles walls;
+  const Vec3 outer_min = min - Vec3::Constant(layers * dx);
+  const Vec3 outer_max(max.x() + layers * dx, max.y() + layers * dx, max.z());
+  const Vec3 extent = outer_max - outer_min;
+  const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
+  for (int k = 0; k < count(extent.z()); ++k) {
+    for (int j = 0; j < count(extent.y()); ++j) {
+      for (int i = 0; i < count(extent.x()); ++i) {
+        const Vec3 p = outer_min + dx * Vec3(i + 0.5, j + 0.5, k + 0.5);
+        if ((p.array() > min.array()).all() && (p.array() < max.array()).all()) continue;
+        const Vec3 inner = p.cwiseMax(min).cwiseMin(max);
+        walls.position.push_back(p);
+        walls.velocity.push_back(Vec3::Zero());
+        walls.normal.push_back((inner - p).normalized());
+        walls.acceleration.push_back(Vec3::Zero());
+        walls.volume.push_back(dx * dx * dx);
+      }
+    }
+  }
+  return walls;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app("S4 tank at rest: where and when the fastest particle is");
+  std::string kernel = "cubic_spline", diffusion = "fourtakas";
+  double ratio = 1.3, alpha = 0.1, delta = 0.1, periods = 10, report = 0.25, res = 10, wall_top = 4, settle = 0,
+         damp = 0.02;
+  app.add_option("--kernel", kernel)->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
+  app.add_option("--ratio", ratio, "h / dx");
+  app.add_option("--alpha", alpha, "artificial viscosity");
+  app.add_option("--diffusion", diffusion)->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
+  app.add_option("--delta", delta, "density diffusion delta");
+  app.add_option("--periods", periods, "run length, sqrt(H/g)");
+  app.add_option("--report", report, "report window, sqrt(H/g)");
+  app.add_option("--res", res, "H / dx");
+  app.add_option("--wall-top", wall_top, "wall height above the free surface, dx");
+  app.add_option("--settle", settle, "damped settling before t = 0, sqrt(H/g)");
+  app.add_option("--damp", damp, "velocity damping per settling step");
+  CLI11_PARSE(app, argc, argv);
+  const double H = 0.2, dx = H / res, g = 9.81, L = 0.2, W = 0.1;
+  scene::Scene s;
+  s.run.gravity = Vec3(0, 0, -g);
+  scene::Material water;
+  water.name = "water";
+  water.density = 1000;
+  water.youngs_modulus = 1e9;
+  water.poisson_ratio = 0.3;
+  s.materials.push_back(water);
+  s.sph.particle_spacing = dx;
+  s.sph.smoothing_ratio = ratio;
+  s.sph.sound_speed = 10 * std::sqrt(g * H);
+  s.sph.kernel =
+      kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
+  s.sph.artificial_viscosity = alpha;
+  s.sph.density_diffusion_delta = delta;
+  s.sph.density_diffusion = diffusion == "none"      ? scene::SphSettings::DensityDiffusion::none
+                            : diffusion == "molteni" ? scene::SphSettings::DensityDiffusion::molteni
+                                                     : scene::SphSettings::DensityDiffusion::fourtakas;
+  scene::FluidBody body;
+  body.name = "water";
+  body.material = "water";
+  body.box = Aabb{Vec3::Zero(), Vec3(L, W, H)};
+  s.fluids.push_back(body);
+  sph::SphModel model(s);
+  model.set_boundary(container_walls(Vec3::Zero(), Vec3(L, W, H + wall_top * dx), dx, 3));
+  const double T = std::sqrt(H / g), U = std::sqrt(g * H);
+  const std::vector<Vec3> x0(model.positions().begin(), model.positions().end());
+  if (settle > 0) {
+    double t = 0, dt_previous = 0;
+    long steps = 0;
+    while (t < settle * T) {
+      model.compute_internal_forces(dt_previous);
+      const double dt = model.stable_dt();
+      model.integrate(dt_previous, dt);
+      t += dt;
+      dt_previous = dt;
+      ++steps;
+      for (Vec3& v : model.velocities()) v *= 1 - damp;
+    }
+    double v_max = 0;
+    for (Vec3& v : model.velocities()) {
+      v_max = std::max(v_max, v.norm());
+      v.setZero();
+    }
+    fmt::print("settled: {} steps, largest speed then {:.3e} sqrt(gH)\n", steps, v_max / U);
+  }
+  const double e0 = model.energies().total();
+  double t = 0, dt_previous = 0, next = report * T, v_window = 0, v_all = 0, e_max = e0, t_fastest = 0;
+  long steps = 0;
+  std::size_t fastest = 0;
+  fmt::print("particles {}, initial energy {:.9g} J\n", model.size(), e0);
+  while (t < periods * T) {
+    model.compute_internal_forces(dt_previous);
+    const double dt = model.stable_dt();
+    model.integrate(dt_previous, dt);
+    t += dt;
+    dt_previous = dt;
+    ++steps;
+    e_max = std::max(e_max, model.energies().total());
+    for (std::size_t i = 0; i < model.size(); ++i) {
+      const double v = model.velocities()[i].norm();
+      if (v > v_window) {
+        v_window = v;
+        fastest = i;
+        t_fastest = t;
+      }
+    }
+    if (t >= next) {
+      const Vec3 p = x0[fastest] / dx - Vec3::Constant(0.5);
+      fmt::print(
+          "t {:6.2f}: largest speed {:.3e} sqrt(gH) at ({:.0f},{:.0f},{:.0f}), t {:.2f}; E - E0 {:.3e} J, kinetic "
+          "{:.3e} J, neighbours {:.1f}\n",
+          t / T, v_window / U, p.x(), p.y(), p.z(), t_fastest / T, model.energies().total() - e0,
+          model.energies().kinetic, model.mean_neighbours());
+      v_all = std::max(v_all, v_window);
+      v_window = 0;
+      next += report * T;
+    }
+  }
+  model.compute_internal_forces(0);
+  double error2 = 0;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
+  }
+  fmt::print("pressure L2 error {:.3f} % of rho g H\n",
+             100 * std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H));
+  fmt::print("steps {}, largest speed {:.3e} sqrt(gH), largest E - E0 {:.3e} J ({:.3e} of E0), left the domain {}\n",
+             steps, v_all / U, e_max - e0, (e_max - e0) / e0, model.lost_count());
+  return 0;
+}
