@@ -202,7 +202,18 @@ double hex8_characteristic_length(const HexNodes& x, double volume) {
     const Vec3 d2 = x[static_cast<std::size_t>(face[3])] - x[static_cast<std::size_t>(face[1])];
     largest_area = std::max(largest_area, 0.5 * d1.cross(d2).norm());
   }
-  return largest_area > 0 && volume > 0 ? volume / largest_area : 0.0;
+  if (!(largest_area > 0 && volume > 0)) return 0.0;
+  // V / A_max alone exceeds the critical step of a cube by 1.36 (its volumetric mode stiffens all three
+  // directions at once). Flanagan & Belytschko (1981) bound the uniform-strain element's highest frequency by
+  // omega^2 <= 8 c^2 sum_a |grad N_a|^2, i.e. L = 1 / sqrt(2 sum_a |grad N_a|^2) = 2 / |J^-1|_F with the
+  // centre's half-length Jacobian (sum_a n_a n_a^T = 8 I) [HexElement.StableStepIsBelowTheCriticalStepOfEveryShape].
+  Mat3 jacobian = Mat3::Zero();
+  for (std::size_t a = 0; a < 8; ++a) {
+    const auto& n = kNatural[a];
+    for (int j = 0; j < 3; ++j) jacobian.col(j) += x[a] * (n[static_cast<std::size_t>(j)] / 8.0);
+  }
+  const double gradient_bound = 2.0 / jacobian.inverse().norm();
+  return std::min(volume / largest_area, gradient_bound);
 }
 
 bool hex8_internal_force(const MaterialParameters& material, double hourglass_scale, const HexNodes& x,

@@ -44,7 +44,8 @@ struct Hex8State {
 // Volume at the element centre, 8 det J, m^3 (exact for parallelepipeds).
 [[nodiscard]] double hex8_volume(const HexNodes& x);
 
-// Characteristic length for the explicit step: volume / largest face area, m.
+// Characteristic length for the explicit step, m: the smaller of volume / largest face area and
+// Flanagan-Belytschko's 1 / sqrt(2 sum_a |grad N_a|^2), below every formulation's critical length.
 [[nodiscard]] double hex8_characteristic_length(const HexNodes& x);
 // The same with the volume hex8_volume(x) already known, m.
 [[nodiscard]] double hex8_characteristic_length(const HexNodes& x, double volume);

@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <iostream>
+#include <utility>
+#include <vector>
 
 #include "fem_solver/elements/hex8.hpp"
 #include "fem_solver/solid_body.hpp"
@@ -141,6 +144,35 @@ TEST(HexElement, EnhancedStrainIsExactInPureBending) {
               << " J expected " << expected << " J, ratio " << energy / expected << "\n";
     if (formulation == HexFormulation::enhanced_strain) {
       EXPECT_NEAR(energy, expected, 1e-4 * expected);
+    }
+  }
+}
+
+// The stable step the body reports, hex8_characteristic_length / c (eq. 7's FEM
+// term), against the element's own critical step 2 / omega_max with lumped
+// masses (rho V / 8 per node): it must not exceed it for any shape or
+// formulation, or a run at beta = 1 diverges; nor be needlessly small.
+TEST(HexElement, StableStepIsBelowTheCriticalStepOfEveryShape) {
+  const auto box = [](double a, double b, double c) {
+    return HexNodes{Vec3(0, 0, 0), Vec3(a, 0, 0), Vec3(a, b, 0), Vec3(0, b, 0),
+                    Vec3(0, 0, c), Vec3(a, 0, c), Vec3(a, b, c), Vec3(0, b, c)};
+  };
+  const MaterialParameters material = test::steel();
+  const std::vector<std::pair<const char*, HexNodes>> shapes = {{"cube", box(0.1, 0.1, 0.1)},
+                                                                {"bar 4:1", box(0.4, 0.1, 0.1)},
+                                                                {"plate 1:4", box(0.1, 0.1, 0.025)},
+                                                                {"distorted", distorted()}};
+  for (const auto& [name, shape] : shapes) {
+    const double node_mass = material.density * hex8_volume(shape) / 8.0;
+    const double estimate = hex8_characteristic_length(shape) / material.wave_speed();
+    for (HexFormulation formulation :
+         {HexFormulation::one_point, HexFormulation::fully_integrated, HexFormulation::enhanced_strain}) {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 24, 24>> solver(stiffness(formulation, shape));
+      const double critical = 2.0 / std::sqrt(solver.eigenvalues().maxCoeff() / node_mass);
+      std::cout << name << ", formulation " << static_cast<int>(formulation) << ": stable step " << estimate
+                << " s, critical " << critical << " s, ratio " << estimate / critical << " (expected in [0.5, 1])\n";
+      EXPECT_LE(estimate, critical) << name;
+      EXPECT_GE(estimate, 0.5 * critical) << name;
     }
   }
 }
