@@ -19,35 +19,9 @@
 #include <vector>
 
 #include "sph_solver/sph_model.hpp"
-
-namespace {
+#include "tests/support/sph_scenes.hpp"
 
 using namespace sabo;
-
-physics::BoundaryParticles container_walls(const Vec3& min, const Vec3& max, double dx, int layers) {
-  physics::BoundaryParticles walls;
-  const Vec3 outer_min = min - Vec3::Constant(layers * dx);
-  const Vec3 outer_max(max.x() + layers * dx, max.y() + layers * dx, max.z());
-  const Vec3 extent = outer_max - outer_min;
-  const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
-  for (int k = 0; k < count(extent.z()); ++k) {
-    for (int j = 0; j < count(extent.y()); ++j) {
-      for (int i = 0; i < count(extent.x()); ++i) {
-        const Vec3 p = outer_min + dx * Vec3(i + 0.5, j + 0.5, k + 0.5);
-        if ((p.array() > min.array()).all() && (p.array() < max.array()).all()) continue;
-        const Vec3 inner = p.cwiseMax(min).cwiseMin(max);
-        walls.position.push_back(p);
-        walls.velocity.push_back(Vec3::Zero());
-        walls.normal.push_back((inner - p).normalized());
-        walls.acceleration.push_back(Vec3::Zero());
-        walls.volume.push_back(dx * dx * dx);
-      }
-    }
-  }
-  return walls;
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app("S4 tank at rest: where and when the fastest particle is");
@@ -67,17 +41,7 @@ int main(int argc, char** argv) {
   app.add_option("--damp", damp, "velocity damping per settling step");
   CLI11_PARSE(app, argc, argv);
   const double H = 0.2, dx = H / res, g = 9.81, L = 0.2, W = 0.1;
-  scene::Scene s;
-  s.run.gravity = Vec3(0, 0, -g);
-  scene::Material water;
-  water.name = "water";
-  water.density = 1000;
-  water.youngs_modulus = 1e9;
-  water.poisson_ratio = 0.3;
-  s.materials.push_back(water);
-  s.sph.particle_spacing = dx;
-  s.sph.smoothing_ratio = ratio;
-  s.sph.sound_speed = 10 * std::sqrt(g * H);
+  scene::Scene s = sph::testing::water_scene(dx, 10 * std::sqrt(g * H), ratio);
   s.sph.kernel =
       kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
   s.sph.artificial_viscosity = alpha;
@@ -85,13 +49,9 @@ int main(int argc, char** argv) {
   s.sph.density_diffusion = diffusion == "none"      ? scene::SphSettings::DensityDiffusion::none
                             : diffusion == "molteni" ? scene::SphSettings::DensityDiffusion::molteni
                                                      : scene::SphSettings::DensityDiffusion::fourtakas;
-  scene::FluidBody body;
-  body.name = "water";
-  body.material = "water";
-  body.box = Aabb{Vec3::Zero(), Vec3(L, W, H)};
-  s.fluids.push_back(body);
+  s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3(L, W, H)));
   sph::SphModel model(s);
-  model.set_boundary(container_walls(Vec3::Zero(), Vec3(L, W, H + wall_top * dx), dx, 3));
+  model.set_boundary(sph::testing::container_walls(Vec3::Zero(), Vec3(L, W, H + wall_top * dx), dx, 3));
   const double T = std::sqrt(H / g), U = std::sqrt(g * H);
   const std::vector<Vec3> x0(model.positions().begin(), model.positions().end());
   if (settle > 0) {

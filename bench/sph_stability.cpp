@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "sph_solver/sph_model.hpp"
+#include "tests/support/sph_scenes.hpp"
 
 namespace {
 
@@ -20,39 +21,10 @@ scene::SphSettings::Kernel kernel_choice = scene::SphSettings::Kernel::wendland_
 double smoothing_ratio = 1.5;
 
 scene::Scene water(double dx, double c, const Aabb& domain) {
-  scene::Scene s;
-  scene::Material m;
-  m.name = "water";
-  m.density = 1000;
-  m.youngs_modulus = 1e9;
-  m.poisson_ratio = 0.3;
-  s.materials.push_back(m);
-  s.sph.particle_spacing = dx;
-  s.sph.sound_speed = c;
+  scene::Scene s = sph::testing::water_scene(dx, c, smoothing_ratio);
   s.sph.domain = domain;
   s.sph.kernel = kernel_choice;
-  s.sph.smoothing_ratio = smoothing_ratio;
   return s;
-}
-
-physics::BoundaryParticles tank(const Vec3& min, const Vec3& max, double dx, int layers) {
-  physics::BoundaryParticles walls;
-  const Vec3 lo = min - Vec3::Constant(layers * dx), hi(max.x() + layers * dx, max.y() + layers * dx, max.z());
-  const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
-  for (int k = 0; k < count(hi.z() - lo.z()); ++k)
-    for (int j = 0; j < count(hi.y() - lo.y()); ++j)
-      for (int i = 0; i < count(hi.x() - lo.x()); ++i) {
-        const Vec3 p = lo + dx * Vec3(i + 0.5, j + 0.5, k + 0.5);
-        if ((p.array() > min.array()).all() && (p.array() < max.array()).all()) continue;
-        // Normal into the fluid: towards the nearest point of the container (floor, wall, edge).
-        const Vec3 inner = p.cwiseMax(min).cwiseMin(max);
-        walls.position.push_back(p);
-        walls.velocity.push_back(Vec3::Zero());
-        walls.normal.push_back((inner - p).normalized());
-        walls.acceleration.push_back(Vec3::Zero());
-        walls.volume.push_back(dx * dx * dx);
-      }
-  return walls;
 }
 
 void run(const char* name, sph::SphModel& model, long steps_limit, double time_limit) {
@@ -106,7 +78,7 @@ int main(int argc, char** argv) {
     body.box = Aabb{Vec3::Zero(), Vec3(L, W, H)};
     s.fluids.push_back(body);
     sph::SphModel model(s);
-    model.set_boundary(tank(Vec3::Zero(), Vec3(L, W, H + 4 * dx), dx, 3));
+    model.set_boundary(sph::testing::container_walls(Vec3::Zero(), Vec3(L, W, H + 4 * dx), dx, 3));
     run("hydrostatic tank", model, steps, 1e30);
   }
   {
@@ -121,7 +93,7 @@ int main(int argc, char** argv) {
     body.box = Aabb{Vec3::Zero(), Vec3(a, W, 2 * a)};
     s.fluids.push_back(body);
     sph::SphModel model(s);
-    model.set_boundary(tank(Vec3::Zero(), Vec3(2 * a, W, 0.6), dx, 3));
+    model.set_boundary(sph::testing::container_walls(Vec3::Zero(), Vec3(2 * a, W, 0.6), dx, 3));
     run("wall impact", model, 100000000, impact_time);
   }
   return 0;

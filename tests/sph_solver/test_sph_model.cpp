@@ -13,7 +13,7 @@
 #include "coupler/contact/surface_contact.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "sph_solver/sph_model.hpp"
-#include "sph_test_support.hpp"
+#include "tests/support/sph_scenes.hpp"
 
 namespace sabo::sph {
 namespace {

@@ -1,5 +1,5 @@
 #pragma once
-// Scenes and wall particles for the SPH tests, built in memory (no coupler).
+// Scenes and wall particles for the SPH tests and benchmarks, built in memory (no coupler).
 #include <string>
 
 #include "libsabo/physics/boundary_particles.hpp"
