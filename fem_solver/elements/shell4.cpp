@@ -78,7 +78,9 @@ double shell4_area(const QuadNodes& x) {
 }
 
 double shell4_characteristic_length(const QuadNodes& x) {
-  double longest = 0;
+  // Area / longest side exceeds a square element's critical step by 1.14 (its in-plane areal mode); the
+  // longest diagonal keeps it below [Shell.FullyIntegratedCriticalStepAsOnePoint].
+  double longest = std::max((x[2] - x[0]).norm(), (x[3] - x[1]).norm());
   for (std::size_t a = 0; a < 4; ++a) longest = std::max(longest, (x[(a + 1) % 4] - x[a]).norm());
   const double area = shell4_area(x);
   return longest > 0 ? area / longest : 0.0;

@@ -27,7 +27,7 @@ struct Shell4State {
   double internal_energy = 0, hourglass_energy = 0, plastic_work = 0;  // J
 };
 
-// Area and characteristic length (area / longest side, m) at x.
+// Area and characteristic length (area / the longest of the sides and diagonals, m) at x.
 [[nodiscard]] double shell4_area(const QuadNodes& x);
 [[nodiscard]] double shell4_characteristic_length(const QuadNodes& x);
 

@@ -169,8 +169,9 @@ TEST(Shell, FullyIntegratedElementHasOnlyRigidBodyZeroEnergyModes) {
 }
 
 // The explicit step: the fully integrated element takes the BLT element's
-// stable step (area / longest side / plate speed), so its highest frequency
-// must not exceed the one-point element's. 2 / omega_max of one free element
+// stable step (area / longest side or diagonal / plate speed), so its highest
+// frequency must not exceed the one-point element's; and that step must not
+// exceed either element's own critical step. 2 / omega_max of one free element
 // with ShellBody's lumped masses rho t A / 4 and rotational inertias
 // m (t^2 + A) / 12 (the element bound, below the mesh's critical step),
 // thin and thick, square and distorted.
@@ -198,6 +199,8 @@ TEST(Shell, FullyIntegratedCriticalStepAsOnePoint) {
                 << ": element critical step / stable step, one-point " << critical[0] / step
                 << ", fully integrated measured " << critical[1] / step << " limit 0.98 of one-point\n";
       EXPECT_GT(critical[1], 0.98 * critical[0]);
+      EXPECT_GE(critical[0], step) << "the stable step must not exceed the element's critical step";
+      EXPECT_GE(critical[1], step) << "the stable step must not exceed the element's critical step";
     }
   }
 }
