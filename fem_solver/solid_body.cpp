@@ -95,9 +95,7 @@ std::size_t SolidBody::compute_internal_forces(double dt_previous) {
     // An inverted element has failed too: it can carry no stress.
     element_failed_[e] = (!ok || (material_.erodes() && failed(material_, state_[e].point))) ? 1 : 0;
     for (std::size_t a = 0; a < 8; ++a) element_force_[8 * e + a] = force[a];
-    // The one-point element's volume at x_n is hex8_volume(x), bit for bit: not computed twice.
-    const double volume = formulation_ == HexFormulation::one_point ? state_[e].volume : hex8_volume(x);
-    element_dt_[e] = ok ? hex8_characteristic_length(x, volume) / wave_speed : std::numeric_limits<double>::infinity();
+    element_dt_[e] = ok ? hex8_characteristic_length(x) / wave_speed : std::numeric_limits<double>::infinity();
   }
   const std::size_t newly_eroded =
       erode_failed_elements(element_failed_, state_, active_, element_dt_, erosion_, [&](std::size_t e) {

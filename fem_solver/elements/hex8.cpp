@@ -168,15 +168,27 @@ Mat3 elastic_stress(const MaterialParameters& material, const Mat3& m) {
 }
 
 // The mean of the points' histories (output, erosion).
+// The nodes at x_{n-1/2} = x_n - dt/2 v_{n-1/2}.
+HexNodes mid_step(const HexNodes& x, const HexNodes& velocity, double dt) {
+  HexNodes mid;
+  for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt * velocity[a];
+  return mid;
+}
+
 MaterialPoint mean_point(const Hex8GaussPoints& gauss) {
   MaterialPoint mean;
-  for (const MaterialPoint& point : gauss) {
-    mean.stress += point.stress / 8.0;
-    mean.back_stress += point.back_stress / 8.0;
-    mean.strain += point.strain / 8.0;
-    mean.plastic_strain += point.plastic_strain / 8.0;
-  }
+  for (const MaterialPoint& point : gauss) add_weighted(mean, point, 1.0 / 8.0);
   return mean;
+}
+
+// Advances one Gauss point of volume `weight` (m^3) by D = rate and W = spin over dt and adds its stress
+// work (trapezoidal in the stress) and plastic work to the element's.
+void advance_point(const MaterialParameters& material, const Mat3& rate, const Mat3& spin, double dt, double weight,
+                   MaterialPoint& point, Hex8State& state) {
+  const Mat3 old_stress = point.stress;
+  const MaterialUpdate update = update_stress(material, rate, spin, dt, point);
+  state.internal_energy += dt * weight * 0.5 * (old_stress + point.stress).cwiseProduct(rate).sum();
+  state.plastic_work += weight * update.plastic_work_density;
 }
 
 Mat3 deviator(const Mat3& m) {
@@ -192,10 +204,13 @@ double hex8_volume(const HexNodes& x) {
 }
 
 double hex8_characteristic_length(const HexNodes& x) {
-  return hex8_characteristic_length(x, hex8_volume(x));
-}
-
-double hex8_characteristic_length(const HexNodes& x, double volume) {
+  // The centre's half-length Jacobian, summed as geometry() does: 8 det J is hex8_volume(x), bit for bit.
+  Mat3 jacobian = Mat3::Zero();
+  for (std::size_t a = 0; a < 8; ++a) {
+    const auto& n = kNatural[a];
+    for (int j = 0; j < 3; ++j) jacobian.col(j) += x[a] * (n[static_cast<std::size_t>(j)] / 8.0);
+  }
+  const double volume = 8.0 * jacobian.determinant();
   double largest_area = 0;
   for (const auto& face : hex_faces()) {
     const Vec3 d1 = x[static_cast<std::size_t>(face[2])] - x[static_cast<std::size_t>(face[0])];
@@ -205,13 +220,8 @@ double hex8_characteristic_length(const HexNodes& x, double volume) {
   if (!(largest_area > 0 && volume > 0)) return 0.0;
   // V / A_max alone exceeds the critical step of a cube by 1.36 (its volumetric mode stiffens all three
   // directions at once). Flanagan & Belytschko (1981) bound the uniform-strain element's highest frequency by
-  // omega^2 <= 8 c^2 sum_a |grad N_a|^2, i.e. L = 1 / sqrt(2 sum_a |grad N_a|^2) = 2 / |J^-1|_F with the
-  // centre's half-length Jacobian (sum_a n_a n_a^T = 8 I) [HexElement.StableStepIsBelowTheCriticalStepOfEveryShape].
-  Mat3 jacobian = Mat3::Zero();
-  for (std::size_t a = 0; a < 8; ++a) {
-    const auto& n = kNatural[a];
-    for (int j = 0; j < 3; ++j) jacobian.col(j) += x[a] * (n[static_cast<std::size_t>(j)] / 8.0);
-  }
+  // omega^2 <= 8 c^2 sum_a |grad N_a|^2, i.e. L = 1 / sqrt(2 sum_a |grad N_a|^2) = 2 / |J^-1|_F
+  // (sum_a n_a n_a^T = 8 I) [HexElement.StableStepIsBelowTheCriticalStepOfEveryShape].
   const double gradient_bound = 2.0 / jacobian.inverse().norm();
   return std::min(volume / largest_area, gradient_bound);
 }
@@ -221,8 +231,7 @@ bool hex8_internal_force(const MaterialParameters& material, double hourglass_sc
   for (auto& f : force) f.setZero();
   Geometry g;
   if (dt_previous > 0) {
-    HexNodes mid;
-    for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt_previous * velocity[a];
+    const HexNodes mid = mid_step(x, velocity, dt_previous);
     Geometry gm;
     if (!geometry(mid, gm)) return false;
     Mat3 velocity_gradient = Mat3::Zero();
@@ -340,8 +349,7 @@ bool hex8_full_internal_force(const MaterialParameters& material, const HexNodes
                               double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force) {
   for (auto& f : force) f.setZero();
   if (dt_previous > 0) {
-    HexNodes mid;
-    for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt_previous * velocity[a];
+    const HexNodes mid = mid_step(x, velocity, dt_previous);
     GaussGeometry gm;
     if (!gauss_geometry(mid, gm)) return false;
     double mean_divergence = 0;
@@ -352,11 +360,7 @@ bool hex8_full_internal_force(const MaterialParameters& material, const HexNodes
       const Mat3 rate = deviator(0.5 * (velocity_gradient + velocity_gradient.transpose())) +
                         (mean_divergence / 3.0) * Mat3::Identity();
       const Mat3 spin = 0.5 * (velocity_gradient - velocity_gradient.transpose());
-      const Mat3 old_stress = gauss[p].stress;
-      const MaterialUpdate update = update_stress(material, rate, spin, dt_previous, gauss[p]);
-      state.internal_energy +=
-          dt_previous * gm.weight[p] * 0.5 * (old_stress + gauss[p].stress).cwiseProduct(rate).sum();
-      state.plastic_work += gm.weight[p] * update.plastic_work_density;
+      advance_point(material, rate, spin, dt_previous, gm.weight[p], gauss[p], state);
     }
   }
   GaussGeometry g;
@@ -377,8 +381,7 @@ bool hex8_enhanced_internal_force(const MaterialParameters& material, const HexN
                                   double dt_previous, Hex8State& state, Hex8GaussPoints& gauss, HexNodes& force) {
   for (auto& f : force) f.setZero();
   if (dt_previous > 0) {
-    HexNodes mid;
-    for (std::size_t a = 0; a < 8; ++a) mid[a] = x[a] - 0.5 * dt_previous * velocity[a];
+    const HexNodes mid = mid_step(x, velocity, dt_previous);
     GaussGeometry gm;
     EnhancedGeometry em;
     if (!gauss_geometry(mid, gm) || !enhanced_geometry(mid, gm, material, em)) return false;
@@ -393,11 +396,7 @@ bool hex8_enhanced_internal_force(const MaterialParameters& material, const HexN
       const Mat3 gradient = velocity_gradient[p] + enhanced_gradient(em, p, mode_rate);
       const Mat3 rate = 0.5 * (gradient + gradient.transpose());
       const Mat3 spin = 0.5 * (gradient - gradient.transpose());
-      const Mat3 old_stress = gauss[p].stress;
-      const MaterialUpdate update = update_stress(material, rate, spin, dt_previous, gauss[p]);
-      state.internal_energy +=
-          dt_previous * gm.weight[p] * 0.5 * (old_stress + gauss[p].stress).cwiseProduct(rate).sum();
-      state.plastic_work += gm.weight[p] * update.plastic_work_density;
+      advance_point(material, rate, spin, dt_previous, gm.weight[p], gauss[p], state);
     }
   }
   GaussGeometry g;

@@ -47,8 +47,6 @@ struct Hex8State {
 // Characteristic length for the explicit step, m: the smaller of volume / largest face area and
 // Flanagan-Belytschko's 1 / sqrt(2 sum_a |grad N_a|^2), below every formulation's critical length.
 [[nodiscard]] double hex8_characteristic_length(const HexNodes& x);
-// The same with the volume hex8_volume(x) already known, m.
-[[nodiscard]] double hex8_characteristic_length(const HexNodes& x, double volume);
 
 // Advances the stress with v_{n-1/2} over dt_previous (nothing at dt_previous
 // = 0), then computes the internal force on each node at x_n (N; the

@@ -357,12 +357,7 @@ bool shell4_full_internal_force(const MaterialParameters& material, double thick
   // Means over the Gauss points, for output and the erosion criterion.
   for (std::size_t k = 0; k < kThicknessPoints; ++k) {
     MaterialPoint mean;
-    for (std::size_t g = 0; g < 4; ++g) {
-      mean.stress += 0.25 * gauss.point[g][k].stress;
-      mean.back_stress += 0.25 * gauss.point[g][k].back_stress;
-      mean.strain += 0.25 * gauss.point[g][k].strain;
-      mean.plastic_strain += 0.25 * gauss.point[g][k].plastic_strain;
-    }
+    for (std::size_t g = 0; g < 4; ++g) add_weighted(mean, gauss.point[g][k], 0.25);
     state.point[k] = mean;
   }
   state.shear_x = 0.25 * (gauss.shear[0] + gauss.shear[2] + gauss.shear[4] + gauss.shear[6]);

@@ -58,6 +58,14 @@ struct MaterialPoint {
   double plastic_strain = 0;        // effective plastic strain
 };
 
+// sum += weight * point, field by field (means over integration points).
+inline void add_weighted(MaterialPoint& sum, const MaterialPoint& point, double weight) {
+  sum.stress += weight * point.stress;
+  sum.back_stress += weight * point.back_stress;
+  sum.strain += weight * point.strain;
+  sum.plastic_strain += weight * point.plastic_strain;
+}
+
 struct MaterialUpdate {
   double plastic_work_density = 0;  // J/m^3 dissipated in this update
   bool yielded = false;
