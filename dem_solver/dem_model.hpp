@@ -57,7 +57,9 @@
 // reaction in a second pass over its pairs in slot order; energies are summed per
 // block of kSumBlock spheres, then the blocks in order. Same input, same bits, for
 // any number of threads.
+#include <algorithm>
 #include <array>
+#include <cassert>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -119,9 +121,11 @@ class DemModel {
   [[nodiscard]] std::span<const Vec3> positions() const { return position_; }       // m, x_n
   [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }      // m/s, v_{n-1/2}
   [[nodiscard]] std::span<const Vec3> angular_velocities() const { return spin_; }  // rad/s, w_{n-1/2}
-  [[nodiscard]] std::span<Vec3> positions() {                                       // for restarts
-    displacement_known_ = false;  // the next step measures the moves since the list was built
-    return position_;
+  // Restarts: positions of every sphere (m); the next step measures the moves since the list was built.
+  void set_positions(std::span<const Vec3> positions) {
+    assert(positions.size() == position_.size());
+    std::copy(positions.begin(), positions.end(), position_.begin());
+    displacement_known_ = false;
   }
   [[nodiscard]] std::span<Vec3> velocities() { return velocity_; }
   [[nodiscard]] std::span<Vec3> angular_velocities() { return spin_; }
@@ -242,8 +246,7 @@ class DemModel {
   bool rebuild_ = true;
   std::size_t neighbour_builds_ = 0;
   std::vector<Vec3> build_position_;  // positions at the last build
-  // Largest squared move since the last build (m^2), measured by integrate(); unknown once positions() was
-  // handed out for writing.
+  // Largest squared move since the last build (m^2), measured by integrate(); unknown after set_positions().
   double largest_displacement_squared_ = 0;
   bool displacement_known_ = false;
   std::vector<std::uint32_t> start_, neighbour_, count_scratch_;

@@ -35,11 +35,11 @@ class DemSolver final : public solver::CoupledSolver {
   double stable_dt() override { return model_.stable_dt(); }
 
   void fill_state(const solver::Interest& interest, sabo::v1::StepState& state) override {
-    const DemModel& model = model_;  // read only: the writable accessors are for restarts
-    solver::add_particle_states(
-        interest,
-        {.position = model.positions(), .velocity = model.velocities(), .angular_velocity = model.angular_velocities()},
-        state);
+    solver::add_particle_states(interest,
+                                {.position = model_.positions(),
+                                 .velocity = model_.velocities(),
+                                 .angular_velocity = model_.angular_velocities()},
+                                state);
     const Energies e = model_.energies();
     solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.dissipated});
   }

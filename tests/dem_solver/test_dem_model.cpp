@@ -455,7 +455,7 @@ TEST(DemModelIo, ExternalForcesAndCheckpointedHistories) {
   const double dt = 0.25 * a.stable_dt();
   double dt_previous = 0;
   for (int n = 0; n < 300; ++n) step(a, dt_previous, dt);
-  std::copy(a.positions().begin(), a.positions().end(), b.positions().begin());
+  b.set_positions(a.positions());
   std::copy(a.velocities().begin(), a.velocities().end(), b.velocities().begin());
   std::copy(a.angular_velocities().begin(), a.angular_velocities().end(), b.angular_velocities().begin());
   const auto histories = a.contact_histories();

@@ -17,10 +17,10 @@ namespace sabo::dem {
 
 struct PileReport {
   std::int64_t steps = 0;
-  double dt = 0;                           // s
-  double initial_energy = 0;               // J
-  double largest_energy_rise = 0;          // J, largest total energy above the initial one (<= 0: never above)
-  std::size_t escaped = 0;                 // sphere-steps with a centre outside the box (tunnelling)
+  double dt = 0;                   // s
+  double initial_energy = 0;       // J
+  double largest_energy_rise = 0;  // J, largest total energy above the initial one (<= 0: never above)
+  std::size_t escaped = 0;  // over the checks every 100 steps: spheres whose half-radius core left the box (tunnelling)
   double final_largest_speed = 0;          // m/s
   double final_largest_overlap_ratio = 0;  // largest overlap over the smaller radius of its pair
   double final_mean_overlap_ratio = 0;
