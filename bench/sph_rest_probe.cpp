@@ -106,6 +106,7 @@ int main(int argc, char** argv) {
       next += report * T;
     }
   }
+  v_all = std::max(v_all, v_window);  // the last window, if the run ended inside it
   model.compute_internal_forces(0);
   double error2 = 0;
   for (std::size_t i = 0; i < model.size(); ++i) {

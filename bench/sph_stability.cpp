@@ -72,11 +72,7 @@ int main(int argc, char** argv) {
     const double H = 0.2, dx = 0.02, L = 0.2, W = 0.1;
     scene::Scene s = water(dx, 10 * std::sqrt(9.81 * H), Aabb{Vec3(-0.1, -0.1, -0.1), Vec3(0.3, 0.2, 0.4)});
     s.sph.artificial_viscosity = 0.1;
-    scene::FluidBody body;
-    body.name = "water";
-    body.material = "water";
-    body.box = Aabb{Vec3::Zero(), Vec3(L, W, H)};
-    s.fluids.push_back(body);
+    s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3(L, W, H)));
     sph::SphModel model(s);
     model.set_boundary(sph::testing::container_walls(Vec3::Zero(), Vec3(L, W, H + 4 * dx), dx, 3));
     run("hydrostatic tank", model, steps, 1e30);
@@ -87,11 +83,7 @@ int main(int argc, char** argv) {
     scene::Scene s =
         water(dx, 10 * std::sqrt(2 * 9.81 * 2 * a), Aabb{Vec3(-0.05, -0.05, -0.05), Vec3(0.25, W + 0.05, 0.65)});
     s.sph.artificial_viscosity = 0.02;
-    scene::FluidBody body;
-    body.name = "column";
-    body.material = "water";
-    body.box = Aabb{Vec3::Zero(), Vec3(a, W, 2 * a)};
-    s.fluids.push_back(body);
+    s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, W, 2 * a)));
     sph::SphModel model(s);
     model.set_boundary(sph::testing::container_walls(Vec3::Zero(), Vec3(2 * a, W, 0.6), dx, 3));
     run("wall impact", model, 100000000, impact_time);

@@ -452,7 +452,7 @@ void SphModel::compute_boundary_state() {
   with_terms(kernel_.type, any_gradient_, has_stress_, DensityDiffusion::none,
              [&](auto terms) { boundary_state(terms); });
   if (has_stress_) {
-    boundary_stress_.assign(6 * boundary_.size(), 0.0);
+    boundary_stress_.resize(6 * boundary_.size());  // every entry is written: b_order_ holds every wall particle
     extrapolate_wall_stress();
   }
 }
