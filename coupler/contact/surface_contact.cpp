@@ -213,8 +213,10 @@ void SurfaceContact::refresh_geometry() {
                         canonical_[tri[2]] == canonical_[tri[0]];
     const Vec3 cross = (b - a).cross(c - a);
     const double twice_area = cross.norm();
-    const double longest = std::sqrt(std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
-    face_shortest_edge_[f] = std::sqrt(std::min({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()}));
+    const auto [shortest2, longest2] =
+        std::minmax({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    const double longest = std::sqrt(longest2);
+    face_shortest_edge_[f] = std::sqrt(shortest2);
     const bool degenerate = merged || !(twice_area > kDegenerateAreaRatio * longest * longest);
     degenerate_[f] = degenerate ? 1 : 0;
     face_box_[f] = Aabb{};

@@ -56,15 +56,15 @@ namespace detail {
 
 // Whether segments [a, b] and [c, d] meet (touching counts).
 [[nodiscard]] inline bool segments_meet(const Point2& a, const Point2& b, const Point2& c, const Point2& d) {
-  if (segments_cross(a, b, c, d)) return true;
   const auto within = [](const Point2& p, const Point2& q, const Point2& r) {  // r on the line pq: in the segment?
     return std::min(p[0], q[0]) <= r[0] && r[0] <= std::max(p[0], q[0]) && std::min(p[1], q[1]) <= r[1] &&
            r[1] <= std::max(p[1], q[1]);
   };
-  return (detail::orientation(c, d, a) == 0 && within(c, d, a)) ||
-         (detail::orientation(c, d, b) == 0 && within(c, d, b)) ||
-         (detail::orientation(a, b, c) == 0 && within(a, b, c)) ||
-         (detail::orientation(a, b, d) == 0 && within(a, b, d));
+  const double d1 = detail::orientation(c, d, a), d2 = detail::orientation(c, d, b);
+  const double d3 = detail::orientation(a, b, c), d4 = detail::orientation(a, b, d);
+  if (detail::opposite_sides(d1, d2) && detail::opposite_sides(d3, d4)) return true;  // segments_cross
+  return (d1 == 0 && within(c, d, a)) || (d2 == 0 && within(c, d, b)) || (d3 == 0 && within(a, b, c)) ||
+         (d4 == 0 && within(a, b, d));
 }
 
 // The first two edges that are not neighbours (edge k joins corners k and k + 1 mod n)
