@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <numbers>
+#include <numeric>
 #include <utility>
 
 #include "coupler/contact/surface_contact.hpp"
@@ -214,11 +215,11 @@ double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
 // benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own,
 // up to 4 dx above the free surface (wetted by the fluid only up to it). Cubic spline at
 // h = 1.3 dx, the set-up the figures in docs/physics.md were first taken with (the default,
-// Wendland C2 at h = 1.5 dx, gives 6.5e-3 and 3e-4 sqrt(gH), pressure 0.9 %: bench
-// sph_rest_probe). Known shortfall: the start-up, 5.2e-3 sqrt(gH) at t = 0.25 sqrt(H/g) in
-// the second row beside the walls (the free surface's discrete equilibrium), against the
-// benchmark's 1e-3 from t = 0; the test holds it to 7.5e-3 and the second half to the
-// benchmark's 1e-3 (measured 5.2e-4).
+// Wendland C2 at h = 1.5 dx: bench sph_rest_probe). Known shortfall: the start-up, 1.34e-3
+// sqrt(gH) in the top rows next to the walls (the free surface's discrete equilibrium), against
+// the benchmark's 1e-3 from t = 0; the test holds it to 2e-3 and the second half to the
+// benchmark's 1e-3 (measured 3.0e-4). The total energy (kinetic + potential + compression)
+// never rises above its initial value (the stability criterion).
 TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
   SphModel model(s4_tank_scene(dx, L, W, H, g));
@@ -229,7 +230,10 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   // Corner particles belong to both walls: the bottom takes every particle below z = 0,
   // the side x = 0 every particle behind it.
   double max_speed = 0, max_speed_late = 0, bottom = 0, side = 0, samples = 0;
+  const double initial_energy = model.energies().total();
+  double max_energy = initial_energy;
   run_until(model, t_end, [&](double t) {
+    max_energy = std::max(max_energy, model.energies().total());
     for (const Vec3& v : model.velocities()) max_speed = std::max(max_speed, v.norm());
     if (t < 0.5 * t_end) return;
     for (const Vec3& v : model.velocities()) max_speed_late = std::max(max_speed_late, v.norm());
@@ -250,18 +254,21 @@ TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double side_expected = 1000 * g * H * H * W / 2;
   std::cout << "S4 pressure L2 error: measured " << 100 * error << " % of rho g H, expected <= 2 %\n";
   std::cout << "S4 largest speed / sqrt(gH): measured " << max_speed / std::sqrt(g * H) << " over the run, "
-            << max_speed_late / std::sqrt(g * H) << " in the second half; benchmark bound 1e-3, held here to 7.5e-3 "
+            << max_speed_late / std::sqrt(g * H) << " in the second half; benchmark bound 1e-3, held here to 2e-3 "
             << "over the run (the start-up) and 1e-3 in the second half\n";
+  std::cout << "S4 total energy: initial " << initial_energy << " J, largest after it " << max_energy
+            << " J (expected never above the initial value)\n";
   std::cout << "S4 bottom force (mean of the last quarter): measured " << bottom << " N, expected " << weight
             << " N (+-1%)\n";
   std::cout << "S4 side force (mean of the last quarter): measured " << side << " N, expected " << side_expected
             << " N (+-2%)\n";
   std::cout << "S4 total wall force: measured " << -total.z() << " N vs weight "
-            << model.masses()[0] * static_cast<double>(model.size()) * g << " N\n";
+            << std::accumulate(model.masses().begin(), model.masses().end(), 0.0) * g << " N\n";
   EXPECT_LT(error, 0.02);
   EXPECT_NEAR(bottom / weight, 1.0, 0.01);
   EXPECT_NEAR(side / side_expected, 1.0, 0.02);
-  EXPECT_LT(max_speed, 7.5e-3 * std::sqrt(g * H));
+  EXPECT_LT(max_speed, 2e-3 * std::sqrt(g * H));
+  EXPECT_LE(max_energy, initial_energy);
   EXPECT_LT(max_speed_late, 1e-3 * std::sqrt(g * H));
 }
 
@@ -291,9 +298,12 @@ TEST(SphModelContract, WallForcesBalanceAndRunsAreDeterministic) {
   Vec3 fluid = Vec3::Zero(), wall = Vec3::Zero();
   for (std::size_t i = 0; i < one.size(); ++i) fluid += one.masses()[i] * (one.accelerations()[i] - s.run.gravity);
   for (const Vec3& f : one.boundary_forces()) wall += f;
+  // The fluid-fluid pair terms are single precision and the masses differ (rho dx^3, with the
+  // depth), so they cancel to the float rounding of a mass (6e-8), not to double rounding.
   std::cout << "wall force on fluid: " << fluid.transpose() << " N, on walls: " << wall.transpose()
-            << " N (expected opposite, within 1e-9 relative)\n";
-  EXPECT_LT((fluid + wall).norm(), 1e-9 * fluid.norm());
+            << " N (expected opposite, within 1e-7 relative; measured " << (fluid + wall).norm() / fluid.norm()
+            << ")\n";
+  EXPECT_LT((fluid + wall).norm(), 1e-7 * fluid.norm());
 }
 
 // Penalty walls as the coupler computes them for an sph_fem pair (SurfaceContact, paper
