@@ -267,7 +267,15 @@ class SphModel {
   std::vector<std::uint32_t> cell_next_;                    // build_grid() scratch: next free slot per cell
   std::vector<float> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_;
   std::vector<double> fm_;  // kg: the wall forces use the exact masses (action = reaction)
-  std::vector<float> fpr_;  // p / rho^2, Pa m^6/kg^2
+  // With boundary-particle walls, density diffusion acts between particles whose kernel held
+  // at least kFullSupportFraction of a lattice's neighbours (fluid and wall) in the last compute
+  // (at the first compute, every particle): not across a free surface, whose cut-off kernel
+  // makes the diffusion a one-sided difference that drives the top rows (docs/physics.md).
+  static constexpr double kFullSupportFraction = 0.9;
+  std::vector<float> ffull_;                      // per sorted fluid slot: 1 if full, else 0
+  std::vector<std::int32_t> support_neighbours_;  // per particle id: neighbours in the last compute
+  std::int32_t full_support_neighbours_ = 0;      // 0 (every particle full) with penalty walls
+  std::vector<float> fpr_;                        // p / rho^2, Pa m^6/kg^2
   std::vector<std::uint32_t> fmat_;
   std::vector<float> bx_, by_, bz_, bwx_, bwy_, bwz_, bvol_, bpr_, brho_;  // bw: prescribed wall velocity
   std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)

@@ -192,6 +192,72 @@ TEST(SphValidation, DensityDiffusionRatesOfAHydrostaticColumn) {
   EXPECT_GT(static_largest, 1e-2 * largest);
 }
 
+// With boundary-particle walls, density diffusion acts only between particles whose kernel
+// held at least 0.9 of a lattice's neighbours in the previous compute (docs/physics.md,
+// "Continuity"): none across the free surface, where the cut-off kernel makes the diffusion a
+// one-sided difference. A hydrostatic column without walls (so its sides are free surfaces
+// too), Molteni's form; the second step's rate, over dt = 2e-10 s, is compared with the sum
+// over the pairs of particles that had a full kernel at the first step, summed here in double.
+TEST(SphValidation, DensityDiffusionActsOnlyWhereTheKernelIsFull) {
+  const double H = 0.2, dx = 0.02, g = 9.81, c = 3.0 * std::sqrt(g * H), dt = 2e-10;
+  scene::Scene s = water_scene(dx, c);
+  s.sph.density_diffusion = scene::SphSettings::DensityDiffusion::molteni;
+  s.fluids.push_back(box_body("column", Vec3(0, 0, 0), Vec3(0.2, 0.2, H)));
+  SphModel model(s);
+  const std::vector<Vec3> x0(model.positions().begin(), model.positions().end());
+  model.compute_internal_forces(0);
+  model.integrate(0, dt);
+  const std::vector<double> before(model.densities().begin(), model.densities().end());
+  model.compute_internal_forces(dt);
+  model.integrate(dt, dt);
+  const Kernel& kernel = model.kernel();
+  const double h = kernel.h, support2 = 4 * h * h, eta2 = 0.01 * h * h;
+  const double scale = 2.0 * model.settings().density_diffusion_delta * h * c;
+  int lattice = 0;  // neighbours of a lattice point within 2h
+  for (int a = -3; a <= 3; ++a) {
+    for (int b = -3; b <= 3; ++b) {
+      for (int d = -3; d <= 3; ++d) lattice += (a * a + b * b + d * d) * dx * dx < support2 ? 1 : 0;
+    }
+  }
+  const double threshold = std::ceil(0.9 * (lattice - 1));
+  const std::size_t n = model.size();
+  std::vector<char> full(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    int count = 0;
+    for (std::size_t j = 0; j < n; ++j) count += j != i && (x0[i] - x0[j]).squaredNorm() < support2 ? 1 : 0;
+    full[i] = count >= threshold ? 1 : 0;
+  }
+  double largest = 0, largest_error = 0, surface_largest = 0;
+  std::size_t full_count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    double expected = 0;
+    for (std::size_t j = 0; j < n && full[i]; ++j) {
+      const Vec3 r = model.positions()[i] - model.positions()[j];
+      const double r2 = r.squaredNorm();
+      if (j == i || r2 >= support2 || !full[j]) continue;
+      expected += (before[j] - before[i]) * -kernel.gradient_factor(std::sqrt(r2)) * r2 / (r2 + eta2) *
+                  model.masses()[j] / before[j];
+    }
+    expected *= scale;
+    const double measured = (model.densities()[i] - before[i]) / dt;
+    largest = std::max(largest, std::abs(expected));
+    largest_error = std::max(largest_error, std::abs(measured - expected));
+    if (!full[i]) surface_largest = std::max(surface_largest, std::abs(measured));
+    full_count += full[i];
+  }
+  std::cout << "particles with a full kernel: " << full_count << " of " << n << " (threshold " << threshold
+            << " of " << lattice - 1 << " lattice neighbours)\n";
+  std::cout << "drho/dt, full-kernel pairs only: largest expected " << largest
+            << " kg/m^3/s, largest difference measured - expected " << largest_error
+            << " (<= 1e-3 of the largest); largest |drho/dt| at particles with a cut-off kernel " << surface_largest
+            << " (expected 0 but for the continuity term of v ~ g dt: <= 1e-3 of the largest)\n";
+  EXPECT_GT(full_count, n / 10);
+  EXPECT_LT(full_count, n);
+  EXPECT_GT(largest, 1.0);
+  EXPECT_LT(largest_error, 1e-3 * largest);
+  EXPECT_LT(surface_largest, 1e-3 * largest);
+}
+
 // The reduced S4 tank of both S4 tests: water H deep in an L x W box (m), c = 10 sqrt(g H),
 // cubic spline at h = 1.3 dx (see S4HydrostaticTankWithBoundaryParticles), artificial viscosity 0.1.
 scene::Scene s4_tank_scene(double dx, double L, double W, double H, double g) {
@@ -389,6 +455,7 @@ DamBreakResult dam_break(bool penalty_walls, const char* csv_variable) {
   const double a = 0.1, H = 2 * a, dx = a / 10, g = 9.81, W = 4 * dx, length = 6 * a;
   scene::Scene s = water_scene(dx, 10.0 * std::sqrt(2 * g * H));
   s.sph.artificial_viscosity = 0.02;
+  if (penalty_walls) s.sph.wall_model = scene::SphSettings::WallModel::penalty;
   s.fluids.push_back(box_body("column", Vec3(0, 0, 0), Vec3(a, W, H)));
   SphModel model(s);
   // Penalty: planes of the channel, normals into the fluid; contact radius dx/2 (what the
@@ -484,7 +551,9 @@ TEST(SphValidation, S1DamBreakFrontWithPenaltyWalls) {
 // tank's equilibrium: the floor carries the weight within the benchmark's 1 %.
 TEST(SphValidation, S4HydrostaticTankWithPenaltyWalls) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
-  SphModel model(s4_tank_scene(dx, L, W, H, g));
+  scene::Scene scene = s4_tank_scene(dx, L, W, H, g);
+  scene.sph.wall_model = scene::SphSettings::WallModel::penalty;
+  SphModel model(scene);
   // k = 4000 N/m: the bottom particle's share of the weight, rho g H dx^2 = 0.78 N, presses it
   // 2e-4 m = dx/100 in; zeta = 0.5 as in configs/tests/sph_tank_penalty.toml.
   PenaltyWalls walls(model, "water", container_planes(Vec3(0, 0, 0), Vec3(L, W, H + 4 * dx)), 4000.0, 0.5);
