@@ -779,8 +779,8 @@ class Builder {
       diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                 fmt::format("the period {} m is shorter than two kernel supports plus one spacing, 4h + dx = {} m "
                             "(h = smoothing_ratio * particle_spacing): a particle would see another and its image",
-                            number_literal(period), number_literal(least)),
-                fmt::format("widen the span to at least {} m or lower sph.particle_spacing", number_literal(least)));
+                            number_literal(period), fmt::format("{:.6g}", least)),
+                fmt::format("widen the span to at least {:.6g} m or lower sph.particle_spacing", least));
     } else {
       out = *span;
       line = r.line(key);

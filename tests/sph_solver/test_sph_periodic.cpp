@@ -222,7 +222,7 @@ double poiseuille_series(double z, double t, double L, double nu, double F) {
 TEST(SphValidation, S5StartUpPoiseuille) {
   const double L = 1e-3, nu = 1e-6, F = 2e-4, rho = 1000, c = 1e-3;
   const double u_max = F * L * L / (8.0 * nu);
-  const double dx = L / 20, side = 8 * dx;
+  const double dx = L / 20, side = 7 * dx;
   scene::Scene s = water_scene(dx, c, 1.5);
   s.run.gravity = Vec3(F, 0, 0);
   s.sph.artificial_viscosity = 0;
