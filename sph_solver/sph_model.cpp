@@ -20,7 +20,7 @@ using Rheology = scene::Material::Rheology;
 using KernelKind = scene::SphSettings::Kernel;
 using DensityDiffusion = scene::SphSettings::DensityDiffusion;
 
-// Above this many particles the loops run in parallel.
+// Above this many particles (or wall particles; images not counted: the loops skip them) the loops run in parallel.
 constexpr std::size_t kParallelThreshold = 512;
 // More cells than this means a domain far larger than the particles need.
 constexpr std::int64_t kMaxCells = std::int64_t{1} << 27;
@@ -463,9 +463,9 @@ void SphModel::build_grid() {
   };
   // Then by x inside each cell (ties by id): every row of cells is x-sorted.
   const auto sort_by_x = [&](const std::vector<Vec3>& position, const std::vector<std::uint32_t>& start,
-                             std::vector<std::uint32_t>& order) {
+                             std::vector<std::uint32_t>& order, std::size_t images) {
     const auto cell_count = static_cast<std::int64_t>(cells);
-#pragma omp parallel for schedule(static) if (order.size() > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (order.size() - images > kParallelThreshold)
     for (std::int64_t c = 0; c < cell_count; ++c) {
       const auto first = order.begin() + start[static_cast<std::size_t>(c)];
       const auto last = order.begin() + start[static_cast<std::size_t>(c) + 1];
@@ -478,10 +478,10 @@ void SphModel::build_grid() {
   };
   sort(
       f_position, [&](std::size_t i) { return i >= particles || active_[i] != 0; }, f_cell_start_, f_order_);
-  sort_by_x(f_position, f_cell_start_, f_order_);
+  sort_by_x(f_position, f_cell_start_, f_order_, f_image_source_.size());
   sort(
       b_position, [](std::size_t) { return true; }, b_cell_start_, b_order_);
-  sort_by_x(b_position, b_cell_start_, b_order_);
+  sort_by_x(b_position, b_cell_start_, b_order_, b_image_source_.size());
   if (periodic) {
     f_slot_of_.resize(particles);
     for (std::size_t s = 0; s < f_order_.size(); ++s) {
@@ -509,7 +509,7 @@ void SphModel::gather() {
   if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);  // component-major, stride n + kLanes
   out_drho_.resize(n);
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto s = static_cast<std::size_t>(k);
     const std::uint32_t slot_id = f_order_[s];
@@ -611,7 +611,7 @@ void SphModel::extrapolate_wall_stress() {
   const std::size_t nb = b_order_.size();
   const std::size_t b_stride = nb + kLanes;
   const auto count = static_cast<std::int64_t>(nb);
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto s = static_cast<std::size_t>(k);
     const std::uint32_t id = b_order_[s];
@@ -672,7 +672,7 @@ void SphModel::boundary_state(T) {
                                         [&](std::uint32_t m) { return m == fmat_[0]; });
   const auto count = static_cast<std::int64_t>(nb);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this] {
@@ -821,7 +821,9 @@ void SphModel::compute_velocity_gradients() {
   const double h = kernel_.h;
   double min_viscous_dt = min_viscous_dt_;
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) reduction(min : min_viscous_dt) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) \
+    reduction(min                         \
+              : min_viscous_dt) if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const FluidMaterial& material = materials_[fmat_[i]];
@@ -934,7 +936,7 @@ void SphModel::fluid_forces(T) {
   std::int64_t neighbour_count = 0;
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count)  if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count)  if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this, &max_mu, &max_acceleration, &neighbour_count] {
@@ -1098,7 +1100,7 @@ void SphModel::boundary_forces(T) {
   const std::vector<Vec3>& b_position = periodic_.empty() ? boundary_.position : b_sort_position_;
   const auto count = static_cast<std::int64_t>(nb);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this, &b_position] {
@@ -1195,7 +1197,7 @@ void SphModel::velocity_divergence(T) {
   const float* brho = brho_.data();
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this] {
