@@ -19,7 +19,7 @@ using Rheology = scene::Material::Rheology;
 using KernelKind = scene::SphSettings::Kernel;
 using DensityDiffusion = scene::SphSettings::DensityDiffusion;
 
-// Above this many particles the loops run in parallel.
+// Above this many particles (or wall particles; images not counted: the loops skip them) the loops run in parallel.
 constexpr std::size_t kParallelThreshold = 512;
 // More cells than this means a domain far larger than the particles need.
 constexpr std::int64_t kMaxCells = std::int64_t{1} << 27;
@@ -298,11 +298,29 @@ SphModel::SphModel(const scene::Scene& scene)
     stress_rate_.assign(6 * n, 0.0);
   }
   active_.assign(n, 1);
+  const std::optional<std::array<double, 2>>* spans[2] = {&settings_.periodic_x, &settings_.periodic_y};
+  for (int axis = 0; axis < 2; ++axis) {
+    const auto& span = *spans[axis];
+    if (!span) continue;
+    const double period = (*span)[1] - (*span)[0];
+    if (!(period >= 2.0 * kernel_.support())) {
+      throw SceneError(fmt::format(
+          "sph.periodic_{} = [{}, {}]: the period {} m is shorter than two kernel supports (4h = {} m). Fix: widen "
+          "the span or lower sph.particle_spacing",
+          axis == 0 ? 'x' : 'y', (*span)[0], (*span)[1], period, 2.0 * kernel_.support()));
+    }
+    periodic_.push_back({axis, (*span)[0], (*span)[1]});
+  }
+  if (!periodic_.empty()) {
+    wrap_offset_.assign(n, Vec3::Zero());
+    wrap_positions();
+  }
   stable_dt_ = initial_stable_dt();
   energies_.kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
     energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm();
-    energies_.potential -= mass_[i] * gravity_.dot(position_[i]);
+    energies_.potential -=
+        mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i]));
     energies_.elastic += mass_[i] * materials_[material_[i]].eos.specific_energy(density_[i]);
   }
 }
@@ -333,7 +351,78 @@ void SphModel::set_boundary(physics::BoundaryParticles boundary) {
         "accelerations, {} volumes; every array needs one entry per particle",
         n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(), boundary.volume.size()));
   }
+  for (const PeriodicAxis& periodic : periodic_) {
+    for (std::size_t b = 0; b < n; ++b) {
+      const double x = boundary.position[b][periodic.axis];
+      if (x < periodic.min || x >= periodic.max) {
+        throw Error(fmt::format(
+            "sph_solver: wall particle {} lies at {} = {} m, outside the periodic span sph.periodic_{} = [{}, {}); "
+            "the images of the wall particles stand for the walls beyond the seam. Fix: end the structures at "
+            "the span (a floor covering [min, max) once)",
+            b, periodic.axis == 0 ? 'x' : 'y', x, periodic.axis == 0 ? 'x' : 'y', periodic.min, periodic.max));
+      }
+    }
+  }
   boundary_ = std::move(boundary);
+}
+
+// Puts every active particle back into the periodic span: x -= period past max, += below min.
+void SphModel::wrap_positions() {
+  for (const PeriodicAxis& periodic : periodic_) {
+    const int a = periodic.axis;
+    const double period = periodic.max - periodic.min;
+    for (std::size_t i = 0; i < position_.size(); ++i) {
+      if (!active_[i]) continue;
+      double& x = position_[i][a];
+      if (x >= periodic.min && x < periodic.max) continue;
+      const double shift = -period * std::floor((x - periodic.min) / period);
+      x += shift;
+      if (x >= periodic.max) x = periodic.min;  // rounding of x + period just below min
+      wrap_offset_[i][a] += shift;
+    }
+  }
+}
+
+// The image slots of this step: every active fluid particle and every wall particle within
+// one support (plus a margin for the float positions) of a seam, shifted by the period
+// towards the other side (both shifts at a corner of x and y). Serial: fixed order.
+void SphModel::make_images() {
+  f_image_source_.clear();
+  b_image_source_.clear();
+  if (periodic_.empty()) return;
+  const double reach = kernel_.support() * (1.0 + 1e-3);
+  const auto add_images = [&](const Vec3& p, std::uint32_t id, std::vector<Vec3>& out,
+                              std::vector<std::uint32_t>& source) {
+    Vec3 shifts[2] = {Vec3::Zero(), Vec3::Zero()};
+    int count[2] = {1, 1};
+    for (std::size_t k = 0; k < periodic_.size(); ++k) {
+      const PeriodicAxis& periodic = periodic_[k];
+      const double period = periodic.max - periodic.min;
+      const double x = p[periodic.axis];
+      if (x < periodic.min + reach) {
+        shifts[k][periodic.axis] = period;
+        count[k] = 2;
+      } else if (x >= periodic.max - reach) {
+        shifts[k][periodic.axis] = -period;
+        count[k] = 2;
+      }
+    }
+    for (int a = 0; a < count[0]; ++a) {
+      for (int b = 0; b < count[1]; ++b) {
+        if (a == 0 && b == 0) continue;
+        out.push_back(p + static_cast<double>(a) * shifts[0] + static_cast<double>(b) * shifts[1]);
+        source.push_back(id);
+      }
+    }
+  };
+  f_sort_position_.assign(position_.begin(), position_.end());
+  for (std::size_t i = 0; i < position_.size(); ++i) {
+    if (active_[i]) add_images(position_[i], static_cast<std::uint32_t>(i), f_sort_position_, f_image_source_);
+  }
+  b_sort_position_.assign(boundary_.position.begin(), boundary_.position.end());
+  for (std::size_t b = 0; b < boundary_.size(); ++b) {
+    add_images(boundary_.position[b], static_cast<std::uint32_t>(b), b_sort_position_, b_image_source_);
+  }
 }
 
 Aabb SphModel::bounds() const {
@@ -346,8 +435,13 @@ Aabb SphModel::bounds() const {
 
 void SphModel::build_grid() {
   const double cell = kernel_.support();
+  const bool periodic = !periodic_.empty();
+  const std::vector<Vec3>& f_position = periodic ? f_sort_position_ : position_;
+  const std::vector<Vec3>& b_position = periodic ? b_sort_position_ : boundary_.position;
+  const std::size_t particles = position_.size();
   Aabb box = bounds();
-  for (const Vec3& p : boundary_.position) box.extend(p);
+  for (const Vec3& p : b_position) box.extend(p);
+  for (std::size_t k = particles; k < f_position.size(); ++k) box.extend(f_position[k]);
   if (box.empty()) box = Aabb{Vec3::Zero(), Vec3::Zero()};
   grid_origin_ = box.min.array() - 0.5 * cell;
   const Vec3 extent = box.max - grid_origin_;
@@ -391,9 +485,9 @@ void SphModel::build_grid() {
   };
   // Then by x inside each cell (ties by id): every row of cells is x-sorted.
   const auto sort_by_x = [&](const std::vector<Vec3>& position, const std::vector<std::uint32_t>& start,
-                             std::vector<std::uint32_t>& order) {
+                             std::vector<std::uint32_t>& order, std::size_t images) {
     const auto cell_count = static_cast<std::int64_t>(cells);
-#pragma omp parallel for schedule(static) if (order.size() > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (order.size() - images > kParallelThreshold)
     for (std::int64_t c = 0; c < cell_count; ++c) {
       const auto first = order.begin() + start[static_cast<std::size_t>(c)];
       const auto last = order.begin() + start[static_cast<std::size_t>(c) + 1];
@@ -405,15 +499,26 @@ void SphModel::build_grid() {
     }
   };
   sort(
-      position_, [&](std::size_t i) { return active_[i] != 0; }, f_cell_start_, f_order_);
-  sort_by_x(position_, f_cell_start_, f_order_);
+      f_position, [&](std::size_t i) { return i >= particles || active_[i] != 0; }, f_cell_start_, f_order_);
+  sort_by_x(f_position, f_cell_start_, f_order_, f_image_source_.size());
   sort(
-      boundary_.position, [](std::size_t) { return true; }, b_cell_start_, b_order_);
-  sort_by_x(boundary_.position, b_cell_start_, b_order_);
+      b_position, [](std::size_t) { return true; }, b_cell_start_, b_order_);
+  sort_by_x(b_position, b_cell_start_, b_order_, b_image_source_.size());
+  if (periodic) {
+    f_slot_of_.resize(particles);
+    for (std::size_t s = 0; s < f_order_.size(); ++s) {
+      if (f_order_[s] < particles) f_slot_of_[f_order_[s]] = static_cast<std::uint32_t>(s);
+    }
+    b_slot_of_.resize(boundary_.size());
+    for (std::size_t s = 0; s < b_order_.size(); ++s) {
+      if (b_order_[s] < boundary_.size()) b_slot_of_[b_order_[s]] = static_cast<std::uint32_t>(s);
+    }
+  }
 }
 
 void SphModel::gather() {
   const std::size_t n = f_order_.size();
+  const std::size_t particles = position_.size(), walls = boundary_.size();
   const Vec3 origin = grid_origin_;
   resize_padded(fx_, n, kFarAway);
   resize_padded(fy_, n, kFarAway);
@@ -427,13 +532,17 @@ void SphModel::gather() {
   if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);  // component-major, stride n + kLanes
   out_drho_.resize(n);
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto s = static_cast<std::size_t>(k);
-    const std::uint32_t i = f_order_[s];
-    fx_[s] = static_cast<float>(position_[i].x() - origin.x());
-    fy_[s] = static_cast<float>(position_[i].y() - origin.y());
-    fz_[s] = static_cast<float>(position_[i].z() - origin.z());
+    const std::uint32_t slot_id = f_order_[s];
+    // An image slot: its own position, its source's state.
+    const bool image = slot_id >= particles;
+    const std::uint32_t i = image ? f_image_source_[slot_id - particles] : slot_id;
+    const Vec3& position = image ? f_sort_position_[slot_id] : position_[i];
+    fx_[s] = static_cast<float>(position.x() - origin.x());
+    fy_[s] = static_cast<float>(position.y() - origin.y());
+    fz_[s] = static_cast<float>(position.z() - origin.z());
     fvx_[s] = static_cast<float>(velocity_[i].x());
     fvy_[s] = static_cast<float>(velocity_[i].y());
     fvz_[s] = static_cast<float>(velocity_[i].z());
@@ -459,14 +568,45 @@ void SphModel::gather() {
     for (auto* v : {&bvx_, &bvy_, &bvz_}) resize_padded(*v, nb, 0.0f);
   }
   for (std::size_t s = 0; s < nb; ++s) {
-    const std::uint32_t b = b_order_[s];
-    bx_[s] = static_cast<float>(boundary_.position[b].x() - origin.x());
-    by_[s] = static_cast<float>(boundary_.position[b].y() - origin.y());
-    bz_[s] = static_cast<float>(boundary_.position[b].z() - origin.z());
+    const std::uint32_t slot_id = b_order_[s];
+    const bool image = slot_id >= walls;
+    const std::uint32_t b = image ? b_image_source_[slot_id - walls] : slot_id;
+    const Vec3& position = image ? b_sort_position_[slot_id] : boundary_.position[b];
+    bx_[s] = static_cast<float>(position.x() - origin.x());
+    by_[s] = static_cast<float>(position.y() - origin.y());
+    bz_[s] = static_cast<float>(position.z() - origin.z());
     bwx_[s] = static_cast<float>(boundary_.velocity[b].x());
     bwy_[s] = static_cast<float>(boundary_.velocity[b].y());
     bwz_[s] = static_cast<float>(boundary_.velocity[b].z());
     bvol_[s] = static_cast<float>(boundary_.volume[b]);
+  }
+  if (!periodic_.empty()) {
+    fm_wall_.assign(fm_.begin(), fm_.end());
+    for (std::size_t s = 0; s < n; ++s) {
+      if (f_order_[s] >= particles) fm_wall_[s] = 0.0;
+    }
+  }
+}
+
+// A wall image carries its source's state from boundary_state() and extrapolate_wall_stress().
+void SphModel::copy_wall_image_state() {
+  const std::size_t walls = boundary_.size();
+  const std::size_t b_stride = b_order_.size() + kLanes;
+  for (std::size_t s = 0; s < b_order_.size(); ++s) {
+    const std::uint32_t slot_id = b_order_[s];
+    if (slot_id < walls) continue;
+    const std::uint32_t source = b_slot_of_[b_image_source_[slot_id - walls]];
+    bpr_[s] = bpr_[source];
+    brho_[s] = brho_[source];
+    bvol_[s] = bvol_[source];
+    if (any_gradient_) {
+      bvx_[s] = bvx_[source];
+      bvy_[s] = bvy_[source];
+      bvz_[s] = bvz_[source];
+    }
+    if (has_stress_) {
+      for (std::size_t q = 0; q < 6; ++q) bstress_[q * b_stride + s] = bstress_[q * b_stride + source];
+    }
   }
 }
 
@@ -479,6 +619,7 @@ void SphModel::compute_boundary_state() {
     boundary_stress_.resize(6 * boundary_.size());  // every entry is written: b_order_ holds every wall particle
     extrapolate_wall_stress();
   }
+  if (!b_image_source_.empty()) copy_wall_image_state();
 }
 
 // Elastic-plastic fluids: the wall carries the fluid's deviatoric stress extrapolated like
@@ -494,10 +635,11 @@ void SphModel::extrapolate_wall_stress() {
   const std::size_t nb = b_order_.size();
   const std::size_t b_stride = nb + kLanes;
   const auto count = static_cast<std::int64_t>(nb);
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto s = static_cast<std::size_t>(k);
     const std::uint32_t id = b_order_[s];
+    if (id >= boundary_.size()) continue;  // an image: copy_wall_image_state()
     const double* m = &bmoment_[kWallMoments * s];
     Sym6 s_w;
     if (m[0] > 0) {
@@ -536,7 +678,7 @@ void SphModel::extrapolate_wall_stress() {
 
 template <class T>
 void SphModel::boundary_state(T) {
-  const std::size_t nb = b_order_.size();
+  const std::size_t nb = b_order_.size(), walls = boundary_.size();
   const KernelF kernel(kernel_);
   const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
   const float* fx = fx_.data();
@@ -554,13 +696,14 @@ void SphModel::boundary_state(T) {
                                         [&](std::uint32_t m) { return m == fmat_[0]; });
   const auto count = static_cast<std::int64_t>(nb);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this] {
       for (std::int64_t k = first; k < last; ++k) {
         const auto s = static_cast<std::size_t>(k);
         const std::uint32_t id = b_order_[s];
+        if (id >= walls) continue;  // an image: copy_wall_image_state()
         const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
         const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
                    gaz = static_cast<float>(g_minus_a.z());
@@ -697,15 +840,18 @@ void SphModel::compute_velocity_gradients() {
     return;
   }
   fgrad_.assign(9 * n, 0.0);
+  const std::size_t particles = position_.size();
   const double support2 = kernel_.support() * kernel_.support();
   const double h = kernel_.h;
   double min_viscous_dt = min_viscous_dt_;
   const auto count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) reduction(min : min_viscous_dt) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) \
+    reduction(min                         \
+              : min_viscous_dt) if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t k = 0; k < count; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const FluidMaterial& material = materials_[fmat_[i]];
-    if (!material.needs_velocity_gradient()) continue;
+    if (!material.needs_velocity_gradient() || f_order_[i] >= particles) continue;  // images: copied below
     const double x = fx_[i], y = fy_[i], z = fz_[i];
     double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     const auto add = [&](double rx, double ry, double rz, double r2, double dvx, double dvy, double dvz,
@@ -760,6 +906,11 @@ void SphModel::compute_velocity_gradients() {
     if (eta > 0) min_viscous_dt = std::min(min_viscous_dt, double{frho_[i]} * h * h / (8.0 * eta));
   }
   min_viscous_dt_ = min_viscous_dt;
+  if (!f_image_source_.empty()) {
+    for (std::size_t s = 0; s < n; ++s) {
+      if (f_order_[s] >= particles) feta_[s] = feta_[f_slot_of_[f_image_source_[f_order_[s] - particles]]];
+    }
+  }
 }
 
 void SphModel::compute_fluid_forces() {
@@ -769,8 +920,8 @@ void SphModel::compute_fluid_forces() {
 
 template <class T>
 void SphModel::fluid_forces(T) {
-  const std::size_t n = f_order_.size();
-  if (T::diffusion && support_neighbours_.size() != position_.size()) support_neighbours_.assign(position_.size(), 0);
+  const std::size_t n = f_order_.size(), particles = position_.size();
+  if (T::diffusion && support_neighbours_.size() != particles) support_neighbours_.assign(particles, 0);
   const float* ffull = ffull_.data();
   const KernelF kernel(kernel_);
   const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
@@ -811,13 +962,14 @@ void SphModel::fluid_forces(T) {
   std::int64_t neighbour_count = 0;
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count)  if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) reduction(max : max_mu, max_acceleration) reduction(+ : neighbour_count)  if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this, &max_mu, &max_acceleration, &neighbour_count] {
       for (std::int64_t k = first; k < last; ++k) {
         const auto i = static_cast<std::uint32_t>(k);
         const std::uint32_t id = f_order_[i];
+        if (id >= particles) continue;  // an image: read-only
         const float x = fx[i], y = fy[i], z = fz[i];
         const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
         const float rho_i = frho[i], pr_i = fpr[i], full_i = ffull[i];
@@ -933,13 +1085,19 @@ void SphModel::fluid_forces(T) {
   }
   max_mu_ = max_mu;
   max_acceleration_ = max_acceleration;
-  mean_neighbours_ = n > 0 ? static_cast<double>(neighbour_count) / static_cast<double>(n) : 0.0;
+  const std::size_t real = n - f_image_source_.size();
+  mean_neighbours_ = real > 0 ? static_cast<double>(neighbour_count) / static_cast<double>(real) : 0.0;
 }
 
 void SphModel::compute_boundary_forces() {
-  boundary_force_.assign(boundary_.size(), Vec3::Zero());
+  const std::size_t walls = boundary_.size();
+  boundary_force_.assign(walls + b_image_source_.size(), Vec3::Zero());
   with_terms(kernel_.type, any_gradient_, has_stress_, DensityDiffusion::none,
              [&](auto terms) { boundary_forces(terms); });
+  // The fluid's force on a wall image is its source's (action = reaction), in image order.
+  for (std::size_t k = 0; k < b_image_source_.size(); ++k)
+    boundary_force_[b_image_source_[k]] += boundary_force_[walls + k];
+  boundary_force_.resize(walls);
 }
 
 // The same pair terms as in fluid_forces, from the wall particle's side: the force on
@@ -964,13 +1122,15 @@ void SphModel::boundary_forces(T) {
   const std::size_t stress_stride = f_order_.size() + kLanes;
   const float* bstress = bstress_.data();
   const std::size_t bstress_stride = b_order_.size() + kLanes;
-  const double* fm = fm_.data();
+  // With images, the real fluid only: a wall (or wall image) sees each fluid particle once.
+  const double* fm = periodic_.empty() ? fm_.data() : fm_wall_.data();
+  const std::vector<Vec3>& b_position = periodic_.empty() ? boundary_.position : b_sort_position_;
   const auto count = static_cast<std::int64_t>(nb);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (nb > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
-    with_best_isa([=, this] {
+    with_best_isa([=, this, &b_position] {
       for (std::int64_t k = first; k < last; ++k) {
         const auto b = static_cast<std::size_t>(k);
         const std::uint32_t id = b_order_[b];
@@ -986,7 +1146,7 @@ void SphModel::boundary_forces(T) {
           vz_b = bvz_[b];
         }
         alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
-        const Vec3& position = boundary_.position[id];
+        const Vec3& position = b_position[id];
         for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
           for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
@@ -1031,9 +1191,10 @@ void SphModel::boundary_forces(T) {
 // Continuity at x_n with the new velocities v_{n+1/2} (the density is a position-like
 // variable of the leapfrog: with v_{n-1/2} the acoustic modes would grow).
 void SphModel::compute_velocity_divergence() {
-  const std::size_t n = f_order_.size();
+  const std::size_t n = f_order_.size(), particles = position_.size();
   for (std::size_t s = 0; s < n; ++s) {
-    const Vec3& v = velocity_[f_order_[s]];
+    const std::uint32_t id = f_order_[s];
+    const Vec3& v = velocity_[id < particles ? id : f_image_source_[id - particles]];
     fvx_[s] = static_cast<float>(v.x());
     fvy_[s] = static_cast<float>(v.y());
     fvz_[s] = static_cast<float>(v.z());
@@ -1043,7 +1204,7 @@ void SphModel::compute_velocity_divergence() {
 
 template <class T>
 void SphModel::velocity_divergence(T) {
-  const std::size_t n = f_order_.size();
+  const std::size_t n = f_order_.size(), particles = position_.size();
   const KernelF kernel(kernel_);
   const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
   const float* fx = fx_.data();
@@ -1063,12 +1224,13 @@ void SphModel::velocity_divergence(T) {
   const float* brho = brho_.data();
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (n > kParallelThreshold)
+#pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
     with_best_isa([=, this] {
       for (std::int64_t k = first; k < last; ++k) {
         const auto i = static_cast<std::uint32_t>(k);
+        if (f_order_[i] >= particles) continue;  // an image: read-only
         const float x = fx[i], y = fy[i], z = fz[i];
         const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
         alignas(64) float drho[kLanes] = {};
@@ -1112,6 +1274,7 @@ void SphModel::stress_rates() {
   std::fill(stress_rate_.begin(), stress_rate_.end(), 0.0);
   for (std::size_t s = 0; s < n; ++s) {
     const std::uint32_t i = f_order_[s];
+    if (i >= position_.size()) continue;  // an image
     double* rate = &stress_rate_[6 * i];
     const FluidMaterial& material = materials_[material_[i]];
     if (material.rheology != Rheology::elastic_plastic) continue;
@@ -1136,6 +1299,10 @@ void SphModel::stress_rates() {
 
 void SphModel::compute_internal_forces(double dt_previous) {
   (void)dt_previous;
+  if (!periodic_.empty()) {
+    wrap_positions();  // positions() is writable
+    make_images();
+  }
   build_grid();
   gather();
   compute_boundary_state();
@@ -1177,6 +1344,7 @@ void SphModel::integrate(double dt_previous, double dt) {
   const std::size_t n = size();
   const bool parallel = n > kParallelThreshold;
   const bool external = !external_force_.empty();
+  const bool periodic = !periodic_.empty();
   // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
   const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
   energy_block_.assign(3 * blocks, 0.0);
@@ -1192,7 +1360,7 @@ void SphModel::integrate(double dt_previous, double dt) {
         continue;
       }
       const FluidMaterial& material = materials_[material_[i]];
-      potential += -mass_[i] * gravity_.dot(position_[i]);
+      potential += -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
       elastic += mass_[i] * material.eos.specific_energy(density_[i]);
       Vec3 a = acceleration_[i];
       if (external) {
@@ -1212,7 +1380,7 @@ void SphModel::integrate(double dt_previous, double dt) {
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::int64_t k = 0; k < sorted; ++k) {
     const auto s = static_cast<std::size_t>(k);
-    density_[f_order_[s]] += dt * out_drho_[s];
+    if (f_order_[s] < n) density_[f_order_[s]] += dt * out_drho_[s];
   }
   const auto count = static_cast<std::int64_t>(n);
 #pragma omp parallel for schedule(static) if (parallel)
@@ -1234,6 +1402,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
     pressure_[i] = material.eos.pressure(density_[i]);
   }
+  if (periodic) wrap_positions();
   Energies energies;
   for (std::size_t block = 0; block < blocks; ++block) {
     energies.kinetic += energy_block_[3 * block];

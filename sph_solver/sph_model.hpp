@@ -33,6 +33,15 @@
 // Inside a cell the particles are sorted by x (ties by id), so that a row of 3
 // cells is x-sorted and the blocks outside a particle's x window are skipped.
 //
+// Periodic boundaries (scene sph.periodic_x / periodic_y, docs/physics.md): a particle
+// leaving the span is wrapped back (position -= period, the shift kept in wrap_offsets());
+// every step the fluid and wall particles within one support of a seam get read-only
+// image slots, shifted by the period, among the cell-ordered slots. An image carries its
+// source's state (copied after each pass whose per-slot results neighbours read) and is
+// neither integrated nor output: ids >= size() in the sorted order are images. The wall
+// forces count the real fluid only, and a wall image's force goes back to its source, so
+// that every fluid-wall pair is counted once with the same float on both sides.
+//
 // Determinism: every particle sums its own neighbours in a fixed order (rows
 // in grid order, lane k of a block summing slots begin + k + kLanes m, lanes
 // added in lane order); the per-particle results are written back by id;
@@ -113,6 +122,12 @@ class SphModel {
   // 0 for particles that left the domain (taken out of the simulation).
   [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }
   [[nodiscard]] std::size_t lost_count() const { return lost_; }
+  // m, per particle: what the periodic wrapping added to its position so far (zero without
+  // periodic boundaries, then empty); x - offset is the unwrapped position.
+  [[nodiscard]] std::span<const Vec3> wrap_offsets() const { return wrap_offset_; }
+  // Number of image slots (fluid, wall) in the last compute_internal_forces().
+  [[nodiscard]] std::size_t fluid_image_count() const { return f_image_source_.size(); }
+  [[nodiscard]] std::size_t wall_image_count() const { return b_image_source_.size(); }
 
   // Wall particles for the next compute_internal_forces() (Adami et al. 2012).
   // Taken by value: a caller that no longer needs its copy moves it in.
@@ -143,6 +158,9 @@ class SphModel {
   [[nodiscard]] Aabb bounds() const;
 
  private:
+  void wrap_positions();
+  void make_images();
+  void copy_wall_image_state();
   void build_grid();
   void gather();
   void compute_boundary_state();
@@ -249,6 +267,18 @@ class SphModel {
   std::vector<std::uint32_t> material_, body_;
   std::vector<std::uint8_t> active_;
   std::size_t lost_ = 0;
+
+  // Periodic axes (0 = x, 1 = y) and the image slots of the last compute.
+  struct PeriodicAxis {
+    int axis;
+    double min, max;  // m, the span [min, max)
+  };
+  std::vector<PeriodicAxis> periodic_;
+  std::vector<Vec3> wrap_offset_;                               // m, per particle (only periodic)
+  std::vector<std::uint32_t> f_image_source_, b_image_source_;  // image k (id size() + k) -> source id
+  std::vector<Vec3> f_sort_position_, b_sort_position_;         // m, by id, images after the particles (only periodic)
+  std::vector<std::uint32_t> f_slot_of_, b_slot_of_;            // sorted slot of each particle id (only periodic)
+  std::vector<double> fm_wall_;  // kg, fm_ with the image slots 0: the wall forces count real fluid only
 
   // Boundary particles and their per-step state.
   physics::BoundaryParticles boundary_;

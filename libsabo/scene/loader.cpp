@@ -760,6 +760,31 @@ class Builder {
         domain_line_ = r.line("domain_max");
       }
     }
+    read_periodic(r, "periodic_x", sph.periodic_x, periodic_line_[0]);
+    read_periodic(r, "periodic_y", sph.periodic_y, periodic_line_[1]);
+  }
+
+  // [min, max) of a periodic axis: a period of at least two kernel supports plus one spacing,
+  // so that no particle sees another and its image at once (docs/physics.md).
+  void read_periodic(Reader& r, const char* key, std::optional<std::array<double, 2>>& out, int& line) {
+    const auto span = r.pair(key);
+    if (!span) return;
+    const SphSettings& sph = scene_.sph;
+    const double period = (*span)[1] - (*span)[0];
+    const double least = 2.0 * sph.kernel_support() + sph.particle_spacing;
+    if (period <= 0) {
+      diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                "the periodic span is empty or inverted: max must exceed min", "give [min, max] with min < max");
+    } else if (sph.particle_spacing > 0 && period < least) {
+      diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                fmt::format("the period {} m is shorter than two kernel supports plus one spacing, 4h + dx = {} m "
+                            "(h = smoothing_ratio * particle_spacing): a particle would see another and its image",
+                            number_literal(period), fmt::format("{:.6g}", least)),
+                fmt::format("widen the span to at least {:.6g} m or lower sph.particle_spacing", least));
+    } else {
+      out = *span;
+      line = r.line(key);
+    }
   }
 
   void read_fluid(const toml::table& table, std::size_t index) {
@@ -836,6 +861,20 @@ class Builder {
           r.line(), path, std::nullopt,
           fmt::format("the body reaches outside the SPH domain (sph.domain_min/domain_max, line {})", domain_line_),
           "enlarge the domain or move the body into it");
+    }
+    const std::optional<std::array<double, 2>>* periodic[2] = {&scene_.sph.periodic_x, &scene_.sph.periodic_y};
+    for (int axis = 0; axis < 2; ++axis) {
+      const auto& span = *periodic[axis];
+      if (!span || bounds.empty()) continue;
+      const double tolerance = 1e-9 * std::max(1.0, (*span)[1] - (*span)[0]);
+      if (bounds.min[axis] < (*span)[0] - tolerance || bounds.max[axis] > (*span)[1] + tolerance) {
+        const char* name = axis == 0 ? "periodic_x" : "periodic_y";
+        diag_.add(r.line(), path, std::nullopt,
+                  fmt::format("the body spans {} = [{}, {}] m, outside the periodic span sph.{} = [{}, {}] (line {})",
+                              axis == 0 ? "x" : "y", number_literal(bounds.min[axis]), number_literal(bounds.max[axis]),
+                              name, number_literal((*span)[0]), number_literal((*span)[1]), periodic_line_[axis]),
+                  fmt::format("move the body into the span or widen sph.{}", name));
+      }
     }
     scene_.fluids.push_back(std::move(body));
   }
@@ -1797,6 +1836,7 @@ class Builder {
   bool has_particles_ = false, has_structures_ = false, has_fluids_ = false;
   std::map<std::string, FluidMaterialKeys> fluid_material_keys_;
   int domain_line_ = 0;
+  int periodic_line_[2] = {0, 0};
   std::vector<std::string> material_names_;
   std::map<std::string, BodyName> bodies_;
   std::vector<ListedSphere> listed_;

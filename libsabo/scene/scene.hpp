@@ -275,6 +275,9 @@ struct SphSettings {
   DensityDiffusion density_diffusion = DensityDiffusion::fourtakas;
   double density_diffusion_delta = 0.1;  // delta of delta-SPH
   std::optional<Aabb> domain;            // particles leaving it are taken out of the simulation (counted, logged)
+  // Periodic boundaries, m: [min, max) along x and y; a particle leaving it re-enters at the
+  // other end, and the fluid sees across the seam (docs/physics.md, "Periodic boundaries").
+  std::optional<std::array<double, 2>> periodic_x, periodic_y;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
 };

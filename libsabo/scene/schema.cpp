@@ -636,6 +636,20 @@ class Schema {
             .example("[10.0, 1.0, 5.0]")
             .unit("m")
             .doc("Upper corner of the domain, above `domain_min` on every axis."),
+        K("periodic_x", Type::number_pair)
+            .absent("not periodic along x")
+            .example("[0.0, 0.3]")
+            .unit("m")
+            .doc("Periodic boundaries along x over `[min, max)`: a particle leaving at one end re-enters at the "
+                 "other, and particles near one end see those near the other as neighbours (an infinite layer, "
+                 "a channel). The period max - min is at least two kernel supports plus one spacing (4h + dx); "
+                 "every fluid body lies inside, and so do the wall particles (the structures end at the span; "
+                 "a floor of boundary particles covers it without overlap)."),
+        K("periodic_y", Type::number_pair)
+            .absent("not periodic along y")
+            .example("[0.0, 0.3]")
+            .unit("m")
+            .doc("Periodic boundaries along y over `[min, max)`, like `periodic_x`."),
     };
     fluid.title = "[[fluids]]";
     fluid.anchor = "fluids";
@@ -1099,7 +1113,9 @@ const std::vector<std::string>& cross_checks() {
       "`restitution` in `[contact.dem_fem]` or a particle set's interaction is given only where that contact uses "
       "`model = \"hertz_mindlin\"` (an interaction's model is its own or, when absent, `[contact.dem_fem]`'s).",
       "`[sph]` is given exactly when there are `[[fluids]]`; `[contact.sph_fem]` needs fluids and structures. "
-      "`domain_min` and `domain_max` come together, min < max on every axis, and the domain holds every fluid.",
+      "`domain_min` and `domain_max` come together, min < max on every axis, and the domain holds every fluid. "
+      "`periodic_x` and `periodic_y` have min < max, a period of at least 4h + dx (h = `smoothing_ratio` * "
+      "`particle_spacing`), and hold every fluid body along their axis.",
       "A fluid material: `eos = \"polynomial\"` needs `eos_c1`; `newtonian` and `bingham` need `viscosity` > 0; "
       "`bingham` and `elastic_plastic` need `yield_stress` > 0. A fluid body holds at least one particle; a "
       "box has min < max on every axis; a profile has at least 3 points, no zero-length edge, no crossing "
