@@ -176,23 +176,26 @@ TEST(SphArtificialStress, SlurryColumnJitterAndPressure) {
 // S8 deposit: a yield-stress slump at rest on a flat bed has h(d) = sqrt(2 tau_y d / (rho g))
 // at distance d behind its front (the shallow static balance rho g h |dh/dx| = tau_y on the
 // bed). A slice W wide (free-slip side walls: a plane flow) of a column a long and b tall,
-// behind a no-slip back wall at x = 0, collapses onto a no-slip floor.
+// behind a no-slip back wall at x = 0, collapses onto a no-slip floor. tau_y = 98.1 Pa gives
+// a deposit of the column's area about 0.32 m long and 0.08 m thick at the back (32 and 8 dx at
+// dx = 0.01 m); the regularisation rate 1/s keeps the explicit viscous step at
+// rho h^2 / (8 tau_y / gamma_0) = 2.8e-4 s (dx = 0.01 m), at the price of a slow creep.
 struct DepositCase {
-  scene::Material::Rheology rheology = scene::Material::Rheology::bingham;
   double dx = 0.01;                     // m
-  double tau_y = 98.1;                  // Pa (elastic_plastic: sigma_y = sqrt(3) tau_y)
+  double tau_y = 98.1;                  // Pa
   double plastic_viscosity = 1;         // Pa s (bingham)
   double yield_shear_rate = 1;          // 1/s (bingham regularisation)
   double length = 0.12, height = 0.14;  // m, the column
   int width_cells = 3;                  // slice width, dx
-  double t_end = 2.0;                   // s, at most
-  double rest_speed = 0.01;             // m/s: at rest when the fastest particle stays below it ...
+  double t_end = 3.0;                   // s, at most
+  double rest_speed = 0.025;            // m/s: at rest when the fastest particle stays below it ...
   double rest_time = 0.1;               // s: ... this long
 };
 struct DepositProfile {
   double front = 0;                      // m, front x
   std::vector<double> distance, height;  // m, per column of width dx behind the front
   double time = 0, largest_speed_end = 0;
+  int steps = 0;
   bool at_rest = false;
 };
 DepositProfile run_deposit(const DepositCase& c) {
@@ -200,15 +203,10 @@ DepositProfile run_deposit(const DepositCase& c) {
   scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * c.height), 1.5);
   s.sph.artificial_viscosity = 0.1;
   scene::Material& m = s.materials[0];
-  m.rheology = c.rheology;
-  if (c.rheology == scene::Material::Rheology::bingham) {
-    m.yield_stress = c.tau_y;
-    m.viscosity = c.plastic_viscosity;
-    m.yield_shear_rate = c.yield_shear_rate;
-  } else {
-    m.yield_stress = std::sqrt(3.0) * c.tau_y;
-    m.fluid_shear_modulus = 1e5;
-  }
+  m.rheology = scene::Material::Rheology::bingham;
+  m.yield_stress = c.tau_y;
+  m.viscosity = c.plastic_viscosity;
+  m.yield_shear_rate = c.yield_shear_rate;
   s.fluids.push_back(box_body("slurry", Vec3(0, 0, 0), Vec3(c.length, W, c.height)));
   SphModel model(s);
   // The bed reaches 1.5 times the expected deposit length L: a c = (2/3) L h(L).
@@ -229,6 +227,7 @@ DepositProfile run_deposit(const DepositCase& c) {
     double fastest = 0;
     for (const Vec3& v : model.velocities()) fastest = std::max(fastest, v.norm());
     out.largest_speed_end = fastest;
+    ++out.steps;
     if (fastest >= c.rest_speed) {
       quiet_since = -1;
       return true;
@@ -271,8 +270,9 @@ DepositProfile run_deposit(const DepositCase& c) {
 // the back wall); returns the largest relative error.
 double compare_deposit(const DepositCase& c, const DepositProfile& p) {
   const double g = 9.81, rho = 1000;
-  std::cout << "deposit at t = " << p.time << " s (at rest: " << (p.at_rest ? "yes" : "no") << ", fastest particle "
-            << p.largest_speed_end << " m/s), front at x = " << p.front << " m\n";
+  std::cout << "deposit at t = " << p.time << " s after " << p.steps
+            << " steps (at rest: " << (p.at_rest ? "yes" : "no") << ", fastest particle " << p.largest_speed_end
+            << " m/s), front at x = " << p.front << " m\n";
   double worst = 0;
   for (std::size_t k = 0; k < p.distance.size(); ++k) {
     const double d = p.distance[k];
@@ -286,22 +286,27 @@ double compare_deposit(const DepositCase& c, const DepositProfile& p) {
   return worst;
 }
 
-TEST(SphValidation, DISABLED_S8BinghamDepositProfile) {
+// Reduced: dx = 0.02 m, the deposit 3-4 dx thick where it is held (d = 5-15 dx). The surface
+// is known to about dx/2 there (12-15 % of h), and the regularised law still creeps when the
+// run stops (the fastest particle below 0.025 m/s, 2 % of sqrt(g b), for 0.1 s), so it is held
+// to 20 %. The full case, dx = 0.01 m, is the disabled test below (about 200 s).
+TEST(SphValidation, S8BinghamDepositProfileReduced) {
   DepositCase c;
-  const char* env = std::getenv("SABO_DEPOSIT_RATE");
-  if (env != nullptr) c.yield_shear_rate = std::atof(env);
-  if (const char* t = std::getenv("SABO_DEPOSIT_TEND")) c.t_end = std::atof(t);
+  c.dx = 0.02;
   const DepositProfile p = run_deposit(c);
   const double worst = compare_deposit(c, p);
-  EXPECT_LT(worst, 0.10);
+  std::cout << "reduced case held to 20 % (dx/2 is 12-15 % of h at d = 5-7 dx)\n";
+  EXPECT_TRUE(p.at_rest);
+  EXPECT_LT(worst, 0.20);
 }
 
-TEST(SphValidation, DISABLED_S8ElasticPlasticDepositProfile) {
+// The full case: `build/bin/test_sph_deposit --gtest_also_run_disabled_tests
+// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met today (docs/physics.md, "S8 deposit").
+TEST(SphValidation, DISABLED_S8BinghamDepositProfile) {
   DepositCase c;
-  c.rheology = scene::Material::Rheology::elastic_plastic;
-  if (const char* t = std::getenv("SABO_DEPOSIT_TEND")) c.t_end = std::atof(t);
   const DepositProfile p = run_deposit(c);
   const double worst = compare_deposit(c, p);
+  EXPECT_TRUE(p.at_rest);
   EXPECT_LT(worst, 0.10);
 }
 
