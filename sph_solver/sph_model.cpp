@@ -283,8 +283,6 @@ SphModel::SphModel(const scene::Scene& scene)
     material.shear_modulus = source.fluid_shear_modulus > 0 ? source.fluid_shear_modulus : source.shear_modulus();
     if (material.rheology == Rheology::elastic_plastic) {
       material.artificial_stress = source.artificial_stress.value_or(kDefaultArtificialStress);
-    }
-    if (material.rheology == Rheology::elastic_plastic) {
       // Elastic waves: c_eff^2 = c^2 + 4 G / (3 rho0).
       const double c_eff =
           std::sqrt(sound_speed_ * sound_speed_ + 4.0 * material.shear_modulus / (3.0 * material.eos.rest_density));
