@@ -343,7 +343,7 @@ double compare_deposit(const DepositCase& c, const DepositProfile& p) {
 // Reduced: dx = 0.02 m, the deposit 3-4 dx thick where it is held (d = 5-15 dx). The surface
 // is known to about dx/2 there (12-15 % of h), and the regularised law still creeps when the
 // run stops (the fastest particle below 0.025 m/s, 2 % of sqrt(g b), for 0.1 s), so it is held
-// to 20 %. The full case, dx = 0.01 m, is the disabled test below (about 200 s).
+// to 20 %. The full case, dx = 0.01 m, is the disabled test below (7 minutes on the loaded machine).
 TEST(SphValidation, S8BinghamDepositProfileReduced) {
   DepositCase c;
   c.dx = 0.02;
@@ -355,7 +355,8 @@ TEST(SphValidation, S8BinghamDepositProfileReduced) {
 }
 
 // The full case: `build/bin/test_sph_deposit --gtest_also_run_disabled_tests
-// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met today (docs/physics.md, "S8 deposit").
+// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met today: 10.4 % at 2.44 s
+// (docs/physics.md, "S8 deposit").
 TEST(SphValidation, DISABLED_S8BinghamDepositProfile) {
   DepositCase c;
   const DepositProfile p = run_deposit(c);
