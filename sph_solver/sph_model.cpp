@@ -36,25 +36,34 @@ constexpr float kFarAway = 1e6f;
 
 // The terms a step computes, fixed at compile time: the pair loops carry no
 // branch for a term that no material asks for.
-template <KernelKind Kind, bool Viscous, bool Stress, DensityDiffusion Diffusion>
+template <KernelKind Kind, bool Viscous, bool Stress, DensityDiffusion Diffusion, bool Artificial = false>
 struct Terms {
   static constexpr KernelKind kernel = Kind;
-  static constexpr bool viscous = Viscous;  // velocity gradients, Morris viscosity
-  static constexpr bool stress = Stress;    // deviatoric stress (elastic-plastic)
+  static constexpr bool viscous = Viscous;        // velocity gradients, Morris viscosity
+  static constexpr bool stress = Stress;          // deviatoric stress (elastic-plastic)
+  static constexpr bool artificial = Artificial;  // Monaghan's artificial stress (fluid pairs only)
   static constexpr bool diffusion = Diffusion != DensityDiffusion::none;
   static constexpr bool hydrostatic = Diffusion == DensityDiffusion::fourtakas;
 };
 
-template <class F>
-void with_terms(KernelKind kind, bool viscous, bool stress, DensityDiffusion diffusion, F&& f) {
-  const auto with_diffusion = [&]<KernelKind K, bool V, bool S>() {
+// AllowArtificial: the caller has an artificial-stress path (only the fluid pair loop); the
+// others are not instantiated for it.
+template <bool AllowArtificial = false, class F>
+void with_terms(KernelKind kind, bool viscous, bool stress, bool artificial, DensityDiffusion diffusion, F&& f) {
+  const auto with_diffusion = [&]<KernelKind K, bool V, bool S, bool A = false>() {
     switch (diffusion) {
-      case DensityDiffusion::none: f(Terms<K, V, S, DensityDiffusion::none>{}); return;
-      case DensityDiffusion::molteni: f(Terms<K, V, S, DensityDiffusion::molteni>{}); return;
-      case DensityDiffusion::fourtakas: f(Terms<K, V, S, DensityDiffusion::fourtakas>{}); return;
+      case DensityDiffusion::none: f(Terms<K, V, S, DensityDiffusion::none, A>{}); return;
+      case DensityDiffusion::molteni: f(Terms<K, V, S, DensityDiffusion::molteni, A>{}); return;
+      case DensityDiffusion::fourtakas: f(Terms<K, V, S, DensityDiffusion::fourtakas, A>{}); return;
     }
   };
   const auto with_rheology = [&]<KernelKind K>() {
+    if constexpr (AllowArtificial) {
+      if (stress && artificial) {
+        with_diffusion.template operator()<K, true, true, true>();
+        return;
+      }
+    }
     if (stress) {
       with_diffusion.template operator()<K, true, true>();
     } else if (viscous) {
@@ -165,6 +174,30 @@ inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_
   }
 }
 
+// Monaghan's artificial stress of one particle over its density squared (Gray, Monaghan &
+// Swift 2001): sigma = -p I + S (Pa, s: xx yy zz xy yz zx) in its principal axes, each
+// tensile principal stress sigma_a > 0 gives R_a = -epsilon sigma_a / rho^2, back to the
+// lattice axes; compressive ones give 0. Pa m^6/kg^2.
+inline void artificial_stress(const double* s, double p, double rho, double epsilon, double (&out)[6]) {
+  Mat3 sigma;
+  sigma << s[0] - p, s[3], s[5], s[3], s[1] - p, s[4], s[5], s[4], s[2] - p;
+  for (double& v : out) v = 0;
+  Eigen::SelfAdjointEigenSolver<Mat3> eigen;
+  eigen.computeDirect(sigma);
+  const Vec3 principal = eigen.eigenvalues();
+  if (principal.maxCoeff() <= 0) return;
+  const double scale = -epsilon / (rho * rho);
+  const Vec3 r = principal.unaryExpr([&](double v) { return v > 0 ? scale * v : 0.0; });
+  const Mat3& axes = eigen.eigenvectors();
+  const Mat3 R = axes * r.asDiagonal() * axes.transpose();
+  out[0] = R(0, 0);
+  out[1] = R(1, 1);
+  out[2] = R(2, 2);
+  out[3] = R(0, 1);
+  out[4] = R(1, 2);
+  out[5] = R(2, 0);
+}
+
 // Particles per unit of work handed to with_best_isa() by the parallel loops.
 constexpr std::int64_t kChunk = 64;
 
@@ -271,6 +304,7 @@ SphModel::SphModel(const scene::Scene& scene)
     material.yield_shear_rate = source.yield_shear_rate;
     material.shear_modulus = source.fluid_shear_modulus > 0 ? source.fluid_shear_modulus : source.shear_modulus();
     if (material.rheology == Rheology::elastic_plastic) {
+      material.artificial_stress = source.artificial_stress.value_or(kDefaultArtificialStress);
       // Elastic waves: c_eff^2 = c^2 + 4 G / (3 rho0).
       const double c_eff =
           std::sqrt(sound_speed_ * sound_speed_ + 4.0 * material.shear_modulus / (3.0 * material.eos.rest_density));
@@ -282,6 +316,7 @@ SphModel::SphModel(const scene::Scene& scene)
     body_material.push_back(m);
     any_gradient_ = any_gradient_ || materials_[m].needs_velocity_gradient();
     has_stress_ = has_stress_ || materials_[m].rheology == Rheology::elastic_plastic;
+    any_artificial_stress_ = any_artificial_stress_ || materials_[m].artificial_stress > 0;
   }
   FluidFill fill = fill_fluids(scene, materials_, body_material);
   position_ = std::move(fill.position);
@@ -345,11 +380,13 @@ double SphModel::initial_stable_dt() const {
 void SphModel::set_boundary(physics::BoundaryParticles boundary) {
   const std::size_t n = boundary.size();
   if (boundary.velocity.size() != n || boundary.normal.size() != n || boundary.acceleration.size() != n ||
-      boundary.volume.size() != n) {
+      boundary.volume.size() != n || (!boundary.free_slip.empty() && boundary.free_slip.size() != n)) {
     throw ProtocolError(fmt::format(
         "boundary particles: {} positions but {} velocities, {} normals, {} "
-        "accelerations, {} volumes; every array needs one entry per particle",
-        n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(), boundary.volume.size()));
+        "accelerations, {} volumes, {} free-slip flags; every array needs one entry per particle (the flags "
+        "may be empty)",
+        n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(), boundary.volume.size(),
+        boundary.free_slip.size()));
   }
   for (const PeriodicAxis& periodic : periodic_) {
     for (std::size_t b = 0; b < n; ++b) {
@@ -529,7 +566,8 @@ void SphModel::gather() {
   resize_padded(frho_, n, 1.0f);
   resize_padded(fmat_, n, std::uint32_t{0});
   if (any_gradient_) resize_padded(feta_, n, 0.0f);
-  if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);  // component-major, stride n + kLanes
+  if (has_stress_) fstress_.assign(6 * (n + kLanes), 0.0f);                 // component-major, stride n + kLanes
+  if (any_artificial_stress_) fartificial_.assign(6 * (n + kLanes), 0.0f);  // like fstress_
   out_drho_.resize(n);
   const auto count = static_cast<std::int64_t>(n);
 #pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
@@ -555,6 +593,14 @@ void SphModel::gather() {
     if (any_gradient_) feta_[s] = 0;
     if (has_stress_) {
       for (std::size_t q = 0; q < 6; ++q) fstress_[q * (n + kLanes) + s] = static_cast<float>(stress_[6 * i + q]);
+    }
+    if (any_artificial_stress_) {
+      const double epsilon = materials_[material_[i]].artificial_stress;
+      if (epsilon > 0) {
+        double r[6];
+        artificial_stress(&stress_[6 * i], pressure_[i], density_[i], epsilon, r);
+        for (std::size_t q = 0; q < 6; ++q) fartificial_[q * (n + kLanes) + s] = static_cast<float>(r[q]);
+      }
     }
   }
   const std::size_t nb = b_order_.size();
@@ -613,7 +659,7 @@ void SphModel::copy_wall_image_state() {
 void SphModel::compute_boundary_state() {
   boundary_pressure_.assign(boundary_.size(), 0.0);
   if (has_stress_) bmoment_.resize(kWallMoments * b_order_.size());
-  with_terms(kernel_.type, any_gradient_, has_stress_, DensityDiffusion::none,
+  with_terms(kernel_.type, any_gradient_, has_stress_, false, DensityDiffusion::none,
              [&](auto terms) { boundary_state(terms); });
   if (has_stress_) {
     boundary_stress_.resize(6 * boundary_.size());  // every entry is written: b_order_ holds every wall particle
@@ -825,6 +871,15 @@ void SphModel::boundary_state(T) {
           bvx_[s] = any ? static_cast<float>(2.0 * bwx_[s] - total_vx / total_w) : bwx_[s];
           bvy_[s] = any ? static_cast<float>(2.0 * bwy_[s] - total_vy / total_w) : bwy_[s];
           bvz_[s] = any ? static_cast<float>(2.0 * bwz_[s] - total_vz / total_w) : bwz_[s];
+          if (any && !boundary_.free_slip.empty() && boundary_.free_slip[id] != 0) {
+            // Free slip: the fluid's velocity with its normal part relative to the wall mirrored.
+            const Vec3 fluid(total_vx / total_w, total_vy / total_w, total_vz / total_w);
+            const Vec3 wall(bwx_[s], bwy_[s], bwz_[s]);
+            const Vec3 mirrored = fluid - 2.0 * (fluid - wall).dot(normal) * normal;
+            bvx_[s] = static_cast<float>(mirrored.x());
+            bvy_[s] = static_cast<float>(mirrored.y());
+            bvz_[s] = static_cast<float>(mirrored.z());
+          }
         }
         boundary_pressure_[id] = p;
       }
@@ -914,8 +969,8 @@ void SphModel::compute_velocity_gradients() {
 }
 
 void SphModel::compute_fluid_forces() {
-  with_terms(kernel_.type, any_gradient_, has_stress_, settings_.density_diffusion,
-             [&](auto terms) { fluid_forces(terms); });
+  with_terms<true>(kernel_.type, any_gradient_, has_stress_, any_artificial_stress_, settings_.density_diffusion,
+                   [&](auto terms) { fluid_forces(terms); });
 }
 
 template <class T>
@@ -943,9 +998,12 @@ void SphModel::fluid_forces(T) {
   const double* fm = fm_.data();
   const float* feta = feta_.data();
   const float* fstress = fstress_.data();
+  const float* fartificial = fartificial_.data();
   const std::size_t stress_stride = f_order_.size() + kLanes;
   const float* bstress = bstress_.data();
   const std::size_t bstress_stride = b_order_.size() + kLanes;
+  // 1 / W(dx): f_ij = W(r_ij) / W(dx) in the artificial-stress term.
+  const auto inverse_w_dx = static_cast<float>(1.0 / kernel_.value(settings_.particle_spacing));
   const float* bx = bx_.data();
   const float* by = by_.data();
   const float* bz = bz_.data();
@@ -983,6 +1041,8 @@ void SphModel::fluid_forces(T) {
           const float a = 1.0f / (rho_i * rho_i);
           s_i_rho2 = {s_i.xx * a, s_i.yy * a, s_i.zz * a, s_i.xy * a, s_i.yz * a, s_i.zx * a};
         }
+        Sym6 r_i;  // R_i, artificial stress over rho_i^2
+        if constexpr (T::artificial) r_i = load_sym6(fartificial, stress_stride, i);
         alignas(64) double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
         alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
         alignas(64) std::int32_t neighbours[kLanes] = {};
@@ -1017,6 +1077,15 @@ void SphModel::fluid_forces(T) {
               const Sym6 sum{m_j * (s_i_rho2.xx + s_j.xx * aj), m_j * (s_i_rho2.yy + s_j.yy * aj),
                              m_j * (s_i_rho2.zz + s_j.zz * aj), m_j * (s_i_rho2.xy + s_j.xy * aj),
                              m_j * (s_i_rho2.yz + s_j.yz * aj), m_j * (s_i_rho2.zx + s_j.zx * aj)};
+              add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
+            }
+            if constexpr (T::artificial) {
+              // m_j (R_i + R_j) f_ij^4 . grad W, f_ij = W(r) / W(dx) (Monaghan 2000, n = 4).
+              const float w = inside ? kernel_value<T::kernel>(r2, kernel) * inverse_w_dx : 0.0f;
+              const float w2 = w * w, scale = m_j * w2 * w2;
+              const Sym6 r_j = load_sym6(fartificial, stress_stride, j);
+              const Sym6 sum{scale * (r_i.xx + r_j.xx), scale * (r_i.yy + r_j.yy), scale * (r_i.zz + r_j.zz),
+                             scale * (r_i.xy + r_j.xy), scale * (r_i.yz + r_j.yz), scale * (r_i.zx + r_j.zx)};
               add_stress_dot(sum, f, rx, ry, rz, tx, ty, tz);
             }
             ax[l] += tx;
@@ -1092,7 +1161,7 @@ void SphModel::fluid_forces(T) {
 void SphModel::compute_boundary_forces() {
   const std::size_t walls = boundary_.size();
   boundary_force_.assign(walls + b_image_source_.size(), Vec3::Zero());
-  with_terms(kernel_.type, any_gradient_, has_stress_, DensityDiffusion::none,
+  with_terms(kernel_.type, any_gradient_, has_stress_, false, DensityDiffusion::none,
              [&](auto terms) { boundary_forces(terms); });
   // The fluid's force on a wall image is its source's (action = reaction), in image order.
   for (std::size_t k = 0; k < b_image_source_.size(); ++k)
@@ -1199,7 +1268,8 @@ void SphModel::compute_velocity_divergence() {
     fvy_[s] = static_cast<float>(v.y());
     fvz_[s] = static_cast<float>(v.z());
   }
-  with_terms(kernel_.type, false, false, DensityDiffusion::none, [&](auto terms) { velocity_divergence(terms); });
+  with_terms(kernel_.type, false, false, false, DensityDiffusion::none,
+             [&](auto terms) { velocity_divergence(terms); });
 }
 
 template <class T>
@@ -1309,7 +1379,6 @@ void SphModel::compute_internal_forces(double dt_previous) {
   compute_velocity_gradients();
   compute_fluid_forces();
   compute_boundary_forces();
-  if (has_stress_) stress_rates();
   const std::size_t n = f_order_.size();
   const double h = kernel_.h;
   double dt_cv = n > 0 ? h / (sound_speed_ + max_mu_) : h / sound_speed_;
@@ -1376,6 +1445,14 @@ void SphModel::integrate(double dt_previous, double dt) {
     energy_block_[3 * static_cast<std::size_t>(block) + 2] = elastic;
   }
   compute_velocity_divergence();
+  if (has_stress_) {
+    // The deviatoric stress is position-like too: its rate from L(x_n, v_{n+1/2}) (the fluid's
+    // new velocities; the walls' no-slip velocities of compute_boundary_state()). With
+    // L(v_{n-1/2}) the elastic modes grew: a column at rest reached 1.3 sqrt(gH) by
+    // t = 4 sqrt(H/g) (docs/physics.md, "Elastic-plastic stress update").
+    compute_velocity_gradients();
+    stress_rates();
+  }
   const auto sorted = static_cast<std::int64_t>(f_order_.size());
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::int64_t k = 0; k < sorted; ++k) {

@@ -1,5 +1,6 @@
 #pragma once
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "libsabo/core/types.hpp"
@@ -16,6 +17,10 @@ struct BoundaryParticles {
   std::vector<Vec3> normal;        // unit, pointing into the fluid
   std::vector<Vec3> acceleration;  // m/s^2 of the wall (Adami's pressure term uses g - a_w)
   std::vector<double> volume;      // m^3 (dx^3 for a layer sampling)
+  // Optional, one per particle: 1 marks a free-slip wall particle for the viscous terms (its
+  // velocity there keeps the fluid's tangential velocity, so the wall takes no viscous shear).
+  // Empty: every particle is no-slip (what the coupler sends).
+  std::vector<std::uint8_t> free_slip;
 
   [[nodiscard]] std::size_t size() const { return position.size(); }
   void resize(std::size_t n) {

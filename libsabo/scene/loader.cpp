@@ -707,6 +707,7 @@ class Builder {
     if (auto v = r.number("viscosity")) material.viscosity = *v;
     if (auto v = r.number("yield_shear_rate")) material.yield_shear_rate = *v;
     if (auto v = r.number("fluid_shear_modulus")) material.fluid_shear_modulus = *v;
+    material.artificial_stress = r.number("artificial_stress");
     fluid_material_keys_[material.name] = {r.line(), r.has("eos_c1")};
   }
 
@@ -930,6 +931,11 @@ class Builder {
         diag_.add(keys.line, path + ".yield_stress", std::nullopt,
                   "missing; a bingham or elastic_plastic fluid needs a positive yield stress" + user,
                   "give yield_stress > 0 (Pa)");
+      }
+      if (material->rheology != R::elastic_plastic && material->artificial_stress.value_or(0.0) > 0) {
+        diag_.add(keys.line, path + ".artificial_stress", number_literal(*material->artificial_stress),
+                  "artificial stress acts on the stress tensor of an elastic_plastic fluid only" + user,
+                  "remove artificial_stress, or use rheology = \"elastic_plastic\"");
       }
     }
   }

@@ -62,6 +62,9 @@ struct Material {
   double viscosity = 0;            // Pa s (newtonian: dynamic; bingham: plastic)
   double yield_shear_rate = 1.0;   // 1/s (bingham regularisation)
   double fluid_shear_modulus = 0;  // Pa (elastic_plastic; 0: shear_modulus() from E and nu)
+  // Monaghan's artificial stress against the tensile instability (elastic_plastic only): its
+  // epsilon (0: off); absent: sph::kDefaultArtificialStress for elastic_plastic, none otherwise.
+  std::optional<double> artificial_stress;
 };
 
 struct RunSettings {

@@ -262,6 +262,15 @@ class Schema {
             .unit("Pa")
             .gt(0)
             .doc("Fluids, elastic_plastic: shear modulus G."),
+        K("artificial_stress", Type::number)
+            .absent("0: off (elastic_plastic columns at rest measured the same with 0.3, docs/physics.md)")
+            .example("0.3")
+            .ge(0)
+            .le(1)
+            .doc("Fluids, elastic_plastic: epsilon of Monaghan's artificial stress against the tensile "
+                 "instability (docs/physics.md): each particle adds R = -epsilon sigma'/rho^2 for its tensile "
+                 "principal stresses sigma' > 0, pair term m_j (R_i + R_j) (W(r)/W(dx))^4 grad W; 0 switches it "
+                 "off; Gray, Monaghan & Swift 2001 use 0.3. Only elastic_plastic fluids accept it."),
     };
     add_plasticity_keys();
   }
@@ -1117,7 +1126,8 @@ const std::vector<std::string>& cross_checks() {
       "`periodic_x` and `periodic_y` have min < max, a period of at least 4h + dx (h = `smoothing_ratio` * "
       "`particle_spacing`), and hold every fluid body along their axis.",
       "A fluid material: `eos = \"polynomial\"` needs `eos_c1`; `newtonian` and `bingham` need `viscosity` > 0; "
-      "`bingham` and `elastic_plastic` need `yield_stress` > 0. A fluid body holds at least one particle; a "
+      "`bingham` and `elastic_plastic` need `yield_stress` > 0; `artificial_stress` > 0 needs `elastic_plastic`. "
+      "A fluid body holds at least one particle; a "
       "box has min < max on every axis; a profile has at least 3 points, no zero-length edge, no crossing "
       "edges; `direction` is horizontal and not zero.",
       "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
