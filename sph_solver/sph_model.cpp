@@ -588,7 +588,10 @@ void SphModel::gather() {
     // p(rho_n): set by the fill and by integrate().
     fpr_[s] = static_cast<float>(pressure_[i] / (density_[i] * density_[i]));
     fm_[s] = mass_[i];
-    ffull_[s] = support_neighbours_.empty() || support_neighbours_[i] >= full_support_neighbours_ ? 1.0f : 0.0f;
+    ffull_[s] = support_neighbours_.empty() || support_neighbours_[i] >= full_support_neighbours_ ||
+                        materials_[material_[i]].rheology == Rheology::elastic_plastic
+                    ? 1.0f
+                    : 0.0f;
     fmat_[s] = material_[i];
     if (any_gradient_) feta_[s] = 0;
     if (has_stress_) {
