@@ -280,10 +280,10 @@ double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
 // benchmark asks for 100 sqrt(H/g): bench_sph_stability). Wall particles of the test's own,
 // up to 4 dx above the free surface (wetted by the fluid only up to it). Cubic spline at
 // h = 1.3 dx, the set-up the figures in docs/physics.md were first taken with (the default,
-// Wendland C2 at h = 1.5 dx: bench sph_rest_probe). Known shortfall: the start-up, 1.34e-3
+// Wendland C2 at h = 1.5 dx: bench sph_rest_probe). Known shortfall: the start-up, 1.5e-3
 // sqrt(gH) in the top rows next to the walls (the free surface's discrete equilibrium), against
 // the benchmark's 1e-3 from t = 0; the test holds it to 2e-3 and the second half to the
-// benchmark's 1e-3 (measured 3.0e-4). The total energy (kinetic + potential + compression)
+// benchmark's 1e-3 (measured 1.8e-4). The total energy (kinetic + potential + compression)
 // never rises above its initial value (the stability criterion).
 TEST(SphValidation, S4HydrostaticTankWithBoundaryParticles) {
   const double H = 0.2, dx = 0.02, g = 9.81, L = 0.2, W = 0.1;
