@@ -108,12 +108,7 @@ int main(int argc, char** argv) {
   }
   v_all = std::max(v_all, v_window);  // the last window, if the run ended inside it
   model.compute_internal_forces(0);
-  double error2 = 0;
-  for (std::size_t i = 0; i < model.size(); ++i) {
-    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
-  }
-  fmt::print("pressure L2 error {:.3f} % of rho g H\n",
-             100 * std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H));
+  fmt::print("pressure L2 error {:.3f} % of rho g H\n", 100 * sph::testing::hydrostatic_pressure_error(model, H, g));
   fmt::print("steps {}, largest speed {:.3e} sqrt(gH), largest E - E0 {:.3e} J ({:.3e} of E0), left the domain {}\n",
              steps, v_all / U, e_max - e0, (e_max - e0) / e0, model.lost_count());
   return 0;

@@ -20,25 +20,9 @@ namespace {
 
 using testing::box_body;
 using testing::container_walls;
+using testing::hydrostatic_pressure_error;
+using testing::run_until;
 using testing::water_scene;
-
-// Steps the model with its own stable dt until `end_time` or until on_step returns false;
-// returns the steps taken.
-template <class OnStep>
-int run_until(SphModel& model, double end_time, OnStep&& on_step) {
-  double t = 0, dt_previous = 0;
-  int steps = 0;
-  while (t < end_time) {
-    model.compute_internal_forces(dt_previous);
-    const double dt = model.stable_dt();
-    model.integrate(dt_previous, dt);
-    t += dt;
-    dt_previous = dt;
-    ++steps;
-    if (!on_step(t)) break;
-  }
-  return steps;
-}
 
 // Smallest distance between two fluid particles (m).
 double closest_pair(const SphModel& model) {
@@ -48,15 +32,6 @@ double closest_pair(const SphModel& model) {
     for (std::size_t j = i + 1; j < x.size(); ++j) closest2 = std::min(closest2, (x[i] - x[j]).squaredNorm());
   }
   return std::sqrt(closest2);
-}
-
-// Pressure error against rho g (H - z), as an L2 norm over the particles, relative to rho g H.
-double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
-  double error2 = 0;
-  for (std::size_t i = 0; i < model.size(); ++i) {
-    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
-  }
-  return std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
 }
 
 // An elastic-plastic column H = 0.2 m deep at rest in a 0.2 x 0.1 m tank with boundary-particle

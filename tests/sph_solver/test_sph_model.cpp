@@ -20,24 +20,9 @@ namespace {
 
 using testing::box_body;
 using testing::container_walls;
+using testing::hydrostatic_pressure_error;
+using testing::run_until;
 using testing::water_scene;
-
-// Steps the model with its own stable dt until `end_time`; returns the steps taken.
-template <class OnStep>
-int run_until(SphModel& model, double end_time, OnStep&& on_step) {
-  double t = 0, dt_previous = 0;
-  int steps = 0;
-  while (t < end_time) {
-    model.compute_internal_forces(dt_previous);
-    const double dt = model.stable_dt();
-    model.integrate(dt_previous, dt);
-    t += dt;
-    dt_previous = dt;
-    ++steps;
-    on_step(t);
-  }
-  return steps;
-}
 
 TEST(SphKernel, IntegratesToOneAndGradientMatchesValue) {
   for (auto kind : {scene::SphSettings::Kernel::wendland_c2, scene::SphSettings::Kernel::cubic_spline}) {
@@ -244,8 +229,8 @@ TEST(SphValidation, DensityDiffusionActsOnlyWhereTheKernelIsFull) {
     if (!full[i]) surface_largest = std::max(surface_largest, std::abs(measured));
     full_count += full[i];
   }
-  std::cout << "particles with a full kernel: " << full_count << " of " << n << " (threshold " << threshold
-            << " of " << lattice - 1 << " lattice neighbours)\n";
+  std::cout << "particles with a full kernel: " << full_count << " of " << n << " (threshold " << threshold << " of "
+            << lattice - 1 << " lattice neighbours)\n";
   std::cout << "drho/dt, full-kernel pairs only: largest expected " << largest
             << " kg/m^3/s, largest difference measured - expected " << largest_error
             << " (<= 1e-3 of the largest); largest |drho/dt| at particles with a cut-off kernel " << surface_largest
@@ -265,15 +250,6 @@ scene::Scene s4_tank_scene(double dx, double L, double W, double H, double g) {
   s.sph.artificial_viscosity = 0.1;
   s.fluids.push_back(box_body("water", Vec3(0, 0, 0), Vec3(L, W, H)));
   return s;
-}
-
-// Pressure error against rho g (H - z), as an L2 norm over the particles, relative to rho g H.
-double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
-  double error2 = 0;
-  for (std::size_t i = 0; i < model.size(); ++i) {
-    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
-  }
-  return std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
 }
 
 // S4 hydrostatic tank, reduced: H = 0.2 m, dx = H/10, to t = 10 sqrt(H/g) (the

@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <iostream>
 #include <numbers>
 #include <vector>
@@ -18,20 +17,8 @@ namespace sabo::sph {
 namespace {
 
 using testing::box_body;
+using testing::run_until;
 using testing::water_scene;
-
-// Steps the model with its own stable dt until `end_time`; on_step(t) after each step.
-void run_until(SphModel& model, double end_time, const std::function<void(double)>& on_step) {
-  double t = 0, dt_previous = 0;
-  while (t < end_time) {
-    model.compute_internal_forces(dt_previous);
-    const double dt = model.stable_dt();
-    model.integrate(dt_previous, dt);
-    t += dt;
-    dt_previous = dt;
-    on_step(t);
-  }
-}
 
 // `layers` layers of wall particles on the lattice of spacing dx over [0, length) x [0, width),
 // below z = 0 (normal +z) and, when ceiling > 0, above z = ceiling (normal -z).

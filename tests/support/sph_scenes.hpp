@@ -1,9 +1,13 @@
 #pragma once
-// Scenes and wall particles for the SPH tests and benchmarks, built in memory (no coupler).
+// Scenes, wall particles and run helpers for the SPH tests and benchmarks, built in memory
+// (no coupler).
+#include <cmath>
 #include <string>
+#include <type_traits>
 
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
+#include "sph_solver/sph_model.hpp"
 
 namespace sabo::sph::testing {
 
@@ -58,6 +62,38 @@ inline physics::BoundaryParticles container_walls(const Vec3& min, const Vec3& m
     }
   }
   return walls;
+}
+
+// Steps the model with its own stable dt until `end_time`; on_step(t) after each step (a
+// bool result of false stops the run). Returns the steps taken.
+template <class OnStep>
+int run_until(SphModel& model, double end_time, OnStep&& on_step) {
+  double t = 0, dt_previous = 0;
+  int steps = 0;
+  while (t < end_time) {
+    model.compute_internal_forces(dt_previous);
+    const double dt = model.stable_dt();
+    model.integrate(dt_previous, dt);
+    t += dt;
+    dt_previous = dt;
+    ++steps;
+    if constexpr (std::is_same_v<std::invoke_result_t<OnStep, double>, bool>) {
+      if (!on_step(t)) break;
+    } else {
+      on_step(t);
+    }
+  }
+  return steps;
+}
+
+// Pressure error of water (rho 1000) at rest H deep against rho g (H - z), as an L2 norm over
+// the particles, relative to rho g H.
+inline double hydrostatic_pressure_error(const SphModel& model, double H, double g) {
+  double error2 = 0;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    error2 += std::pow(model.pressures()[i] - 1000 * g * (H - model.positions()[i].z()), 2);
+  }
+  return std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
 }
 
 }  // namespace sabo::sph::testing
