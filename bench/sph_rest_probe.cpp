@@ -55,17 +55,9 @@ int main(int argc, char** argv) {
   const double T = std::sqrt(H / g), U = std::sqrt(g * H);
   const std::vector<Vec3> x0(model.positions().begin(), model.positions().end());
   if (settle > 0) {
-    double t = 0, dt_previous = 0;
-    long steps = 0;
-    while (t < settle * T) {
-      model.compute_internal_forces(dt_previous);
-      const double dt = model.stable_dt();
-      model.integrate(dt_previous, dt);
-      t += dt;
-      dt_previous = dt;
-      ++steps;
+    const int steps = sph::testing::run_until(model, settle * T, [&](double) {
       for (Vec3& v : model.velocities()) v *= 1 - damp;
-    }
+    });
     double v_max = 0;
     for (Vec3& v : model.velocities()) {
       v_max = std::max(v_max, v.norm());
@@ -74,17 +66,10 @@ int main(int argc, char** argv) {
     fmt::print("settled: {} steps, largest speed then {:.3e} sqrt(gH)\n", steps, v_max / U);
   }
   const double e0 = model.energies().total();
-  double t = 0, dt_previous = 0, next = report * T, v_window = 0, v_all = 0, e_max = e0, t_fastest = 0;
-  long steps = 0;
+  double next = report * T, v_window = 0, v_all = 0, e_max = e0, t_fastest = 0;
   std::size_t fastest = 0;
   fmt::print("particles {}, initial energy {:.9g} J\n", model.size(), e0);
-  while (t < periods * T) {
-    model.compute_internal_forces(dt_previous);
-    const double dt = model.stable_dt();
-    model.integrate(dt_previous, dt);
-    t += dt;
-    dt_previous = dt;
-    ++steps;
+  const int steps = sph::testing::run_until(model, periods * T, [&](double t) {
     e_max = std::max(e_max, model.energies().total());
     for (std::size_t i = 0; i < model.size(); ++i) {
       const double v = model.velocities()[i].norm();
@@ -105,7 +90,7 @@ int main(int argc, char** argv) {
       v_window = 0;
       next += report * T;
     }
-  }
+  });
   v_all = std::max(v_all, v_window);  // the last window, if the run ended inside it
   model.compute_internal_forces(0);
   fmt::print("pressure L2 error {:.3f} % of rho g H\n", 100 * sph::testing::hydrostatic_pressure_error(model, H, g));

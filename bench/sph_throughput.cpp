@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "sph_solver/sph_model.hpp"
+#include "tests/support/sph_scenes.hpp"
 
 namespace {
 
@@ -38,23 +39,10 @@ int main(int argc, char** argv) {
 
   using namespace sabo;
   const double a = 0.4;
-  scene::Scene s;
-  scene::Material water;
-  water.name = "water";
-  water.density = 1000;
-  water.youngs_modulus = 1e9;
-  water.poisson_ratio = 0.3;
-  s.materials.push_back(water);
-  s.sph.particle_spacing = dx;
-  s.sph.smoothing_ratio = ratio;
+  scene::Scene s = sph::testing::water_scene(dx, 10.0 * std::sqrt(2 * 9.81 * 2 * a), ratio);
   s.sph.kernel =
       kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
-  s.sph.sound_speed = 10.0 * std::sqrt(2 * 9.81 * 2 * a);
-  scene::FluidBody column;
-  column.name = "column";
-  column.material = "water";
-  column.box = Aabb{Vec3::Zero(), Vec3(a, a, 2 * a)};
-  s.fluids.push_back(column);
+  s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
 
   const double memory_before = resident_megabytes();
   sph::SphModel model(s);

@@ -336,9 +336,7 @@ TEST(SphModelContract, WallForcesBalanceAndRunsAreDeterministic) {
   }
   for (std::size_t b = 0; b < one.boundary().size(); ++b) ASSERT_EQ(one.boundary_forces()[b], two.boundary_forces()[b]);
   // Fluid-fluid terms cancel in pairs: the fluid's momentum change minus gravity is the wall force.
-  Vec3 fluid = Vec3::Zero(), wall = Vec3::Zero();
-  for (std::size_t i = 0; i < one.size(); ++i) fluid += one.masses()[i] * (one.accelerations()[i] - s.run.gravity);
-  for (const Vec3& f : one.boundary_forces()) wall += f;
+  const auto [fluid, wall, mass] = testing::wall_force_balance(one, s.run.gravity);
   // The fluid-fluid pair terms are single precision and the masses differ (rho dx^3, with the
   // depth), so they cancel to the float rounding of a mass (6e-8), not to double rounding.
   std::cout << "wall force on fluid: " << fluid.transpose() << " N, on walls: " << wall.transpose()

@@ -92,13 +92,8 @@ TEST(SphPeriodic, ShiftedLatticeSeesTheSameNeighboursAcrossTheSeam) {
   EXPECT_LT(shift_change, 1e-4 * g);
   // The wall force: the floor carries the layer's weight, and the fluid's momentum change
   // less gravity is minus the wall force (the fluid pairs across a seam cancel to float rounding).
-  Vec3 fluid = Vec3::Zero(), wall = Vec3::Zero();
-  double weight = 0;
-  for (std::size_t i = 0; i < model.size(); ++i) {
-    fluid += model.masses()[i] * (model.accelerations()[i] - s.run.gravity);
-    weight += model.masses()[i] * g;
-  }
-  for (const Vec3& f : model.boundary_forces()) wall += f;
+  const auto [fluid, wall, mass] = testing::wall_force_balance(model, s.run.gravity);
+  const double weight = mass * g;
   std::cout << "floor force " << wall.transpose() << " N, weight " << weight
             << " N (expected -weight along z within 2 %); fluid + wall " << (fluid + wall).norm()
             << " N (expected 0, held to 1e-5 weight)\n";
@@ -174,13 +169,8 @@ TEST(SphPeriodic, RunsAreDeterministicOnOneAndTwoThreads) {
     for (int q = 0; q < 6; ++q) ASSERT_EQ(one.deviatoric_stress()[6 * i + q], two.deviatoric_stress()[6 * i + q]);
   }
   for (std::size_t b = 0; b < one.boundary().size(); ++b) ASSERT_EQ(one.boundary_forces()[b], two.boundary_forces()[b]);
-  Vec3 fluid = Vec3::Zero(), wall = Vec3::Zero();
-  double weight = 0;
-  for (std::size_t i = 0; i < one.size(); ++i) {
-    fluid += one.masses()[i] * (one.accelerations()[i] - s.run.gravity);
-    weight += one.masses()[i] * g;
-  }
-  for (const Vec3& f : one.boundary_forces()) wall += f;
+  const auto [fluid, wall, mass] = testing::wall_force_balance(one, s.run.gravity);
+  const double weight = mass * g;
   std::cout << "flowing periodic layer: wall force on the fluid " << fluid.transpose() << " N, on the walls "
             << wall.transpose() << " N (expected opposite, held to 1e-5 of the weight " << weight << " N)\n";
   EXPECT_LT((fluid + wall).norm(), 1e-5 * weight);

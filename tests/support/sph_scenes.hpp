@@ -96,4 +96,21 @@ inline double hydrostatic_pressure_error(const SphModel& model, double H, double
   return std::sqrt(error2 / static_cast<double>(model.size())) / (1000 * g * H);
 }
 
+// The fluid's momentum change less gravity (N, the wall force on the fluid: the fluid pairs
+// cancel) and the sum of the forces on the wall particles (N) in the last compute; opposite
+// when action equals reaction; and the fluid's mass, kg.
+struct WallForceBalance {
+  Vec3 on_fluid = Vec3::Zero(), on_walls = Vec3::Zero();
+  double mass = 0;
+};
+inline WallForceBalance wall_force_balance(const SphModel& model, const Vec3& gravity) {
+  WallForceBalance out;
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    out.on_fluid += model.masses()[i] * (model.accelerations()[i] - gravity);
+    out.mass += model.masses()[i];
+  }
+  for (const Vec3& f : model.boundary_forces()) out.on_walls += f;
+  return out;
+}
+
 }  // namespace sabo::sph::testing
