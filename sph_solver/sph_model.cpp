@@ -1104,6 +1104,8 @@ void SphModel::fluid_forces(T) {
             }
           }
         });
+        std::int64_t fluid_neighbours = 0;  // the diffusion's own support (walls come next)
+        for (std::uint32_t l = 0; l < kLanes; ++l) fluid_neighbours += neighbours[l];
         for_neighbour_blocks(position, b_cell_start_, bx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
           for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
@@ -1151,7 +1153,7 @@ void SphModel::fluid_forces(T) {
         max_mu = std::max(max_mu, double{lane_mu});
         max_acceleration = std::max(max_acceleration, a.norm());
         neighbour_count += lane_neighbours;
-        if constexpr (T::diffusion) support_neighbours_[id] = static_cast<std::int32_t>(lane_neighbours);
+        if constexpr (T::diffusion) support_neighbours_[id] = static_cast<std::int32_t>(fluid_neighbours);
       }
     });
   }

@@ -306,14 +306,15 @@ class SphModel {
   std::vector<float> fx_, fy_, fz_, fvx_, fvy_, fvz_, frho_;
   std::vector<double> fm_;  // kg: the wall forces use the exact masses (action = reaction)
   // With boundary-particle walls, density diffusion acts between particles whose kernel held
-  // at least kFullSupportFraction of a lattice's neighbours (fluid and wall) in the last compute
-  // (at the first compute, every particle): not across a free surface, whose cut-off kernel
-  // makes the diffusion a one-sided difference that drives the top rows (docs/physics.md).
+  // at least kFullSupportFraction of a lattice's neighbours in fluid (walls not counted: the
+  // diffusion sums fluid pairs only) in the last compute (at the first compute, every
+  // particle): not across a free surface or beside a wall, where the cut-off sum is a one-sided
+  // difference that drives the rows there (docs/physics.md, "Continuity").
   // Elastic-plastic particles always count as full: their top rows need the diffusion (a stiff
   // column at rest reached 0.32 sqrt(gH) and a 30 % pressure error without it).
   static constexpr double kFullSupportFraction = 0.9;
   std::vector<float> ffull_;                      // per sorted fluid slot: 1 if full, else 0
-  std::vector<std::int32_t> support_neighbours_;  // per particle id: neighbours in the last compute
+  std::vector<std::int32_t> support_neighbours_;  // per particle id: fluid neighbours in the last compute
   std::int32_t full_support_neighbours_ = 0;      // 0 (every particle full) with penalty walls
   std::vector<float> fpr_;                        // p / rho^2, Pa m^6/kg^2
   std::vector<std::uint32_t> fmat_;
