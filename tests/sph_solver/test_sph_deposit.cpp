@@ -304,20 +304,22 @@ double compare_deposit(const DepositCase& c, const DepositProfile& p) {
 // Reduced: dx = 0.02 m, the deposit 3-4 dx thick where it is held (d = 5-15 dx). The surface
 // is known to about dx/2 there (12-15 % of h), and the regularised law still creeps when the
 // run stops (the fastest particle below 0.025 m/s, 2 % of sqrt(g b), for 0.1 s), so it is held
-// to 20 %. The full case, dx = 0.01 m, is the disabled test below (7 minutes on the loaded machine).
+// to 15 % (measured 9.9 %; 18.6 % while the diffusion's full-kernel count took in the wall
+// particles). The full case, dx = 0.01 m, is the disabled test below (7 minutes on the loaded
+// machine).
 TEST(SphValidation, S8BinghamDepositProfileReduced) {
   DepositCase c;
   c.dx = 0.02;
   const DepositProfile p = run_deposit(c);
   const double worst = compare_deposit(c, p);
-  std::cout << "reduced case held to 20 % (dx/2 is 12-15 % of h at d = 5-7 dx)\n";
+  std::cout << "reduced case held to 15 % (dx/2 is 12-15 % of h at d = 5-7 dx)\n";
   EXPECT_TRUE(p.at_rest);
-  EXPECT_LT(worst, 0.20);
+  EXPECT_LT(worst, 0.15);
 }
 
 // The full case: `build/bin/test_sph_deposit --gtest_also_run_disabled_tests
-// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met when last run: 10.4 % at 2.44 s,
-// before the masses rho dx^3 and the restricted density diffusion (docs/physics.md, "S8 deposit").
+// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met when last run (session 11): still
+// creeping at 0.025 m/s when the run's 3 s ran out, 12.4 % off (docs/physics.md, "S8 deposit").
 TEST(SphValidation, DISABLED_S8BinghamDepositProfile) {
   DepositCase c;
   const DepositProfile p = run_deposit(c);
