@@ -174,13 +174,27 @@ inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_
   }
 }
 
+// A symmetric tensor stored as 6 components (xx yy zz xy yz zx), as a matrix and back.
+inline Mat3 unpack_sym6(const double* s) {
+  Mat3 m;
+  m << s[0], s[3], s[5], s[3], s[1], s[4], s[5], s[4], s[2];
+  return m;
+}
+inline void pack_sym6(const Mat3& m, double* out) {
+  out[0] = m(0, 0);
+  out[1] = m(1, 1);
+  out[2] = m(2, 2);
+  out[3] = m(0, 1);
+  out[4] = m(1, 2);
+  out[5] = m(2, 0);
+}
+
 // Monaghan's artificial stress of one particle over its density squared (Gray, Monaghan &
 // Swift 2001): sigma = -p I + S (Pa, s: xx yy zz xy yz zx) in its principal axes, each
 // tensile principal stress sigma_a > 0 gives R_a = -epsilon sigma_a / rho^2, back to the
 // lattice axes; compressive ones give 0. Pa m^6/kg^2.
 inline void artificial_stress(const double* s, double p, double rho, double epsilon, double (&out)[6]) {
-  Mat3 sigma;
-  sigma << s[0] - p, s[3], s[5], s[3], s[1] - p, s[4], s[5], s[4], s[2] - p;
+  const Mat3 sigma = unpack_sym6(s) - p * Mat3::Identity();
   for (double& v : out) v = 0;
   Eigen::SelfAdjointEigenSolver<Mat3> eigen;
   eigen.computeDirect(sigma);
@@ -189,13 +203,7 @@ inline void artificial_stress(const double* s, double p, double rho, double epsi
   const double scale = -epsilon / (rho * rho);
   const Vec3 r = principal.unaryExpr([&](double v) { return v > 0 ? scale * v : 0.0; });
   const Mat3& axes = eigen.eigenvectors();
-  const Mat3 R = axes * r.asDiagonal() * axes.transpose();
-  out[0] = R(0, 0);
-  out[1] = R(1, 1);
-  out[2] = R(2, 2);
-  out[3] = R(0, 1);
-  out[4] = R(1, 2);
-  out[5] = R(2, 0);
+  pack_sym6(axes * r.asDiagonal() * axes.transpose(), out);
 }
 
 // Particles per unit of work handed to with_best_isa() by the parallel loops.
@@ -576,7 +584,7 @@ void SphModel::gather() {
     const std::uint32_t slot_id = f_order_[s];
     // An image slot: its own position, its source's state.
     const bool image = slot_id >= particles;
-    const std::uint32_t i = image ? f_image_source_[slot_id - particles] : slot_id;
+    const std::uint32_t i = fluid_source(slot_id);
     const Vec3& position = image ? f_sort_position_[slot_id] : position_[i];
     fx_[s] = static_cast<float>(position.x() - origin.x());
     fy_[s] = static_cast<float>(position.y() - origin.y());
@@ -619,7 +627,7 @@ void SphModel::gather() {
   for (std::size_t s = 0; s < nb; ++s) {
     const std::uint32_t slot_id = b_order_[s];
     const bool image = slot_id >= walls;
-    const std::uint32_t b = image ? b_image_source_[slot_id - walls] : slot_id;
+    const std::uint32_t b = wall_source(slot_id);
     const Vec3& position = image ? b_sort_position_[slot_id] : boundary_.position[b];
     bx_[s] = static_cast<float>(position.x() - origin.x());
     by_[s] = static_cast<float>(position.y() - origin.y());
@@ -644,7 +652,7 @@ void SphModel::copy_wall_image_state() {
   for (std::size_t s = 0; s < b_order_.size(); ++s) {
     const std::uint32_t slot_id = b_order_[s];
     if (slot_id < walls) continue;
-    const std::uint32_t source = b_slot_of_[b_image_source_[slot_id - walls]];
+    const std::uint32_t source = b_slot_of_[wall_source(slot_id)];
     bpr_[s] = bpr_[source];
     brho_[s] = brho_[source];
     bvol_[s] = bvol_[source];
@@ -890,7 +898,7 @@ void SphModel::boundary_state(T) {
   }
 }
 
-void SphModel::compute_velocity_gradients() {
+void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
   const std::size_t n = f_order_.size();
   min_viscous_dt_ = std::numeric_limits<double>::infinity();
   if (!any_gradient_) {
@@ -910,6 +918,7 @@ void SphModel::compute_velocity_gradients() {
     const auto i = static_cast<std::size_t>(k);
     const FluidMaterial& material = materials_[fmat_[i]];
     if (!material.needs_velocity_gradient() || f_order_[i] >= particles) continue;  // images: copied below
+    if (elastic_plastic_only && material.rheology != Rheology::elastic_plastic) continue;
     const double x = fx_[i], y = fy_[i], z = fz_[i];
     double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     const auto add = [&](double rx, double ry, double rz, double r2, double dvx, double dvy, double dvz,
@@ -966,7 +975,7 @@ void SphModel::compute_velocity_gradients() {
   min_viscous_dt_ = min_viscous_dt;
   if (!f_image_source_.empty()) {
     for (std::size_t s = 0; s < n; ++s) {
-      if (f_order_[s] >= particles) feta_[s] = feta_[f_slot_of_[f_image_source_[f_order_[s] - particles]]];
+      if (f_order_[s] >= particles) feta_[s] = feta_[f_slot_of_[fluid_source(f_order_[s])]];
     }
   }
 }
@@ -1265,10 +1274,9 @@ void SphModel::boundary_forces(T) {
 // Continuity at x_n with the new velocities v_{n+1/2} (the density is a position-like
 // variable of the leapfrog: with v_{n-1/2} the acoustic modes would grow).
 void SphModel::compute_velocity_divergence() {
-  const std::size_t n = f_order_.size(), particles = position_.size();
+  const std::size_t n = f_order_.size();
   for (std::size_t s = 0; s < n; ++s) {
-    const std::uint32_t id = f_order_[s];
-    const Vec3& v = velocity_[id < particles ? id : f_image_source_[id - particles]];
+    const Vec3& v = velocity_[fluid_source(f_order_[s])];
     fvx_[s] = static_cast<float>(v.x());
     fvy_[s] = static_cast<float>(v.y());
     fvz_[s] = static_cast<float>(v.z());
@@ -1358,17 +1366,9 @@ void SphModel::stress_rates() {
     grad << L[0], L[1], L[2], L[3], L[4], L[5], L[6], L[7], L[8];
     const Mat3 d = 0.5 * (grad + grad.transpose());
     const Mat3 w = 0.5 * (grad - grad.transpose());
-    const double* st = &stress_[6 * i];
-    Mat3 stress;
-    stress << st[0], st[3], st[5], st[3], st[1], st[4], st[5], st[4], st[2];
+    const Mat3 stress = unpack_sym6(&stress_[6 * i]);
     const Mat3 deviatoric = d - (d.trace() / 3.0) * Mat3::Identity();
-    const Mat3 r = 2.0 * material.shear_modulus * deviatoric + w * stress - stress * w;
-    rate[0] = r(0, 0);
-    rate[1] = r(1, 1);
-    rate[2] = r(2, 2);
-    rate[3] = r(0, 1);
-    rate[4] = r(1, 2);
-    rate[5] = r(2, 0);
+    pack_sym6(2.0 * material.shear_modulus * deviatoric + w * stress - stress * w, rate);
   }
 }
 
@@ -1381,7 +1381,7 @@ void SphModel::compute_internal_forces(double dt_previous) {
   build_grid();
   gather();
   compute_boundary_state();
-  compute_velocity_gradients();
+  compute_velocity_gradients(false);
   compute_fluid_forces();
   compute_boundary_forces();
   const std::size_t n = f_order_.size();
@@ -1454,8 +1454,9 @@ void SphModel::integrate(double dt_previous, double dt) {
     // The deviatoric stress is position-like too: its rate from L(x_n, v_{n+1/2}) (the fluid's
     // new velocities; the walls' no-slip velocities of compute_boundary_state()). With
     // L(v_{n-1/2}) the elastic modes grew: a column at rest reached 1.3 sqrt(gH) by
-    // t = 4 sqrt(H/g) (docs/physics.md, "Elastic-plastic stress update").
-    compute_velocity_gradients();
+    // t = 4 sqrt(H/g) (docs/physics.md, "Elastic-plastic stress update"). Only their gradients:
+    // the others' were read by this step's forces and are not needed again.
+    compute_velocity_gradients(true);
     stress_rates();
   }
   const auto sorted = static_cast<std::int64_t>(f_order_.size());

@@ -166,6 +166,14 @@ class SphModel {
   [[nodiscard]] Aabb bounds() const;
 
  private:
+  // The particle (wall particle) id whose state a sorted slot's id carries: itself, or an
+  // image's source.
+  [[nodiscard]] std::uint32_t fluid_source(std::uint32_t slot_id) const {
+    return slot_id < position_.size() ? slot_id : f_image_source_[slot_id - position_.size()];
+  }
+  [[nodiscard]] std::uint32_t wall_source(std::uint32_t slot_id) const {
+    return slot_id < boundary_.size() ? slot_id : b_image_source_[slot_id - boundary_.size()];
+  }
   void wrap_positions();
   void make_images();
   void copy_wall_image_state();
@@ -173,7 +181,9 @@ class SphModel {
   void gather();
   void compute_boundary_state();
   void extrapolate_wall_stress();
-  void compute_velocity_gradients();
+  // L = dv/dx (and the effective viscosity) of the particles whose material needs it, or of
+  // the elastic-plastic ones only (integrate()'s pass with the new velocities).
+  void compute_velocity_gradients(bool elastic_plastic_only);
   void compute_fluid_forces();
   void compute_boundary_forces();
   void compute_velocity_divergence();

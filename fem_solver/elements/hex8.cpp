@@ -167,7 +167,6 @@ Mat3 elastic_stress(const MaterialParameters& material, const Mat3& m) {
   return material.lame_lambda() * symmetric.trace() * Mat3::Identity() + 2.0 * material.shear_modulus() * symmetric;
 }
 
-// The mean of the points' histories (output, erosion).
 // The nodes at x_{n-1/2} = x_n - dt/2 v_{n-1/2}.
 HexNodes mid_step(const HexNodes& x, const HexNodes& velocity, double dt) {
   HexNodes mid;
@@ -175,6 +174,7 @@ HexNodes mid_step(const HexNodes& x, const HexNodes& velocity, double dt) {
   return mid;
 }
 
+// The mean of the points' histories (output, erosion).
 MaterialPoint mean_point(const Hex8GaussPoints& gauss) {
   MaterialPoint mean;
   for (const MaterialPoint& point : gauss) add_weighted(mean, point, 1.0 / 8.0);
