@@ -4,6 +4,7 @@
 // largest total energy (kinetic + potential + compression) over the
 // initial one, and the density range at the end.
 //   bench_sph_stability [--steps N] [--impact-time T] [--kernel cubic_spline|wendland_c2] [--ratio h/dx]
+//                       [--diffusion none|molteni|fourtakas] [--trace N] [--settle T]
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -19,11 +20,15 @@ using namespace sabo;
 
 scene::SphSettings::Kernel kernel_choice = scene::SphSettings::Kernel::wendland_c2;
 double smoothing_ratio = 1.5;
+long trace_every = 0;       // steps between trace lines; 0: none
+double settle_periods = 0;  // the tank's settling phase, sqrt(H/g)
+scene::SphSettings::DensityDiffusion diffusion_choice = scene::SphSettings::DensityDiffusion::fourtakas;
 
 scene::Scene water(double dx, double c, const Aabb& domain) {
   scene::Scene s = sph::testing::water_scene(dx, c, smoothing_ratio);
   s.sph.domain = domain;
   s.sph.kernel = kernel_choice;
+  s.sph.density_diffusion = diffusion_choice;
   return s;
 }
 
@@ -39,11 +44,25 @@ void run(const char* name, sph::SphModel& model, long steps_limit, double time_l
     t += dt;
     ++steps;
     e_max = std::max(e_max, model.energies().total());
+    if (trace_every > 0 && steps % trace_every == 0) {
+      const sph::Energies e = model.energies();
+      fmt::print("  {} t {:.5f} s: E - E0 {:+.4e} J (kinetic {:.5e}, potential {:.6e}, compression {:.5e})\n", name, t,
+                 e.total() - e0, e.kinetic, e.potential, e.elastic);
+    }
     // Second half: of the steps for a step-limited run, of the time for a time-limited one.
     const bool late = time_limit > 1e29 ? 2 * steps > steps_limit : 2 * t > time_limit;
     for (const Vec3& v : model.velocities()) {
       v_max = std::max(v_max, v.norm());
       if (late) v_max_late = std::max(v_max_late, v.norm());
+    }
+  }
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    if (model.active()[i] == 0) {
+      const Vec3& x = model.positions()[i];
+      const Vec3& v = model.velocities()[i];
+      fmt::print(
+          "  left the domain: particle {} at ({:.4f}, {:.4f}, {:.4f}) m, velocity ({:.3f}, {:.3f}, {:.3f}) m/s\n", i,
+          x.x(), x.y(), x.z(), v.x(), v.y(), v.z());
     }
   }
   const auto [rho_min, rho_max] = std::minmax_element(model.densities().begin(), model.densities().end());
@@ -65,14 +84,22 @@ int main(int argc, char** argv) {
   app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")
       ->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
   app.add_option("--ratio", smoothing_ratio, "h / dx");
+  app.add_option("--trace", trace_every, "print the energies every N steps (0: never)");
+  app.add_option("--settle", settle_periods, "the tank's settling phase from t = 0, sqrt(H/g)");
+  std::string diffusion = "fourtakas";
+  app.add_option("--diffusion", diffusion, "density diffusion")->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
   CLI11_PARSE(app, argc, argv);
   if (kernel == "cubic_spline") kernel_choice = scene::SphSettings::Kernel::cubic_spline;
+  diffusion_choice = diffusion == "none"      ? scene::SphSettings::DensityDiffusion::none
+                     : diffusion == "molteni" ? scene::SphSettings::DensityDiffusion::molteni
+                                              : scene::SphSettings::DensityDiffusion::fourtakas;
   fmt::print("kernel {}, h = {} dx\n", kernel, smoothing_ratio);
   {
     const double H = 0.2, dx = 0.02, L = 0.2, W = 0.1;
     scene::Scene s = water(dx, 10 * std::sqrt(9.81 * H), Aabb{Vec3(-0.1, -0.1, -0.1), Vec3(0.3, 0.2, 0.4)});
     s.sph.artificial_viscosity = 0.1;
     s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3(L, W, H)));
+    s.fluids.back().settle_time = settle_periods * std::sqrt(H / 9.81);
     sph::SphModel model(s);
     model.set_boundary(sph::testing::container_walls(Vec3::Zero(), Vec3(L, W, H + 4 * dx), dx, 3));
     run("hydrostatic tank", model, steps, 1e30);

@@ -341,6 +341,7 @@ SphModel::SphModel(const scene::Scene& scene)
     stress_rate_.assign(6 * n, 0.0);
   }
   active_.assign(n, 1);
+  for (const scene::FluidBody& body : scene.fluids) settle_time_.push_back(body.settle_time);
   const std::optional<std::array<double, 2>>* spans[2] = {&settings_.periodic_x, &settings_.periodic_y};
   for (int axis = 0; axis < 2; ++axis) {
     const auto& span = *spans[axis];
@@ -366,6 +367,14 @@ SphModel::SphModel(const scene::Scene& scene)
         mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i]));
     energies_.elastic += mass_[i] * materials_[material_[i]].eos.specific_energy(density_[i]);
   }
+}
+
+double SphModel::settle_damping_time(double settle_end) const {
+  // From h / c, the grid-scale acoustic modes critically damped, so that the fill's
+  // imbalance at the free surface moves no particle faster than about a0 h / c, to
+  // kSettleDampingGrowth h / c at the end, which lets the slower modes relax.
+  const double acoustic = kernel_.h / sound_speed_;
+  return acoustic * (1.0 + (scene::kSettleDampingGrowth - 1.0) * time_ / settle_end);
 }
 
 double SphModel::initial_stable_dt() const {
@@ -1441,7 +1450,12 @@ void SphModel::integrate(double dt_previous, double dt) {
         a += external_force_[i] / mass_[i];
         external_force_[i].setZero();
       }
-      const Vec3 velocity = velocity_[i] + dt_update * a;
+      Vec3 velocity = velocity_[i] + dt_update * a;
+      const double settle_end = settle_time_[body_[i]];
+      if (time_ < settle_end) {
+        // Settling: relaxed towards the discrete equilibrium; the phase ends at rest.
+        velocity *= time_ + dt < settle_end ? std::exp(-dt / settle_damping_time(settle_end)) : 0.0;
+      }
       kinetic += first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
       velocity_[i] = velocity;
     }
@@ -1507,6 +1521,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
   }
   energies_ = energies;
+  time_ += dt;
   forces_ready_ = false;
 }
 

@@ -153,6 +153,11 @@ class SphModel {
   void compute_internal_forces(double dt_previous);
   // force: 3 doubles per listed id, N. Throws ProtocolError on a size mismatch or an unknown id.
   void add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force);
+  // Advances to t_{n+1} = t_n + dt: v_{n+1/2} from the accelerations of the last compute
+  // (and the external forces added since), x_{n+1}, rho_{n+1} and S_{n+1} from v_{n+1/2}.
+  // A body in its settling phase (FluidBody::settle_time) has v_{n+1/2} damped by
+  // exp(-dt / tau) while t_{n+1} < settle_time (tau from h / c at t = 0 to
+  // scene::kSettleDampingGrowth h / c at its end), and zeroed at the step that reaches it.
   void integrate(double dt_previous, double dt);
 
   // cfl * min(h / (c + h max|v_ij.r_ij|/(r^2 + eta^2)), sqrt(h / max|a|), rho0 h^2 / (8 eta_max)), s.
@@ -160,6 +165,8 @@ class SphModel {
   [[nodiscard]] double stable_dt() const { return stable_dt_; }
 
   [[nodiscard]] Energies energies() const { return energies_; }
+  // s, the simulated time t_n: the sum of the steps integrated.
+  [[nodiscard]] double time() const { return time_; }
   // Mean number of neighbours (fluid and wall, inside the support, self excluded) in the last compute.
   [[nodiscard]] double mean_neighbours() const { return mean_neighbours_; }
   // Box around all active particles; empty when there are none.
@@ -175,6 +182,8 @@ class SphModel {
     return slot_id < boundary_.size() ? slot_id : b_image_source_[slot_id - boundary_.size()];
   }
   void wrap_positions();
+  // s, the time constant of the settling phase's velocity damping at time_.
+  [[nodiscard]] double settle_damping_time(double settle_end) const;
   void make_images();
   void copy_wall_image_state();
   void build_grid();
@@ -285,6 +294,8 @@ class SphModel {
   std::vector<std::uint32_t> material_, body_;
   std::vector<std::uint8_t> active_;
   std::size_t lost_ = 0;
+  double time_ = 0;                  // s, t_n: the sum of the steps integrated
+  std::vector<double> settle_time_;  // s, per body: its damped settling phase ends there (0: none)
 
   // Periodic axes (0 = x, 1 = y) and the image slots of the last compute.
   struct PeriodicAxis {

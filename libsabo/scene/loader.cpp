@@ -803,6 +803,16 @@ class Builder {
     }
     if (auto v = r.vec3("velocity")) body.velocity = *v;
     if (auto v = r.boolean("hydrostatic")) body.hydrostatic = *v;
+    if (auto v = r.number("settle_time")) {
+      body.settle_time = *v;
+      if (*v > 0 && !body.velocity.isZero(0.0)) {
+        diag_.add(r.line("settle_time"), r.key_path("settle_time"), value_text(*r.node("settle_time")),
+                  fmt::format("a settling body starts at rest, but its velocity is {}: the settling phase would "
+                              "damp that velocity away",
+                              value_text(*r.node("velocity"))),
+                  "remove settle_time, or set velocity = [0.0, 0.0, 0.0]");
+      }
+    }
     const auto shape = r.string("shape");
     if (!shape) {
       scene_.fluids.push_back(std::move(body));

@@ -307,7 +307,16 @@ struct FluidBody {
   double width = 0;                            // m, > 0
   Vec3 velocity = Vec3::Zero();                // m/s
   bool hydrostatic = true;
+  // s: a damped settling phase from t = 0 (0: none): the body's velocities are relaxed until
+  // then and zeroed at its end, so that the body starts from the discrete equilibrium of its
+  // particles and walls rather than the continuum's hydrostatic fill (docs/physics.md, "S4's
+  // start-up"). A settling body starts at rest (checked).
+  double settle_time = 0;
 };
+
+// The settling phase's velocity damping v <- v exp(-dt / tau) has tau = h / c at t = 0 and
+// grows linearly to kSettleDampingGrowth h / c at the phase's end.
+inline constexpr double kSettleDampingGrowth = 20.0;
 
 // What the coupler records into traffic.h5.
 struct Recording {

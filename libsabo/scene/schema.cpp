@@ -6,6 +6,8 @@
 #include <cmath>
 #include <utility>
 
+#include "libsabo/scene/scene.hpp"
+
 namespace sabo::scene::schema {
 namespace {
 
@@ -709,6 +711,21 @@ class Schema {
         K("hydrostatic", Type::boolean)
             .def("true")
             .doc("Start with the hydrostatic pressure of the column above each particle."),
+        K("settle_time", Type::number)
+            .def("0.0")
+            .unit("s")
+            .ge(0)
+            .doc(fmt::format(
+                "Length of a damped settling phase from t = 0 (0: none). Until then the body's velocities are "
+                "relaxed every step, `v <- v exp(-dt / tau)`, with `tau` growing linearly from `h / c` "
+                "(critical damping of the particle-scale pressure waves) at t = 0 to {:g} `h / c` at the end, and "
+                "at its end they are set to zero: the body then starts from the discrete equilibrium of its "
+                "particles and walls instead of the continuum's hydrostatic state, whose small imbalance at the "
+                "free surface otherwise starts a transient of about 1.5e-3 sqrt(g H) (S4). For a body at rest "
+                "in a container or behind a structure; the body must start at rest (`velocity` zero). The "
+                "simulated time it takes is part of the run: 4 sqrt(H / g) (H the body's depth) brings the "
+                "S4 tank below 1e-3 sqrt(g H) from t = 0.",
+                kSettleDampingGrowth)),
     };
   }
 

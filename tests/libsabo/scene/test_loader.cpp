@@ -4,6 +4,8 @@
 #include <sys/stat.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -305,6 +307,20 @@ enabled = false
   EXPECT_TRUE(dam.enabled);
   EXPECT_FALSE(scene.surface_contact("boulders", "ground").enabled);
   EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "ground").friction, 0.3);
+}
+
+// A fluid body's settling phase: read in seconds, 0 without the key.
+TEST(SceneLoader, FluidSettleTime) {
+  const std::filesystem::path tank = testing::source_dir() / "configs/tests/sph_tank_boundary.toml";
+  EXPECT_EQ(load_scene(tank).fluids.at(0).settle_time, 0.0);
+  std::ifstream in(tank);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "max = [0.4, 0.4, 0.3]\n";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.insert(text.find(key) + key.size(), "settle_time = 0.25\n");
+  TempFolder folder;
+  // Loaded from another folder: the tank is planes and names no file.
+  EXPECT_EQ(load_scene(folder.write("scene.toml", text)).fluids.at(0).settle_time, 0.25);
 }
 
 TEST(SceneLoader, SolverCommandsResolve) {
