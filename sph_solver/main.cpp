@@ -44,6 +44,12 @@ class SphSolver final : public solver::CoupledSolver {
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
+    for (const scene::FluidBody& body : scene.fluids) {
+      if (body.settle_time > 0) {
+        spdlog::info("fluid body '{}' settles until t = {:.4g} s: its velocities are damped, then set to zero",
+                     body.name, body.settle_time);
+      }
+    }
   }
 
   void describe(sabo::v1::Register& registration) override {

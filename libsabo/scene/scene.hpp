@@ -309,8 +309,8 @@ struct FluidBody {
   bool hydrostatic = true;
   // s: a damped settling phase from t = 0 (0: none): the body's velocities are relaxed until
   // then and zeroed at its end, so that the body starts from the discrete equilibrium of its
-  // particles and walls rather than the continuum's hydrostatic fill (docs/physics.md, "S4's
-  // start-up"). A settling body starts at rest (checked).
+  // particles and walls rather than the continuum's hydrostatic fill (docs/physics.md, "Settling").
+  // A settling body starts at rest (checked).
   double settle_time = 0;
 };
 

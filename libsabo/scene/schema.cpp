@@ -721,7 +721,7 @@ class Schema {
                 "(critical damping of the particle-scale pressure waves) at t = 0 to {:g} `h / c` at the end, and "
                 "at its end they are set to zero: the body then starts from the discrete equilibrium of its "
                 "particles and walls instead of the continuum's hydrostatic state, whose small imbalance at the "
-                "free surface otherwise starts a transient of about 1.5e-3 sqrt(g H) (S4). For a body at rest "
+                "free surface otherwise starts a transient of 1.4e-3 to 1.8e-3 sqrt(g H) (S4). For a body at rest "
                 "in a container or behind a structure; the body must start at rest (`velocity` zero). The "
                 "simulated time it takes is part of the run: 4 sqrt(H / g) (H the body's depth) brings the "
                 "S4 tank below 1e-3 sqrt(g H) from t = 0.",
