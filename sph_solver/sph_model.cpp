@@ -369,12 +369,23 @@ SphModel::SphModel(const scene::Scene& scene)
   }
 }
 
-double SphModel::settle_damping_time(double settle_end) const {
-  // From h / c, the grid-scale acoustic modes critically damped, so that the fill's
+void SphModel::update_settle_factors(double dt) {
+  // tau from h / c, the grid-scale acoustic modes critically damped, so that the fill's
   // imbalance at the free surface moves no particle faster than about a0 h / c, to
   // kSettleDampingGrowth h / c at the end, which lets the slower modes relax.
   const double acoustic = kernel_.h / sound_speed_;
-  return acoustic * (1.0 + (scene::kSettleDampingGrowth - 1.0) * time_ / settle_end);
+  settle_factor_.resize(settle_time_.size());
+  for (std::size_t b = 0; b < settle_time_.size(); ++b) {
+    const double end = settle_time_[b];
+    double& factor = settle_factor_[b];
+    if (time_ >= end) {
+      factor = 1.0;
+    } else if (time_ + dt >= end) {
+      factor = 0.0;  // the phase ends at rest
+    } else {
+      factor = std::exp(-dt / (acoustic * (1.0 + (scene::kSettleDampingGrowth - 1.0) * time_ / end)));
+    }
+  }
 }
 
 double SphModel::initial_stable_dt() const {
@@ -1428,6 +1439,7 @@ void SphModel::integrate(double dt_previous, double dt) {
   const bool parallel = n > kParallelThreshold;
   const bool external = !external_force_.empty();
   const bool periodic = !periodic_.empty();
+  update_settle_factors(dt);
   // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
   const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
   energy_block_.assign(3 * blocks, 0.0);
@@ -1451,11 +1463,7 @@ void SphModel::integrate(double dt_previous, double dt) {
         external_force_[i].setZero();
       }
       Vec3 velocity = velocity_[i] + dt_update * a;
-      const double settle_end = settle_time_[body_[i]];
-      if (time_ < settle_end) {
-        // Settling: relaxed towards the discrete equilibrium; the phase ends at rest.
-        velocity *= time_ + dt < settle_end ? std::exp(-dt / settle_damping_time(settle_end)) : 0.0;
-      }
+      if (const double settle = settle_factor_[body_[i]]; settle != 1.0) velocity *= settle;
       kinetic += first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
       velocity_[i] = velocity;
     }

@@ -182,8 +182,8 @@ class SphModel {
     return slot_id < boundary_.size() ? slot_id : b_image_source_[slot_id - boundary_.size()];
   }
   void wrap_positions();
-  // s, the time constant of the settling phase's velocity damping at time_.
-  [[nodiscard]] double settle_damping_time(double settle_end) const;
+  // settle_factor_ for the step from time_ to time_ + dt.
+  void update_settle_factors(double dt);
   void make_images();
   void copy_wall_image_state();
   void build_grid();
@@ -296,6 +296,9 @@ class SphModel {
   std::size_t lost_ = 0;
   double time_ = 0;                  // s, t_n: the sum of the steps integrated
   std::vector<double> settle_time_;  // s, per body: its damped settling phase ends there (0: none)
+  // Per body, this step's factor on v_{n+1/2}: exp(-dt / tau) while settling, 0 at the step
+  // that ends the phase, 1 after it (or without one).
+  std::vector<double> settle_factor_;
 
   // Periodic axes (0 = x, 1 = y) and the image slots of the last compute.
   struct PeriodicAxis {
