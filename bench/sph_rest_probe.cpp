@@ -40,13 +40,10 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   const double H = 0.2, dx = H / res, g = 9.81, L = 0.2, W = 0.1;
   scene::Scene s = sph::testing::water_scene(dx, 10 * std::sqrt(g * H), ratio);
-  s.sph.kernel =
-      kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
+  s.sph.kernel = scene::SphSettings::kernel_named(kernel);
   s.sph.artificial_viscosity = alpha;
   s.sph.density_diffusion_delta = delta;
-  s.sph.density_diffusion = diffusion == "none"      ? scene::SphSettings::DensityDiffusion::none
-                            : diffusion == "molteni" ? scene::SphSettings::DensityDiffusion::molteni
-                                                     : scene::SphSettings::DensityDiffusion::fourtakas;
+  s.sph.density_diffusion = scene::SphSettings::density_diffusion_named(diffusion);
   s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3(L, W, H)));
   const double T = std::sqrt(H / g), U = std::sqrt(g * H);
   s.fluids.back().settle_time = settle * T;

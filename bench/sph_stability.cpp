@@ -89,10 +89,8 @@ int main(int argc, char** argv) {
   std::string diffusion = "fourtakas";
   app.add_option("--diffusion", diffusion, "density diffusion")->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
   CLI11_PARSE(app, argc, argv);
-  if (kernel == "cubic_spline") kernel_choice = scene::SphSettings::Kernel::cubic_spline;
-  diffusion_choice = diffusion == "none"      ? scene::SphSettings::DensityDiffusion::none
-                     : diffusion == "molteni" ? scene::SphSettings::DensityDiffusion::molteni
-                                              : scene::SphSettings::DensityDiffusion::fourtakas;
+  kernel_choice = scene::SphSettings::kernel_named(kernel);
+  diffusion_choice = scene::SphSettings::density_diffusion_named(diffusion);
   fmt::print("kernel {}, h = {} dx\n", kernel, smoothing_ratio);
   {
     const double H = 0.2, dx = 0.02, L = 0.2, W = 0.1;

@@ -40,8 +40,7 @@ int main(int argc, char** argv) {
   using namespace sabo;
   const double a = 0.4;
   scene::Scene s = sph::testing::water_scene(dx, 10.0 * std::sqrt(2 * 9.81 * 2 * a), ratio);
-  s.sph.kernel =
-      kernel == "cubic_spline" ? scene::SphSettings::Kernel::cubic_spline : scene::SphSettings::Kernel::wendland_c2;
+  s.sph.kernel = scene::SphSettings::kernel_named(kernel);
   s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
 
   const double memory_before = resident_megabytes();

@@ -730,20 +730,14 @@ class Builder {
     SphSettings& sph = scene_.sph;
     if (auto v = r.number("particle_spacing")) sph.particle_spacing = *v;
     if (auto v = r.number("smoothing_ratio")) sph.smoothing_ratio = *v;
-    if (auto v = r.string("kernel")) {
-      sph.kernel = *v == "cubic_spline" ? SphSettings::Kernel::cubic_spline : SphSettings::Kernel::wendland_c2;
-    }
+    if (auto v = r.string("kernel")) sph.kernel = SphSettings::kernel_named(*v);
     if (auto v = r.string("wall_model")) {
       sph.wall_model = *v == "penalty" ? SphSettings::WallModel::penalty : SphSettings::WallModel::boundary_particles;
     }
     if (auto v = r.number("sound_speed")) sph.sound_speed = *v;
     if (auto v = r.number("cfl")) sph.cfl = *v;
     if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
-    if (auto v = r.string("density_diffusion")) {
-      sph.density_diffusion = *v == "none"      ? SphSettings::DensityDiffusion::none
-                              : *v == "molteni" ? SphSettings::DensityDiffusion::molteni
-                                                : SphSettings::DensityDiffusion::fourtakas;
-    }
+    if (auto v = r.string("density_diffusion")) sph.density_diffusion = SphSettings::density_diffusion_named(*v);
     if (auto v = r.number("density_diffusion_delta")) sph.density_diffusion_delta = *v;
     const auto min = r.vec3("domain_min"), max = r.vec3("domain_max");
     if (r.has("domain_min") != r.has("domain_max")) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "libsabo/core/types.hpp"
@@ -283,6 +284,15 @@ struct SphSettings {
   std::optional<std::array<double, 2>> periodic_x, periodic_y;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
+  // The scene's names (docs/scene.md) of the choices above; the name must be one of them.
+  [[nodiscard]] static Kernel kernel_named(std::string_view name) {
+    return name == "cubic_spline" ? Kernel::cubic_spline : Kernel::wendland_c2;
+  }
+  [[nodiscard]] static DensityDiffusion density_diffusion_named(std::string_view name) {
+    return name == "none"      ? DensityDiffusion::none
+           : name == "molteni" ? DensityDiffusion::molteni
+                               : DensityDiffusion::fourtakas;
+  }
 };
 
 // One body of slurry, filled with particles on a cubic lattice of spacing
