@@ -137,7 +137,7 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
       // is. With rho0 dx^3 a compressed particle's volume falls short of its cell by rho / rho0 - 1
       // (p / (rho0 c^2), 1 % at the bottom of S4's tank), so the pressure sums, over the lattice,
       // left the bulk short of its weight by that much and pushed the fluid next to a wall
-      // particle away from it by 6 % of g at the bottom (S4's start-up 5.2e-3 sqrt(gH); 1.5e-3 now).
+      // particle away from it by 6 % of g at the bottom (S4's start-up 5.2e-3 sqrt(gH); 1.4e-3 now).
       fill.mass.push_back(rho * dx * dx * dx);
       fill.material.push_back(body_material[b]);
       fill.body.push_back(static_cast<std::uint32_t>(b));
