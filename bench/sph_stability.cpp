@@ -4,7 +4,7 @@
 // largest total energy (kinetic + potential + compression) over the
 // initial one, and the density range at the end.
 //   bench_sph_stability [--steps N] [--impact-time T] [--kernel cubic_spline|wendland_c2] [--ratio h/dx]
-//                       [--diffusion none|molteni|fourtakas] [--trace N] [--settle T]
+//                       [--diffusion none|molteni|fourtakas] [--trace N] [--settle T] [--store-wall-work]
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -20,8 +20,9 @@ using namespace sabo;
 
 scene::SphSettings::Kernel kernel_choice = scene::SphSettings::Kernel::wendland_c2;
 double smoothing_ratio = 1.5;
-long trace_every = 0;       // steps between trace lines; 0: none
-double settle_periods = 0;  // the tank's settling phase, sqrt(H/g)
+long trace_every = 0;          // steps between trace lines; 0: none
+double settle_periods = 0;     // the tank's settling phase, sqrt(H/g)
+bool store_wall_work = false;  // sph.store_wall_work
 scene::SphSettings::DensityDiffusion diffusion_choice = scene::SphSettings::DensityDiffusion::fourtakas;
 
 scene::Scene water(double dx, double c, const Aabb& domain) {
@@ -29,6 +30,7 @@ scene::Scene water(double dx, double c, const Aabb& domain) {
   s.sph.domain = domain;
   s.sph.kernel = kernel_choice;
   s.sph.density_diffusion = diffusion_choice;
+  s.sph.store_wall_work = store_wall_work;
   return s;
 }
 
@@ -88,10 +90,11 @@ int main(int argc, char** argv) {
   app.add_option("--settle", settle_periods, "the tank's settling phase from t = 0, sqrt(H/g)");
   std::string diffusion = "fourtakas";
   app.add_option("--diffusion", diffusion, "density diffusion")->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
+  app.add_flag("--store-wall-work", store_wall_work, "sph.store_wall_work: energy-consistent walls");
   CLI11_PARSE(app, argc, argv);
   kernel_choice = scene::SphSettings::kernel_named(kernel);
   diffusion_choice = scene::SphSettings::density_diffusion_named(diffusion);
-  fmt::print("kernel {}, h = {} dx\n", kernel, smoothing_ratio);
+  fmt::print("kernel {}, h = {} dx, store_wall_work {}\n", kernel, smoothing_ratio, store_wall_work);
   {
     const double H = 0.2, dx = 0.02, L = 0.2, W = 0.1;
     scene::Scene s = water(dx, 10 * std::sqrt(9.81 * H), Aabb{Vec3(-0.1, -0.1, -0.1), Vec3(0.3, 0.2, 0.4)});

@@ -638,7 +638,7 @@ void SphModel::gather() {
   resize_padded(bx_, nb, kFarAway);
   resize_padded(by_, nb, kFarAway);
   resize_padded(bz_, nb, kFarAway);
-  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_}) resize_padded(*v, nb, 0.0f);
+  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_, &bshare_, &bcompress_}) resize_padded(*v, nb, 0.0f);
   resize_padded(brho_, nb, 1.0f);
   if (has_stress_) bstress_.assign(6 * (nb + kLanes), 0.0f);  // component-major, stride nb + kLanes
   if (any_gradient_) {
@@ -676,6 +676,7 @@ void SphModel::copy_wall_image_state() {
     bpr_[s] = bpr_[source];
     brho_[s] = brho_[source];
     bvol_[s] = bvol_[source];
+    bshare_[s] = bshare_[source];
     if (any_gradient_) {
       bvx_[s] = bvx_[source];
       bvy_[s] = bvy_[source];
@@ -884,6 +885,13 @@ void SphModel::boundary_state(T) {
         }
         bpr_[s] = static_cast<float>(p / (rho * rho));
         brho_[s] = static_cast<float>(rho);
+        // The wall's compression goes back to the fluid whose pressures p_w averages
+        // (wall_compression()); not where p_w is clamped to 0 (no work to balance), nor against
+        // elastic-plastic fluid, whose wall stress has no energy-consistent counterpart: with
+        // it a column at rest ran away within 0.04 s (docs/physics.md, "Energy").
+        const bool credited = settings_.store_wall_work && p > 0 &&
+                              (materials_.empty() || materials_[material].rheology != Rheology::elastic_plastic);
+        bshare_[s] = credited ? static_cast<float>(1.0 / total_w) : 0.0f;
         // A wall particle stands for the fluid mirrored behind the wall: where that is air
         // (above the free surface beside a wall) it must not act. Its volume is scaled by the
         // wetted fraction of its cell (height cbrt(V)) along the wall: the extrapolated
@@ -1325,6 +1333,9 @@ void SphModel::velocity_divergence(T) {
   const float* bwz = bwz_.data();
   const float* bvol = bvol_.data();
   const float* brho = brho_.data();
+  const bool store_wall_work = settings_.store_wall_work;
+  if (store_wall_work) wall_compression(T{});
+  const float* bcompress = bcompress_.data();
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
 #pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
@@ -1334,6 +1345,7 @@ void SphModel::velocity_divergence(T) {
       for (std::int64_t k = first; k < last; ++k) {
         const auto i = static_cast<std::uint32_t>(k);
         if (f_order_[i] >= particles) continue;  // an image: read-only
+        alignas(64) float credit[kLanes] = {};
         const float x = fx[i], y = fy[i], z = fz[i];
         const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
         alignas(64) float drho[kLanes] = {};
@@ -1361,13 +1373,79 @@ void SphModel::velocity_divergence(T) {
             const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
             const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
             drho[l] += brho[j] * bvol[j] * vr * f;
+            if (store_wall_work) credit[l] += (inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f) * bcompress[j];
           }
         });
-        double sum = 0;
-        for (std::uint32_t l = 0; l < kLanes; ++l) sum += drho[l];
-        out_drho_[i] += sum;
+        double sum = 0, credited = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) {
+          sum += drho[l];
+          credited += credit[l];
+        }
+        out_drho_[i] += sum + double{frho_[i]} * frho_[i] / fm[i] * credited;
       }
     });
+  }
+}
+
+// Energy-consistent walls (docs/physics.md, "Energy"). The wall term of the momentum,
+// -m_b (p_i / rho_i^2 + p_w / rho_w^2) grad W, does work at the rate
+//   -sum_b (m_b / rho_b^2) p_w drho_b/dt,  drho_b/dt = sum_f m_f (v_f - v_b).grad_f W_fb,
+// the wall particle's own continuity rate. Its p_i part is what the fluid's continuity stores
+// as compression; the p_w part nothing stored, and a column released beside walls gained
+// 5e-4 of its energy. p_w = sum_f p_f W_bf / sum_f W_bf + (hydrostatic part), so crediting
+//   drho_f/dt += rho_f^2 / m_f sum_b (m_b / rho_b^2) drho_b/dt W_bf / sum W_b
+// to the fluid stores exactly the average's work: the transpose of the pressure average.
+// Per wall slot this computes (m_b / rho_b^2) drho_b/dt / sum W_b = V_b / rho_b drho_b/dt bshare_.
+// The hydrostatic part stays unbalanced (the impact and tank runs never rose above E0 with it).
+template <class T>
+void SphModel::wall_compression(T) {
+  const std::size_t nb = b_order_.size(), walls = boundary_.size();
+  const KernelF kernel(kernel_);
+  const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
+  const float* fx = fx_.data();
+  const float* fy = fy_.data();
+  const float* fz = fz_.data();
+  const float* fvx = fvx_.data();
+  const float* fvy = fvy_.data();
+  const float* fvz = fvz_.data();
+  const double* fm = fm_.data();
+  const auto count = static_cast<std::int64_t>(nb);
+  const std::int64_t chunks = (count + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (nb - b_image_source_.size() > kParallelThreshold)
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(count, first + kChunk);
+    with_best_isa([=, this] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto s = static_cast<std::size_t>(k);
+        const std::uint32_t id = b_order_[s];
+        if (id >= walls) continue;  // an image: copied below
+        if (bshare_[s] == 0.0f) {
+          bcompress_[s] = 0.0f;
+          continue;
+        }
+        const float x = bx_[s], y = by_[s], z = bz_[s];
+        const float wx = bwx_[s], wy = bwy_[s], wz = bwz_[s];
+        alignas(64) float rate[kLanes] = {};
+        for_neighbour_blocks(boundary_.position[id], f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
+#pragma omp simd
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float vr = (fvx[j] - wx) * rx + (fvy[j] - wy) * ry + (fvz[j] - wz) * rz;
+            rate[l] += static_cast<float>(fm[j]) * vr * f;
+          }
+        });
+        double total = 0;
+        for (std::uint32_t l = 0; l < kLanes; ++l) total += rate[l];
+        bcompress_[s] = static_cast<float>(double{bvol_[s]} / brho_[s] * total * bshare_[s]);
+      }
+    });
+  }
+  for (std::size_t s = 0; s < nb; ++s) {
+    if (b_order_[s] >= walls) bcompress_[s] = bcompress_[b_slot_of_[wall_source(b_order_[s])]];
   }
 }
 

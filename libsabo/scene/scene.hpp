@@ -272,6 +272,9 @@ struct SphSettings {
   double smoothing_ratio = 1.5;  // h / dx (Wendland C2 at 1.3 does not keep a lattice at rest)
   Kernel kernel = Kernel::wendland_c2;
   WallModel wall_model = WallModel::boundary_particles;
+  // Boundary particles: their compression credited back to the fluid (energy-consistent walls;
+  // SphModel::wall_compression, docs/physics.md "Energy").
+  bool store_wall_work = false;
   double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
   double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
   double artificial_viscosity = 0.01;  // Monaghan alpha

@@ -323,6 +323,19 @@ TEST(SceneLoader, FluidSettleTime) {
   EXPECT_EQ(load_scene(folder.write("scene.toml", text)).fluids.at(0).settle_time, 0.25);
 }
 
+// Energy-consistent walls: off unless the scene asks.
+TEST(SceneLoader, SphStoreWallWork) {
+  const std::filesystem::path tank = testing::source_dir() / "configs/tests/sph_tank_boundary.toml";
+  EXPECT_FALSE(load_scene(tank).sph.store_wall_work);
+  std::ifstream in(tank);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "wall_model = \"boundary_particles\"\n";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.insert(text.find(key) + key.size(), "store_wall_work = true\n");
+  TempFolder folder;
+  EXPECT_TRUE(load_scene(folder.write("scene.toml", text)).sph.store_wall_work);
+}
+
 TEST(SceneLoader, SolverCommandsResolve) {
   TempFolder folder;
   const auto program = folder.write("bin/my_dem", "#!/bin/sh\nexit 0\n");
