@@ -638,7 +638,10 @@ void SphModel::gather() {
   resize_padded(bx_, nb, kFarAway);
   resize_padded(by_, nb, kFarAway);
   resize_padded(bz_, nb, kFarAway);
-  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_, &bshare_, &bcompress_}) resize_padded(*v, nb, 0.0f);
+  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_}) resize_padded(*v, nb, 0.0f);
+  if (settings_.store_wall_work) {
+    for (auto* v : {&bshare_, &bcompress_}) resize_padded(*v, nb, 0.0f);
+  }
   resize_padded(brho_, nb, 1.0f);
   if (has_stress_) bstress_.assign(6 * (nb + kLanes), 0.0f);  // component-major, stride nb + kLanes
   if (any_gradient_) {
@@ -676,7 +679,6 @@ void SphModel::copy_wall_image_state() {
     bpr_[s] = bpr_[source];
     brho_[s] = brho_[source];
     bvol_[s] = bvol_[source];
-    bshare_[s] = bshare_[source];
     if (any_gradient_) {
       bvx_[s] = bvx_[source];
       bvy_[s] = bvy_[source];
@@ -889,9 +891,11 @@ void SphModel::boundary_state(T) {
         // (wall_compression()); not where p_w is clamped to 0 (no work to balance), nor against
         // elastic-plastic fluid, whose wall stress has no energy-consistent counterpart: with
         // it a column at rest ran away within 0.04 s (docs/physics.md, "Energy").
-        const bool credited = settings_.store_wall_work && p > 0 &&
-                              (materials_.empty() || materials_[material].rheology != Rheology::elastic_plastic);
-        bshare_[s] = credited ? static_cast<float>(1.0 / total_w) : 0.0f;
+        if (settings_.store_wall_work) {
+          const bool credited =
+              p > 0 && (materials_.empty() || materials_[material].rheology != Rheology::elastic_plastic);
+          bshare_[s] = credited ? static_cast<float>(1.0 / total_w) : 0.0f;
+        }
         // A wall particle stands for the fluid mirrored behind the wall: where that is air
         // (above the free surface beside a wall) it must not act. Its volume is scaled by the
         // wetted fraction of its cell (height cbrt(V)) along the wall: the extrapolated
@@ -1309,8 +1313,10 @@ void SphModel::compute_velocity_divergence() {
     fvy_[s] = static_cast<float>(v.y());
     fvz_[s] = static_cast<float>(v.z());
   }
-  with_terms(kernel_.type, false, false, false, DensityDiffusion::none,
-             [&](auto terms) { velocity_divergence(terms); });
+  with_terms(kernel_.type, false, false, false, DensityDiffusion::none, [&](auto terms) {
+    if (settings_.store_wall_work) wall_compression(terms);  // read by velocity_divergence()
+    velocity_divergence(terms);
+  });
 }
 
 template <class T>
@@ -1334,8 +1340,7 @@ void SphModel::velocity_divergence(T) {
   const float* bvol = bvol_.data();
   const float* brho = brho_.data();
   const bool store_wall_work = settings_.store_wall_work;
-  if (store_wall_work) wall_compression(T{});
-  const float* bcompress = bcompress_.data();
+  const float* bcompress = bcompress_.data();  // empty without store_wall_work
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
 #pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)

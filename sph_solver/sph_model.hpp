@@ -346,8 +346,8 @@ class SphModel {
   std::vector<std::uint32_t> fmat_;
   std::vector<float> bx_, by_, bz_, bwx_, bwy_, bwz_, bvol_, bpr_, brho_;  // bw: prescribed wall velocity
   std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)
-  std::vector<float> bshare_;           // per sorted wall slot: 1 / sum W of its pressure average, 0 where p_w = 0
-  std::vector<float> bcompress_;        // per sorted wall slot: V_b / rho_b * drho_b/dt * bshare_
+  std::vector<float> bshare_;           // per sorted wall slot (only with store_wall_work): 1 / sum W, or 0
+  std::vector<float> bcompress_;        // per sorted wall slot (only with store_wall_work): wall_compression()
   std::vector<double> fgrad_;           // 9 per sorted fluid particle: L = dv/dx (only with gradients)
   std::vector<float> fstress_;          // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
   std::vector<float> fartificial_;      // artificial stress R / rho^2 per sorted slot like fstress_, Pa m^6/kg^2

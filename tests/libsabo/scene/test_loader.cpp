@@ -309,31 +309,31 @@ enabled = false
   EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "ground").friction, 0.3);
 }
 
+// configs/tests/sph_tank_boundary.toml with `line` inserted after `anchor` (a whole line of it).
+std::string tank_scene_with(const std::string& anchor, const std::string& line) {
+  std::ifstream in(testing::source_dir() / "configs/tests/sph_tank_boundary.toml");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t at = text.find(anchor);
+  EXPECT_NE(at, std::string::npos) << anchor;
+  return at == std::string::npos ? text : text.insert(at + anchor.size(), line);
+}
+
 // A fluid body's settling phase: read in seconds, 0 without the key.
 TEST(SceneLoader, FluidSettleTime) {
-  const std::filesystem::path tank = testing::source_dir() / "configs/tests/sph_tank_boundary.toml";
-  EXPECT_EQ(load_scene(tank).fluids.at(0).settle_time, 0.0);
-  std::ifstream in(tank);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string key = "max = [0.4, 0.4, 0.3]\n";
-  ASSERT_NE(text.find(key), std::string::npos);
-  text.insert(text.find(key) + key.size(), "settle_time = 0.25\n");
+  EXPECT_EQ(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").fluids.at(0).settle_time, 0.0);
   TempFolder folder;
   // Loaded from another folder: the tank is planes and names no file.
-  EXPECT_EQ(load_scene(folder.write("scene.toml", text)).fluids.at(0).settle_time, 0.25);
+  const auto file = folder.write("scene.toml", tank_scene_with("max = [0.4, 0.4, 0.3]\n", "settle_time = 0.25\n"));
+  EXPECT_EQ(load_scene(file).fluids.at(0).settle_time, 0.25);
 }
 
 // Energy-consistent walls: off unless the scene asks.
 TEST(SceneLoader, SphStoreWallWork) {
-  const std::filesystem::path tank = testing::source_dir() / "configs/tests/sph_tank_boundary.toml";
-  EXPECT_FALSE(load_scene(tank).sph.store_wall_work);
-  std::ifstream in(tank);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string key = "wall_model = \"boundary_particles\"\n";
-  ASSERT_NE(text.find(key), std::string::npos);
-  text.insert(text.find(key) + key.size(), "store_wall_work = true\n");
+  EXPECT_FALSE(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").sph.store_wall_work);
   TempFolder folder;
-  EXPECT_TRUE(load_scene(folder.write("scene.toml", text)).sph.store_wall_work);
+  const auto file =
+      folder.write("scene.toml", tank_scene_with("wall_model = \"boundary_particles\"\n", "store_wall_work = true\n"));
+  EXPECT_TRUE(load_scene(file).sph.store_wall_work);
 }
 
 TEST(SceneLoader, SolverCommandsResolve) {
