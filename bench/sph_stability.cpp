@@ -4,7 +4,8 @@
 // largest total energy (kinetic + potential + compression) over the
 // initial one, and the density range at the end.
 //   bench_sph_stability [--steps N] [--impact-time T] [--kernel cubic_spline|wendland_c2] [--ratio h/dx]
-//                       [--diffusion none|molteni|fourtakas] [--trace N] [--settle T] [--store-wall-work]
+//                       [--diffusion none|molteni|fourtakas] [--trace N] [--settle T]
+//                       [--wall-work bounded|stored|unstored]
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
@@ -20,9 +21,9 @@ using namespace sabo;
 
 scene::SphSettings::Kernel kernel_choice = scene::SphSettings::Kernel::wendland_c2;
 double smoothing_ratio = 1.5;
-long trace_every = 0;          // steps between trace lines; 0: none
-double settle_periods = 0;     // the tank's settling phase, sqrt(H/g)
-bool store_wall_work = false;  // sph.store_wall_work
+long trace_every = 0;       // steps between trace lines; 0: none
+double settle_periods = 0;  // the tank's settling phase, sqrt(H/g)
+scene::SphSettings::WallWork wall_work_choice = scene::SphSettings::WallWork::bounded;
 scene::SphSettings::DensityDiffusion diffusion_choice = scene::SphSettings::DensityDiffusion::fourtakas;
 
 scene::Scene water(double dx, double c, const Aabb& domain) {
@@ -30,7 +31,7 @@ scene::Scene water(double dx, double c, const Aabb& domain) {
   s.sph.domain = domain;
   s.sph.kernel = kernel_choice;
   s.sph.density_diffusion = diffusion_choice;
-  s.sph.store_wall_work = store_wall_work;
+  s.sph.wall_work = wall_work_choice;
   return s;
 }
 
@@ -70,8 +71,10 @@ void run(const char* name, sph::SphModel& model, long steps_limit, double time_l
   const auto [rho_min, rho_max] = std::minmax_element(model.densities().begin(), model.densities().end());
   fmt::print(
       "{}: steps {} t {:.4f} s, particles {}, largest speed {:.4g} m/s ({:.4g} in the second half), left the domain "
-      "{}, largest energy - initial {:.4g} J (initial {:.6g} J), density {:.2f}..{:.2f} kg/m^3\n",
-      name, steps, t, model.size(), v_max, v_max_late, model.lost_count(), e_max - e0, e0, *rho_min, *rho_max);
+      "{}, largest energy - initial {:.4g} J (initial {:.6g} J), walls' work held back {:.4g} J, density "
+      "{:.2f}..{:.2f} kg/m^3\n",
+      name, steps, t, model.size(), v_max, v_max_late, model.lost_count(), e_max - e0, e0, model.energies().wall_held,
+      *rho_min, *rho_max);
 }
 
 }  // namespace
@@ -90,11 +93,14 @@ int main(int argc, char** argv) {
   app.add_option("--settle", settle_periods, "the tank's settling phase from t = 0, sqrt(H/g)");
   std::string diffusion = "fourtakas";
   app.add_option("--diffusion", diffusion, "density diffusion")->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
-  app.add_flag("--store-wall-work", store_wall_work, "sph.store_wall_work: energy-consistent walls");
+  std::string wall_work = "bounded";
+  app.add_option("--wall-work", wall_work, "sph.wall_work: what becomes of the walls' work")
+      ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
   CLI11_PARSE(app, argc, argv);
   kernel_choice = scene::SphSettings::kernel_named(kernel);
   diffusion_choice = scene::SphSettings::density_diffusion_named(diffusion);
-  fmt::print("kernel {}, h = {} dx, store_wall_work {}\n", kernel, smoothing_ratio, store_wall_work);
+  wall_work_choice = scene::SphSettings::wall_work_named(wall_work);
+  fmt::print("kernel {}, h = {} dx, wall_work {}\n", kernel, smoothing_ratio, wall_work);
   {
     const double H = 0.2, dx = 0.02, L = 0.2, W = 0.1;
     scene::Scene s = water(dx, 10 * std::sqrt(9.81 * H), Aabb{Vec3(-0.1, -0.1, -0.1), Vec3(0.3, 0.2, 0.4)});

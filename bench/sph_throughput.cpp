@@ -3,6 +3,7 @@
 // boundary-particle walls, the neighbour count per particle and the memory per
 // particle. Threads: OMP_NUM_THREADS.
 //   bench_sph_throughput [--spacing DX] [--steps N] [--kernel wendland_c2|cubic_spline] [--ratio H_OVER_DX]
+//                        [--wall-work bounded|stored|unstored]
 #include <fmt/format.h>
 #include <omp.h>
 
@@ -35,12 +36,16 @@ int main(int argc, char** argv) {
   app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")
       ->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
   app.add_option("--ratio", ratio, "h / dx");
+  std::string wall_work = "bounded";
+  app.add_option("--wall-work", wall_work, "sph.wall_work (the default: bounded)")
+      ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
   CLI11_PARSE(app, argc, argv);
 
   using namespace sabo;
   const double a = 0.4;
   scene::Scene s = sph::testing::water_scene(dx, 10.0 * std::sqrt(2 * 9.81 * 2 * a), ratio);
   s.sph.kernel = scene::SphSettings::kernel_named(kernel);
+  s.sph.wall_work = scene::SphSettings::wall_work_named(wall_work);
   s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
 
   const double memory_before = resident_megabytes();

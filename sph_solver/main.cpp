@@ -79,7 +79,9 @@ class SphSolver final : public solver::CoupledSolver {
       }
     }
     const Energies e = model_.energies();
-    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, 0.0});
+    // The walls' work held back (sph.wall_work = "bounded") is the fluid's only loss that
+    // the model accounts: viscosity and diffusion dissipate unmeasured.
+    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.wall_held});
   }
 
   void compute_internal_forces(double dt_previous) override {

@@ -18,6 +18,7 @@ namespace {
 using Rheology = scene::Material::Rheology;
 using KernelKind = scene::SphSettings::Kernel;
 using DensityDiffusion = scene::SphSettings::DensityDiffusion;
+using WallWork = scene::SphSettings::WallWork;
 
 // Above this many particles (or wall particles; images not counted: the loops skip them) the loops run in parallel.
 constexpr std::size_t kParallelThreshold = 512;
@@ -28,11 +29,30 @@ constexpr std::int64_t kMaxCells = std::int64_t{1} << 27;
 constexpr std::uint32_t kLanes = 16;
 // Particles per block of the energy sums (fixed: the same bits on any number of threads).
 constexpr std::size_t kEnergyBlock = 4096;
+// Sums per block: kinetic, potential, elastic, wall work held back.
+constexpr std::size_t kEnergyTerms = 4;
 // Kernel moments per wall slot for the stress extrapolation: W, W p, W e (3), W e e^T (6),
 // W p e (3), W S_f (6), e = x_f - x_w.
 constexpr std::size_t kWallMoments = 20;
 // Padding slots sit this far (m) from everything: outside every support.
 constexpr float kFarAway = 1e6f;
+
+// The fraction of a fluid particle's wall credit (wall_compression()) that wall_work =
+// "bounded" applies. stored (J): the compression energy the whole credit would store this
+// step; held (J): the wall work the particle has held back so far. Work the fluid loses to
+// the walls (stored >= 0) is held back, not stored, as without any credit; work the walls
+// give back (stored < 0) is paid from what is held, and only the part beyond it is credited.
+// So held never goes below zero, and the walls' pressure never gives the fluid energy that
+// the fluid did not first lose to it.
+double bounded_credit(double stored, float& held) {
+  if (stored >= 0.0 || held >= -stored) {
+    held = static_cast<float>(std::max(0.0, held + stored));  // >= 0 through the rounding too
+    return 0.0;
+  }
+  const double beyond = 1.0 + held / stored;  // of -stored, what held cannot pay
+  held = 0.0f;
+  return beyond;
+}
 
 // The terms a step computes, fixed at compile time: the pair loops carry no
 // branch for a term that no material asks for.
@@ -359,6 +379,7 @@ SphModel::SphModel(const scene::Scene& scene)
     wrap_offset_.assign(n, Vec3::Zero());
     wrap_positions();
   }
+  if (credits_wall_work() && settings_.wall_work == WallWork::bounded) wall_work_held_.assign(n, 0.0f);
   stable_dt_ = initial_stable_dt();
   energies_.kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -639,9 +660,7 @@ void SphModel::gather() {
   resize_padded(by_, nb, kFarAway);
   resize_padded(bz_, nb, kFarAway);
   for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_}) resize_padded(*v, nb, 0.0f);
-  if (settings_.store_wall_work) {
-    for (auto* v : {&bshare_, &bcompress_}) resize_padded(*v, nb, 0.0f);
-  }
+  if (credits_wall_work()) resize_padded(bcredit_, nb, 0.0f);
   resize_padded(brho_, nb, 1.0f);
   if (has_stress_) bstress_.assign(6 * (nb + kLanes), 0.0f);  // component-major, stride nb + kLanes
   if (any_gradient_) {
@@ -891,10 +910,10 @@ void SphModel::boundary_state(T) {
         // (wall_compression()); not where p_w is clamped to 0 (no work to balance), nor against
         // elastic-plastic fluid, whose wall stress has no energy-consistent counterpart: with
         // it a column at rest ran away within 0.04 s (docs/physics.md, "Energy").
-        if (settings_.store_wall_work) {
+        if (credits_wall_work()) {
           const bool credited =
               p > 0 && (materials_.empty() || materials_[material].rheology != Rheology::elastic_plastic);
-          bshare_[s] = credited ? static_cast<float>(1.0 / total_w) : 0.0f;
+          bcredit_[s] = credited ? static_cast<float>(1.0 / total_w) : 0.0f;
         }
         // A wall particle stands for the fluid mirrored behind the wall: where that is air
         // (above the free surface beside a wall) it must not act. Its volume is scaled by the
@@ -1305,7 +1324,7 @@ void SphModel::boundary_forces(T) {
 
 // Continuity at x_n with the new velocities v_{n+1/2} (the density is a position-like
 // variable of the leapfrog: with v_{n-1/2} the acoustic modes would grow).
-void SphModel::compute_velocity_divergence() {
+void SphModel::compute_velocity_divergence(double dt) {
   const std::size_t n = f_order_.size();
   for (std::size_t s = 0; s < n; ++s) {
     const Vec3& v = velocity_[fluid_source(f_order_[s])];
@@ -1314,13 +1333,13 @@ void SphModel::compute_velocity_divergence() {
     fvz_[s] = static_cast<float>(v.z());
   }
   with_terms(kernel_.type, false, false, false, DensityDiffusion::none, [&](auto terms) {
-    if (settings_.store_wall_work) wall_compression(terms);  // read by velocity_divergence()
-    velocity_divergence(terms);
+    if (credits_wall_work()) wall_compression(terms);  // read by velocity_divergence()
+    velocity_divergence(terms, dt);
   });
 }
 
 template <class T>
-void SphModel::velocity_divergence(T) {
+void SphModel::velocity_divergence(T, double dt) {
   const std::size_t n = f_order_.size(), particles = position_.size();
   const KernelF kernel(kernel_);
   const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
@@ -1339,8 +1358,9 @@ void SphModel::velocity_divergence(T) {
   const float* bwz = bwz_.data();
   const float* bvol = bvol_.data();
   const float* brho = brho_.data();
-  const bool store_wall_work = settings_.store_wall_work;
-  const float* bcompress = bcompress_.data();  // empty without store_wall_work
+  const bool credit_walls = credits_wall_work();
+  const bool bounded = settings_.wall_work == WallWork::bounded;
+  const float* bcredit = bcredit_.data();  // empty without credit_walls
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
 #pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
@@ -1378,13 +1398,17 @@ void SphModel::velocity_divergence(T) {
             const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
             const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
             drho[l] += brho[j] * bvol[j] * vr * f;
-            if (store_wall_work) credit[l] += (inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f) * bcompress[j];
+            if (credit_walls) credit[l] += (inside ? kernel_value<T::kernel>(r2, kernel) : 0.0f) * bcredit[j];
           }
         });
         double sum = 0, credited = 0;
         for (std::uint32_t l = 0; l < kLanes; ++l) {
           sum += drho[l];
           credited += credit[l];
+        }
+        if (bounded && credited != 0.0) {
+          const double pressure = double{fpr_[i]} * frho_[i] * frho_[i];
+          credited *= bounded_credit(pressure * credited * dt, wall_work_held_[f_order_[i]]);
         }
         out_drho_[i] += sum + double{frho_[i]} * frho_[i] / fm[i] * credited;
       }
@@ -1400,8 +1424,11 @@ void SphModel::velocity_divergence(T) {
 // 5e-4 of its energy. p_w = sum_f p_f W_bf / sum_f W_bf + (hydrostatic part), so crediting
 //   drho_f/dt += rho_f^2 / m_f sum_b (m_b / rho_b^2) drho_b/dt W_bf / sum W_b
 // to the fluid stores exactly the average's work: the transpose of the pressure average.
-// Per wall slot this computes (m_b / rho_b^2) drho_b/dt / sum W_b = V_b / rho_b drho_b/dt bshare_.
+// Per wall slot this turns bcredit_ from 1 / sum W_b (boundary_state()) into
+// (m_b / rho_b^2) drho_b/dt / sum W_b = V_b / rho_b drho_b/dt / sum W_b.
 // The hydrostatic part stays unbalanced (the impact and tank runs never rose above E0 with it).
+// wall_work = "stored" applies the whole credit; "bounded" lets bounded_credit() decide per
+// fluid particle in velocity_divergence().
 template <class T>
 void SphModel::wall_compression(T) {
   const std::size_t nb = b_order_.size(), walls = boundary_.size();
@@ -1424,10 +1451,7 @@ void SphModel::wall_compression(T) {
         const auto s = static_cast<std::size_t>(k);
         const std::uint32_t id = b_order_[s];
         if (id >= walls) continue;  // an image: copied below
-        if (bshare_[s] == 0.0f) {
-          bcompress_[s] = 0.0f;
-          continue;
-        }
+        if (bcredit_[s] == 0.0f) continue;
         const float x = bx_[s], y = by_[s], z = bz_[s];
         const float wx = bwx_[s], wy = bwy_[s], wz = bwz_[s];
         alignas(64) float rate[kLanes] = {};
@@ -1445,12 +1469,12 @@ void SphModel::wall_compression(T) {
         });
         double total = 0;
         for (std::uint32_t l = 0; l < kLanes; ++l) total += rate[l];
-        bcompress_[s] = static_cast<float>(double{bvol_[s]} / brho_[s] * total * bshare_[s]);
+        bcredit_[s] = static_cast<float>(double{bvol_[s]} / brho_[s] * total * bcredit_[s]);
       }
     });
   }
   for (std::size_t s = 0; s < nb; ++s) {
-    if (b_order_[s] >= walls) bcompress_[s] = bcompress_[b_slot_of_[wall_source(b_order_[s])]];
+    if (b_order_[s] >= walls) bcredit_[s] = bcredit_[b_slot_of_[wall_source(b_order_[s])]];
   }
 }
 
@@ -1525,13 +1549,13 @@ void SphModel::integrate(double dt_previous, double dt) {
   update_settle_factors(dt);
   // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
   const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
-  energy_block_.assign(3 * blocks, 0.0);
+  energy_block_.assign(kEnergyTerms * blocks, 0.0);
   const auto block_count = static_cast<std::int64_t>(blocks);
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::int64_t block = 0; block < block_count; ++block) {
     const std::size_t first = static_cast<std::size_t>(block) * kEnergyBlock;
     const std::size_t last = std::min(n, first + kEnergyBlock);
-    double kinetic = 0, potential = 0, elastic = 0;
+    double kinetic = 0, potential = 0, elastic = 0, held = 0;
     for (std::size_t i = first; i < last; ++i) {
       if (!active_[i]) {
         if (external) external_force_[i].setZero();
@@ -1540,6 +1564,7 @@ void SphModel::integrate(double dt_previous, double dt) {
       const FluidMaterial& material = materials_[material_[i]];
       potential += -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
       elastic += mass_[i] * material.eos.specific_energy(density_[i]);
+      if (!wall_work_held_.empty()) held += wall_work_held_[i];
       Vec3 a = acceleration_[i];
       if (external) {
         a += external_force_[i] / mass_[i];
@@ -1550,11 +1575,13 @@ void SphModel::integrate(double dt_previous, double dt) {
       kinetic += first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
       velocity_[i] = velocity;
     }
-    energy_block_[3 * static_cast<std::size_t>(block)] = kinetic;
-    energy_block_[3 * static_cast<std::size_t>(block) + 1] = potential;
-    energy_block_[3 * static_cast<std::size_t>(block) + 2] = elastic;
+    double* sums = &energy_block_[kEnergyTerms * static_cast<std::size_t>(block)];
+    sums[0] = kinetic;
+    sums[1] = potential;
+    sums[2] = elastic;
+    sums[3] = held;
   }
-  compute_velocity_divergence();
+  compute_velocity_divergence(dt);
   if (has_stress_) {
     // The deviatoric stress is position-like too: its rate from L(x_n, v_{n+1/2}) (the fluid's
     // new velocities; the walls' no-slip velocities of compute_boundary_state()). With
@@ -1593,9 +1620,11 @@ void SphModel::integrate(double dt_previous, double dt) {
   if (periodic) wrap_positions();
   Energies energies;
   for (std::size_t block = 0; block < blocks; ++block) {
-    energies.kinetic += energy_block_[3 * block];
-    energies.potential += energy_block_[3 * block + 1];
-    energies.elastic += energy_block_[3 * block + 2];
+    const double* sums = &energy_block_[kEnergyTerms * block];
+    energies.kinetic += sums[0];
+    energies.potential += sums[1];
+    energies.elastic += sums[2];
+    energies.wall_held += sums[3];
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;

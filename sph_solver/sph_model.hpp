@@ -69,6 +69,9 @@ struct Energies {
   double kinetic = 0;    // J, 1/2 m v_{n-1/2}.v_{n+1/2} at the last integrate()
   double potential = 0;  // J, -m g.x_n
   double elastic = 0;    // J, compression: sum m e(rho), e = integral of p / rho^2 drho from rho0
+  // J, >= 0: the walls' work held back by sph.wall_work = "bounded" (0 otherwise). The fluid's
+  // total() plus this is what the walls' pressure conserves.
+  double wall_held = 0;
   [[nodiscard]] double total() const { return kinetic + potential + elastic; }
 };
 
@@ -165,6 +168,8 @@ class SphModel {
   [[nodiscard]] double stable_dt() const { return stable_dt_; }
 
   [[nodiscard]] Energies energies() const { return energies_; }
+  // J per particle, >= 0: the walls' work it holds back (sph.wall_work = "bounded"); empty otherwise.
+  [[nodiscard]] std::span<const float> wall_work_held() const { return wall_work_held_; }
   // s, the simulated time t_n: the sum of the steps integrated.
   [[nodiscard]] double time() const { return time_; }
   // Mean number of neighbours (fluid and wall, inside the support, self excluded) in the last compute.
@@ -181,6 +186,11 @@ class SphModel {
   [[nodiscard]] std::uint32_t wall_source(std::uint32_t slot_id) const {
     return slot_id < boundary_.size() ? slot_id : b_image_source_[slot_id - boundary_.size()];
   }
+  // Boundary-particle walls whose work wall_compression() credits (sph.wall_work).
+  [[nodiscard]] bool credits_wall_work() const {
+    return settings_.wall_model == scene::SphSettings::WallModel::boundary_particles &&
+           settings_.wall_work != scene::SphSettings::WallWork::unstored;
+  }
   void wrap_positions();
   // settle_factor_ for the step from time_ to time_ + dt.
   void update_settle_factors(double dt);
@@ -195,7 +205,7 @@ class SphModel {
   void compute_velocity_gradients(bool elastic_plastic_only);
   void compute_fluid_forces();
   void compute_boundary_forces();
-  void compute_velocity_divergence();
+  void compute_velocity_divergence(double dt);
   void stress_rates();
   template <class Terms>
   void fluid_forces(Terms terms);
@@ -204,7 +214,7 @@ class SphModel {
   template <class Terms>
   void boundary_state(Terms terms);
   template <class Terms>
-  void velocity_divergence(Terms terms);
+  void velocity_divergence(Terms terms, double dt);
   template <class Terms>
   void wall_compression(Terms terms);
   [[nodiscard]] double initial_stable_dt() const;
@@ -346,17 +356,19 @@ class SphModel {
   std::vector<std::uint32_t> fmat_;
   std::vector<float> bx_, by_, bz_, bwx_, bwy_, bwz_, bvol_, bpr_, brho_;  // bw: prescribed wall velocity
   std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)
-  std::vector<float> bshare_;           // per sorted wall slot (only with store_wall_work): 1 / sum W, or 0
-  std::vector<float> bcompress_;        // per sorted wall slot (only with store_wall_work): wall_compression()
-  std::vector<double> fgrad_;           // 9 per sorted fluid particle: L = dv/dx (only with gradients)
-  std::vector<float> fstress_;          // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
-  std::vector<float> fartificial_;      // artificial stress R / rho^2 per sorted slot like fstress_, Pa m^6/kg^2
-  std::vector<float> bstress_;          // Pa, per sorted wall slot like fstress_: the fluid's stress extrapolated
-  std::vector<double> bmoment_;         // kernel moments per sorted wall slot (only with stress; sph_model.cpp)
-  std::vector<float> feta_;             // effective viscosity per sorted fluid particle, Pa s (only with gradients)
-  std::vector<double> out_drho_;        // drho/dt per sorted fluid particle, kg/m^3/s
-  double max_mu_ = 0;                   // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s
-  double max_acceleration_ = 0;         // m/s^2, largest |a| in the last compute
+  // Per sorted wall slot, only with credits_wall_work(): 1 / sum W (0: no credit) from
+  // boundary_state(), then wall_compression()'s credit (one array: 4 bytes a wall slot).
+  std::vector<float> bcredit_;
+  std::vector<float> wall_work_held_;  // J per particle id (only with wall_work = "bounded"): bounded_credit()
+  std::vector<double> fgrad_;          // 9 per sorted fluid particle: L = dv/dx (only with gradients)
+  std::vector<float> fstress_;         // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
+  std::vector<float> fartificial_;     // artificial stress R / rho^2 per sorted slot like fstress_, Pa m^6/kg^2
+  std::vector<float> bstress_;         // Pa, per sorted wall slot like fstress_: the fluid's stress extrapolated
+  std::vector<double> bmoment_;        // kernel moments per sorted wall slot (only with stress; sph_model.cpp)
+  std::vector<float> feta_;            // effective viscosity per sorted fluid particle, Pa s (only with gradients)
+  std::vector<double> out_drho_;       // drho/dt per sorted fluid particle, kg/m^3/s
+  double max_mu_ = 0;                  // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s
+  double max_acceleration_ = 0;        // m/s^2, largest |a| in the last compute
   double min_viscous_dt_ = std::numeric_limits<double>::infinity();  // s
 
   double stable_dt_ = 0;

@@ -734,7 +734,7 @@ class Builder {
     if (auto v = r.string("wall_model")) {
       sph.wall_model = *v == "penalty" ? SphSettings::WallModel::penalty : SphSettings::WallModel::boundary_particles;
     }
-    if (auto v = r.boolean("store_wall_work")) sph.store_wall_work = *v;
+    if (auto v = r.string("wall_work")) sph.wall_work = SphSettings::wall_work_named(*v);
     if (auto v = r.number("sound_speed")) sph.sound_speed = *v;
     if (auto v = r.number("cfl")) sph.cfl = *v;
     if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;

@@ -272,9 +272,12 @@ struct SphSettings {
   double smoothing_ratio = 1.5;  // h / dx (Wendland C2 at 1.3 does not keep a lattice at rest)
   Kernel kernel = Kernel::wendland_c2;
   WallModel wall_model = WallModel::boundary_particles;
-  // Boundary particles: their compression credited back to the fluid (energy-consistent walls;
-  // SphModel::wall_compression, docs/physics.md "Energy").
-  bool store_wall_work = false;
+  // Boundary particles: what becomes of the work of the walls' extrapolated pressure
+  // (SphModel::wall_compression, docs/physics.md "Energy"): unstored (Adami et al. 2012 as
+  // published), stored as the fluid's compression, or stored only where leaving it would raise
+  // the energy (bounded: a per-particle account of the work held back).
+  enum class WallWork { bounded, stored, unstored };
+  WallWork wall_work = WallWork::bounded;
   double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
   double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
   double artificial_viscosity = 0.01;  // Monaghan alpha
@@ -290,6 +293,9 @@ struct SphSettings {
   // The scene's names (docs/scene.md) of the choices above; the name must be one of them.
   [[nodiscard]] static Kernel kernel_named(std::string_view name) {
     return name == "cubic_spline" ? Kernel::cubic_spline : Kernel::wendland_c2;
+  }
+  [[nodiscard]] static WallWork wall_work_named(std::string_view name) {
+    return name == "stored" ? WallWork::stored : name == "unstored" ? WallWork::unstored : WallWork::bounded;
   }
   [[nodiscard]] static DensityDiffusion density_diffusion_named(std::string_view name) {
     return name == "none"      ? DensityDiffusion::none

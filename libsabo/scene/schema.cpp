@@ -618,15 +618,19 @@ class Schema {
             .def("\"boundary_particles\"")
             .choices({"boundary_particles", "penalty"})
             .doc("How structures act on the fluid (see above)."),
-        K("store_wall_work", Type::boolean)
-            .def("false")
-            .doc("Boundary-particle walls: credit each wall particle's compression back to the fluid whose "
-                 "pressures its extrapolated pressure averages, so that the walls' pressure does no work the "
-                 "fluid's compression energy does not store (docs/physics.md, \"Energy\"). With it a dam break "
-                 "striking a wall and a tank at rest never rise above their initial energy (without: +5e-4 of "
-                 "it at a column's release); but fronts run faster over a floor (S1's fitted shift -0.29 "
-                 "instead of -0.16 T) and a Bingham slump spreads 31 % too thin (the S8 deposit, 10 % without). "
-                 "Not applied against elastic-plastic fluid."),
+        K("wall_work", Type::string)
+            .def("\"bounded\"")
+            .choices({"bounded", "stored", "unstored"})
+            .doc("Boundary-particle walls: what becomes of the work that the walls' extrapolated pressure does "
+                 "on the fluid (docs/physics.md, \"Energy\"). `\"unstored\"`: nothing stores it (Adami et al. "
+                 "2012 as published); a column released beside walls gains up to 5e-4 of its energy. "
+                 "`\"stored\"`: each wall particle's compression is credited to the fluid whose pressures its "
+                 "pressure averages, an exact energy balance; but fronts run faster over a floor (S1's fitted "
+                 "shift -0.29 instead of -0.16 T) and a Bingham slump spreads 31 % too thin (S8's deposit). "
+                 "`\"bounded\"`: the work is held back, as without storing, into a per-particle account, and "
+                 "credited only where returning it would take that account below zero; the energy never rises "
+                 "above its initial value and fronts and deposits come out as without storing. Not applied "
+                 "against elastic-plastic fluid."),
         K("sound_speed", Type::number)
             .required("30.0")
             .unit("m/s")

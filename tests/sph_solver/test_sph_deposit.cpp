@@ -318,8 +318,9 @@ TEST(SphValidation, S8BinghamDepositProfileReduced) {
 }
 
 // The full case: `build/bin/test_sph_deposit --gtest_also_run_disabled_tests
-// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met when last run (session 11): still
-// creeping at 0.025 m/s when the run's 3 s ran out, 12.4 % off (docs/physics.md, "S8 deposit").
+// --gtest_filter='*DISABLED_S8BinghamDepositProfile'`. Not met when last run (session 14): at rest at
+// 2.80 s, 20.8 % off at the front (d = 6.7 dx); with wall_work = "unstored" still creeping when the
+// 3 s ran out, 12.4 % off (docs/physics.md, "S8 deposit").
 TEST(SphValidation, DISABLED_S8BinghamDepositProfile) {
   DepositCase c;
   const DepositProfile p = run_deposit(c);

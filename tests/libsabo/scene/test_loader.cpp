@@ -327,13 +327,29 @@ TEST(SceneLoader, FluidSettleTime) {
   EXPECT_EQ(load_scene(file).fluids.at(0).settle_time, 0.25);
 }
 
-// Energy-consistent walls: off unless the scene asks.
-TEST(SceneLoader, SphStoreWallWork) {
-  EXPECT_FALSE(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").sph.store_wall_work);
+// What becomes of the walls' work: bounded unless the scene names another choice; a name
+// outside the choices is refused with the key and the allowed values.
+TEST(SceneLoader, SphWallWork) {
+  using WallWork = SphSettings::WallWork;
+  EXPECT_EQ(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").sph.wall_work,
+            WallWork::bounded);
   TempFolder folder;
-  const auto file =
-      folder.write("scene.toml", tank_scene_with("wall_model = \"boundary_particles\"\n", "store_wall_work = true\n"));
-  EXPECT_TRUE(load_scene(file).sph.store_wall_work);
+  const std::string anchor = "wall_model = \"boundary_particles\"\n";
+  EXPECT_EQ(load_scene(folder.write("stored.toml", tank_scene_with(anchor, "wall_work = \"stored\"\n"))).sph.wall_work,
+            WallWork::stored);
+  EXPECT_EQ(
+      load_scene(folder.write("unstored.toml", tank_scene_with(anchor, "wall_work = \"unstored\"\n"))).sph.wall_work,
+      WallWork::unstored);
+  try {
+    (void)load_scene(folder.write("typo.toml", tank_scene_with(anchor, "wall_work = \"store\"\n")));
+    ADD_FAILURE() << "wall_work = \"store\" was accepted";
+  } catch (const SceneError& e) {
+    const std::string message = e.what();
+    std::cout << message << "\n";
+    EXPECT_NE(message.find("sph.wall_work"), std::string::npos);
+    EXPECT_NE(message.find("\"bounded\""), std::string::npos);
+    EXPECT_NE(message.find("typo.toml:"), std::string::npos);
+  }
 }
 
 TEST(SceneLoader, SolverCommandsResolve) {
