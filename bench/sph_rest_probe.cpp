@@ -8,6 +8,7 @@
 //   bench_sph_rest_probe [--kernel cubic_spline|wendland_c2] [--ratio h/dx] [--alpha A]
 //                        [--diffusion none|molteni|fourtakas] [--delta D] [--periods N]
 //                        [--report P] [--res R] [--wall-top K] [--settle T]
+//                        [--wall-work bounded|stored|unstored]
 // --settle T gives the water the scene's settling phase (FluidBody::settle_time) of
 // T sqrt(H/g) from t = 0; the windows and the largest speed include it.
 #include <fmt/format.h>
@@ -37,10 +38,14 @@ int main(int argc, char** argv) {
   app.add_option("--res", res, "H / dx");
   app.add_option("--wall-top", wall_top, "wall height above the free surface, dx");
   app.add_option("--settle", settle, "the water's settling phase from t = 0, sqrt(H/g)");
+  std::string wall_work = "bounded";
+  app.add_option("--wall-work", wall_work, "sph.wall_work (the default: bounded)")
+      ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
   CLI11_PARSE(app, argc, argv);
   const double H = 0.2, dx = H / res, g = 9.81, L = 0.2, W = 0.1;
   scene::Scene s = sph::testing::water_scene(dx, 10 * std::sqrt(g * H), ratio);
   s.sph.kernel = scene::SphSettings::kernel_named(kernel);
+  s.sph.wall_work = scene::SphSettings::wall_work_named(wall_work);
   s.sph.artificial_viscosity = alpha;
   s.sph.density_diffusion_delta = delta;
   s.sph.density_diffusion = scene::SphSettings::density_diffusion_named(diffusion);
