@@ -22,6 +22,7 @@ void SphOutput::write(std::uint64_t step, double time) {
       Array::of<std::uint8_t>("active", model_.active()),
   };
   if (model_.has_stress()) arrays.push_back(Array::of<double>("deviatoric_stress", model_.deviatoric_stress(), 6));
+  if (!model_.wall_work_held().empty()) arrays.push_back(Array::of<float>("wall_work_held", model_.wall_work_held()));
   const auto file = folder_ / fmt::format("sph_{:07d}.vtp", step);
   io::vtk::write_points(file, model_.positions(), arrays);
   series_.add(time, file);
