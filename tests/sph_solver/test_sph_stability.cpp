@@ -20,6 +20,7 @@ using testing::box_body;
 using testing::container_walls;
 using testing::run_until;
 using testing::water_scene;
+using WallWork = scene::SphSettings::WallWork;
 
 // The power balance of one step, without gravity, viscosity or density diffusion: only
 // pressure acts, and the work of the pressure forces, sum_i m_i v_i.a_i, must equal minus the
@@ -27,8 +28,6 @@ using testing::water_scene;
 // continuity uses (the leapfrog's v_{n+1/2}; the forces are from x_n, rho_n). The fluid fills
 // a 10 x 4 x 10 dx box whose walls (the top open) it is pushed against by a smooth velocity
 // field u sin(pi x / L) run for 20 steps first, so that the wall particles carry pressure.
-using WallWork = scene::SphSettings::WallWork;
-
 struct PowerBalance {
   double work = 0, compression = 0, held = 0, scale = 0;  // W: the three rates and the sum of |terms|
   double least_held = 0;                                  // J: the smallest per-particle account after the step
