@@ -791,6 +791,7 @@ void SphModel::boundary_state(T) {
   const float* fstress = fstress_.data();
   const std::size_t stress_stride = f_order_.size() + kLanes;
   // With one fluid material the material of every wall particle is known.
+  const bool credit_walls = credits_wall_work();
   const bool one_material = std::all_of(fmat_.begin(), fmat_.begin() + static_cast<std::ptrdiff_t>(f_order_.size()),
                                         [&](std::uint32_t m) { return m == fmat_[0]; });
   const auto count = static_cast<std::int64_t>(nb);
@@ -910,7 +911,7 @@ void SphModel::boundary_state(T) {
         // (wall_compression()); not where p_w is clamped to 0 (no work to balance), nor against
         // elastic-plastic fluid, whose wall stress has no energy-consistent counterpart: with
         // it a column at rest ran away within 0.04 s (docs/physics.md, "Energy").
-        if (credits_wall_work()) {
+        if (credit_walls) {
           const bool credited =
               p > 0 && (materials_.empty() || materials_[material].rheology != Rheology::elastic_plastic);
           bcredit_[s] = credited ? static_cast<float>(1.0 / total_w) : 0.0f;
@@ -1359,8 +1360,8 @@ void SphModel::velocity_divergence(T, double dt) {
   const float* bvol = bvol_.data();
   const float* brho = brho_.data();
   const bool credit_walls = credits_wall_work();
-  const bool bounded = settings_.wall_work == WallWork::bounded;
-  const float* bcredit = bcredit_.data();  // empty without credit_walls
+  const bool bounded = !wall_work_held_.empty();  // wall_work = "bounded" with boundary particles
+  const float* bcredit = bcredit_.data();         // empty without credit_walls
   const auto count = static_cast<std::int64_t>(n);
   const std::int64_t chunks = (count + kChunk - 1) / kChunk;
 #pragma omp parallel for schedule(static) if (n - f_image_source_.size() > kParallelThreshold)
