@@ -8,6 +8,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "coupler/contact/pair_factory.hpp"
+#include "coupler/effects.hpp"
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/protocol/wire.hpp"
@@ -33,6 +35,7 @@ bool all_finite(const google::protobuf::RepeatedField<double>& values) {
 struct Coupler::Peer {
   std::string identity;
   sabo::v1::Role role = sabo::v1::ROLE_UNSPECIFIED;
+  scene::Role scene_role = scene::Role::dem;
   std::string role_name;
   double beta = 1.0;
   sabo::v1::Register registration;
@@ -163,13 +166,14 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
       refuse(fmt::format("{}: the surface's arrays are inconsistent", name));
       return;
     }
-    fem_surface_nodes_ = surface.node_id_size();
-    fem_surface_revision_ = surface.revision();
+    surface_nodes_ = static_cast<std::size_t>(surface.node_id_size());
+    surface_revision_ = surface.revision();
   }
 
   auto peer = std::make_unique<Peer>();
   peer->identity = inbound.peer;
   peer->role = role;
+  peer->scene_role = settings->role;
   peer->role_name = name;
   peer->beta = settings->beta;
   peer->registration = std::move(registration);
@@ -180,9 +184,11 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
                peer->registration.name(), n, peer->registration.surface().node_id_size());
   events_.registered(name, peer->registration.pid(), peer->registration.name());
   if (recorder_) recorder_->record_registration(name, peer->registration);
-  if (role == sabo::v1::ROLE_SPH) sph_ = peer.get();
-  if (role == sabo::v1::ROLE_DEM) dem_ = peer.get();
-  if (role == sabo::v1::ROLE_FEM) fem_ = peer.get();
+  solvers_.set({.role = peer->scene_role,
+                .name = peer->role_name,
+                .beta = peer->beta,
+                .registration = &peer->registration,
+                .state = &peer->state});
   peers_.push_back(std::move(peer));
 }
 
@@ -281,29 +287,35 @@ void Coupler::validate_state(const Peer& peer) {
   }
   if (!std::isfinite(s.stable_dt()) && !std::isinf(s.stable_dt())) invalid("stable_dt is NaN");
   if (s.stable_dt() <= 0) invalid(fmt::format("stable_dt = {} must be > 0", s.stable_dt()));
+  // The pairs' own needs of this state (e.g. a surface that may not change).
+  for (const auto& slot : pairs_) {
+    if (!slot.pair->joins(peer.scene_role)) continue;
+    try {
+      slot.pair->check_state(*solvers_.find(peer.scene_role));
+    } catch (const ProtocolError& error) {
+      invalid(error.what());
+    }
+  }
   if (peer.registration.exposes_surface() && s.has_topology()) {
     // Elements eroded: the surface's new topology replaces the registered one
     // from this step on (checked like the registration's).
-    if (walls_) {
-      invalid(
-          "a new surface topology (eroded elements) while the fluid's walls are boundary particles sampled "
-          "at registration: not supported in this version (use [sph] wall_model = \"penalty\")");
-    }
     const auto& topology = s.topology();
     if (!protocol::arrays_consistent(topology)) invalid("the new surface topology's arrays are inconsistent");
-    if (topology.revision() <= fem_surface_revision_) {
+    if (topology.revision() <= surface_revision_) {
       invalid(fmt::format("surface topology revision {} does not follow revision {}", topology.revision(),
-                          fem_surface_revision_));
+                          surface_revision_));
     }
-    fem_surface_revision_ = topology.revision();
-    fem_surface_nodes_ = topology.node_id_size();
+    surface_revision_ = topology.revision();
+    surface_nodes_ = static_cast<std::size_t>(topology.node_id_size());
   }
-  if (s.boundary_force_size() != 0 || s.has_boundary_step() || (&peer == sph_ && walls_)) {
+  // Boundary particles go to the sph_solver only (docs/protocol.md, "SPH walls").
+  const bool receives_boundary = peer.scene_role == scene::Role::sph && replies_.boundary().active();
+  if (s.boundary_force_size() != 0 || s.has_boundary_step() || receives_boundary) {
     const std::uint64_t steps_back = s.has_boundary_step() ? s.step() - s.boundary_step() : 1;
     if (s.has_boundary_step() && (s.boundary_step() >= s.step() || steps_back > 2)) {
       invalid(fmt::format("boundary_step = {} must be step - 1 or step - 2", s.boundary_step()));
     }
-    const std::size_t sent = walls_ && &peer == sph_ ? walls_->selection(steps_back).size() : 0;
+    const std::size_t sent = receives_boundary ? replies_.boundary().sent(steps_back) : 0;
     const bool may_be_empty = s.step() <= 1;
     if (static_cast<std::size_t>(s.boundary_force_size()) != 3 * sent &&
         !(may_be_empty && s.boundary_force_size() == 0)) {
@@ -315,7 +327,7 @@ void Coupler::validate_state(const Peer& peer) {
     if (!all_finite(s.boundary_force())) invalid("non-finite boundary_force");
   }
   if (peer.registration.exposes_surface() && s.node_position_size() != 0) {
-    const auto nodes = fem_surface_nodes_;
+    const auto nodes = static_cast<int>(surface_nodes_);
     if (s.node_position_size() != 3 * nodes || s.node_velocity_size() != 3 * nodes) {
       invalid(fmt::format("{} node positions for {} surface nodes", s.node_position_size(), nodes));
     }
@@ -323,180 +335,98 @@ void Coupler::validate_state(const Peer& peer) {
   }
 }
 
-Coupler::PenaltyPair* Coupler::penalty_pair_of(const Peer* peer) const {
-  for (const auto& pair : penalty_pairs_) {
-    if (pair->solver == peer) return pair.get();
-  }
-  return nullptr;
-}
-
-void Coupler::warn_deep_overlap(PenaltyPair& pair) const {
-  constexpr double kDeepOverlapRatio = 0.5;
-  if (pair.warned_deep_overlap || !(pair.out.deepest_overlap_ratio > kDeepOverlapRatio)) return;
-  pair.warned_deep_overlap = true;
-  spdlog::warn(
-      "t = {:.6g} s, contact of the {} with the structures: a particle overlaps a face by {:.3g} m, {:.2f} times the "
-      "face's edge ({:.3g} m; "
-      "warned once per run above {}). The penalty spring (paper eq. 6, k = k1 K A^2 / V, softer on finer meshes) "
-      "is too soft for this mesh: the particle sinks through the element scale and contact forces and energies "
-      "become unreliable. Fix: raise penalty_scale (k1) or set model = \"hertz_mindlin\" in [contact.dem_fem] "
-      "([contact.sph_fem] for fluids; or the pair's [[interactions]]), or coarsen the structure's element_size",
-      time_, force_sources_.at(pair.source), pair.out.deepest_overlap, pair.out.deepest_overlap_ratio,
-      pair.out.deepest_face_edge, kDeepOverlapRatio);
-}
-
 void Coupler::prepare_contacts() {
-  if (dem_ != nullptr) force_sources_.emplace_back("particles");
-  if (sph_ != nullptr) force_sources_.emplace_back("fluid");
-  if (fem_ == nullptr) return;
-  const auto surface = protocol::surface_from_message(fem_->registration.surface(), "fem_solver");
-  if (dem_ != nullptr) {
-    auto pair = std::make_unique<PenaltyPair>();
-    pair->solver = dem_;
-    pair->source = 0;
-    pair->contact = std::make_unique<SurfaceContact>(scene_);
-    pair->contact->set_surface(surface);
-    penalty_pairs_.push_back(std::move(pair));
-  }
-  if (sph_ == nullptr) return;
-  const std::size_t fluid_source = force_sources_.size() - 1;
-  if (scene_.sph.wall_model == scene::SphSettings::WallModel::penalty) {
-    std::vector<std::string> fluids;
-    for (const auto& fluid : scene_.fluids) fluids.push_back(fluid.name);
-    // Settings of (fluid body, structure): an interaction naming both, else [contact.sph_fem].
-    auto settings = [&scene = scene_](const std::string& fluid, const std::string& part) {
-      return scene.surface_contact(fluid, part);
-    };
-    auto pair = std::make_unique<PenaltyPair>();
-    pair->solver = sph_;
-    pair->source = fluid_source;
-    pair->contact = std::make_unique<SurfaceContact>(std::move(fluids), settings);
-    pair->contact->set_surface(surface);
-    penalty_pairs_.push_back(std::move(pair));
-  } else {
-    walls_ = std::make_unique<BoundaryWalls>(scene_.sph.particle_spacing, scene_.sph.kernel_support());
-    walls_->set_surface(surface);
-    walls_source_ = fluid_source;
-    spdlog::info("sampled the FEM surface into {} boundary particles ({} layers at dx = {} m)",
-                 walls_->sampling().size(), walls_->layers(), scene_.sph.particle_spacing);
+  for (auto& pair : make_contact_pairs(scene_)) {
+    pair->start(solvers_, replies_);
+    PairSlot slot;
+    if (auto source = pair->load_source()) {
+      auto it = std::find(force_sources_.begin(), force_sources_.end(), *source);
+      if (it == force_sources_.end()) it = force_sources_.insert(force_sources_.end(), *source);
+      slot.source = static_cast<std::size_t>(it - force_sources_.begin());
+    }
+    slot.pair = std::move(pair);
+    pairs_.push_back(std::move(slot));
   }
 }
 
 double Coupler::coupled_dt() const {
   double dt = std::numeric_limits<double>::infinity();
   for (const auto& peer : peers_) dt = std::min(dt, peer->beta * peer->state.stable_dt());
-  for (const auto& pair : penalty_pairs_) dt = std::min(dt, pair->solver->beta * pair->contact->stable_dt());
+  for (const auto& slot : pairs_) dt = std::min(dt, slot.pair->stable_dt());
   if (scene_.run.max_dt) dt = std::min(dt, *scene_.run.max_dt);
   // Only rigid parts and nothing else that limits the step: take output-sized steps.
   if (!std::isfinite(dt)) dt = scene_.run.output_interval;
   return dt;
 }
 
-void Coupler::compute_contacts(double dt_previous) {
-  if (penalty_pairs_.empty() && !walls_) return;
+void Coupler::compute_contacts(const StepClock& clock) {
+  if (pairs_.empty()) return;
   const auto start = Clock::now();
-  const auto& fem_state = fem_->state;
-  if (fem_state.has_topology()) {
-    // Faces that left (eroded elements) leave the contact; exposed faces join.
-    // Tangential springs carry over where their nodes remain (keyed by node ids).
-    const auto surface = protocol::surface_from_message(fem_state.topology(), "fem_solver");
-    for (auto& pair : penalty_pairs_) pair->contact->set_surface(surface);
-  }
-  const bool moved = fem_state.node_position_size() > 0;
-  const std::span<const double> node_position{fem_state.node_position().data(),
-                                              static_cast<std::size_t>(fem_state.node_position_size())};
-  const std::span<const double> node_velocity{fem_state.node_velocity().data(),
-                                              static_cast<std::size_t>(fem_state.node_velocity_size())};
-  fem_node_force_.assign(3 * static_cast<std::size_t>(fem_surface_nodes_), 0.0);
-  fem_node_force_nonzero_ = false;
   std::size_t contacts = 0;
-  for (auto& pair : penalty_pairs_) {
-    if (moved) pair->contact->update_nodes(node_position, node_velocity);
-    pair->gather.gather(pair->solver->registration.particles(), pair->solver->state);
-    pair->contact->compute(pair->gather.view(), dt_previous, pair->out);
-    contacts += pair->out.contact_count;
-    warn_deep_overlap(*pair);
-    if (pair->out.contact_count > 0) {
-      fem_node_force_nonzero_ = true;
-      for (std::size_t i = 0; i < fem_node_force_.size(); ++i) fem_node_force_[i] += pair->out.node_force[i];
-    }
-  }
-  if (walls_) {
-    if (moved) walls_->update_nodes(node_position, node_velocity, dt_previous);
-    const auto& returned = sph_->state.boundary_force();
-    const std::size_t steps_back =
-        sph_->state.has_boundary_step() ? sph_->state.step() - sph_->state.boundary_step() : 1;
-    walls_->spread({returned.data(), static_cast<std::size_t>(returned.size())}, steps_back, walls_node_force_,
-                   walls_part_force_);
-    if (!returned.empty()) {
-      fem_node_force_nonzero_ = true;
-      for (std::size_t i = 0; i < fem_node_force_.size(); ++i) fem_node_force_[i] += walls_node_force_[i];
-    }
-    const auto& fluid = sph_->state.position();
-    walls_->select_near({fluid.data(), static_cast<std::size_t>(fluid.size())});
-    max_boundary_sent_ = std::max(max_boundary_sent_, walls_->selection().size());
+  for (auto& slot : pairs_) {
+    const auto pair_start = Clock::now();
+    slot.pair->compute(solvers_, clock);
+    contacts += slot.pair->contact_count();
+    slot.seconds += seconds_since(pair_start);
   }
   max_contacts_ = std::max(max_contacts_, contacts);
   contact_seconds_ += seconds_since(start);
 }
 
 void Coupler::check_newton_third_law(std::uint64_t step) {
-  if (penalty_pairs_.empty() && !walls_) return;
-  Vec3 sum = Vec3::Zero();
-  double scale = 0;
-  for (const auto& pair : penalty_pairs_) {
-    const auto& pf = pair->out.particle_force;
-    for (std::size_t i = 0; i + 2 < pf.size(); i += 3) {
-      sum += Vec3(pf[i], pf[i + 1], pf[i + 2]);
-      scale += std::abs(pf[i]) + std::abs(pf[i + 1]) + std::abs(pf[i + 2]);
-    }
+  // Each pair's forces on its two sides, and all of them together: every force the coupler hands out
+  // has its reaction.
+  NewtonBalance total;
+  for (auto& slot : pairs_) {
+    const NewtonBalance balance = slot.pair->newton_balance();
+    if (balance.scale > 0) slot.max_residual = std::max(slot.max_residual, balance.sum.norm() / balance.scale);
+    total.sum += balance.sum;
+    total.scale += balance.scale;
   }
-  if (walls_) {
-    // The fluid feels minus the force it put on the boundary particles.
-    const auto& bf = sph_->state.boundary_force();
-    for (int i = 0; i + 2 < bf.size(); i += 3) {
-      sum -= Vec3(bf[i], bf[i + 1], bf[i + 2]);
-      scale += std::abs(bf[i]) + std::abs(bf[i + 1]) + std::abs(bf[i + 2]);
-    }
-  }
-  const auto& nf = fem_node_force_;
-  for (std::size_t i = 0; i + 2 < nf.size(); i += 3) sum += Vec3(nf[i], nf[i + 1], nf[i + 2]);
-  if (scale == 0) return;
-  const double residual = sum.norm() / scale;
+  if (total.scale == 0) return;
+  const double residual = total.sum.norm() / total.scale;
   newton_max_residual_ = std::max(newton_max_residual_, residual);
   if (residual > 1e-10) {
     if (newton_violations_ == 0) {
       spdlog::error(
           "Newton's third law broken at step {}: the contact forces sum to ({:.3e}, {:.3e}, {:.3e}) N, "
           "{:.2e} of their total",
-          step, sum.x(), sum.y(), sum.z(), residual);
+          step, total.sum.x(), total.sum.y(), total.sum.z(), residual);
     }
     ++newton_violations_;
   }
 }
 
 namespace {
-// Adds the boxes to the peer's interest regions (it sends what lies in any of them).
-void add_interest(sabo::v1::StepForces& f, const std::vector<Aabb>& boxes) {
-  for (const Aabb& box : boxes) {
+void set_interest(sabo::v1::StepForces& f, const InterestRequest& request) {
+  for (const Aabb& box : request.boxes) {
     auto* b = f.add_interest();
     b->set_min_x(box.min.x()), b->set_min_y(box.min.y()), b->set_min_z(box.min.z());
     b->set_max_x(box.max.x()), b->set_max_y(box.max.y()), b->set_max_z(box.max.z());
   }
-  f.set_interest_all(false);
+  f.set_interest_all(request.all);
 }
 
-void assign_vectors(google::protobuf::RepeatedField<double>& field, const std::vector<Vec3>& values) {
-  field.Resize(3 * static_cast<int>(values.size()), 0.0);
+// Packs the parts' 3-vector field (position, velocity, ...) into one repeated field, in order.
+void assign_vectors(google::protobuf::RepeatedField<double>& field,
+                    const std::vector<const physics::BoundaryParticles*>& parts, std::size_t total,
+                    std::vector<Vec3> physics::BoundaryParticles::*member) {
+  field.Resize(3 * static_cast<int>(total), 0.0);
   double* out = field.mutable_data();
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    out[3 * i] = values[i].x(), out[3 * i + 1] = values[i].y(), out[3 * i + 2] = values[i].z();
+  for (const physics::BoundaryParticles* part : parts) {
+    for (const Vec3& v : part->*member) *out++ = v.x(), *out++ = v.y(), *out++ = v.z();
   }
 }
 }  // namespace
 
 void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop) {
   const auto start = Clock::now();
+  replies_.begin_step(solvers_, surface_nodes_);
+  for (auto& slot : pairs_) {
+    const auto pair_start = Clock::now();
+    slot.pair->scatter(solvers_, dt, replies_);
+    slot.seconds += seconds_since(pair_start);
+  }
   for (auto& peer : peers_) {
     auto& f = peer->forces;
     f.Clear();
@@ -504,30 +434,45 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
     f.set_dt(dt);
     f.set_output(output);
     f.set_stop(stop);
-    if (peer.get() == dem_ || peer.get() == sph_) {
-      const bool torque = peer->registration.exposes_angular_velocity();
+    if (peer->registration.exposes_particles()) {
+      const scene::Role role = peer->scene_role;
       f.mutable_index()->CopyFrom(peer->state.index());
-      const PenaltyPair* pair = penalty_pair_of(peer.get());
-      if (pair != nullptr) {
-        f.mutable_force()->Assign(pair->out.particle_force.begin(), pair->out.particle_force.end());
-        if (torque) f.mutable_torque()->Assign(pair->out.particle_torque.begin(), pair->out.particle_torque.end());
-        add_interest(f, pair->contact->interest_regions());
-      } else {
-        f.mutable_force()->Resize(3 * peer->state.index_size(), 0.0);
-        if (torque) f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
-        f.set_interest_all(false);  // nothing to touch: send nothing
+      const auto& force = replies_.particle_force(role);
+      f.mutable_force()->Assign(force.begin(), force.end());
+      if (peer->registration.exposes_angular_velocity()) {
+        const auto& torque = replies_.particle_torque(role);
+        if (torque.empty()) {
+          f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
+        } else {
+          f.mutable_torque()->Assign(torque.begin(), torque.end());
+        }
       }
-      if (peer.get() == sph_ && walls_) {
-        const auto& b = walls_->selected();
-        assign_vectors(*f.mutable_boundary_position(), b.position);
-        assign_vectors(*f.mutable_boundary_velocity(), b.velocity);
-        assign_vectors(*f.mutable_boundary_normal(), b.normal);
-        assign_vectors(*f.mutable_boundary_acceleration(), b.acceleration);
-        f.mutable_boundary_volume()->Assign(b.volume.begin(), b.volume.end());
-        add_interest(f, walls_->interest_regions());
+      // What the pairs need of this solver at the next step: the union of their regions.
+      InterestRequest interest;
+      for (const auto& pair_slot : pairs_) {
+        if (!pair_slot.pair->joins(role)) continue;
+        InterestRequest request = pair_slot.pair->interest(role);
+        interest.all = interest.all || request.all;
+        interest.boxes.insert(interest.boxes.end(), request.boxes.begin(), request.boxes.end());
       }
-    } else if (peer.get() == fem_) {
-      if (fem_node_force_nonzero_) f.mutable_node_force()->Assign(fem_node_force_.begin(), fem_node_force_.end());
+      if (interest.all) interest.boxes.clear();
+      set_interest(f, interest);
+      if (role == scene::Role::sph && replies_.boundary().active()) {
+        const BoundaryChannel& b = replies_.boundary();
+        using P = physics::BoundaryParticles;
+        assign_vectors(*f.mutable_boundary_position(), b.parts(), b.size(), &P::position);
+        assign_vectors(*f.mutable_boundary_velocity(), b.parts(), b.size(), &P::velocity);
+        assign_vectors(*f.mutable_boundary_normal(), b.parts(), b.size(), &P::normal);
+        assign_vectors(*f.mutable_boundary_acceleration(), b.parts(), b.size(), &P::acceleration);
+        auto* volume = f.mutable_boundary_volume();
+        volume->Reserve(static_cast<int>(b.size()));
+        for (const P* part : b.parts()) volume->Add(part->volume.begin(), part->volume.end());
+      }
+    } else if (peer->registration.exposes_surface()) {
+      if (replies_.has_node_forces()) {
+        f.mutable_node_force()->Assign(replies_.node_force().begin(), replies_.node_force().end());
+      }
+      // The coupler keeps the whole surface current.
       f.set_interest_all(true);
     }
     if (recorder_) recorder_->record_forces(peer->role_name, f);
@@ -538,15 +483,10 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
 
 void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
   if (forces_csv_) {
-    for (const auto& pair : penalty_pairs_) {
-      const auto& per_part = pair->out.part_force;  // [part] -> force from this solver's particles, N
-      for (std::size_t part = 0; part < per_part.size(); ++part)
-        forces_csv_->add(part, pair->source, per_part[part], dt);
-    }
-    if (walls_) {
-      for (std::size_t part = 0; part < walls_part_force_.size(); ++part) {
-        forces_csv_->add(part, walls_source_, walls_part_force_[part], dt);
-      }
+    for (const auto& slot : pairs_) {
+      if (!slot.source) continue;
+      const auto loads = slot.pair->loads();  // [part] -> force from this pair's source, N
+      for (std::size_t part = 0; part < loads.size(); ++part) forces_csv_->add(part, *slot.source, loads[part], dt);
     }
   }
   if (forces_csv_ && output) forces_csv_->write(time);
@@ -577,10 +517,11 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
   previous_time_ = time;
   previous_output_ = output;
   previous_contact_elastic_ = 0;
-  for (const auto& pair : penalty_pairs_) {
-    previous_contact_elastic_ += pair->out.elastic_energy;
+  for (const auto& slot : pairs_) {
+    const ContactPair::Energy energy = slot.pair->energy();
+    previous_contact_elastic_ += energy.elastic;
     // Dashpot and slip power of step n acts over dt_n.
-    contact_dissipated_ += pair->out.dissipated_power * dt;
+    contact_dissipated_ += energy.dissipated_power * dt;
   }
 }
 
@@ -709,25 +650,13 @@ void Coupler::write_summary(const std::string& status) {
       }
     }
   }
-  json effects = json::array();
-  if (dem_ != nullptr) {
-    const auto& c = scene_.dem_contact;
-    const double dem_seconds = processes["dem_solver"]["compute_seconds"].get<double>();
-    effects.push_back({{"effect", "dem_dem_contact"}, {"process", "dem_solver"}, {"seconds", dem_seconds}});
-    if (c.friction > 0) effects.push_back({{"effect", "dem_sliding_friction"}, {"process", "dem_solver"}});
-    if (c.rolling_friction > 0) effects.push_back({{"effect", "dem_rolling_friction"}, {"process", "dem_solver"}});
-  }
-  for (const auto& pair : penalty_pairs_) {
-    const char* effect = pair->solver == dem_ ? "dem_fem_contact" : "sph_fem_penalty_contact";
-    effects.push_back({{"effect", effect}, {"process", "coupler"}, {"seconds", contact_seconds_}});
-  }
-  if (walls_) {
-    effects.push_back({{"effect", "sph_fem_boundary_particles"},
-                       {"process", "coupler"},
-                       {"seconds", contact_seconds_},
-                       {"boundary_particles", walls_->sampling().size()},
-                       {"max_sent_per_step", max_boundary_sent_},
-                       {"layers", walls_->layers()}});
+  json effects = solver_effects(scene_, processes);
+  json pair_residuals = json::object();
+  for (const auto& slot : pairs_) {
+    json effect = slot.pair->effect();
+    effect["seconds"] = slot.seconds;
+    pair_residuals[effect["effect"].get<std::string>()] = slot.max_residual;
+    effects.push_back(std::move(effect));
   }
   if (recorder_) effects.push_back({{"effect", "traffic_recording"}, {"process", "coupler"}});
 
@@ -752,7 +681,10 @@ void Coupler::write_summary(const std::string& status) {
         {"per_step", static_cast<double>(socket_.bytes_received() + socket_.bytes_sent()) * per_step}}},
       {"traffic", {{"file", "traffic.h5"}, {"bytes", recorder_ ? recorder_->bytes_written() : 0}}},
       {"energies", energies},
-      {"newton_third_law", {{"max_relative_residual", newton_max_residual_}, {"violations", newton_violations_}}},
+      {"newton_third_law",
+       {{"max_relative_residual", newton_max_residual_},
+        {"violations", newton_violations_},
+        {"max_relative_residual_per_pair", pair_residuals}}},
       {"contacts", {{"max_simultaneous", max_contacts_}}},
       {"peak_force", peak_forces},
       {"active_effects", effects},
@@ -803,7 +735,7 @@ int Coupler::run() {
       while (next_output_time_ <= time_ + 1e-9 * scene_.run.output_interval) {
         next_output_time_ += scene_.run.output_interval;
       }
-      compute_contacts(dt_previous);
+      compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous});
       check_newton_third_law(step);
       const double dt = coupled_dt();
       dt_min_ = std::min(dt_min_, dt);

@@ -14,10 +14,8 @@
 #include <vector>
 
 #include "coupler/accounting.hpp"
-#include "coupler/boundary_walls.hpp"
-#include "coupler/contact/surface_contact.hpp"
+#include "coupler/contact/contact_pair.hpp"
 #include "coupler/events.hpp"
-#include "coupler/particles.hpp"
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/socket.hpp"
 #include "libsabo/scene/scene.hpp"
@@ -42,7 +40,6 @@ class Coupler {
 
  private:
   struct Peer;
-  struct StepTotals;
 
   void bind();
   void wait_for_registrations();
@@ -56,7 +53,7 @@ class Coupler {
   void validate_state(const Peer& peer);
   void prepare_contacts();
   double coupled_dt() const;
-  void compute_contacts(double dt_previous);
+  void compute_contacts(const StepClock& clock);
   void check_newton_third_law(std::uint64_t step);
   void send_forces(std::uint64_t step, double dt, bool output, bool stop);
   void account(std::uint64_t step, double time, double dt, bool output);
@@ -72,33 +69,21 @@ class Coupler {
   zmq::context_t context_{1};
   protocol::Socket socket_;
   protocol::Inbound inbound_;
-  std::vector<std::unique_ptr<Peer>> peers_;
-  Peer* sph_ = nullptr;
-  Peer* dem_ = nullptr;
-  Peer* fem_ = nullptr;
-  int fem_surface_nodes_ = 0;               // nodes of the FEM surface now (registration or last topology)
-  std::uint64_t fem_surface_revision_ = 0;  // its topology revision
+  std::vector<std::unique_ptr<Peer>> peers_;  // in registration order
+  Solvers solvers_;                           // the same, by role, as the pairs see them
+  std::size_t surface_nodes_ = 0;             // nodes of the surface now (registration or last topology)
+  std::uint64_t surface_revision_ = 0;        // its topology revision
 
-  // Penalty contact of one particle solver's particles against the FEM surface.
-  struct PenaltyPair {
-    Peer* solver = nullptr;
-    std::size_t source = 0;  // column in forces.csv
-    std::unique_ptr<SurfaceContact> contact;
-    ParticleGather gather;
-    ContactOutput out;
-    bool warned_deep_overlap = false;  // once per run
+  // The contact pairs of the scene (pair_factory.hpp), in the order their forces are summed.
+  struct PairSlot {
+    std::unique_ptr<ContactPair> pair;
+    std::optional<std::size_t> source;  // column of its loads in forces.csv
+    double seconds = 0;                 // wall time in compute and scatter
+    double max_residual = 0;            // largest relative Newton residual
   };
-  [[nodiscard]] PenaltyPair* penalty_pair_of(const Peer* peer) const;
-  // Warns (once per pair and run) when a contact overlaps beyond half its face's edge.
-  void warn_deep_overlap(PenaltyPair& pair) const;
-  std::vector<std::unique_ptr<PenaltyPair>> penalty_pairs_;  // DEM-FEM, SPH-FEM (wall_model = penalty)
-  std::unique_ptr<BoundaryWalls> walls_;                     // SPH-FEM (wall_model = boundary_particles)
-  std::size_t walls_source_ = 0;
-  std::vector<double> walls_node_force_;  // N, 3 per node, from the boundary particles
-  std::vector<Vec3> walls_part_force_;    // N per part, from the boundary particles
-  std::vector<double> fem_node_force_;    // N, 3 per node, every pair together
-  bool fem_node_force_nonzero_ = false;
-  std::vector<std::string> force_sources_;  // forces.csv sources: "particles" (DEM), "fluid" (SPH)
+  std::vector<PairSlot> pairs_;
+  Replies replies_;
+  std::vector<std::string> force_sources_;  // forces.csv sources, in pair order: "particles", "fluid"
 
   std::unique_ptr<io::TrafficRecorder> recorder_;
   std::unique_ptr<ForceHistory> forces_csv_;
@@ -118,7 +103,6 @@ class Coupler {
   double newton_max_residual_ = 0;
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
-  std::size_t max_boundary_sent_ = 0;  // most boundary particles sent to the sph_solver in one step
   double next_output_time_ = 0;
   double previous_time_ = 0;
   bool previous_output_ = false;

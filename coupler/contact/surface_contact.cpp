@@ -648,6 +648,17 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   }
 }
 
+void SurfaceContact::restore(History history) {
+  const auto by_particle = [](const auto& a, const auto& b) { return a.particle < b.particle; };
+  if (!std::is_sorted(history.springs.begin(), history.springs.end(), by_particle) ||
+      !std::is_sorted(history.merged.begin(), history.merged.end(), by_particle)) {
+    throw ProtocolError("particle-surface contact history: entries not sorted by particle id");
+  }
+  history_ = std::move(history.springs);
+  merged_ = std::move(history.merged);
+  max_radius_seen_ = history.max_radius_seen;
+}
+
 // ------------------------------------------------------------------- step --
 
 void SurfaceContact::compute(const ParticleView& particles, double dt_previous, ContactOutput& out) {

@@ -229,6 +229,16 @@ class SurfaceContact {
     std::uint64_t particle = 0;
     FeatureKey key;
   };
+  // Everything compute() carries to the next compute(), for checkpoints: the springs (sorted by
+  // particle id), the merged features, and the largest radius seen (it sizes the interest regions).
+  struct History {
+    std::vector<HistoryEntry> springs;
+    std::vector<MergedEntry> merged;
+    double max_radius_seen = 0;
+  };
+  [[nodiscard]] History history() const { return {history_, merged_, max_radius_seen_}; }
+  // Replaces the carried state (after set_surface, before the next compute).
+  void restore(History history);
   // One triangle's closest point to a particle.
   struct Hit {
     std::uint32_t face = 0;

@@ -5,7 +5,7 @@
 
 #include <iostream>
 
-#include "coupler/boundary_walls.hpp"
+#include "coupler/contact/boundary_walls.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
 

@@ -50,6 +50,16 @@ class BoundaryWalls {
   [[nodiscard]] const geometry::SurfaceSampling& sampling() const { return sampling_; }
   [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
   [[nodiscard]] std::size_t layers() const { return layers_; }
+  // What carries over from one step to the next, for checkpoints: the selections of the last two
+  // steps (the returned forces refer to them) and the node velocities (the next acceleration).
+  struct History {
+    std::vector<std::uint32_t> selection, previous_selection;
+    std::vector<Vec3> node_velocity;
+  };
+  [[nodiscard]] History history() const { return {selection_, previous_selection_, node_velocity_}; }
+  // After set_surface() (and update_nodes() to the positions of the step the history was taken at):
+  // throws ProtocolError when the history does not fit the sampled surface.
+  void restore(History history);
   // Where fluid particles must be sent from: at most geometry::kMaxInterestBoxes
   // boxes covering the boundary particles (geometry::covering_boxes), inflated by
   // the support, plus one support of wall motion.

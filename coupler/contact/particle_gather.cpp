@@ -1,4 +1,4 @@
-#include "coupler/particles.hpp"
+#include "coupler/contact/particle_gather.hpp"
 
 namespace sabo::coupler {
 

@@ -1,7 +1,8 @@
-#include "coupler/boundary_walls.hpp"
+#include "coupler/contact/boundary_walls.hpp"
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "libsabo/core/error.hpp"
@@ -100,6 +101,22 @@ void BoundaryWalls::select_near(std::span<const double> fluid_position) {
   for (std::size_t k = 0; k < near_.size(); ++k) {
     if (near_[k]) selection_.push_back(static_cast<std::uint32_t>(k));
   }
+  geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
+}
+
+void BoundaryWalls::restore(History history) {
+  const auto fits = [&](const std::vector<std::uint32_t>& selection) {
+    return std::all_of(selection.begin(), selection.end(), [&](std::uint32_t k) { return k < sampling_.size(); });
+  };
+  if (!fits(history.selection) || !fits(history.previous_selection) ||
+      history.node_velocity.size() != surface_.node_count()) {
+    throw ProtocolError(fmt::format(
+        "boundary walls history: selections beyond the {} sampled particles or {} node velocities for {} nodes",
+        sampling_.size(), history.node_velocity.size(), surface_.node_count()));
+  }
+  selection_ = std::move(history.selection);
+  previous_selection_ = std::move(history.previous_selection);
+  node_velocity_ = std::move(history.node_velocity);
   geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
 }
 

@@ -1,0 +1,196 @@
+#include "coupler/contact/surface_penalty_pair.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "coupler/contact/history_io.hpp"
+#include "libsabo/core/error.hpp"
+#include "libsabo/protocol/surface_codec.hpp"
+
+namespace sabo::coupler {
+
+namespace {
+
+std::unique_ptr<SurfaceContact> make_contact(const scene::Scene& scene, scene::Role particles) {
+  if (particles == scene::Role::dem) return std::make_unique<SurfaceContact>(scene);
+  std::vector<std::string> fluids;
+  for (const auto& fluid : scene.fluids) fluids.push_back(fluid.name);
+  // Keep only what the pair lookup needs, so that the scene need not outlive the pair.
+  scene::Scene pairs_only;
+  pairs_only.fluids = scene.fluids;
+  pairs_only.interactions = scene.interactions;
+  pairs_only.sph_fem_default = scene.sph_fem_default;
+  auto settings = [pairs_only = std::move(pairs_only)](const std::string& fluid, const std::string& part) {
+    return pairs_only.surface_contact(fluid, part);
+  };
+  return std::make_unique<SurfaceContact>(std::move(fluids), std::move(settings));
+}
+
+std::span<const double> span_of(const google::protobuf::RepeatedField<double>& field) {
+  return {field.data(), static_cast<std::size_t>(field.size())};
+}
+
+}  // namespace
+
+SurfacePenaltyPair::SurfacePenaltyPair(const scene::Scene& scene, scene::Role particles)
+    : particles_(particles),
+      source_(particles == scene::Role::dem ? "particles" : "fluid"),
+      contact_(make_contact(scene, particles)) {}
+
+std::string SurfacePenaltyPair::name() const {
+  return particles_ == scene::Role::dem ? "dem_fem" : "sph_fem";
+}
+
+void SurfacePenaltyPair::start(const Solvers& solvers, Replies& /*replies*/) {
+  beta_ = solvers.at(particles_).beta;
+  contact_->set_surface(
+      protocol::surface_from_message(solvers.at(scene::Role::fem).registration->surface(), "fem_solver"));
+}
+
+void SurfacePenaltyPair::compute(const Solvers& solvers, const StepClock& clock) {
+  const sabo::v1::StepState& surface = *solvers.at(scene::Role::fem).state;
+  if (surface.has_topology()) {
+    // Faces that left (eroded elements) leave the contact; exposed faces join.
+    // Tangential springs carry over where their nodes remain (keyed by node ids).
+    contact_->set_surface(protocol::surface_from_message(surface.topology(), "fem_solver"));
+  }
+  if (surface.node_position_size() > 0) {
+    contact_->update_nodes(span_of(surface.node_position()), span_of(surface.node_velocity()));
+  }
+  const SolverView& particles = solvers.at(particles_);
+  gather_.gather(particles.registration->particles(), *particles.state);
+  contact_->compute(gather_.view(), clock.dt_previous, out_);
+  warn_deep_overlap(clock.time);
+}
+
+void SurfacePenaltyPair::scatter(const Solvers& solvers, double /*dt*/, Replies& replies) {
+  const bool torque = solvers.at(particles_).registration->exposes_angular_velocity();
+  replies.add_particle_forces(particles_, out_.particle_force,
+                              torque ? std::span<const double>(out_.particle_torque) : std::span<const double>());
+  if (out_.contact_count > 0) replies.add_node_forces(out_.node_force);
+}
+
+InterestRequest SurfacePenaltyPair::interest(scene::Role role) const {
+  if (role == scene::Role::fem) return {.all = true, .boxes = {}};
+  return {.all = false, .boxes = contact_->interest_regions()};
+}
+
+NewtonBalance SurfacePenaltyPair::newton_balance() const {
+  NewtonBalance balance;
+  const auto& pf = out_.particle_force;
+  for (std::size_t i = 0; i + 2 < pf.size(); i += 3) {
+    balance.sum += Vec3(pf[i], pf[i + 1], pf[i + 2]);
+    balance.scale += std::abs(pf[i]) + std::abs(pf[i + 1]) + std::abs(pf[i + 2]);
+  }
+  if (out_.contact_count == 0) return balance;
+  const auto& nf = out_.node_force;
+  for (std::size_t i = 0; i + 2 < nf.size(); i += 3) balance.sum += Vec3(nf[i], nf[i + 1], nf[i + 2]);
+  return balance;
+}
+
+nlohmann::json SurfacePenaltyPair::effect() const {
+  return {{"effect", particles_ == scene::Role::dem ? "dem_fem_contact" : "sph_fem_penalty_contact"},
+          {"process", "coupler"}};
+}
+
+void SurfacePenaltyPair::warn_deep_overlap(double time) {
+  constexpr double kDeepOverlapRatio = 0.5;
+  if (warned_deep_overlap_ || !(out_.deepest_overlap_ratio > kDeepOverlapRatio)) return;
+  warned_deep_overlap_ = true;
+  spdlog::warn(
+      "t = {:.6g} s, contact of the {} with the structures: a particle overlaps a face by {:.3g} m, {:.2f} times the "
+      "face's edge ({:.3g} m; "
+      "warned once per run above {}). The penalty spring (paper eq. 6, k = k1 K A^2 / V, softer on finer meshes) "
+      "is too soft for this mesh: the particle sinks through the element scale and contact forces and energies "
+      "become unreliable. Fix: raise penalty_scale (k1) or set model = \"hertz_mindlin\" in [contact.dem_fem] "
+      "([contact.sph_fem] for fluids; or the pair's [[interactions]]), or coarsen the structure's element_size",
+      time, source_, out_.deepest_overlap, out_.deepest_overlap_ratio, out_.deepest_face_edge, kDeepOverlapRatio);
+}
+
+void SurfacePenaltyPair::save_history(io::hdf5::Group& group) const {
+  const SurfaceContact::History history = contact_->history();
+  std::vector<std::uint64_t> particle, nodes, merged_particle, merged_nodes;
+  std::vector<std::uint8_t> kind, merged_kind;
+  std::vector<double> displacement, normal, offset, overlap;
+  for (const auto& e : history.springs) {
+    particle.push_back(e.particle);
+    kind.push_back(static_cast<std::uint8_t>(e.key.kind));
+    nodes.insert(nodes.end(), e.key.node.begin(), e.key.node.end());
+    for (int c = 0; c < 3; ++c) displacement.push_back(e.displacement[c]), normal.push_back(e.normal[c]);
+    offset.push_back(e.normal_offset);
+    overlap.push_back(e.spring_overlap);
+  }
+  for (const auto& e : history.merged) {
+    merged_particle.push_back(e.particle);
+    merged_kind.push_back(static_cast<std::uint8_t>(e.key.kind));
+    merged_nodes.insert(merged_nodes.end(), e.key.node.begin(), e.key.node.end());
+  }
+  group.set_attribute("pair", name());
+  group.set_attribute("max_radius_seen", history.max_radius_seen);
+  write_array(group, "spring_particle", particle);
+  write_array(group, "spring_feature", kind);
+  write_array(group, "spring_nodes", nodes);
+  write_array(group, "spring_displacement", displacement);
+  write_array(group, "spring_normal", normal);
+  write_array(group, "spring_normal_offset", offset);
+  write_array(group, "spring_overlap", overlap);
+  write_array(group, "merged_particle", merged_particle);
+  write_array(group, "merged_feature", merged_kind);
+  write_array(group, "merged_nodes", merged_nodes);
+}
+
+void SurfacePenaltyPair::restore_history(const io::hdf5::Group& group) {
+  if (group.string_attribute("pair") != name()) {
+    throw FileError(fmt::format("{}: holds the history of the {} pair, not of {}", group.path(),
+                                group.string_attribute("pair"), name()));
+  }
+  SurfaceContact::History history;
+  history.max_radius_seen = group.double_attribute("max_radius_seen");
+  const auto particle = read_array<std::uint64_t>(group, "spring_particle");
+  const auto kind = read_array<std::uint8_t>(group, "spring_feature");
+  const auto nodes = read_array<std::uint64_t>(group, "spring_nodes");
+  const auto displacement = read_array<double>(group, "spring_displacement");
+  const auto normal = read_array<double>(group, "spring_normal");
+  const auto offset = read_array<double>(group, "spring_normal_offset");
+  const auto overlap = read_array<double>(group, "spring_overlap");
+  const std::size_t n = particle.size();
+  if (kind.size() != n || nodes.size() != 3 * n || displacement.size() != 3 * n || normal.size() != 3 * n ||
+      offset.size() != n || overlap.size() != n) {
+    throw FileError(fmt::format("{}: the spring arrays differ in length ({} springs)", group.path(), n));
+  }
+  const auto feature = [&](std::uint8_t k) {
+    if (k > static_cast<std::uint8_t>(Feature::vertex)) {
+      throw FileError(fmt::format("{}: feature kind {} is not a face, edge or vertex", group.path(), k));
+    }
+    return static_cast<Feature>(k);
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    SurfaceContact::HistoryEntry e;
+    e.particle = particle[i];
+    e.key.kind = feature(kind[i]);
+    e.key.node = {nodes[3 * i], nodes[3 * i + 1], nodes[3 * i + 2]};
+    e.displacement = Vec3(displacement[3 * i], displacement[3 * i + 1], displacement[3 * i + 2]);
+    e.normal = Vec3(normal[3 * i], normal[3 * i + 1], normal[3 * i + 2]);
+    e.normal_offset = offset[i];
+    e.spring_overlap = overlap[i];
+    history.springs.push_back(e);
+  }
+  const auto merged_particle = read_array<std::uint64_t>(group, "merged_particle");
+  const auto merged_kind = read_array<std::uint8_t>(group, "merged_feature");
+  const auto merged_nodes = read_array<std::uint64_t>(group, "merged_nodes");
+  if (merged_kind.size() != merged_particle.size() || merged_nodes.size() != 3 * merged_particle.size()) {
+    throw FileError(fmt::format("{}: the merged-feature arrays differ in length", group.path()));
+  }
+  for (std::size_t i = 0; i < merged_particle.size(); ++i) {
+    history.merged.push_back(
+        {merged_particle[i],
+         {feature(merged_kind[i]), {merged_nodes[3 * i], merged_nodes[3 * i + 1], merged_nodes[3 * i + 2]}}});
+  }
+  try {
+    contact_->restore(std::move(history));
+  } catch (const ProtocolError& error) {
+    throw FileError(fmt::format("{}: {}", group.path(), error.what()));
+  }
+}
+
+}  // namespace sabo::coupler

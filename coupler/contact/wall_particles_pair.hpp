@@ -1,0 +1,42 @@
+#pragma once
+// The SPH-FEM pair with sph.wall_model = "boundary_particles": the fem_solver's
+// surface sampled as wall particles (BoundaryWalls) that the sph_solver
+// includes in its sums (Adami, Hu & Adams 2012); the force the fluid put on
+// them comes back in a later StepState and is spread onto the surface's nodes.
+#include "coupler/contact/boundary_walls.hpp"
+#include "coupler/contact/contact_pair.hpp"
+
+namespace sabo::coupler {
+
+class WallParticlesPair final : public ContactPair {
+ public:
+  explicit WallParticlesPair(const scene::Scene& scene);
+
+  [[nodiscard]] std::string name() const override { return "sph_fem"; }
+  [[nodiscard]] std::array<scene::Role, 2> roles() const override { return {scene::Role::sph, scene::Role::fem}; }
+  void start(const Solvers& solvers, Replies& replies) override;
+  void check_state(const SolverView& solver) const override;
+  void compute(const Solvers& solvers, const StepClock& clock) override;
+  void scatter(const Solvers& solvers, double dt, Replies& replies) override;
+  [[nodiscard]] InterestRequest interest(scene::Role role) const override;
+  [[nodiscard]] NewtonBalance newton_balance() const override;
+  [[nodiscard]] std::optional<std::string> load_source() const override { return "fluid"; }
+  [[nodiscard]] std::span<const Vec3> loads() const override { return part_force_; }
+  [[nodiscard]] nlohmann::json effect() const override;
+  void save_history(io::hdf5::Group& group) const override;
+  void restore_history(const io::hdf5::Group& group) override;
+
+  [[nodiscard]] const BoundaryWalls& walls() const { return walls_; }
+
+ private:
+  BoundaryWalls walls_;
+  double spacing_;
+  const BoundaryChannel* channel_ = nullptr;
+  std::size_t slot_ = 0;
+  std::span<const double> returned_;  // this step: the fluid's force on the walls of an earlier step
+  std::vector<double> node_force_;    // N, 3 per node, from returned_
+  std::vector<Vec3> part_force_;      // N per part
+  std::size_t max_sent_ = 0;          // most wall particles sent in one step
+};
+
+}  // namespace sabo::coupler

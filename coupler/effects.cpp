@@ -1,0 +1,71 @@
+#include "coupler/effects.hpp"
+
+#include <algorithm>
+#include <set>
+
+namespace sabo::coupler {
+
+namespace {
+
+double compute_seconds(const nlohmann::json& processes, const char* name) {
+  const auto it = processes.find(name);
+  if (it == processes.end() || !it->contains("compute_seconds")) return 0;
+  return (*it)["compute_seconds"].get<double>();
+}
+
+const char* rheology_name(scene::Material::Rheology rheology) {
+  switch (rheology) {
+    case scene::Material::Rheology::inviscid: return "inviscid";
+    case scene::Material::Rheology::newtonian: return "newtonian";
+    case scene::Material::Rheology::bingham: return "bingham";
+    case scene::Material::Rheology::elastic_plastic: return "elastic_plastic";
+  }
+  return "unknown";
+}
+
+const scene::Material& material_named(const scene::Scene& scene, const std::string& name) {
+  return scene.materials[scene.material_index(name)];
+}
+
+}  // namespace
+
+nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& processes) {
+  using nlohmann::json;
+  json effects = json::array();
+  if (scene.needs(scene::Role::dem)) {
+    const auto& c = scene.dem_contact;
+    effects.push_back({{"effect", "dem_dem_contact"},
+                       {"process", "dem_solver"},
+                       {"seconds", compute_seconds(processes, "dem_solver")}});
+    if (c.friction > 0) effects.push_back({{"effect", "dem_sliding_friction"}, {"process", "dem_solver"}});
+    if (c.rolling_friction > 0) effects.push_back({{"effect", "dem_rolling_friction"}, {"process", "dem_solver"}});
+  }
+  if (scene.needs(scene::Role::sph)) {
+    std::set<std::string> rheologies;
+    for (const auto& fluid : scene.fluids)
+      rheologies.insert(rheology_name(material_named(scene, fluid.material).rheology));
+    effects.push_back({{"effect", "sph_fluid"},
+                       {"process", "sph_solver"},
+                       {"seconds", compute_seconds(processes, "sph_solver")},
+                       {"rheologies", rheologies}});
+  }
+  if (scene.needs(scene::Role::fem)) {
+    const bool deformable = std::any_of(scene.structures.begin(), scene.structures.end(),
+                                        [](const scene::Structure& s) { return !s.rigid; });
+    effects.push_back({{"effect", deformable ? "fem_deformable_structures" : "fem_rigid_structures"},
+                       {"process", "fem_solver"},
+                       {"seconds", compute_seconds(processes, "fem_solver")}});
+    bool plastic = false, erosion = false;
+    for (const auto& s : scene.structures) {
+      if (s.rigid) continue;
+      const auto& m = material_named(scene, s.material);
+      plastic = plastic || m.yield_stress.has_value();
+      erosion = erosion || m.failure_strain.has_value();
+    }
+    if (plastic) effects.push_back({{"effect", "fem_plasticity"}, {"process", "fem_solver"}});
+    if (erosion) effects.push_back({{"effect", "fem_erosion"}, {"process", "fem_solver"}});
+  }
+  return effects;
+}
+
+}  // namespace sabo::coupler
