@@ -26,7 +26,7 @@
 #include <random>
 
 #include "dem_solver/dem_model.hpp"
-#include "dem_solver/sphere_fill.hpp"
+#include "libsabo/geometry/sphere_fill.hpp"
 
 using namespace sabo;
 using Clock = std::chrono::steady_clock;
@@ -64,7 +64,7 @@ scene::Scene pile_scene(const PileSize& size, double diameter_m, double speed_m_
 
   const double spacing = diameter_m * (1.0 - 0.5e-6);
   std::mt19937_64 random(seed);
-  const auto uniform_velocity = [&] { return speed_m_per_s * (2.0 * dem::unit_uniform(random()) - 1.0); };
+  const auto uniform_velocity = [&] { return speed_m_per_s * (2.0 * geometry::unit_uniform(random()) - 1.0); };
   for (int layer = 0; layer <= size.layers; ++layer) {
     for (int iy = 0; iy < size.side; ++iy) {
       for (int ix = 0; ix < size.side; ++ix) {

@@ -10,9 +10,9 @@
 #include <limits>
 #include <numbers>
 
-#include "dem_solver/sphere_fill.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/core/isa.hpp"
+#include "libsabo/geometry/sphere_fill.hpp"
 
 namespace sabo::dem {
 namespace {
@@ -179,7 +179,7 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
     body_names_.push_back(set.name);
     std::vector<scene::Sphere> filled;
     if (set.kind == scene::ParticleSet::Kind::fill) {
-      filled = fill_region(set, obstacles);
+      filled = geometry::fill_region(set, obstacles);
       if (set.settle_time > 0) settle(scene, set, filled, obstacles);
       sort_by_cell(filled);
       obstacles.insert(obstacles.end(), filled.begin(), filled.end());

@@ -5,9 +5,9 @@
 #include <iostream>
 
 #include "dem_solver/dem_model.hpp"
-#include "dem_solver/sphere_fill.hpp"
 #include "dem_test_scene.hpp"
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/sphere_fill.hpp"
 
 namespace sabo::dem {
 namespace {
@@ -30,9 +30,9 @@ std::size_t count_overlaps(const DemModel& model) {
 }
 
 TEST(SphereFill, UnitUniformUsesTheTop53Bits) {
-  EXPECT_EQ(unit_uniform(0), 0.0);
-  EXPECT_EQ(unit_uniform(~std::uint64_t{0}), 1.0 - 0x1.0p-53);
-  EXPECT_EQ(unit_uniform(std::uint64_t{1} << 63), 0.5);
+  EXPECT_EQ(geometry::unit_uniform(0), 0.0);
+  EXPECT_EQ(geometry::unit_uniform(~std::uint64_t{0}), 1.0 - 0x1.0p-53);
+  EXPECT_EQ(geometry::unit_uniform(std::uint64_t{1} << 63), 0.5);
 }
 
 TEST(SphereFill, FillsTheRequestedCountWithoutOverlap) {

@@ -1,12 +1,13 @@
 #pragma once
 // Random non-overlapping placement of the spheres of a `fill` particle set.
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "libsabo/scene/scene.hpp"
 
-namespace sabo::dem {
+namespace sabo::geometry {
 
 // Uniform double in [0, 1) from the top 53 bits of a 64-bit draw: the same bits
 // on every standard library (std::uniform_real_distribution is not portable).
@@ -25,4 +26,11 @@ double unit_uniform(std::uint64_t bits);
 std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<const scene::Sphere> obstacles,
                                        int attempts_per_sphere = 2000);
 
-}  // namespace sabo::dem
+// The spheres of every particle set (scene order) at t = 0 as the dem_solver places them, where
+// that is known without running the DEM: a listed set, and a fill set placed by fill_region with
+// the listed spheres and the earlier fills as obstacles, unless it or an earlier fill set settles
+// under gravity (settle_time > 0: where they come to rest is the DEM's answer): then nullopt.
+// Throws SceneError as fill_region does.
+[[nodiscard]] std::vector<std::optional<std::vector<scene::Sphere>>> initial_spheres(const scene::Scene& scene);
+
+}  // namespace sabo::geometry

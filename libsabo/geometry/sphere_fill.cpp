@@ -1,4 +1,4 @@
-#include "dem_solver/sphere_fill.hpp"
+#include "libsabo/geometry/sphere_fill.hpp"
 
 #include <fmt/format.h>
 
@@ -11,7 +11,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/physics/cell_list.hpp"
 
-namespace sabo::dem {
+namespace sabo::geometry {
 namespace {
 
 // Spheres already placed, binned on a grid that grows one sphere at a time.
@@ -195,4 +195,29 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
   return placed;
 }
 
-}  // namespace sabo::dem
+std::vector<std::optional<std::vector<scene::Sphere>>> initial_spheres(const scene::Scene& scene) {
+  std::vector<std::optional<std::vector<scene::Sphere>>> sets;
+  std::vector<scene::Sphere> obstacles;
+  for (const auto& set : scene.particle_sets) {
+    if (set.kind == scene::ParticleSet::Kind::list)
+      obstacles.insert(obstacles.end(), set.spheres.begin(), set.spheres.end());
+  }
+  bool settled_before = false;
+  for (const auto& set : scene.particle_sets) {
+    if (set.kind == scene::ParticleSet::Kind::list) {
+      sets.emplace_back(set.spheres);
+      continue;
+    }
+    if (settled_before || set.settle_time > 0) {
+      settled_before = true;
+      sets.emplace_back(std::nullopt);
+      continue;
+    }
+    auto filled = fill_region(set, obstacles);
+    obstacles.insert(obstacles.end(), filled.begin(), filled.end());
+    sets.emplace_back(std::move(filled));
+  }
+  return sets;
+}
+
+}  // namespace sabo::geometry
