@@ -4,9 +4,10 @@
 //
 // Walls (docs/protocol.md): with penalty walls the coupler's force per particle is
 // added like the DEM solver's, and the SPH forces are computed while the coupler
-// works. With boundary-particle walls the wall particles at x_n arrive in the
-// StepForces of step n, so the SPH forces of step n are computed once they are
-// there (apply_coupling_forces), and the force on each wall particle goes back
+// works. With boundary particles (structure walls, or boulders with
+// [contact.sph_dem] model = "boundary_particles") the wall particles at x_n arrive
+// in the StepForces of step n, so the SPH forces of step n are computed once they
+// are there (apply_coupling_forces), and the force on each wall particle goes back
 // in the next StepState.boundary_force, in the order received.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -38,9 +39,7 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
 class SphSolver final : public solver::CoupledSolver {
  public:
   SphSolver(const scene::Scene& scene, const solver::SolverOptions& options)
-      : model_(scene),
-        output_(options.out_dir, model_),
-        boundary_walls_(scene.sph.wall_model == scene::SphSettings::WallModel::boundary_particles) {
+      : model_(scene), output_(options.out_dir, model_), boundary_walls_(scene.sph_receives_boundary_particles()) {
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");

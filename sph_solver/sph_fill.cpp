@@ -9,6 +9,8 @@
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/polygon.hpp"
+#include "libsabo/geometry/sphere_fill.hpp"
+#include "libsabo/physics/cell_list.hpp"
 #include "sph_solver/sph_model.hpp"
 
 namespace sabo::sph {
@@ -36,6 +38,34 @@ double hydrostatic_pressure(const EquationOfState& eos, double g, double depth) 
   return p;
 }
 
+// Leaves out the lattice points [first, end) of `body` that lie within dx/2 of a DEM sphere in contact
+// with it (a boulder that starts inside the slurry has pushed it aside: no fluid particle is closer to
+// its surface than to a wall's). The loader has refused spheres inside a fluid whose places are unknown.
+void carve_spheres(const scene::Scene& scene, const scene::FluidBody& body,
+                   const std::vector<std::optional<std::vector<scene::Sphere>>>& sets, double dx, std::size_t first,
+                   std::vector<Vec3>& position) {
+  std::vector<Vec3> centre;
+  std::vector<double> reach;
+  for (std::size_t s = 0; s < sets.size(); ++s) {
+    if (!sets[s] || !scene.sph_dem_contact(body.name, scene.particle_sets[s].name).enabled) continue;
+    for (const scene::Sphere& sphere : *sets[s]) {
+      centre.push_back(sphere.center);
+      reach.push_back(sphere.radius + 0.5 * dx);
+    }
+  }
+  if (centre.empty()) return;
+  physics::CellList grid;
+  grid.build_points(centre, *std::max_element(reach.begin(), reach.end()));
+  const auto inside = [&](const Vec3& p) {
+    bool hit = false;
+    grid.for_each_near(p, [&](std::uint32_t k) { hit = hit || (p - centre[k]).squaredNorm() < reach[k] * reach[k]; });
+    return hit;
+  };
+  const auto kept = std::stable_partition(position.begin() + static_cast<std::ptrdiff_t>(first), position.end(),
+                                          [&](const Vec3& p) { return !inside(p); });
+  position.erase(kept, position.end());
+}
+
 }  // namespace
 
 FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
@@ -47,6 +77,7 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
   });
   const double dx = scene.sph.particle_spacing;
   const double g = std::abs(scene.run.gravity.z());
+  const auto spheres = geometry::initial_spheres(scene);
   for (std::size_t b = 0; b < scene.fluids.size(); ++b) {
     const scene::FluidBody& body = scene.fluids[b];
     const std::size_t first = fill.position.size();
@@ -87,6 +118,7 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
         }
       }
     }
+    carve_spheres(scene, body, spheres, dx, first, fill.position);
     const std::size_t count = fill.position.size() - first;
     if (count == 0) {
       throw SceneError(

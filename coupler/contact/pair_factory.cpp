@@ -1,5 +1,7 @@
 #include "coupler/contact/pair_factory.hpp"
 
+#include "coupler/contact/sph_dem_boundary_pair.hpp"
+#include "coupler/contact/sph_dem_penalty_pair.hpp"
 #include "coupler/contact/surface_penalty_pair.hpp"
 #include "coupler/contact/wall_particles_pair.hpp"
 
@@ -17,6 +19,19 @@ std::vector<std::unique_ptr<ContactPair>> make_contact_pairs(const scene::Scene&
     } else {
       pairs.push_back(std::make_unique<WallParticlesPair>(scene));
     }
+  }
+  if (scene.needs(Role::sph) && scene.needs(Role::dem)) {
+    // One pair per law that some (fluid body, particle set) uses.
+    bool penalty = false, boundary = false;
+    for (const auto& fluid : scene.fluids) {
+      for (const auto& set : scene.particle_sets) {
+        const scene::SphDemContact contact = scene.sph_dem_contact(fluid.name, set.name);
+        if (!contact.enabled) continue;
+        (contact.model == scene::SphDemContact::Model::penalty ? penalty : boundary) = true;
+      }
+    }
+    if (boundary) pairs.push_back(std::make_unique<SphDemBoundaryPair>(scene));
+    if (penalty) pairs.push_back(std::make_unique<SphDemPenaltyPair>(scene));
   }
   return pairs;
 }

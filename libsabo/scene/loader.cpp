@@ -620,6 +620,7 @@ class Builder {
     read_solvers(root);
     read_contact(root);
     read_interactions(root);
+    check_sph_dem();
     read_recording(root);
     check_overlaps();
 
@@ -1692,45 +1693,106 @@ class Builder {
     }
     Reader sf(diag_, spec("contact-sph_fem"), sph_fem != nullptr ? *sph_fem : empty_table(), "contact.sph_fem");
     read_surface_contact(sf, scene_.sph_fem_default);
+
+    const toml::table* sph_dem = contact.table("sph_dem");
+    if (sph_dem != nullptr && !(has_fluids_ && has_particles_)) {
+      diag_.add(line_of(*sph_dem), "contact.sph_dem", std::nullopt,
+                "fluid-sphere contact needs both fluids and particles",
+                "remove [contact.sph_dem] or add the missing [[fluids]] or [[particles]]");
+    }
+    Reader sd(diag_, spec("contact-sph_dem"), sph_dem != nullptr ? *sph_dem : empty_table(), "contact.sph_dem");
+    read_sph_dem_contact(sd, scene_.sph_dem_default);
+    if (sph_dem != nullptr) {
+      sph_dem_default_where_ = {sd.has("normal_stiffness") ? sd.line("normal_stiffness") : line_of(*sph_dem),
+                                sd.has("normal_stiffness") ? "contact.sph_dem.normal_stiffness" : "contact.sph_dem"};
+    }
+  }
+
+  // The keys of a fluid/particle-set contact ([contact.sph_dem] or an interaction of the two).
+  static void read_sph_dem_contact(Reader& r, SphDemContact& contact) {
+    if (auto v = r.string("model")) {
+      contact.model = *v == "penalty" ? SphDemContact::Model::penalty : SphDemContact::Model::boundary_particles;
+    }
+    if (auto v = r.number("normal_stiffness")) contact.normal_stiffness = *v;
+    if (auto v = r.number("normal_damping_ratio")) contact.normal_damping_ratio = *v;
+    if (auto v = r.number("friction")) contact.friction = *v;
   }
 
   void read_interactions(Reader& root) {
     const toml::array* interactions = root.table_list("interactions");
     if (interactions == nullptr || interactions->empty()) return;
-    if (!((has_particles_ || has_fluids_) && has_structures_)) {
+    if (!((has_particles_ || has_fluids_) && has_structures_) && !(has_fluids_ && has_particles_)) {
       diag_.add(root.line("interactions"), "interactions", std::nullopt,
-                "interactions pair a particle set or fluid with a structure, but the scene lacks one of the two",
+                "interactions pair a particle set or fluid with a structure, or a fluid with a particle set, but "
+                "the scene lacks the bodies for either",
                 "remove the [[interactions]] tables or add the missing bodies");
       return;
     }
     std::vector<std::string> body_names;
     for (const auto& [name, body] : bodies_) body_names.push_back(name);
-    std::map<std::pair<std::string, std::string>, int> seen;  // (set, structure) -> line
+    std::map<std::pair<std::string, std::string>, int> seen;  // (set or fluid, structure or set) -> line
     for (std::size_t k = 0; k < interactions->size(); ++k) {
       const toml::table& table = *interactions->get(k)->as_table();
       const std::string path = fmt::format("interactions[{}]", k);
       Reader r(diag_, spec("interactions"), table, path);
-      Interaction interaction;
-      interaction.origin = origin(r.line(), path);
       const auto pair = r.strings("pair");
-      const bool names_fluid = pair && std::any_of(pair->begin(), pair->end(), [&](const std::string& name) {
-                                 const auto it = bodies_.find(name);
-                                 return it != bodies_.end() && it->second.is_fluid;
-                               });
-      interaction.contact = names_fluid ? scene_.sph_fem_default : scene_.dem_fem_default;
-      if (names_fluid) {
-        for (const char* key : {"model", "restitution"}) {
+      // Which kind of pair it is decides which keys apply; an unreadable pair reads as a particle set and
+      // a structure, so that its other keys are still checked.
+      const BodyName* bodies[2] = {nullptr, nullptr};
+      if (pair && pair->size() == 2) {
+        for (int b = 0; b < 2; ++b) {
+          const auto it = bodies_.find((*pair)[static_cast<std::size_t>(b)]);
+          if (it != bodies_.end()) bodies[b] = &it->second;
+        }
+      }
+      const auto is_fluid = [](const BodyName* body) { return body != nullptr && body->is_fluid; };
+      const auto is_set = [](const BodyName* body) { return body != nullptr && body->is_particle_set; };
+      const bool fluid_and_set =
+          (is_fluid(bodies[0]) && is_set(bodies[1])) || (is_set(bodies[0]) && is_fluid(bodies[1]));
+      const bool names_fluid = is_fluid(bodies[0]) || is_fluid(bodies[1]);
+      Interaction interaction;
+      SphDemInteraction sph_dem;
+      interaction.origin = sph_dem.origin = origin(r.line(), path);
+      if (fluid_and_set) {
+        sph_dem.contact = scene_.sph_dem_default;
+        for (const char* key : {"restitution", "penalty_scale", "tangential_damping_ratio"}) {
           if (r.has(key)) {
             diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
-                      "fluid particles meet structures through the penalty law only",
-                      "remove the key from this fluid's interaction");
+                      "a fluid and a particle set meet through boundary particles or the penalty law of paper "
+                      "eqs. 1-2, which has no such key",
+                      "remove the key, or give normal_stiffness, normal_damping_ratio or friction");
           }
         }
+        if (auto model = r.string("model"); model && *model == "hertz_mindlin") {
+          diag_.add(r.line("model"), r.key_path("model"), "\"hertz_mindlin\"",
+                    "a fluid and a particle set meet through \"boundary_particles\" or \"penalty\"",
+                    "write model = \"boundary_particles\" or model = \"penalty\"");
+        } else {
+          read_sph_dem_contact(r, sph_dem.contact);
+        }
+        if (auto v = r.boolean("enabled")) sph_dem.contact.enabled = *v;
       } else {
-        read_surface_contact_law(r, interaction.contact, "in this interaction or in [contact.dem_fem]");
+        interaction.contact = names_fluid ? scene_.sph_fem_default : scene_.dem_fem_default;
+        if (auto model = r.string("model"); model && *model == "boundary_particles") {
+          diag_.add(r.line("model"), r.key_path("model"), "\"boundary_particles\"",
+                    "boundary particles are a law between a fluid and a particle set; a structure meets a fluid "
+                    "through [sph] wall_model",
+                    names_fluid ? "remove model (set [sph] wall_model for the fluid's walls)"
+                                : "write model = \"penalty\" or model = \"hertz_mindlin\"");
+        } else if (names_fluid) {
+          for (const char* key : {"model", "restitution"}) {
+            if (r.has(key)) {
+              diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                        "fluid particles meet structures through the penalty law only",
+                        "remove the key from this fluid's interaction");
+            }
+          }
+        } else {
+          read_surface_contact_law(r, interaction.contact, "in this interaction or in [contact.dem_fem]");
+        }
+        read_surface_contact(r, interaction.contact);
+        if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
       }
-      read_surface_contact(r, interaction.contact);
-      if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
       if (!pair) continue;
       const int line = r.line("pair");
       const std::string value = value_text(*r.node("pair"));
@@ -1745,28 +1807,43 @@ class Builder {
         known = false;
         const auto suggestion = closest_match(name, body_names);
         diag_.add(line, r.key_path("pair"), value,
-                  fmt::format("no particle set or structure is named {}{}", quote_text(name),
+                  fmt::format("no fluid, particle set or structure is named {}{}", quote_text(name),
                               suggestion ? fmt::format(". Did you mean '{}'?", *suggestion) : std::string()),
                   fmt::format("use the names of [[fluids]], [[particles]] and [[structures]]: {}", join(body_names)));
       }
       if (!known) continue;
-      const BodyName& first = bodies_.at((*pair)[0]);
-      const BodyName& second = bodies_.at((*pair)[1]);
+      const BodyName& first = *bodies[0];
+      const BodyName& second = *bodies[1];
+      if (fluid_and_set) {
+        sph_dem.fluid = first.is_fluid ? (*pair)[0] : (*pair)[1];
+        sph_dem.set = first.is_fluid ? (*pair)[1] : (*pair)[0];
+        auto [it, inserted] = seen.try_emplace({sph_dem.fluid, sph_dem.set}, line);
+        if (!inserted) {
+          diag_.add(line, r.key_path("pair"), value, fmt::format("this pair is already given at line {}", it->second),
+                    "merge the two [[interactions]] tables of this pair");
+          continue;
+        }
+        sph_dem_where_[{sph_dem.fluid, sph_dem.set}] = {
+            r.has("normal_stiffness") ? r.line("normal_stiffness") : r.line(),
+            r.has("normal_stiffness") ? r.key_path("normal_stiffness") : path};
+        scene_.sph_dem_interactions.push_back(std::move(sph_dem));
+        continue;
+      }
       const bool first_moves = first.is_particle_set || first.is_fluid;
       const bool second_moves = second.is_particle_set || second.is_fluid;
       if (first_moves && second_moves) {
         diag_.add(line, r.key_path("pair"), value,
-                  "both are fluids or particle sets; a pair is one fluid or particle set and one structure",
-                  "pair a fluid or particle set with a structure here");
+                  fmt::format("both are {}; a pair is a fluid or particle set and a structure, or a fluid and a "
+                              "particle set",
+                              first.is_fluid ? "fluids" : "particle sets"),
+                  first.is_fluid ? "pair a fluid with a structure or a particle set"
+                                 : "sphere-sphere contact is set in [contact.dem_dem]; pair a particle set with a "
+                                   "structure or a fluid here");
         continue;
       }
-      if (first.is_particle_set == second.is_particle_set && !first.is_fluid && !second.is_fluid) {
-        diag_.add(line, r.key_path("pair"), value,
-                  fmt::format("both are {}; a pair is one particle set and one structure",
-                              first.is_particle_set ? "particle sets" : "structures"),
-                  first.is_particle_set ? "sphere-sphere contact is set in [contact.dem_dem]; pair a particle set "
-                                          "with a structure here"
-                                        : "pair a particle set with a structure");
+      if (!first_moves && !second_moves) {
+        diag_.add(line, r.key_path("pair"), value, "both are structures; a pair is one particle set and one structure",
+                  "pair a particle set with a structure");
         continue;
       }
       interaction.a = first_moves ? (*pair)[0] : (*pair)[1];
@@ -1840,6 +1917,103 @@ class Builder {
     }
   }
 
+  // Where a fluid/particle-set contact's settings were written: the line and key of its
+  // normal_stiffness, else of its table.
+  struct Where {
+    int line = 0;
+    std::string key;
+  };
+  [[nodiscard]] Where sph_dem_where(const std::string& fluid, const std::string& set) const {
+    const auto it = sph_dem_where_.find({fluid, set});
+    return it != sph_dem_where_.end() ? it->second : sph_dem_default_where_;
+  }
+
+  // Fluid/particle-set contacts (after every body, [sph] and the interactions are read): boulder sizes for
+  // boundary particles, one law per set against every fluid, a penalty stiffness the SPH step can carry,
+  // and spheres starting inside a fluid only where their places are known before the run.
+  void check_sph_dem() {
+    if (!has_fluids_ || !has_particles_ || !(scene_.sph.particle_spacing > 0) || !(scene_.sph.sound_speed > 0)) return;
+    if (std::any_of(scene_.fluids.begin(), scene_.fluids.end(), [&](const FluidBody& f) {
+          return std::find(material_names_.begin(), material_names_.end(), f.material) == material_names_.end();
+        })) {
+      return;  // reported already; the stiffness needs the fluid's density
+    }
+    const double dx = scene_.sph.particle_spacing;
+    const auto material_of = [&](const std::string& name) -> const Material& {
+      return *std::find_if(scene_.materials.begin(), scene_.materials.end(),
+                           [&](const Material& m) { return m.name == name; });
+    };
+    bool settled_before = false;
+    for (const ParticleSet& set : scene_.particle_sets) {
+      const bool position_unknown = set.kind == ParticleSet::Kind::fill && (settled_before || set.settle_time > 0);
+      settled_before = settled_before || (set.kind == ParticleSet::Kind::fill && set.settle_time > 0);
+      const std::string set_key = set.origin.key;
+      bool any_boundary = false, any_other = false;
+      std::string boundary_fluid, other_fluid;
+      for (const FluidBody& fluid : scene_.fluids) {
+        const SphDemContact contact = scene_.sph_dem_contact(fluid.name, set.name);
+        const bool boundary = contact.enabled && contact.model == SphDemContact::Model::boundary_particles;
+        (boundary ? any_boundary : any_other) = true;
+        (boundary ? boundary_fluid : other_fluid) = fluid.name;
+        if (contact.enabled && contact.model == SphDemContact::Model::penalty && contact.normal_stiffness &&
+            material_names_.end() != std::find(material_names_.begin(), material_names_.end(), fluid.material)) {
+          // The materials are not sorted yet: the pair step from the fluid's own density.
+          const double rho0 = material_of(fluid.material).density;
+          const double pair_dt = 0.2 * std::numbers::pi * std::sqrt(rho0 * dx * dx * dx / *contact.normal_stiffness);
+          const double sph_dt = scene_.sph.cfl * scene_.sph.smoothing_length() / scene_.sph.sound_speed;
+          if (pair_dt < sph_dt) {
+            const double largest = rho0 * dx * dx * dx * std::pow(0.2 * std::numbers::pi / sph_dt, 2);
+            const Where where = sph_dem_where(fluid.name, set.name);
+            diag_.add(
+                where.line, where.key, number_literal(*contact.normal_stiffness),
+                fmt::format("the penalty spring of fluid '{}' against particle set '{}' has the stable step "
+                            "0.2 pi sqrt(m / K) = {:.3g} s (m = rho0 dx^3 = {:.3g} kg), below the SPH step "
+                            "cfl h / c = {:.3g} s: it would cut every step of the run by {:.2g} and, at the "
+                            "SPH step, be unstable",
+                            fluid.name, set.name, pair_dt, rho0 * dx * dx * dx, sph_dt, pair_dt / sph_dt),
+                fmt::format("give normal_stiffness <= {:.3g} N/m, or leave it out for the derived stiffness", largest));
+          }
+        }
+        if (!contact.enabled) continue;
+        if (!position_unknown || !set.region.overlaps(fluid.bounds())) continue;
+        diag_.add(set.origin.line, set_key + ".fill", std::nullopt,
+                  fmt::format("the fill region of particle set '{}' reaches into fluid body '{}'{}: where its spheres "
+                              "come to rest is only known once the dem_solver has settled them, so the sph_solver "
+                              "cannot leave their places free of fluid",
+                              set.name, fluid.name,
+                              set.settle_time > 0 ? " and the set settles (settle_time)"
+                                                  : " and an earlier fill set settles, which moves its obstacles"),
+                  "move the fill region out of the fluid body (e.g. above it: the spheres fall in), list the "
+                  "spheres, or drop settle_time");
+      }
+      if (any_boundary && any_other) {
+        const Where where = sph_dem_where(other_fluid, set.name);
+        diag_.add(where.line, where.key, std::nullopt,
+                  fmt::format("particle set '{}' meets fluid '{}' as boundary particles but fluid '{}' otherwise; "
+                              "the sph_solver sees a boulder's wall particles whatever fluid body is near it",
+                              set.name, boundary_fluid, other_fluid),
+                  "give the set the same contact model (and enabled) against every fluid body");
+      }
+      if (!any_boundary) continue;
+      double smallest = std::numeric_limits<double>::infinity();
+      if (set.kind == ParticleSet::Kind::list) {
+        for (const Sphere& sphere : set.spheres) smallest = std::min(smallest, 2 * sphere.radius);
+      } else {
+        smallest = set.diameter_min;
+      }
+      if (smallest < kMinBoundaryParticleDiameter * dx) {
+        diag_.add(
+            set.origin.line, set_key + (set.kind == ParticleSet::Kind::list ? ".spheres" : ".fill"), std::nullopt,
+            fmt::format("a sphere of diameter {:g} m spans {:.2g} SPH spacings (dx = {:g} m); as boundary "
+                        "particles a boulder needs at least {:g} spacings to have a surface the fluid can push",
+                        smallest, smallest / dx, dx, kMinBoundaryParticleDiameter),
+            fmt::format("use spheres of at least {:g} m, a finer sph.particle_spacing (<= {:g} m), or model = "
+                        "\"penalty\" for this set (in [contact.sph_dem] or an interaction of '{}' with the fluid)",
+                        kMinBoundaryParticleDiameter * dx, smallest / kMinBoundaryParticleDiameter, set.name));
+      }
+    }
+  }
+
   Diagnostics diag_;
   const toml::table& document_;
   fs::path scene_dir_;
@@ -1851,6 +2025,8 @@ class Builder {
   std::vector<std::string> material_names_;
   std::map<std::string, BodyName> bodies_;
   std::vector<ListedSphere> listed_;
+  Where sph_dem_default_where_{0, "contact.sph_dem"};
+  std::map<std::pair<std::string, std::string>, Where> sph_dem_where_;  // (fluid, set) -> its interaction
 };
 
 // "FILE:LINE:COL: key 'k' = v: TOML syntax error: ..." from toml++'s error.

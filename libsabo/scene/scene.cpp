@@ -115,6 +115,20 @@ bool ParticleSet::contains_sphere(const Vec3& center, double radius) const {
   return geometry::polygon_contains(polygon_xz, x, z);
 }
 
+Aabb FluidBody::bounds() const {
+  if (shape == Shape::box) return box;
+  Aabb bounds;
+  const Vec3 across(-direction.y(), direction.x(), 0.0);
+  for (const auto& [s, z] : profile) {
+    for (const double t : {-0.5 * width, 0.5 * width}) {
+      Vec3 p = profile_origin + s * direction + t * across;
+      p.z() = z;
+      bounds.extend(p);
+    }
+  }
+  return bounds;
+}
+
 const DemContactLaw& DemContact::law(const std::string& material_a, const std::string& material_b) const {
   for (const auto& pair : pairs) {
     if ((pair.material_a == material_a && pair.material_b == material_b) ||
@@ -133,6 +147,47 @@ SurfaceContact Scene::surface_contact(const std::string& set, const std::string&
   }
   const bool is_fluid = std::any_of(fluids.begin(), fluids.end(), [&](const FluidBody& f) { return f.name == set; });
   return is_fluid ? sph_fem_default : dem_fem_default;
+}
+
+SphDemContact Scene::sph_dem_contact(const std::string& fluid, const std::string& set) const {
+  for (const auto& interaction : sph_dem_interactions) {
+    if (interaction.fluid == fluid && interaction.set == set) return interaction.contact;
+  }
+  return sph_dem_default;
+}
+
+bool Scene::boundary_particle_set(const std::string& set) const {
+  return std::any_of(fluids.begin(), fluids.end(), [&](const FluidBody& fluid) {
+    const SphDemContact contact = sph_dem_contact(fluid.name, set);
+    return contact.enabled && contact.model == SphDemContact::Model::boundary_particles;
+  });
+}
+
+bool Scene::sph_receives_boundary_particles() const {
+  if (fluids.empty()) return false;
+  if (sph.wall_model == SphSettings::WallModel::boundary_particles) return true;
+  return std::any_of(particle_sets.begin(), particle_sets.end(),
+                     [&](const ParticleSet& set) { return boundary_particle_set(set.name); });
+}
+
+double Scene::sph_acoustic_dt() const {
+  return sph.cfl * sph.smoothing_length() / sph.sound_speed;
+}
+
+double Scene::sph_dem_pair_dt(const FluidBody& fluid, double stiffness) const {
+  const double dx = sph.particle_spacing;
+  const double mass = materials[material_index(fluid.material)].density * dx * dx * dx;
+  return 0.2 * std::numbers::pi * std::sqrt(mass / stiffness);
+}
+
+double Scene::sph_dem_derived_stiffness(const FluidBody& fluid) const {
+  const double dx = sph.particle_spacing;
+  const double rho0 = materials[material_index(fluid.material)].density;
+  const double own = rho0 * sph.sound_speed * sph.sound_speed * dx;
+  // K such that 0.2 pi sqrt(rho0 dx^3 / K) equals the acoustic step.
+  const double step = sph_acoustic_dt();
+  const double cap = rho0 * dx * dx * dx * std::pow(0.2 * std::numbers::pi / step, 2);
+  return std::min(own, cap);
 }
 
 }  // namespace sabo::scene

@@ -260,6 +260,34 @@ struct Interaction {
   SurfaceContact contact;  // defaults filled from [contact.dem_fem]
 };
 
+// Contact of fluid particles with DEM spheres (boulders), computed by the coupler: the defaults in
+// [contact.sph_dem], per (fluid body, particle set) overrides in [[interactions]] (docs/physics.md,
+// "SPH-DEM").
+struct SphDemContact {
+  enum class Model {
+    // Each sphere's surface sampled as SPH wall particles moving with it (v + w x r): the fluid's
+    // pressure and viscous stress act on it, so buoyancy and drag come out of the fluid's physics.
+    boundary_particles,
+    // Paper eqs. 1-2: a node-to-node spring-dashpot along the line of centres, overlap
+    // h_i + r_j - d with h_i the SPH particle's contact radius (its particle table radius).
+    penalty,
+  };
+  Model model = Model::boundary_particles;
+  std::optional<double> normal_stiffness;  // N/m (penalty); absent: Scene::sph_dem_derived_stiffness
+  double normal_damping_ratio = 0.0;       // zeta in [0, 1) (penalty): eta = 2 zeta sqrt(K m*)
+  double friction = 0.0;                   // Coulomb mu >= 0 (penalty), tangential spring k_t = K
+  bool enabled = true;
+};
+
+struct SphDemInteraction {
+  std::string fluid, set;  // a fluid body and a particle set (checked)
+  Origin origin;
+  SphDemContact contact;  // defaults filled from [contact.sph_dem]
+};
+
+// A boulder for boundary particles spans at least this many SPH spacings (its diameter; checked).
+inline constexpr double kMinBoundaryParticleDiameter = 2.0;
+
 // Weakly compressible SPH (sph_solver). The loader fills these from [sph]
 // and [[fluids]]; the sph_solver helper owns their keys and may add fields.
 // The coupler reads particle_spacing, smoothing_ratio, kernel and wall_model to
@@ -331,6 +359,9 @@ struct FluidBody {
   // particles and walls rather than the continuum's hydrostatic fill (docs/physics.md, "Settling").
   // A settling body starts at rest (checked).
   double settle_time = 0;
+
+  // The box around the body's shape, m.
+  [[nodiscard]] Aabb bounds() const;
 };
 
 // The settling phase's velocity damping v <- v exp(-dt / tau) has tau = h / c at t = 0 and
@@ -361,8 +392,10 @@ struct Scene {
   SphSettings sph;
   DemContact dem_contact;
   SurfaceContact dem_fem_default;
-  SurfaceContact sph_fem_default;         // SPH particles against FEM surfaces (wall_model == penalty)
-  std::vector<Interaction> interactions;  // explicit per-pair settings
+  SurfaceContact sph_fem_default;                       // SPH particles against FEM surfaces (wall_model == penalty)
+  std::vector<Interaction> interactions;                // explicit per-pair settings
+  SphDemContact sph_dem_default;                        // fluid particles against DEM spheres
+  std::vector<SphDemInteraction> sph_dem_interactions;  // per (fluid body, particle set)
   Recording recording;
 
   [[nodiscard]] bool needs(Role role) const;
@@ -370,6 +403,22 @@ struct Scene {
   [[nodiscard]] std::size_t material_index(const std::string& name) const;  // asserts it exists
   // Contact settings for particle set or fluid body `set` against structure `structure`.
   [[nodiscard]] SurfaceContact surface_contact(const std::string& set, const std::string& structure) const;
+  // Contact settings of fluid body `fluid` against particle set `set`: its interaction, else [contact.sph_dem].
+  [[nodiscard]] SphDemContact sph_dem_contact(const std::string& fluid, const std::string& set) const;
+  // Whether particle set `set` meets the fluid as boundary particles (every fluid pair of a set agrees; checked).
+  [[nodiscard]] bool boundary_particle_set(const std::string& set) const;
+  // Whether the sph_solver receives boundary particles (structure walls or boulder surfaces): it then
+  // computes its forces once the coupler's StepForces has brought them.
+  [[nodiscard]] bool sph_receives_boundary_particles() const;
+  // The penalty stiffness of fluid body `fluid` against spheres when normal_stiffness is absent, N/m:
+  // the fluid's own stiffness rho0 c^2 dx (bulk modulus rho0 c^2 over a particle's face dx^2, across
+  // its spacing dx), lowered where needed so that the pair's stable step 0.2 pi sqrt(m / K), m = rho0
+  // dx^3, is not below the SPH's acoustic step cfl h / c.
+  [[nodiscard]] double sph_dem_derived_stiffness(const FluidBody& fluid) const;
+  // The SPH's acoustic step cfl h / c (s), and the stable step 0.2 pi sqrt(m / K) of a fluid particle
+  // of body `fluid` (m = rho0 dx^3) on a penalty spring of stiffness K (N/m).
+  [[nodiscard]] double sph_acoustic_dt() const;
+  [[nodiscard]] double sph_dem_pair_dt(const FluidBody& fluid, double stiffness) const;
 };
 
 }  // namespace sabo::scene

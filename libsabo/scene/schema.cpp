@@ -83,7 +83,7 @@ class K {
 class Schema {
  public:
   Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, sph, fluid, contact,
-      dem_dem, dem_pair, dem_fem, sph_fem, interaction, recording;
+      dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, interaction, recording;
 
   Schema(const Schema&) = delete;
   Schema& operator=(const Schema&) = delete;
@@ -98,13 +98,14 @@ class Schema {
     build_sph();
     build_contact();
     build_sph_fem();
+    build_sph_dem();
     build_interactions();
     build_recording();
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root, &run,   &solvers, &solver,  &materials, &material, &particles, &sphere,      &fill,     &structure,
-            &sph,  &fluid, &contact, &dem_dem, &dem_pair,  &dem_fem,  &sph_fem,   &interaction, &recording};
+    return {&root, &run,   &solvers, &solver,  &materials, &material, &particles, &sphere,  &fill,        &structure,
+            &sph,  &fluid, &contact, &dem_dem, &dem_pair,  &dem_fem,  &sph_fem,   &sph_dem, &interaction, &recording};
   }
 
  private:
@@ -770,12 +771,52 @@ class Schema {
     };
   }
 
+  void build_sph_dem() {
+    sph_dem.title = "[contact.sph_dem]";
+    sph_dem.anchor = "contact-sph_dem";
+    sph_dem.description =
+        "Contact of fluid particles with the DEM spheres (boulders carried by the slurry), computed by the "
+        "coupler. Defaults of every fluid/particle-set pair; `[[interactions]]` override them per pair. "
+        "`model` picks the law (docs/physics.md, \"SPH-DEM\"):\n\n"
+        "* `boundary_particles`: each sphere's surface is sampled as SPH wall particles (the layers of the "
+        "structure walls) that move with it, v + w x r. The fluid's pressure and viscous stress act on them, "
+        "and their sum is the force and torque on the sphere: buoyancy and drag come out of the fluid's "
+        "physics. A sphere's diameter is at least 2 `particle_spacing`.\n"
+        "* `penalty`: the paper's node-to-node law (eqs. 1-2): overlap delta = h_i + r_j - d, with h_i the "
+        "fluid particle's contact radius dx/2; force K delta + eta v_rel,n along the line of centres, "
+        "optional Coulomb `friction`. It carries no fluid pressure: a sphere feels the fluid only where "
+        "particles touch it, so buoyancy comes only through contacts and is not Archimedes'.";
+    sph_dem.keys = {
+        K("model", Type::string)
+            .def("\"boundary_particles\"")
+            .choices({"boundary_particles", "penalty"})
+            .doc("Contact law: boulder surfaces as wall particles, or the paper's penalty."),
+        K("normal_stiffness", Type::number)
+            .absent("rho0 c^2 dx, lowered so that 0.2 pi sqrt(rho0 dx^3 / K) >= cfl h / c")
+            .example("2e6")
+            .unit("N/m")
+            .gt(0)
+            .doc("Penalty stiffness K (penalty only); its pair step 0.2 pi sqrt(rho0 dx^3 / K) may not be below "
+                 "the SPH step cfl h / c."),
+        K("normal_damping_ratio", Type::number)
+            .def("0.0")
+            .ge(0)
+            .lt(1)
+            .doc("Normal damping of the penalty law: eta = 2 ratio sqrt(K m*), m* the reduced mass (penalty only)."),
+        K("friction", Type::number)
+            .def("0.0")
+            .ge(0)
+            .doc("Coulomb friction of the penalty law, tangential spring k_t = K (penalty only)."),
+    };
+  }
+
   void build_contact() {
     contact.title = "[contact]";
     contact.anchor = "contact";
     contact.description =
         "Contact laws between kinds of bodies. `[contact.dem_dem]` needs particles; `[contact.dem_fem]` needs "
-        "particles and structures; `[contact.sph_fem]` needs fluids and structures.";
+        "particles and structures; `[contact.sph_fem]` needs fluids and structures; `[contact.sph_dem]` needs "
+        "fluids and particles.";
     contact.keys = {
         K("dem_dem", Type::table).inside(dem_dem).absent("defaults").doc("Sphere-sphere contact (dem_solver)."),
         K("dem_fem", Type::table)
@@ -786,6 +827,10 @@ class Schema {
             .inside(sph_fem)
             .absent("defaults")
             .doc("Fluid-structure penalty contact (coupler), default of every pair."),
+        K("sph_dem", Type::table)
+            .inside(sph_dem)
+            .absent("defaults")
+            .doc("Fluid-sphere contact (coupler), default of every pair."),
     };
     dem_dem.title = "[contact.dem_dem]";
     dem_dem.anchor = "contact-dem_dem";
@@ -946,21 +991,23 @@ class Schema {
     interaction.title = "[[interactions]]";
     interaction.anchor = "interactions";
     interaction.description =
-        "Contact settings of one pair, a particle set or a fluid body and a structure (in either order), each "
-        "pair at most once. Keys left out take their value from `[contact.dem_fem]` (particle sets) or "
-        "`[contact.sph_fem]` (fluids).";
-    const std::string from_default = "as in `[contact.dem_fem]` / `[contact.sph_fem]`";
+        "Contact settings of one pair, each pair at most once, its two bodies in either order: a particle set "
+        "or a fluid body with a structure, or a fluid body with a particle set. Keys left out take their value "
+        "from `[contact.dem_fem]` (a particle set and a structure), `[contact.sph_fem]` (a fluid and a "
+        "structure) or `[contact.sph_dem]` (a fluid and a particle set).";
+    const std::string from_default = "as in `[contact.dem_fem]` / `[contact.sph_fem]` / `[contact.sph_dem]`";
     interaction.keys = {
         K("pair", Type::string_list)
             .required("[\"boulders\", \"chute\"]")
-            .allowed("a particle set or fluid body, and a structure")
+            .allowed("a particle set or fluid body and a structure, or a fluid body and a particle set")
             .doc("The two bodies."),
         K("enabled", Type::boolean).def("true").doc("`false` switches contact of this pair off."),
         K("model", Type::string)
             .absent(from_default)
             .example("\"hertz_mindlin\"")
-            .choices({"penalty", "hertz_mindlin"})
-            .doc("Contact law (particle sets; a fluid's pairs are penalty only)."),
+            .choices({"penalty", "hertz_mindlin", "boundary_particles"})
+            .doc("Contact law: `penalty` or `hertz_mindlin` for a particle set and a structure (a fluid and a "
+                 "structure: penalty only); `boundary_particles` or `penalty` for a fluid and a particle set."),
         K("restitution", Type::number)
             .absent(from_default)
             .example("0.5")
@@ -968,7 +1015,11 @@ class Schema {
             .le(1)
             .doc("Coefficient of restitution (particle sets only; refused unless the pair's law is hertz_mindlin)."),
         K("friction", Type::number).absent(from_default).example("0.4").ge(0).doc("Coulomb friction coefficient."),
-        K("penalty_scale", Type::number).absent(from_default).example("0.1").gt(0).doc("k1 of eq. 6."),
+        K("penalty_scale", Type::number)
+            .absent(from_default)
+            .example("0.1")
+            .gt(0)
+            .doc("k1 of eq. 6 (not for a fluid and a particle set)."),
         K("normal_stiffness", Type::number)
             .absent(from_default)
             .example("1e8")
@@ -986,7 +1037,7 @@ class Schema {
             .example("0.0")
             .ge(0)
             .lt(1)
-            .doc("Tangential damping ratio."),
+            .doc("Tangential damping ratio (not for a fluid and a particle set)."),
     };
   }
 
@@ -1150,7 +1201,16 @@ const std::vector<std::string>& cross_checks() {
       "found on `PATH`.",
       "`[contact.dem_dem]` needs particles; `[contact.dem_fem]` and `[[interactions]]` need particles and "
       "structures. `[contact.dem_dem]` gives `normal_stiffness` or `normal_stiffness_scale`, not both.",
-      "An interaction's `pair` names one particle set or fluid body and one structure; no pair appears twice. "
+      "`[contact.sph_dem]` needs fluids and particles. With `boundary_particles` (its `model`, or a fluid and "
+      "particle-set interaction's), every sphere of the set has a diameter of at least 2 `particle_spacing`, "
+      "and a set that meets one fluid body as boundary particles meets every fluid body so (the sph_solver "
+      "sees wall particles whatever body it is near). A penalty `normal_stiffness` gives a pair step 0.2 pi "
+      "sqrt(rho0 dx^3 / K) no shorter than the SPH step cfl h / c. A sphere that starts inside a fluid body "
+      "pushes the fluid aside (the sph_solver leaves out the particles within dx/2 of it), which needs its "
+      "place known before the run: spheres of a fill set that settles (`settle_time`), or of a fill set "
+      "after one, may not start inside a fluid body's bounds.",
+      "An interaction's `pair` names one particle set or fluid body and one structure, or one fluid body and "
+      "one particle set; no pair appears twice. "
       "`restitution` in `[contact.dem_fem]` or a particle set's interaction is given only where that contact uses "
       "`model = \"hertz_mindlin\"` (an interaction's model is its own or, when absent, `[contact.dem_fem]`'s).",
       "`[sph]` is given exactly when there are `[[fluids]]`; `[contact.sph_fem]` needs fluids and structures. "

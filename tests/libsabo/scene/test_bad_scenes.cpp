@@ -64,7 +64,7 @@ const std::vector<BadScene>& bad_scenes() {
        32,
        "interactions[0].pair",
        "[\"bouldrs\", \"ground\"]",
-       {"no particle set or structure is named \"bouldrs\"", "Did you mean 'boulders'?"}},
+       {"no fluid, particle set or structure is named \"bouldrs\"", "Did you mean 'boulders'?"}},
       {"interaction_same_kind.toml",
        42,
        "interactions[0].pair",
