@@ -136,16 +136,24 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
   for (int k = 0; k < boulders.index_size(); ++k) seen[boulders.index(k)] = 1;
   for (std::size_t i = 0; i < sampling_.size(); ++i) has_last_[i] = has_last_[i] && seen[i];
 
+  // A candidate goes when a fluid particle lies within the support: each candidate asks the fluid's grid
+  // on its own (parallel, and the answer is the same whatever the order).
   near_.assign(candidate_position_.size(), 0);
   if (!candidate_position_.empty()) {
-    physics::CellList grid;
-    grid.build_points(candidate_position_, support_);
+    fluid_position_.resize(static_cast<std::size_t>(fluid.position_size()) / 3);
+    for (std::size_t f = 0; f < fluid_position_.size(); ++f) fluid_position_[f] = vec3_at(fluid.position(), f);
+    fluid_grid_.build_points(fluid_position_, support_);
     const double reach2 = support_ * support_;
-    for (std::size_t f = 0; f < static_cast<std::size_t>(fluid.position_size()) / 3; ++f) {
-      const Vec3 x = vec3_at(fluid.position(), f);
-      grid.for_each_near(x, [&](std::uint32_t c) {
-        if (!near_[c] && (candidate_position_[c] - x).squaredNorm() <= reach2) near_[c] = 1;
-      });
+    const auto count = static_cast<std::int64_t>(candidate_position_.size());
+#pragma omp parallel for schedule(static) if (count > 4096)
+    for (std::int64_t signed_c = 0; signed_c < count; ++signed_c) {
+      const auto c = static_cast<std::size_t>(signed_c);
+      const Vec3& x = candidate_position_[c];
+      const Aabb box{x.array() - support_, x.array() + support_};
+      near_[c] =
+          fluid_grid_.any_in(box, [&](std::uint32_t f) { return (fluid_position_[f] - x).squaredNorm() <= reach2; })
+              ? 1
+              : 0;
     }
   }
   selected_.resize(0);

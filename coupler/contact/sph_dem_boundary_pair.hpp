@@ -17,6 +17,7 @@
 
 #include "coupler/contact/contact_pair.hpp"
 #include "libsabo/geometry/sphere_sampling.hpp"
+#include "libsabo/physics/cell_list.hpp"
 
 namespace sabo::coupler {
 
@@ -78,6 +79,8 @@ class SphDemBoundaryPair final : public ContactPair {
   std::vector<Vec3> candidate_position_;
   std::vector<std::uint32_t> candidate_owner_, candidate_point_;
   std::vector<char> near_;
+  std::vector<Vec3> fluid_position_;
+  physics::CellList fluid_grid_;  // of the fluid this step, cell = support
 };
 
 }  // namespace sabo::coupler

@@ -39,6 +39,9 @@ class CellList {
   // Visits visit(item) for every item binned in a cell that overlaps box.
   template <class Visit>
   void for_each_in(const Aabb& box, Visit&& visit) const;
+  // Whether test(item) holds for an item binned in a cell that overlaps box; stops at the first.
+  template <class Test>
+  [[nodiscard]] bool any_in(const Aabb& box, Test&& test) const;
   // Items binned in cells overlapping box, sorted and unique; replaces out's content.
   void candidates(const Aabb& box, std::vector<std::uint32_t>& out) const;
 
@@ -109,6 +112,32 @@ void CellList::for_each_in(const Aabb& box, Visit&& visit) const {
       }
     }
   }
+}
+
+template <class Test>
+bool CellList::any_in(const Aabb& box, Test&& test) const {
+  if (item_count_ == 0) return false;
+  const CellRange range = range_of(box);
+  if (range.empty()) return false;
+  for (std::int64_t iz = range.lo[2]; iz <= range.hi[2]; ++iz) {
+    for (std::int64_t iy = range.lo[1]; iy <= range.hi[1]; ++iy) {
+      if (dense_) {
+        const auto row = static_cast<std::size_t>((iz * dims_[1] + iy) * dims_[0]);
+        const std::uint32_t first = cell_start_[row + static_cast<std::size_t>(range.lo[0])];
+        const std::uint32_t last = cell_start_[row + static_cast<std::size_t>(range.hi[0]) + 1];
+        for (std::uint32_t e = first; e < last; ++e) {
+          if (test(cell_items_[e])) return true;
+        }
+        continue;
+      }
+      for (std::int64_t ix = range.lo[0]; ix <= range.hi[0]; ++ix) {
+        for (std::uint32_t item : items_in(ix, iy, iz)) {
+          if (test(item)) return true;
+        }
+      }
+    }
+  }
+  return false;
 }
 
 }  // namespace sabo::physics

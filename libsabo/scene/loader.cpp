@@ -1968,8 +1968,8 @@ class Builder {
                 where.line, where.key, number_literal(*contact.normal_stiffness),
                 fmt::format("the penalty spring of fluid '{}' against particle set '{}' has the stable step "
                             "0.2 pi sqrt(m / K) = {:.3g} s (m = rho0 dx^3 = {:.3g} kg), below the SPH step "
-                            "cfl h / c = {:.3g} s: it would cut every step of the run by {:.2g} and, at the "
-                            "SPH step, be unstable",
+                            "cfl h / c = {:.3g} s: every step of the run would shrink to {:.2g} of the SPH's, "
+                            "or the spring would be unstable at the SPH step",
                             fluid.name, set.name, pair_dt, rho0 * dx * dx * dx, sph_dt, pair_dt / sph_dt),
                 fmt::format("give normal_stiffness <= {:.3g} N/m, or leave it out for the derived stiffness", largest));
           }

@@ -309,6 +309,69 @@ enabled = false
   EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "ground").friction, 0.3);
 }
 
+// [contact.sph_dem] and the interactions of a fluid with a particle set: defaults as scene.hpp's, overrides
+// per pair, which sets meet the fluid as boundary particles, the derived penalty stiffness.
+TEST(SceneLoader, SphDemContactDefaultsAndOverrides) {
+  const std::string head = std::string(kSceneHead) + R"(
+[materials.water]
+density = 1000.0
+youngs_modulus = 2.2e9
+poisson_ratio = 0.0
+[sph]
+particle_spacing = 0.1
+sound_speed = 20.0
+[[fluids]]
+name = "slurry"
+material = "water"
+shape = "box"
+min = [-1, -1, 0]
+max = [1, 1, 1]
+[[particles]]
+name = "boulders"
+material = "granite"
+spheres = [ { center = [0.0, 0.0, 3.0], radius = 0.5 } ]
+[[particles]]
+name = "gravel"
+material = "granite"
+spheres = [ { center = [0.0, 0.0, 5.0], radius = 0.04 } ]
+)";
+  const Scene scene = load_text(head + R"(
+[contact.sph_dem]
+normal_damping_ratio = 0.3
+[[interactions]]
+pair = ["gravel", "slurry"]
+model = "penalty"
+friction = 0.2
+)");
+  const SphDemContact defaults;
+  EXPECT_EQ(defaults.model, SphDemContact::Model::boundary_particles);
+  const SphDemContact boulders = scene.sph_dem_contact("slurry", "boulders");
+  EXPECT_EQ(boulders.model, defaults.model);
+  EXPECT_DOUBLE_EQ(boulders.normal_damping_ratio, 0.3);
+  EXPECT_DOUBLE_EQ(boulders.friction, defaults.friction);
+  EXPECT_FALSE(boulders.normal_stiffness.has_value());
+  ASSERT_EQ(scene.sph_dem_interactions.size(), 1u);
+  EXPECT_EQ(scene.sph_dem_interactions[0].fluid, "slurry");  // the fluid comes first
+  EXPECT_EQ(scene.sph_dem_interactions[0].set, "gravel");
+  const SphDemContact gravel = scene.sph_dem_contact("slurry", "gravel");
+  EXPECT_EQ(gravel.model, SphDemContact::Model::penalty);
+  EXPECT_DOUBLE_EQ(gravel.friction, 0.2);
+  EXPECT_DOUBLE_EQ(gravel.normal_damping_ratio, 0.3);  // inherited from [contact.sph_dem]
+  EXPECT_TRUE(scene.boundary_particle_set("boulders"));
+  EXPECT_FALSE(scene.boundary_particle_set("gravel"));
+  EXPECT_TRUE(scene.sph_receives_boundary_particles());
+  // rho0 c^2 dx: the pair's step 0.2 pi sqrt(rho0 dx^3 / K) = 0.2 pi dx / c is above cfl h / c.
+  EXPECT_DOUBLE_EQ(scene.sph_dem_derived_stiffness(scene.fluids[0]), 1000.0 * 20.0 * 20.0 * 0.1);
+  EXPECT_GT(scene.sph_dem_pair_dt(scene.fluids[0], scene.sph_dem_derived_stiffness(scene.fluids[0])),
+            scene.sph_acoustic_dt());
+  // The gravel (0.8 dx) as boundary particles is refused; disabled, it is not sampled at all.
+  const std::string refused = error_of(head);
+  EXPECT_NE(refused.find("particles[1].spheres"), std::string::npos) << refused;
+  const Scene disabled = load_text(head + "[[interactions]]\npair = [\"slurry\", \"gravel\"]\nenabled = false\n");
+  EXPECT_FALSE(disabled.boundary_particle_set("gravel"));
+  EXPECT_FALSE(disabled.sph_dem_contact("slurry", "gravel").enabled);
+}
+
 // configs/tests/sph_tank_boundary.toml with `line` inserted after `anchor` (a whole line of it).
 std::string tank_scene_with(const std::string& anchor, const std::string& line) {
   std::ifstream in(testing::source_dir() / "configs/tests/sph_tank_boundary.toml");
@@ -463,7 +526,7 @@ TEST(SceneLoader, ChecksAcrossKeys) {
       {head + kGround + "[contact.dem_fem]\nfriction = 0.5\n",
        "key 'contact.dem_fem': sphere-structure contact needs both particles and structures"},
       {head + kOneSphere + "[[interactions]]\npair = [\"boulders\", \"x\"]\n",
-       "key 'interactions': interactions pair a particle set or fluid with a structure, but the scene lacks one"},
+       "key 'interactions': interactions pair a particle set or fluid with a structure, or a fluid with a particle set, but the scene lacks the bodies"},
       {head + kOneSphere + kGround +
            "[[interactions]]\npair = [\"boulders\", \"ground\"]\n[[interactions]]\npair = "
            "[\"ground\", \"boulders\"]\n",
