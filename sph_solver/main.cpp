@@ -16,6 +16,7 @@
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/solver/driver.hpp"
+#include "sph_solver/energy_audit.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "sph_solver/sph_output.hpp"
 
@@ -39,7 +40,10 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
 class SphSolver final : public solver::CoupledSolver {
  public:
   SphSolver(const scene::Scene& scene, const solver::SolverOptions& options)
-      : model_(scene), output_(options.out_dir, model_), boundary_walls_(scene.sph_receives_boundary_particles()) {
+      : model_(scene),
+        audit_(model_),
+        output_(options.out_dir, model_),
+        boundary_walls_(scene.sph_receives_boundary_particles()) {
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
@@ -78,9 +82,9 @@ class SphSolver final : public solver::CoupledSolver {
       }
     }
     const Energies e = model_.energies();
-    // The walls' work held back (sph.wall_work = "bounded") is the fluid's only loss that
-    // the model accounts: viscosity and diffusion dissipate unmeasured.
-    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, e.wall_held});
+    // Dissipated: the energy the fluid lost beyond the work done on it (energy_audit.hpp), its
+    // viscosity and the walls' work held back among it.
+    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, audit_.dissipated()});
   }
 
   void compute_internal_forces(double dt_previous) override {
@@ -101,8 +105,10 @@ class SphSolver final : public solver::CoupledSolver {
       model_.compute_internal_forces(dt_previous_);
       have_boundary_forces_ = true;
     }
-    model_.add_external_forces({forces.index().data(), static_cast<std::size_t>(forces.index_size())},
-                               {forces.force().data(), static_cast<std::size_t>(forces.force_size())});
+    const std::span<const std::uint32_t> index{forces.index().data(), static_cast<std::size_t>(forces.index_size())};
+    const std::span<const double> force{forces.force().data(), static_cast<std::size_t>(forces.force_size())};
+    model_.add_external_forces(index, force);
+    audit_.before_integrate(model_, index, force);
   }
 
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
@@ -110,6 +116,7 @@ class SphSolver final : public solver::CoupledSolver {
   void integrate(double dt_previous, double dt) override {
     const std::size_t lost_before = model_.lost_count();
     model_.integrate(dt_previous, dt);
+    audit_.after_integrate(model_, dt_previous, dt);
     if (model_.lost_count() != lost_before) {
       spdlog::warn("{} SPH particles left the domain and were taken out ({} in all)", model_.lost_count() - lost_before,
                    model_.lost_count());
@@ -120,6 +127,7 @@ class SphSolver final : public solver::CoupledSolver {
 
  private:
   SphModel model_;
+  EnergyAudit audit_;
   SphOutput output_;
   bool boundary_walls_;
   bool have_boundary_forces_ = false;
