@@ -64,13 +64,26 @@ void Coupler::bind() {
   events_.listening(socket_.endpoint());
 }
 
+template <class Message>
+bool Coupler::reply_to_unregistered(const Message& message, const std::string& peer) {
+  // A peer that sent one frame and left has no route any more (ZMQ_ROUTER_MANDATORY): the reply is lost,
+  // and only the registered solvers matter to the run.
+  try {
+    socket_.send(message, peer);
+    return true;
+  } catch (const LibraryError& error) {
+    spdlog::warn("could not answer a peer that is not registered (it may have left): {}", error.what());
+    return false;
+  }
+}
+
 Coupler::Peer* Coupler::route(const protocol::Inbound& inbound, MessageType expected, std::uint64_t step) {
   if (!inbound.valid()) {
     spdlog::warn("refused a malformed message: {}", inbound.problem);
     sabo::v1::Error error;
     error.set_code(sabo::v1::Error::CODE_MALFORMED);
     error.set_message(fmt::format("malformed message: {}", inbound.problem));
-    socket_.send(error, inbound.peer);
+    reply_to_unregistered(error, inbound.peer);
     return nullptr;
   }
   auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->identity == inbound.peer; });
@@ -85,7 +98,7 @@ Coupler::Peer* Coupler::route(const protocol::Inbound& inbound, MessageType expe
     error.set_code(sabo::v1::Error::CODE_SEQUENCE);
     error.set_message(fmt::format("{} from an unregistered peer: register first", protocol::message_type_name(type)));
     spdlog::warn("{}", error.message());
-    socket_.send(error, inbound.peer);
+    reply_to_unregistered(error, inbound.peer);
     return nullptr;
   }
   if (type == sabo::v1::MESSAGE_TYPE_ERROR) {
@@ -117,7 +130,7 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     spdlog::warn("refused a registration: {}", why);
     reply.set_accepted(false);
     reply.set_error(why);
-    socket_.send(reply, inbound.peer);
+    reply_to_unregistered(reply, inbound.peer);
   };
   try {
     inbound.parse(registration);
@@ -179,7 +192,11 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   peer->registration = std::move(registration);
   reply.set_accepted(true);
   reply.set_interest_all(true);
-  socket_.send(reply, inbound.peer);
+  if (!reply_to_unregistered(reply, inbound.peer)) {
+    spdlog::warn("{} (pid {}) left before its registration was answered: not registered", name,
+                 peer->registration.pid());
+    return;
+  }
   spdlog::info("registered {} (pid {}, '{}'): {} particles, {} surface nodes", name, peer->registration.pid(),
                peer->registration.name(), n, peer->registration.surface().node_id_size());
   events_.registered(name, peer->registration.pid(), peer->registration.name());

@@ -47,6 +47,9 @@ class Coupler {
   // frames, late registrations). Returns the peer it came from, if known.
   Peer* route(const protocol::Inbound& inbound, sabo::v1::MessageType expected, std::uint64_t step);
   void accept_registration(const protocol::Inbound& inbound);
+  // Sends a reply to a peer that has not registered (yet); false when it could not be delivered.
+  template <class Message>
+  bool reply_to_unregistered(const Message& message, const std::string& peer);
   void collect_states(std::uint64_t step);
   // Parses, checks and records the state in inbound_ from `peer` for `step`.
   void accept_state(Peer& peer, std::uint64_t step);

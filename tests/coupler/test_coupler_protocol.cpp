@@ -216,3 +216,51 @@ TEST_F(Fixture, InvalidStateEndsTheRunNamingTheSolver) {
   std::cout << "error event: " << error->dump() << "\n";
   EXPECT_NE((*error)["message"].get<std::string>().find("non-finite"), std::string::npos);
 }
+
+// Issue 18, item 1: a client that connects, sends one frame and leaves at once used to end the run (the reply
+// to a peer that has gone fails under ZMQ_ROUTER_MANDATORY). Now the reply is dropped and the run goes on, for
+// a garbage frame, a state from an unregistered peer and a registration that does not parse alike.
+TEST_F(Fixture, ClientsThatSendOneFrameAndLeaveDoNotEndTheRun) {
+  endpoint = "tcp://127.0.0.1:*";  // as reported: over tcp the coupler sees the client vanish at once
+  auto coupler = start_coupler();
+  for (int wait = 0; wait < 50 && endpoint.find('*') != std::string::npos; ++wait) {
+    std::this_thread::sleep_for(20ms);
+    for (const auto& event : events()) {
+      if (event["event"] == "listening") endpoint = event["endpoint"].get<std::string>();
+    }
+  }
+  ASSERT_EQ(endpoint.find('*'), std::string::npos) << "the coupler did not say where it listens";
+  const auto hit_and_run = [&](const std::vector<std::string>& frames) {
+    zmq::context_t context(1);
+    zmq::socket_t raw(context, zmq::socket_type::dealer);
+    raw.set(zmq::sockopt::linger, 1000);  // the frames go out, then the connection closes
+    raw.connect(endpoint);
+    for (std::size_t k = 0; k < frames.size(); ++k) {
+      raw.send(zmq::buffer(frames[k]), k + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+    }
+    raw.close();
+    context.close();  // gone before any answer: waits only until the frames are out
+  };
+  std::array<std::uint8_t, protocol::kHeaderSize> header{};
+  protocol::encode_header({protocol::kProtocolVersion, sabo::v1::MESSAGE_TYPE_REGISTER}, header);
+  const std::string register_header(header.begin(), header.end());
+  protocol::encode_header({protocol::kProtocolVersion, sabo::v1::MESSAGE_TYPE_STEP_STATE}, header);
+  const std::string state_header(header.begin(), header.end());
+  for (int trial = 0; trial < 20; ++trial) {
+    hit_and_run({"x"});
+    hit_and_run({state_header, sabo::v1::StepState().SerializeAsString()});
+  }
+  for (int trial = 0; trial < 20; ++trial) hit_and_run({register_header, "not a registration"});
+
+  protocol::SolverLink link(endpoint, 5000ms);
+  const auto& reply = link.register_solver(dem_registration());
+  EXPECT_TRUE(reply.accepted()) << reply.error();
+  for (int trial = 0; trial < 20; ++trial) hit_and_run({"x"});
+  const std::uint64_t steps = run_dem(link, 1e-3);
+  sabo::v1::Goodbye goodbye;
+  goodbye.set_steps(steps);
+  goodbye.set_reason("completed");
+  link.send_goodbye(goodbye);
+  EXPECT_EQ(coupler.get(), coupler::kCompleted);
+  std::cout << "the run completed after 100 clients sent one message and left\n";
+}
