@@ -94,24 +94,10 @@ void CellList::for_each_near(const Vec3& p, Visit&& visit) const {
 
 template <class Visit>
 void CellList::for_each_in(const Aabb& box, Visit&& visit) const {
-  if (item_count_ == 0) return;
-  const CellRange range = range_of(box);
-  if (range.empty()) return;
-  for (std::int64_t iz = range.lo[2]; iz <= range.hi[2]; ++iz) {
-    for (std::int64_t iy = range.lo[1]; iy <= range.hi[1]; ++iy) {
-      if (dense_) {
-        // The run of cells along x is one run of items.
-        const auto row = static_cast<std::size_t>((iz * dims_[1] + iy) * dims_[0]);
-        const std::uint32_t first = cell_start_[row + static_cast<std::size_t>(range.lo[0])];
-        const std::uint32_t last = cell_start_[row + static_cast<std::size_t>(range.hi[0]) + 1];
-        for (std::uint32_t e = first; e < last; ++e) visit(cell_items_[e]);
-        continue;
-      }
-      for (std::int64_t ix = range.lo[0]; ix <= range.hi[0]; ++ix) {
-        for (std::uint32_t item : items_in(ix, iy, iz)) visit(item);
-      }
-    }
-  }
+  (void)any_in(box, [&](std::uint32_t item) {
+    visit(item);
+    return false;
+  });
 }
 
 template <class Test>

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 import unittest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -24,6 +25,12 @@ def read_text(path):
 def read_json(path):
     with open(path, encoding="utf-8") as handle:
         return json.load(handle)
+
+
+def load_scene(path):
+    """A scene file as the TOML reader sees it."""
+    with open(path, "rb") as handle:
+        return tomllib.load(handle)
 
 
 def read_events(run_dir):

@@ -4,23 +4,17 @@ through a wall, the energy never above its initial value). Each check prints mea
 import csv
 import math
 import os
-import tomllib
 import unittest
 
 import h5py
 import numpy as np
 
-from e2e_support import RealRunTestCase, read_json
+from e2e_support import RealRunTestCase, load_scene, read_json
 
 SPHERE_DROP = "configs/tests/sphere_drop.toml"
 CHUTE_SMALL = "configs/tests/chute_small.toml"
 HERTZ_WALL = "configs/tests/hertz_wall_impact.toml"
 BOULDER_WALL = "configs/tests/boulder_wall_30ms.toml"
-
-
-def load_scene(path):
-    with open(path, "rb") as handle:
-        return tomllib.load(handle)
 
 
 def particle_states(run_dir):
