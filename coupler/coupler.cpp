@@ -10,6 +10,7 @@
 
 #include "coupler/contact/pair_factory.hpp"
 #include "coupler/effects.hpp"
+#include "coupler/message_checks.hpp"
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/protocol/wire.hpp"
@@ -168,19 +169,26 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   }
   const auto& table = registration.particles();
   const std::size_t n = static_cast<std::size_t>(table.id_size());
-  if (static_cast<std::size_t>(table.radius_size()) != n || static_cast<std::size_t>(table.mass_size()) != n ||
-      static_cast<std::size_t>(table.body_size()) != n) {
-    refuse(fmt::format("{}: the particle table's arrays differ in length", name));
+  if (auto problem = particle_table_problem(table, scene_, settings->role)) {
+    refuse(fmt::format("{}: {}", name, *problem));
     return;
   }
   if (registration.exposes_surface()) {
-    const auto& surface = registration.surface();
-    if (!protocol::arrays_consistent(surface)) {
-      refuse(fmt::format("{}: the surface's arrays are inconsistent", name));
+    if (auto problem = surface_problem(registration.surface(), scene_)) {
+      refuse(fmt::format("{}: the surface: {}", name, *problem));
       return;
     }
-    surface_nodes_ = static_cast<std::size_t>(surface.node_id_size());
-    surface_revision_ = surface.revision();
+  }
+  // The registration's stable step is informative (0: not given); the states' are checked every step.
+  if (registration.stable_dt() != 0) {
+    if (auto problem = stable_dt_problem(registration.stable_dt(), scene_.run.end_time)) {
+      refuse(fmt::format("{}: {}", name, *problem));
+      return;
+    }
+  }
+  if (registration.exposes_surface()) {
+    surface_nodes_ = static_cast<std::size_t>(registration.surface().node_id_size());
+    surface_revision_ = registration.surface().revision();
   }
 
   auto peer = std::make_unique<Peer>();
@@ -302,8 +310,20 @@ void Coupler::validate_state(const Peer& peer) {
   if (!all_finite(s.position()) || !all_finite(s.velocity()) || !all_finite(s.angular_velocity())) {
     invalid("non-finite position or velocity (the solver has blown up)");
   }
-  if (!std::isfinite(s.stable_dt()) && !std::isinf(s.stable_dt())) invalid("stable_dt is NaN");
-  if (s.stable_dt() <= 0) invalid(fmt::format("stable_dt = {} must be > 0", s.stable_dt()));
+  if (auto problem = stable_dt_problem(s.stable_dt(), scene_.run.end_time)) invalid(*problem);
+  // Every solver adds the same dt_n to its time, so t_n is the coupler's sum (to round-off for a solver
+  // that sums otherwise).
+  if (!(std::abs(s.time() - expected_time_) <= 1e-9 * std::max(std::abs(expected_time_), scene_.run.end_time))) {
+    invalid(fmt::format("time = {} s, while t_n is {} s (the sum of the steps the coupler sent)", s.time(),
+                        expected_time_));
+  }
+  const auto& e = s.energies();
+  for (const auto& [what, value] : {std::pair{"kinetic", e.kinetic()}, std::pair{"potential", e.potential()},
+                                    std::pair{"elastic", e.elastic()}, std::pair{"dissipated", e.dissipated()}}) {
+    if (!std::isfinite(value)) {
+      invalid(fmt::format("its {} energy is {} J (the solver has blown up, or an input is extreme)", what, value));
+    }
+  }
   // The pairs' own needs of this state (e.g. a surface that may not change).
   for (const auto& slot : pairs_) {
     if (!slot.pair->joins(peer.scene_role)) continue;
@@ -317,7 +337,8 @@ void Coupler::validate_state(const Peer& peer) {
     // Elements eroded: the surface's new topology replaces the registered one
     // from this step on (checked like the registration's).
     const auto& topology = s.topology();
-    if (!protocol::arrays_consistent(topology)) invalid("the new surface topology's arrays are inconsistent");
+    if (auto problem = surface_problem(topology, scene_))
+      invalid(fmt::format("the new surface topology: {}", *problem));
     if (topology.revision() <= surface_revision_) {
       invalid(fmt::format("surface topology revision {} does not follow revision {}", topology.revision(),
                           surface_revision_));
@@ -766,6 +787,7 @@ int Coupler::run() {
       progress(step, time_, dt, last);
       if (last) break;
       dt_previous = dt;
+      expected_time_ += dt;
     }
     wait_for_goodbyes(std::chrono::milliseconds(static_cast<long>(1000 * std::max(5.0, scene_.run.hang_timeout))));
   } catch (const StopRequested& stop) {

@@ -264,3 +264,31 @@ TEST_F(Fixture, ClientsThatSendOneFrameAndLeaveDoNotEndTheRun) {
   EXPECT_EQ(coupler.get(), coupler::kCompleted);
   std::cout << "the run completed after 100 clients sent one message and left\n";
 }
+
+// Issue 18, item 3: a non-finite energy (gravity = [0, 0, -1e300] ran to the end before) and a time that is
+// not the coupler's t_n end the run naming the solver and the field.
+TEST_F(Fixture, NonFiniteEnergyOrWrongTimeEndsTheRunNamingTheSolver) {
+  for (const bool wrong_time : {false, true}) {
+    auto coupler = start_coupler();
+    protocol::SolverLink link(endpoint, 5000ms);
+    link.register_solver(dem_registration());
+    sabo::v1::StepState state;
+    state.set_step(0);
+    state.set_time(wrong_time ? 0.5 : 0.0);
+    state.set_stable_dt(1e-3);
+    state.add_index(0);
+    for (double v : {0.0, 0.0, 1.0}) state.add_position(v);
+    for (int c = 0; c < 3; ++c) state.add_velocity(0), state.add_angular_velocity(0);
+    if (!wrong_time) state.mutable_energies()->set_potential(-std::numeric_limits<double>::infinity());
+    link.send_state(state);
+    EXPECT_THROW(link.receive_forces(0), StopRequested);
+    EXPECT_EQ(coupler.get(), coupler::kSolverFailed);
+    const auto all = events();
+    const auto error = std::find_if(all.rbegin(), all.rend(), [](const auto& e) { return e["event"] == "error"; });
+    ASSERT_NE(error, all.rend());
+    std::cout << "error event: " << error->dump() << "\n";
+    EXPECT_EQ((*error)["process"], "dem_solver");
+    EXPECT_NE((*error)["message"].get<std::string>().find(wrong_time ? "time = 0.5 s" : "potential energy is -inf"),
+              std::string::npos);
+  }
+}
