@@ -1124,6 +1124,7 @@ class Builder {
       set.material = *v;
       check_material(r, set.material);
     }
+    if (auto v = r.boolean("fixed")) set.fixed = *v;
     const bool has_spheres = r.has("spheres"), has_fill = r.has("fill");
     if (has_spheres && has_fill) {
       diag_.add(r.line("fill"), r.key_path("fill"), value_text(*r.node("fill")),
@@ -1566,6 +1567,25 @@ class Builder {
     if (auto v = r.number("tangential_damping_ratio")) contact.tangential_damping_ratio = *v;
   }
 
+  // A sphere's rolling resistance against a structure ([contact.dem_fem] or a set's interaction): the
+  // viscosity only with the viscous model, and a viscous model only with a viscosity.
+  void read_surface_rolling(Reader& r, SurfaceContact& contact) {
+    if (auto v = r.string("rolling"))
+      contact.rolling = *v == "viscous" ? RollingModel::viscous : RollingModel::constant;
+    if (auto v = r.number("rolling_friction")) contact.rolling_friction = *v;
+    if (auto v = r.number("rolling_viscosity")) contact.rolling_viscosity = *v;
+    if (r.has("rolling_viscosity") && contact.rolling != RollingModel::viscous) {
+      diag_.add(r.line("rolling_viscosity"), r.key_path("rolling_viscosity"), value_text(*r.node("rolling_viscosity")),
+                "rolling_viscosity applies to rolling = \"viscous\", and this contact uses the constant model",
+                "remove rolling_viscosity, or set rolling = \"viscous\"");
+    }
+    if (r.has("rolling") && contact.rolling == RollingModel::viscous && !(contact.rolling_viscosity > 0)) {
+      diag_.add(r.line("rolling"), r.key_path("rolling"), "\"viscous\"",
+                "viscous rolling resistance needs rolling_viscosity > 0",
+                "give rolling_viscosity (s/m), e.g. rolling_viscosity = 0.05");
+    }
+  }
+
   // The keys of one DEM-DEM contact law ([contact.dem_dem] or one of its pairs).
   static void read_dem_law(Reader& r, DemContactLaw& law) {
     if (auto v = r.string("model")) law.model = *v == "hertz_mindlin" ? DemLaw::hertz_mindlin : DemLaw::linear;
@@ -1684,6 +1704,7 @@ class Builder {
     Reader df(diag_, spec("contact-dem_fem"), dem_fem != nullptr ? *dem_fem : empty_table(), "contact.dem_fem");
     read_surface_contact_law(df, scene_.dem_fem_default, "in [contact.dem_fem]");
     read_surface_contact(df, scene_.dem_fem_default);
+    read_surface_rolling(df, scene_.dem_fem_default);
 
     const toml::table* sph_fem = contact.table("sph_fem");
     if (sph_fem != nullptr && !(has_fluids_ && has_structures_)) {
@@ -1755,7 +1776,8 @@ class Builder {
       interaction.origin = sph_dem.origin = origin(r.line(), path);
       if (fluid_and_set) {
         sph_dem.contact = scene_.sph_dem_default;
-        for (const char* key : {"restitution", "penalty_scale", "tangential_damping_ratio"}) {
+        for (const char* key : {"restitution", "penalty_scale", "tangential_damping_ratio", "rolling",
+                                "rolling_friction", "rolling_viscosity"}) {
           if (r.has(key)) {
             diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                       "a fluid and a particle set meet through boundary particles or the penalty law of paper "
@@ -1780,7 +1802,7 @@ class Builder {
                     names_fluid ? "remove model (set [sph] wall_model for the fluid's walls)"
                                 : "write model = \"penalty\" or model = \"hertz_mindlin\"");
         } else if (names_fluid) {
-          for (const char* key : {"model", "restitution"}) {
+          for (const char* key : {"model", "restitution", "rolling", "rolling_friction", "rolling_viscosity"}) {
             if (r.has(key)) {
               diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                         "fluid particles meet structures through the penalty law only",
@@ -1791,6 +1813,7 @@ class Builder {
           read_surface_contact_law(r, interaction.contact, "in this interaction or in [contact.dem_fem]");
         }
         read_surface_contact(r, interaction.contact);
+        if (!names_fluid) read_surface_rolling(r, interaction.contact);
         if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
       }
       if (!pair) continue;

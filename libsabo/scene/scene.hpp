@@ -126,6 +126,8 @@ struct ParticleSet {
   std::uint64_t seed = 1;
   Vec3 velocity = Vec3::Zero();  // m/s, initial velocity of filled spheres
   double settle_time = 0;        // s: settle under gravity inside the region before step 0 (0: no)
+  // The set's spheres never move (a glued bed of beads): they take any force, their contacts count.
+  bool fixed = false;
 
   // Probability that a drawn sphere belongs to sieve class k (k = 1 .. rows-1; entry 0 is 0).
   [[nodiscard]] std::vector<double> sieve_class_probabilities() const;
@@ -249,8 +251,17 @@ struct SurfaceContact {
   double penalty_scale = 0.1;              // k1 of eq. 6
   std::optional<double> normal_stiffness;  // N/m: replaces eq. 6 when given
   double normal_damping_ratio = 0.0;       // zeta: c_n = 2 zeta sqrt(k_n m)
-  double tangential_damping_ratio = 0.0;
+  double tangential_damping_ratio = 0.0;   // zeta_t (and the rolling spring's dashpot)
+  // Rolling resistance of spheres against the structure (particle sets only), the models of
+  // DemContactLaw with r_eff = the sphere's radius: off unless rolling_friction (constant) or
+  // rolling_viscosity (viscous) is > 0.
+  RollingModel rolling = RollingModel::constant;
+  double rolling_friction = 0.0;   // mu_r >= 0, constant
+  double rolling_viscosity = 0.0;  // s/m, viscous
   bool enabled = true;
+  [[nodiscard]] bool has_rolling() const {
+    return rolling == RollingModel::constant ? rolling_friction > 0 : rolling_viscosity > 0;
+  }
 };
 
 struct Interaction {

@@ -338,6 +338,10 @@ class Schema {
             .absent("use `spheres`")
             .example("{ min = [0.0, 0.0, 0.0], max = [4.0, 4.0, 4.0], count = 10, diameter = [0.5, 1.0] }")
             .doc("Random filling of a box (inline table, see below)."),
+        K("fixed", Type::boolean)
+            .def("false")
+            .doc("The set's spheres never move (a glued bed of beads, a rough bed): they take any force, and "
+                 "their contacts with other spheres, structures and the fluid are computed as for the others."),
     };
     sphere.title = "[[particles]] spheres = [ { ... } ]";
     sphere.anchor = "particles-spheres";
@@ -956,7 +960,9 @@ class Schema {
         "These are the settings of every particle-set/structure pair; `[[interactions]]` override them per "
         "pair. `model = \"hertz_mindlin\"` replaces the penalty spring by the Hertz-Mindlin (no-slip) law of a "
         "sphere against a flat face, from the E and nu of the sphere's and the structure's materials, with "
-        "dashpots from `restitution`; the penalty and damping-ratio keys then do not apply.";
+        "dashpots from `restitution`; the penalty and damping-ratio keys then do not apply. Rolling resistance "
+        "(`rolling`, `rolling_friction`, `rolling_viscosity`: the models of `[contact.dem_dem]` with r_eff the "
+        "sphere's radius) is off by default here.";
     dem_fem.keys = {
         K("model", Type::string)
             .def("\"penalty\"")
@@ -983,7 +989,26 @@ class Schema {
             .ge(0)
             .lt(1)
             .doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
-        K("tangential_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Tangential damping ratio."),
+        K("tangential_damping_ratio", Type::number)
+            .def("0.0")
+            .ge(0)
+            .lt(1)
+            .doc("Tangential damping ratio (and the rolling spring's dashpot)."),
+        K("rolling", Type::string)
+            .def("\"constant\"")
+            .choices({"constant", "viscous"})
+            .doc("Rolling resistance model against the structure (as `[contact.dem_dem]`, r_eff = the sphere's "
+                 "radius)."),
+        K("rolling_friction", Type::number)
+            .def("0.0")
+            .ge(0)
+            .doc("Constant rolling resistance against the structure: an elastic-plastic rolling spring capped at "
+                 "rolling_friction * r * |F_n| (0: none)."),
+        K("rolling_viscosity", Type::number)
+            .def("0.0")
+            .unit("s/m")
+            .ge(0)
+            .doc("Viscous rolling resistance against the structure: torque = rolling_viscosity * r * |F_n| * r |w|."),
     };
   }
 
@@ -1038,6 +1063,22 @@ class Schema {
             .ge(0)
             .lt(1)
             .doc("Tangential damping ratio (not for a fluid and a particle set)."),
+        K("rolling", Type::string)
+            .absent(from_default)
+            .example("\"viscous\"")
+            .choices({"constant", "viscous"})
+            .doc("Rolling resistance model (a particle set and a structure)."),
+        K("rolling_friction", Type::number)
+            .absent(from_default)
+            .example("0.1")
+            .ge(0)
+            .doc("Constant rolling resistance coefficient (a particle set and a structure)."),
+        K("rolling_viscosity", Type::number)
+            .absent(from_default)
+            .example("0.05")
+            .unit("s/m")
+            .ge(0)
+            .doc("Viscous rolling resistance coefficient (a particle set and a structure)."),
     };
   }
 

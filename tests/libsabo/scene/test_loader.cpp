@@ -149,6 +149,11 @@ TEST(SceneLoader, SchemaDefaultsEqualSceneModelDefaults) {
   EXPECT_EQ(scene.dem_fem_default.normal_damping_ratio, surface.normal_damping_ratio);
   EXPECT_EQ(scene.dem_fem_default.tangential_damping_ratio, surface.tangential_damping_ratio);
   EXPECT_EQ(scene.dem_fem_default.enabled, surface.enabled);
+  EXPECT_EQ(scene.dem_fem_default.rolling, surface.rolling);
+  EXPECT_EQ(scene.dem_fem_default.rolling_friction, surface.rolling_friction);
+  EXPECT_EQ(scene.dem_fem_default.rolling_viscosity, surface.rolling_viscosity);
+  EXPECT_FALSE(surface.has_rolling());
+  EXPECT_EQ(scene.particle_sets[0].fixed, ParticleSet{}.fixed);
 
   const Recording recording;
   EXPECT_EQ(scene.recording.enabled, recording.enabled);
@@ -307,6 +312,31 @@ enabled = false
   EXPECT_TRUE(dam.enabled);
   EXPECT_FALSE(scene.surface_contact("boulders", "ground").enabled);
   EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "ground").friction, 0.3);
+
+  // Rolling resistance against structures, per pair; fixed particle sets.
+  const Scene rolling = load_text(std::string(kSceneHead) + R"(
+[[particles]]
+name = "boulders"
+material = "granite"
+fixed = true
+spheres = [ { center = [0.0, 0.0, 3.0], radius = 0.5 } ]
+)" + kGround + R"(
+[contact.dem_fem]
+rolling_friction = 0.05
+[[interactions]]
+pair = ["boulders", "ground"]
+rolling = "viscous"
+rolling_viscosity = 0.2
+)");
+  EXPECT_TRUE(rolling.particle_sets[0].fixed);
+  EXPECT_DOUBLE_EQ(rolling.dem_fem_default.rolling_friction, 0.05);
+  const SurfaceContact ground = rolling.surface_contact("boulders", "ground");
+  EXPECT_EQ(ground.rolling, RollingModel::viscous);
+  EXPECT_DOUBLE_EQ(ground.rolling_viscosity, 0.2);
+  EXPECT_TRUE(ground.has_rolling());
+  const std::string refused =
+      error_of(std::string(kSceneHead) + kOneSphere + kGround + "[contact.dem_fem]\nrolling_viscosity = 0.2\n");
+  EXPECT_NE(refused.find("rolling_viscosity applies to rolling = \"viscous\""), std::string::npos) << refused;
 }
 
 // [contact.sph_dem] and the interactions of a fluid with a particle set: defaults as scene.hpp's, overrides
@@ -526,7 +556,8 @@ TEST(SceneLoader, ChecksAcrossKeys) {
       {head + kGround + "[contact.dem_fem]\nfriction = 0.5\n",
        "key 'contact.dem_fem': sphere-structure contact needs both particles and structures"},
       {head + kOneSphere + "[[interactions]]\npair = [\"boulders\", \"x\"]\n",
-       "key 'interactions': interactions pair a particle set or fluid with a structure, or a fluid with a particle set, but the scene lacks the bodies"},
+       "key 'interactions': interactions pair a particle set or fluid with a structure, or a fluid with a particle "
+       "set, but the scene lacks the bodies"},
       {head + kOneSphere + kGround +
            "[[interactions]]\npair = [\"boulders\", \"ground\"]\n[[interactions]]\npair = "
            "[\"ground\", \"boulders\"]\n",
