@@ -569,8 +569,8 @@ void Coupler::progress(std::uint64_t step, double time, double dt, bool force_em
   last_progress_ = now;
   const double wall = seconds_since(start_wall_);
   const double rate = wall > 0 ? static_cast<double>(step) / wall : 0.0;
-  const double remaining = std::max(0.0, scene_.run.end_time - time);
-  const double eta = time > 0 ? wall * remaining / time : -1.0;
+  eta_.observe(wall, time);
+  const double eta = eta_.seconds_to(scene_.run.end_time);
   events_.emit({{"event", "progress"},
                 {"step", step},
                 {"time", time},

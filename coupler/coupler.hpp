@@ -15,6 +15,7 @@
 
 #include "coupler/accounting.hpp"
 #include "coupler/contact/contact_pair.hpp"
+#include "coupler/eta.hpp"
 #include "coupler/events.hpp"
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/socket.hpp"
@@ -114,6 +115,7 @@ class Coupler {
   double contact_dissipated_ = 0;  // J, accumulated dashpot and slip work of the coupler's contacts
   std::chrono::steady_clock::time_point start_wall_;
   std::chrono::steady_clock::time_point last_progress_;
+  EtaEstimate eta_;  // the progress line's time to go
   std::string failure_;
 };
 
