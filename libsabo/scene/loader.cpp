@@ -740,6 +740,7 @@ class Builder {
     if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
     if (auto v = r.string("density_diffusion")) sph.density_diffusion = SphSettings::density_diffusion_named(*v);
     if (auto v = r.number("density_diffusion_delta")) sph.density_diffusion_delta = *v;
+    if (auto v = r.string("viscous_operator")) sph.viscous_operator = SphSettings::viscous_operator_named(*v);
     const auto min = r.vec3("domain_min"), max = r.vec3("domain_max");
     if (r.has("domain_min") != r.has("domain_max")) {
       const char* given = r.has("domain_min") ? "domain_min" : "domain_max";

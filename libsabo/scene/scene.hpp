@@ -51,9 +51,10 @@ struct Material {
   Eos eos = Eos::tait;
   double tait_exponent = 7.0;                             // gamma, >= 1
   double eos_c0 = 0, eos_c1 = 0, eos_c2 = 0, eos_c3 = 0;  // Pa (polynomial; C1 > 0)
-  // Rheology: only the terms a material asks for are computed.
+  // Rheology: only the terms a material asks for are computed. The viscous stress is
+  // 2 eta(gamma_dot) D (SphSettings::viscous_operator), gamma_dot = sqrt(2 D':D').
   //   inviscid:        no physical viscosity (artificial viscosity only)
-  //   newtonian:       dynamic viscosity `viscosity` (Morris operator)
+  //   newtonian:       dynamic viscosity `viscosity`
   //   bingham:         regularised: eta = viscosity + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot
   //                    (Papanastasiou), plastic viscosity `viscosity`
   //   elastic_plastic: deviatoric stress with Jaumann rate, shear modulus `fluid_shear_modulus`,
@@ -288,6 +289,13 @@ struct SphSettings {
   // Periodic boundaries, m: [min, max) along x and y; a particle leaving it re-enters at the
   // other end, and the fluid sees across the seam (docs/physics.md, "Periodic boundaries").
   std::optional<std::array<double, 2>> periodic_x, periodic_y;
+  // The viscous term (docs/physics.md, "Viscosity"): strain_rate, the divergence of
+  // 2 eta D = eta (L + L^T) (Morris et al.'s pair term for eta L plus the symmetric SPH
+  // divergence of each particle's eta L^T); morris, Morris et al. 1997's pair term alone,
+  // the divergence of eta L, which equals div(2 eta D) only where eta is uniform and the
+  // flow incompressible and far from a free surface.
+  enum class ViscousOperator { strain_rate, morris };
+  ViscousOperator viscous_operator = ViscousOperator::strain_rate;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
   // The scene's names (docs/scene.md) of the choices above; the name must be one of them.
@@ -296,6 +304,9 @@ struct SphSettings {
   }
   [[nodiscard]] static WallWork wall_work_named(std::string_view name) {
     return name == "stored" ? WallWork::stored : name == "unstored" ? WallWork::unstored : WallWork::bounded;
+  }
+  [[nodiscard]] static ViscousOperator viscous_operator_named(std::string_view name) {
+    return name == "morris" ? ViscousOperator::morris : ViscousOperator::strain_rate;
   }
   [[nodiscard]] static DensityDiffusion density_diffusion_named(std::string_view name) {
     return name == "none"      ? DensityDiffusion::none

@@ -222,11 +222,12 @@ class Schema {
         "* `eos = \"polynomial\"` (LS-DYNA's linear polynomial, the paper's slurry): p = C0 + s (C1 mu + C2 mu^2 "
         "+ C3 mu^3), mu = rho/rho0 - 1, s = rho0 c^2 / C1: the artificial sound speed sets the stiffness, "
         "the coefficients the shape.\n"
-        "* `rheology`: `inviscid` (artificial viscosity only); `newtonian` (dynamic `viscosity`, Morris "
-        "operator); `bingham` (Papanastasiou-regularised, eta = `viscosity` + `yield_stress` (1 - "
-        "exp(-gamma_dot / `yield_shear_rate`)) / gamma_dot); `elastic_plastic` (the paper's "
-        "MAT_ELASTIC_PLASTIC_HYDRO: deviatoric stress by the Jaumann rate with shear modulus "
-        "`fluid_shear_modulus`, von Mises yield `yield_stress`, radial return; `viscosity` optional).";
+        "* `rheology`: `inviscid` (artificial viscosity only); `newtonian` (dynamic `viscosity`); `bingham` "
+        "(Papanastasiou-regularised, eta = `viscosity` + `yield_stress` (1 - exp(-gamma_dot / "
+        "`yield_shear_rate`)) / gamma_dot); `elastic_plastic` (the paper's MAT_ELASTIC_PLASTIC_HYDRO: deviatoric "
+        "stress by the Jaumann rate with shear modulus `fluid_shear_modulus`, von Mises yield `yield_stress`, "
+        "radial return; `viscosity` optional). gamma_dot = sqrt(2 D':D'), so that the yield stresses act as von "
+        "Mises yield in shear; the viscous stress 2 eta D enters the momentum by `sph.viscous_operator`.";
     material.keys = {
         K("density", Type::number).required("3000.0").unit("kg/m^3").gt(0).doc("Mass density."),
         K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
@@ -651,6 +652,22 @@ class Schema {
             .doc("delta-SPH term of the continuity equation: Molteni & Colagrossi 2009, or with the hydrostatic "
                  "part taken out (Fourtakas et al. 2019)."),
         K("density_diffusion_delta", Type::number).def("0.1").ge(0).le(1).doc("delta of the density diffusion."),
+        K("viscous_operator", Type::string)
+            .def("\"strain_rate\"")
+            .choices({"strain_rate", "morris"})
+            .doc(
+                "How the viscous stress 2 eta D of the fluids (`rheology` newtonian, bingham, "
+                "elastic_plastic's `viscosity`) enters the momentum (docs/physics.md, \"Viscosity\"). "
+                "`\"strain_rate\"`: the divergence of the deviatoric 2 eta D' = eta (L + L^T) - 2/3 eta tr(L) I, "
+                "L = grad v: Morris et al. 1997's pair term for eta L and the symmetric SPH divergence of each "
+                "particle's eta (L^T - 2/3 tr(L) I), with the kernel-gradient-corrected L (exact for a linear velocity "
+                "field up to a free surface), which the shear rate of the rheology takes too; action equals "
+                "reaction per pair and a rigid rotation feels no force. A uniaxial extension carries Trouton's 3 eta "
+                "eps_dot (S9: 1.2 % off) and a yield stress acts in compression as in shear. `\"morris\"`: Morris's "
+                "pair term alone with the uncorrected L (the operator until 2026-12-01): the same in simple shear (S5, "
+                "S8's slope), but it drops eta L^T, half the normal stress of an extension, wherever the viscosity "
+                "varies or a free surface is near (S9: 49 % short; a Bingham column slumps as if its yield stress "
+                "were about halved)."),
         K("domain_min", Type::vec3)
             .absent("no domain: particles are never taken out")
             .example("[-1.0, -1.0, -1.0]")

@@ -352,6 +352,18 @@ TEST(SceneLoader, SphWallWork) {
   }
 }
 
+// The viscous operator: strain_rate unless the scene names morris.
+TEST(SceneLoader, SphViscousOperator) {
+  using Operator = SphSettings::ViscousOperator;
+  EXPECT_EQ(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").sph.viscous_operator,
+            Operator::strain_rate);
+  TempFolder folder;
+  const std::string anchor = "wall_model = \"boundary_particles\"\n";
+  EXPECT_EQ(load_scene(folder.write("morris.toml", tank_scene_with(anchor, "viscous_operator = \"morris\"\n")))
+                .sph.viscous_operator,
+            Operator::morris);
+}
+
 TEST(SceneLoader, SolverCommandsResolve) {
   TempFolder folder;
   const auto program = folder.write("bin/my_dem", "#!/bin/sh\nexit 0\n");
