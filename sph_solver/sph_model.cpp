@@ -331,6 +331,9 @@ double FluidMaterial::viscosity_at(double shear_rate) const {
     case Rheology::inviscid: return 0;
     case Rheology::newtonian: return viscosity;
     case Rheology::bingham: return viscosity + yield_term();
+    case Rheology::herschel_bulkley:
+      // K gamma_dot^(n-1), held at its value at gamma_0 below it (bounded for n < 1).
+      return consistency_index * std::pow(std::max(shear_rate, yield_shear_rate), flow_index - 1.0) + yield_term();
     case Rheology::elastic_plastic: return viscosity;
   }
   return 0;
@@ -341,6 +344,8 @@ double FluidMaterial::max_viscosity() const {
     case Rheology::inviscid: return 0;
     case Rheology::newtonian: return viscosity;
     case Rheology::bingham: return viscosity + yield_stress / yield_shear_rate;
+    case Rheology::herschel_bulkley:
+      return consistency_index * std::pow(yield_shear_rate, flow_index - 1.0) + yield_stress / yield_shear_rate;
     case Rheology::elastic_plastic: return viscosity;
   }
   return 0;
@@ -403,6 +408,8 @@ SphModel::SphModel(const scene::Scene& scene)
     material.viscosity = source.viscosity;
     material.yield_stress = source.yield_stress.value_or(0.0);
     material.yield_shear_rate = source.yield_shear_rate;
+    material.consistency_index = source.consistency_index;
+    material.flow_index = source.flow_index;
     material.shear_modulus = source.fluid_shear_modulus > 0 ? source.fluid_shear_modulus : source.shear_modulus();
     if (material.rheology == Rheology::elastic_plastic) {
       material.artificial_stress = source.artificial_stress.value_or(kDefaultArtificialStress);
@@ -1129,7 +1136,7 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
     d[2] -= trace;
     const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + 2.0 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
     const double shear_rate = std::sqrt(2.0 * dd);
-    // Papanastasiou for bingham (FluidMaterial::viscosity_at).
+    // Papanastasiou for bingham and herschel_bulkley (FluidMaterial::viscosity_at).
     const double eta = material.viscosity_at(shear_rate);
     feta_[i] = static_cast<float>(eta);
     if (eta > 0) min_viscous_dt = std::min(min_viscous_dt, double{frho_[i]} * h * h / (8.0 * eta));

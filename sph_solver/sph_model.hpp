@@ -87,13 +87,16 @@ struct FluidMaterial {
   double viscosity = 0;          // Pa s
   double yield_stress = 0;       // Pa
   double yield_shear_rate = 1;   // 1/s
+  double consistency_index = 0;  // Pa s^n (herschel_bulkley)
+  double flow_index = 1;         // herschel_bulkley
   double shear_modulus = 0;      // Pa
   double artificial_stress = 0;  // epsilon of Monaghan's artificial stress (elastic_plastic; 0: off)
   [[nodiscard]] bool needs_velocity_gradient() const { return rheology != scene::Material::Rheology::inviscid; }
   // Effective viscosity eta(gamma_dot) of the viscous stress 2 eta D (docs/scene.md, rheology), Pa s;
   // shear_rate = sqrt(2 D':D') >= 0, 1/s. 0 for inviscid.
   [[nodiscard]] double viscosity_at(double shear_rate) const;
-  // Largest effective viscosity of the material (viscous dt condition), Pa s.
+  // Effective viscosity at rest, the largest but for a shear-thickening herschel_bulkley fluid
+  // (the initial viscous dt condition; later steps take the particles' own), Pa s.
   [[nodiscard]] double max_viscosity() const;
 };
 

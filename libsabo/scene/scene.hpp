@@ -53,16 +53,21 @@ struct Material {
   double eos_c0 = 0, eos_c1 = 0, eos_c2 = 0, eos_c3 = 0;  // Pa (polynomial; C1 > 0)
   // Rheology: only the terms a material asks for are computed. The viscous stress is
   // 2 eta(gamma_dot) D (SphSettings::viscous_operator), gamma_dot = sqrt(2 D':D').
-  //   inviscid:        no physical viscosity (artificial viscosity only)
-  //   newtonian:       dynamic viscosity `viscosity`
-  //   bingham:         regularised: eta = viscosity + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot
-  //                    (Papanastasiou), plastic viscosity `viscosity`
-  //   elastic_plastic: deviatoric stress with Jaumann rate, shear modulus `fluid_shear_modulus`,
-  //                    von Mises yield `yield_stress`, radial return (LS-DYNA MAT_ELASTIC_PLASTIC_HYDRO)
-  enum class Rheology { inviscid, newtonian, bingham, elastic_plastic };
+  //   inviscid:         no physical viscosity (artificial viscosity only)
+  //   newtonian:        dynamic viscosity `viscosity`
+  //   bingham:          regularised: eta = viscosity + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot
+  //                     (Papanastasiou), plastic viscosity `viscosity`
+  //   herschel_bulkley: eta = consistency_index max(gamma_dot, yield_shear_rate)^(flow_index - 1)
+  //                     + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot: the yield term
+  //                     regularised as bingham's, the power law held at its value at yield_shear_rate below it
+  //   elastic_plastic:  deviatoric stress with Jaumann rate, shear modulus `fluid_shear_modulus`,
+  //                     von Mises yield `yield_stress`, radial return (LS-DYNA MAT_ELASTIC_PLASTIC_HYDRO)
+  enum class Rheology { inviscid, newtonian, bingham, herschel_bulkley, elastic_plastic };
   Rheology rheology = Rheology::inviscid;
   double viscosity = 0;            // Pa s (newtonian: dynamic; bingham: plastic)
-  double yield_shear_rate = 1.0;   // 1/s (bingham regularisation)
+  double yield_shear_rate = 1.0;   // 1/s (bingham and herschel_bulkley regularisation)
+  double consistency_index = 0;    // Pa s^n (herschel_bulkley: K, > 0)
+  double flow_index = 1.0;         // herschel_bulkley: n, > 0 (< 1 shear-thinning)
   double fluid_shear_modulus = 0;  // Pa (elastic_plastic; 0: shear_modulus() from E and nu)
   // Monaghan's artificial stress against the tensile instability (elastic_plastic only): its
   // epsilon (0: off); absent: sph::kDefaultArtificialStress for elastic_plastic, none otherwise.

@@ -224,10 +224,15 @@ class Schema {
         "the coefficients the shape.\n"
         "* `rheology`: `inviscid` (artificial viscosity only); `newtonian` (dynamic `viscosity`); `bingham` "
         "(Papanastasiou-regularised, eta = `viscosity` + `yield_stress` (1 - exp(-gamma_dot / "
-        "`yield_shear_rate`)) / gamma_dot); `elastic_plastic` (the paper's MAT_ELASTIC_PLASTIC_HYDRO: deviatoric "
-        "stress by the Jaumann rate with shear modulus `fluid_shear_modulus`, von Mises yield `yield_stress`, "
-        "radial return; `viscosity` optional). gamma_dot = sqrt(2 D':D'), so that the yield stresses act as von "
-        "Mises yield in shear; the viscous stress 2 eta D enters the momentum by `sph.viscous_operator`.";
+        "`yield_shear_rate`)) / gamma_dot); `herschel_bulkley` (tau = tau_y + K gamma_dot^n, eta = "
+        "`consistency_index` max(gamma_dot, `yield_shear_rate`)^(`flow_index` - 1) + `yield_stress` (1 - "
+        "exp(-gamma_dot / `yield_shear_rate`)) / gamma_dot: the yield term regularised as bingham's "
+        "(Papanastasiou), the power law held at its value at `yield_shear_rate` below that rate so that a "
+        "shear-thinning fluid's viscosity stays bounded; `yield_stress` absent: a power-law fluid); "
+        "`elastic_plastic` (the paper's MAT_ELASTIC_PLASTIC_HYDRO: deviatoric stress by the Jaumann rate with "
+        "shear modulus `fluid_shear_modulus`, von Mises yield `yield_stress`, radial return; `viscosity` "
+        "optional). gamma_dot = sqrt(2 D':D'), so that the yield stresses act as von Mises yield in shear; the "
+        "viscous stress 2 eta D enters the momentum by `sph.viscous_operator`.";
     material.keys = {
         K("density", Type::number).required("3000.0").unit("kg/m^3").gt(0).doc("Mass density."),
         K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
@@ -245,7 +250,7 @@ class Schema {
         K("eos_c3", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C3."),
         K("rheology", Type::string)
             .def("\"inviscid\"")
-            .choices({"inviscid", "newtonian", "bingham", "elastic_plastic"})
+            .choices({"inviscid", "newtonian", "bingham", "herschel_bulkley", "elastic_plastic"})
             .doc("Fluids: constitutive model of the deviatoric stress."),
         K("viscosity", Type::number)
             .def("0.0")
@@ -257,8 +262,23 @@ class Schema {
             .def("1.0")
             .unit("1/s")
             .gt(0)
-            .doc("Fluids, bingham: shear rate below which the regularised law turns viscous (largest viscosity "
-                 "`viscosity` + `yield_stress` / `yield_shear_rate`)."),
+            .doc("Fluids, bingham and herschel_bulkley: shear rate below which the regularised law turns viscous "
+                 "(largest viscosity `viscosity` + `yield_stress` / `yield_shear_rate`; herschel_bulkley with "
+                 "`flow_index` <= 1: `consistency_index` `yield_shear_rate`^(`flow_index` - 1) + `yield_stress` / "
+                 "`yield_shear_rate`). Below it a regularised fluid creeps (at about `yield_shear_rate` times "
+                 "stress / `yield_stress`); the explicit viscous step falls in proportion to it."),
+        K("consistency_index", Type::number)
+            .absent("required with rheology = \"herschel_bulkley\"")
+            .example("5.0")
+            .unit("Pa s^n")
+            .gt(0)
+            .doc("Fluids, herschel_bulkley: consistency index K of tau = tau_y + K gamma_dot^n."),
+        K("flow_index", Type::number)
+            .def("1.0")
+            .gt(0)
+            .le(2)
+            .doc("Fluids, herschel_bulkley: flow index n of tau = tau_y + K gamma_dot^n (< 1 shear-thinning, 1 "
+                 "bingham, > 1 shear-thickening)."),
         K("fluid_shear_modulus", Type::number)
             .absent("E / (2 (1 + nu)) of this material")
             .example("1.68e6")
@@ -287,11 +307,12 @@ class Schema {
         "and erosion of elements whose maximum principal strain reaches `failure_strain`.";
     material.keys.push_back(
         K("yield_stress", Type::number)
-            .absent("elastic (structures); required by bingham and elastic_plastic fluids")
+            .absent("elastic (structures); required by bingham and elastic_plastic fluids; 0 for herschel_bulkley")
             .unit("Pa")
             .gt(0)
             .doc("Structures: initial yield stress sigma_0 of the plastic kinematic law. Fluids: the Bingham yield "
-                 "stress tau_y, or the von Mises yield stress sigma_y (elastic_plastic)."));
+                 "stress tau_y (bingham, herschel_bulkley), or the von Mises yield stress sigma_y "
+                 "(elastic_plastic)."));
     material.keys.push_back(K("tangent_modulus", Type::number)
                                 .def("0.0")
                                 .unit("Pa")
@@ -656,7 +677,7 @@ class Schema {
             .def("\"strain_rate\"")
             .choices({"strain_rate", "morris"})
             .doc(
-                "How the viscous stress 2 eta D of the fluids (`rheology` newtonian, bingham, "
+                "How the viscous stress 2 eta D of the fluids (`rheology` newtonian, bingham, herschel_bulkley, "
                 "elastic_plastic's `viscosity`) enters the momentum (docs/physics.md, \"Viscosity\"). "
                 "`\"strain_rate\"`: the divergence of the deviatoric 2 eta D' = eta (L + L^T) - 2/3 eta tr(L) I, "
                 "L = grad v: Morris et al. 1997's pair term for eta L and the symmetric SPH divergence of each "
@@ -1175,7 +1196,9 @@ const std::vector<std::string>& cross_checks() {
       "`periodic_x` and `periodic_y` have min < max, a period of at least 4h + dx (h = `smoothing_ratio` * "
       "`particle_spacing`), and hold every fluid body along their axis.",
       "A fluid material: `eos = \"polynomial\"` needs `eos_c1`; `newtonian` and `bingham` need `viscosity` > 0; "
-      "`bingham` and `elastic_plastic` need `yield_stress` > 0; `artificial_stress` > 0 needs `elastic_plastic`. "
+      "`bingham` and `elastic_plastic` need `yield_stress` > 0; `herschel_bulkley` needs `consistency_index` and "
+      "takes no `viscosity`; `consistency_index` and `flow_index` need `herschel_bulkley`; `artificial_stress` > 0 "
+      "needs `elastic_plastic`. "
       "A fluid body holds at least one particle; a "
       "box has min < max on every axis; a profile has at least 3 points, no zero-length edge, no crossing "
       "edges; `direction` is horizontal and not zero.",

@@ -1,7 +1,7 @@
 // The viscous stress of SphModel (docs/physics.md, "Viscosity"): 2 eta D through
 // sph.viscous_operator = "strain_rate" against Morris's pair term alone ("morris"), in the flows
-// that tell them apart (a uniaxial extension with free surfaces, a rigid rotation) and in a
-// Couette flow whose viscosity varies across the gap.
+// that tell them apart (a uniaxial extension with free surfaces, a rigid rotation), in a
+// Couette flow whose viscosity varies across the gap, and the Herschel-Bulkley law.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -323,6 +323,51 @@ TEST(SphValidation, S10CouetteWithViscosityVaryingAcrossTheGap) {
     EXPECT_LT(run.error, 0.02);
     EXPECT_GT(run.error_linear, 0.03);  // the profile did leave the uniform-viscosity one
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Herschel-Bulkley: tau = tau_y + K gamma_dot^n, the yield term regularised as bingham's
+// (Papanastasiou), the power law held at its value at gamma_0 below it. The law itself: flow_index
+// 1 is bingham's law to the bit; above a few gamma_0 the stress eta gamma_dot is the regularised
+// tau_y (1 - exp(-gamma_dot / gamma_0)) + K gamma_dot^n; at rest the viscosity is bounded for n < 1.
+FluidMaterial herschel_bulkley(double tau_y, double K, double n, double gamma0) {
+  FluidMaterial m;
+  m.rheology = Rheology::herschel_bulkley;
+  m.yield_stress = tau_y;
+  m.consistency_index = K;
+  m.flow_index = n;
+  m.yield_shear_rate = gamma0;
+  return m;
+}
+
+TEST(SphViscosity, HerschelBulkleyLaw) {
+  FluidMaterial bingham;
+  bingham.rheology = Rheology::bingham;
+  bingham.viscosity = 1.5;
+  bingham.yield_stress = 40;
+  bingham.yield_shear_rate = 0.5;
+  const FluidMaterial linear = herschel_bulkley(40, 1.5, 1.0, 0.5);
+  int differing = 0;
+  for (const double rate : {0.0, 1e-9, 0.01, 0.3, 0.5, 2.0, 17.0, 400.0}) {
+    differing += linear.viscosity_at(rate) == bingham.viscosity_at(rate) ? 0 : 1;
+  }
+  const FluidMaterial thinning = herschel_bulkley(40, 3.0, 0.4, 0.5);
+  double worst = 0;
+  for (const double rate : {5.0, 20.0, 80.0, 320.0}) {
+    const double expected = 40 * -std::expm1(-rate / 0.5) + 3.0 * std::pow(rate, 0.4);
+    worst = std::max(worst, std::abs(thinning.viscosity_at(rate) * rate / expected - 1.0));
+  }
+  const double at_rest = 3.0 * std::pow(0.5, 0.4 - 1.0) + 40 / 0.5;
+  std::cout << "herschel_bulkley: flow index 1 against bingham at 8 rates, values differing: " << differing
+            << " (expected 0); n = 0.4, stress against tau_y (1 - exp(-rate/gamma_0)) + K rate^n at 5..320 1/s, "
+            << "largest relative difference " << worst << " (expected 0 to rounding, held to 1e-12); viscosity at "
+            << "rest " << thinning.viscosity_at(0.0) << " Pa s, K gamma_0^(n-1) + tau_y / gamma_0 = " << at_rest
+            << " Pa s, max_viscosity " << thinning.max_viscosity() << " Pa s\n";
+  EXPECT_EQ(differing, 0);
+  EXPECT_LT(worst, 1e-12);
+  EXPECT_NEAR(thinning.viscosity_at(0.0), at_rest, 1e-12 * at_rest);
+  EXPECT_NEAR(thinning.max_viscosity(), at_rest, 1e-12 * at_rest);
+  EXPECT_NEAR(thinning.viscosity_at(0.1), 3.0 * std::pow(0.5, -0.6) + 40 * -std::expm1(-0.2) / 0.1, 1e-12);
 }
 
 }  // namespace
