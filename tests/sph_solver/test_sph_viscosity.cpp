@@ -1,7 +1,8 @@
 // The viscous stress of SphModel (docs/physics.md, "Viscosity"): 2 eta D through
 // sph.viscous_operator = "strain_rate" against Morris's pair term alone ("morris"), in the flows
 // that tell them apart (a uniaxial extension with free surfaces, a rigid rotation), in a
-// Couette flow whose viscosity varies across the gap, and the Herschel-Bulkley law.
+// Couette flow whose viscosity varies across the gap, the Herschel-Bulkley law, and a Bingham
+// column slumping on a rigid floor against the slump-test analysis.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -14,6 +15,7 @@
 
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
+#include "tests/support/sph_slump.hpp"
 
 namespace sabo::sph {
 namespace {
@@ -368,6 +370,68 @@ TEST(SphViscosity, HerschelBulkleyLaw) {
   EXPECT_NEAR(thinning.viscosity_at(0.0), at_rest, 1e-12 * at_rest);
   EXPECT_NEAR(thinning.max_viscosity(), at_rest, 1e-12 * at_rest);
   EXPECT_NEAR(thinning.viscosity_at(0.1), 3.0 * std::pow(0.5, -0.6) + 40 * -std::expm1(-0.2) / 0.1, 1e-12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The slump test: a square Bingham column (H = side = 0.1 m) released on a no-slip floor
+// (tests/support/sph_slump.hpp) against the slump analysis h_f / H = x (1 - ln x), x =
+// sqrt(3) tau_y / (rho g H) (slump_analysis(): Pashias et al. 1996's cylinder analysis with the
+// von Mises yield in compression of this Bingham law). The analysis is static and
+// one-dimensional: an ideal yield stress, no inertia, a base free to spread. The SPH slump
+// (mu_p = 5 Pa s, gamma_0 = 1/s) is inertial (the collapse reaches 0.35 sqrt(gH)), regularised (it
+// creeps at about gamma_0 near yield) and on a no-slip floor; it is taken when the collapse ends
+// (the fastest particle below 5 % of sqrt(g H) for 0.02 s). Measured (docs/physics.md,
+// "Viscosity"): 9-12 % below the analysis at dx = H/10, 15 % at H/15 (inertia and creep both
+// lower it: gamma_0 = 0.25/s raises it by 1.4 % of H); Morris's pair term alone, 25-28 % below
+// (its uniaxial yield is about half: the twice-as-far slump). Held: within 15 % with the
+// default operator, and Morris's outside it (what the fix changed).
+TEST(SphValidation, BinghamColumnSlumpReduced) {
+  for (const double x : {0.25, 0.35}) {
+    const double expected = testing::slump_analysis(x);
+    for (const Operator op : {Operator::strain_rate, Operator::morris}) {
+      if (op == Operator::morris && x != 0.25) continue;
+      testing::SlumpCase c;
+      c.yield_number = x;
+      c.op = op;
+      const testing::SlumpRun run = testing::run_slump(c);
+      const double measured = run.final_height / c.height;
+      std::cout << "Bingham column slump, sqrt(3) tau_y / (rho g H) = " << x << ", dx = H/10, " << name_of(op)
+                << ": final height measured " << measured << " H at t = " << run.time << " s (" << run.steps
+                << " steps; collapse ended: " << (run.stopped ? "yes" : "no") << "), slump analysis " << expected
+                << " H, ratio " << measured / expected << (op == Operator::strain_rate ? " (held to 15 %)" : "")
+                << "; half-width of the deposit " << run.spread << " m\n";
+      EXPECT_TRUE(run.stopped);
+      if (op == Operator::strain_rate) {
+        EXPECT_NEAR(measured, expected, 0.15 * expected);
+      } else {
+        EXPECT_LT(measured, 0.85 * expected);
+      }
+    }
+  }
+}
+
+// The full case: `build/bin/test_sph_viscosity --gtest_also_run_disabled_tests
+// --gtest_filter='*DISABLED_BinghamColumnSlump'` (dx = H/15, both yield numbers and operators;
+// 10 minutes on one thread); bench_sph_slump runs any other case.
+TEST(SphValidation, DISABLED_BinghamColumnSlump) {
+  for (const double x : {0.25, 0.35}) {
+    const double expected = testing::slump_analysis(x);
+    for (const Operator op : {Operator::strain_rate, Operator::morris}) {
+      testing::SlumpCase c;
+      c.dx = c.height / 15;
+      c.yield_number = x;
+      c.op = op;
+      const testing::SlumpRun run = testing::run_slump(c);
+      const double measured = run.final_height / c.height;
+      std::cout << "Bingham column slump, x = " << x << ", dx = H/15, " << name_of(op) << ": final height measured "
+                << measured << " H at t = " << run.time << " s, slump analysis " << expected << " H, ratio "
+                << measured / expected << "\n";
+      EXPECT_TRUE(run.stopped);
+      if (op == Operator::strain_rate) {
+        EXPECT_NEAR(measured, expected, 0.2 * expected);
+      }
+    }
+  }
 }
 
 }  // namespace
