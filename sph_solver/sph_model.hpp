@@ -58,6 +58,7 @@
 #include <vector>
 
 #include "libsabo/core/types.hpp"
+#include "libsabo/io/hdf5.hpp"
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
@@ -182,6 +183,11 @@ class SphModel {
   [[nodiscard]] double mean_neighbours() const { return mean_neighbours_; }
   // Box around all active particles; empty when there are none.
   [[nodiscard]] Aabb bounds() const;
+
+  // The whole state integrate() leaves for the next step, for checkpoints (sph_checkpoint.cpp): a model built
+  // from the same scene that loads it continues with the same bits. FileError for a checkpoint of another scene.
+  void save_state(io::hdf5::Group& group) const;
+  void load_state(const io::hdf5::Group& group);
 
  private:
   // The particle (wall particle) id whose state a sorted slot's id carries: itself, or an

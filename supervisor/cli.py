@@ -74,6 +74,9 @@ def build_parser():
                                help="relative tolerance of a field, e.g. position=1e-12 (default: exact)")
     replay_parser.add_argument("--atol", metavar="FIELD=VALUE", action="append",
                                help="absolute tolerance of a field (default: exact)")
+    replay_parser.add_argument("--resume", metavar="CHECKPOINT",
+                               help="start the solver from this checkpoint (RUN_DIR/checkpoints/<role>_<step>.h5) "
+                                    "and replay from its step")
     replay_parser.add_argument("--out", metavar="DIR", help="the replay's folder (default: RUN_DIR/replay/ROLE-<time>)")
     replay_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
 

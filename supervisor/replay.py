@@ -5,7 +5,9 @@ then every recorded StepForces in order) and compares each StepState the solver 
 for ROLE = coupler, `sabo_replay coupler` plays every solver (the recorded registrations and states) and
 compares each StepForces the coupler sends. The process is the scene's own (the built executable or the
 scene's `command`), or `--command ...`: the program a user wants to check in place of the original. The
-scene is the recorded one, with `--set KEY=VALUE` overrides. Everything runs in RUN_DIR/replay/<role>-<time>/.
+scene is the recorded one, with `--set KEY=VALUE` overrides. `--resume CHECKPOINT` starts the solver from one of
+its checkpoints (RUN_DIR/checkpoints/<role>_<step>.h5, with the run's own scene file) and replays from that step:
+the check that a restart continues with the same bits. Everything runs in RUN_DIR/replay/<role>-<time>/.
 
 Exit status: 0 every field matches, 1 a divergence (the first is printed, then a table per field), 2 bad input,
 3 the process failed.
@@ -101,11 +103,28 @@ def command_replay(root, build_dir, args):
     if scene_text.returncode != 0:
         raise SaboError(scene_text.stderr.strip() or "sabo_replay could not read {}".format(traffic), EXIT_BAD_INPUT)
     recorded_scene = _recorded_scene_path(run_dir)
-    text = _absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
-    text = apply_overrides(text, args.set or [])
-    scene = os.path.join(folder, "scene.toml")
-    with open(scene, "w", encoding="utf-8") as handle:
-        handle.write(text)
+    resume = os.path.abspath(args.resume) if args.resume else None
+    if resume:
+        # A checkpoint belongs to the scene file it was written with (its digest): replay with that file.
+        if role == "coupler":
+            raise SaboError("--resume: the coupler is replayed from step 0 (its own restart is not built yet); "
+                            "give --resume with sph, dem or fem", EXIT_BAD_INPUT)
+        if args.set:
+            raise SaboError("--resume with --set: a checkpoint continues the scene it was written with, unchanged; "
+                            "replay from step 0 to try a changed scene", EXIT_BAD_INPUT)
+        if not os.path.isfile(resume):
+            raise SaboError("--resume {}: no such file (checkpoints are in RUN_DIR/checkpoints)".format(resume),
+                            EXIT_BAD_INPUT)
+        if not recorded_scene or not os.path.isfile(recorded_scene):
+            raise SaboError("--resume: the run's scene file {} is gone; a checkpoint needs the scene it was written "
+                            "with".format(recorded_scene or "(unknown: no summary.json)"), EXIT_BAD_INPUT)
+        scene = recorded_scene
+    else:
+        text = _absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
+        text = apply_overrides(text, args.set or [])
+        scene = os.path.join(folder, "scene.toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
     plan = check_scene(scene, bin_dir)
     spec = next((p for p in plan.processes if p.role == role), None)
     if spec is None:
@@ -131,6 +150,9 @@ def command_replay(root, build_dir, args):
     if role != "coupler":
         tool_command += ["--role", role]
         process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", os.path.join(folder, "out")]
+        if resume:
+            tool_command += ["--resume", resume]
+            process_command += ["--resume", resume]
     else:
         process_command = command + ["--scene", scene, "--endpoint", endpoint, "--out", os.path.join(folder, "out")]
     os.makedirs(os.path.join(folder, "out"), exist_ok=True)

@@ -21,6 +21,7 @@
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/core/signals.hpp"
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/message_compare.hpp"
 #include "libsabo/protocol/socket.hpp"
@@ -122,8 +123,17 @@ void finish_report(const protocol::MessageComparison& comparison, const std::str
 
 // Plays the coupler for one solver.
 int replay_solver(const io::TrafficReader& traffic, const std::string& role, const std::string& endpoint,
-                  protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s) {
-  const auto steps = contiguous_steps(traffic, role);
+                  protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s,
+                  std::optional<std::uint64_t> resume_step) {
+  auto steps = contiguous_steps(traffic, role);
+  if (resume_step) {
+    // A solver restarted from its checkpoint of step n: the recording from step n on, as a coupler's catch-up.
+    if (*resume_step > steps.back()) {
+      throw FileError(fmt::format("the checkpoint is of step {}, the recording of {} ends at step {}", *resume_step,
+                                  role, steps.back()));
+    }
+    steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
+  }
   require_fields(traffic,
                  role == "fem_solver"   ? std::vector<std::string>{"node_force"}
                  : role == "sph_solver" ? std::vector<std::string>{"force", "boundary_particles"}
@@ -163,6 +173,13 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
     if (registration.role() != recorded_registration.role()) {
       throw ProtocolError(
           fmt::format("registered as role {}, the recording is of {}", static_cast<int>(registration.role()), role));
+    }
+    if (resume_step && (!registration.resumed() || registration.resume_step() != *resume_step)) {
+      throw ProtocolError(fmt::format("registered {}, the replay expected a solver resumed at step {}",
+                                      registration.resumed()
+                                          ? fmt::format("as resumed at step {}", registration.resume_step())
+                                          : std::string("as a fresh start"),
+                                      *resume_step));
     }
     if (registration.particles().SerializeAsString() != recorded_registration.particles().SerializeAsString() ||
         registration.surface().SerializeAsString() != recorded_registration.surface().SerializeAsString()) {
@@ -284,6 +301,9 @@ int main(int argc, char** argv) {
     sub->add_option("--timeout", timeout_s, "seconds to wait for any one message")->capture_default_str();
   }
   solver->add_option("--role", role, "sph_solver, dem_solver or fem_solver")->required();
+  std::string resume_file;
+  solver->add_option("--resume", resume_file,
+                     "the checkpoint the solver was started from (--resume of the solver): replay from its step");
   app.require_subcommand(1);
   try {
     app.parse(argc, argv);
@@ -301,7 +321,16 @@ int main(int argc, char** argv) {
       return 0;
     }
     protocol::MessageComparison comparison(parse_tolerances(tolerances));
-    if (solver->parsed()) return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s);
+    std::optional<std::uint64_t> resume_step;
+    if (!resume_file.empty()) {
+      try {
+        resume_step = io::checkpoint_step(io::hdf5::File::open(resume_file));
+      } catch (const std::exception& error) {
+        fmt::print(stderr, "sabo_replay: --resume {}: not a checkpoint Sabo wrote ({})\n", resume_file, error.what());
+        return kBadInput;
+      }
+    }
+    if (solver->parsed()) return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step);
     return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s);
   } catch (const StopRequested& stop) {
     fmt::print(stderr, "sabo_replay: {}\n", stop.what());

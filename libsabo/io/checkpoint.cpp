@@ -127,15 +127,39 @@ CheckpointInfo CheckpointStore::at(std::uint64_t step) const {
 }
 
 hdf5::File CheckpointStore::open(const CheckpointInfo& info) const {
-  hdf5::File file = hdf5::File::open(info.path);
+  hdf5::File file = open_file(info.path);
+  const auto step = checkpoint_step(file);
+  if (step != info.step) {
+    throw FileError(fmt::format("{}: holds step {}, its name says {}. Fix: do not rename checkpoint files",
+                                info.path.string(), step, info.step));
+  }
+  return file;
+}
+
+hdf5::File CheckpointStore::open_file(const std::filesystem::path& path) const {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) {
+    throw FileError(fmt::format("{}: no such checkpoint file (the {} writes RUN_DIR/checkpoints/{}_<step>.h5)",
+                                path.string(), role_, role_));
+  }
+  hdf5::File file;
+  try {
+    file = hdf5::File::open(path);
+  } catch (const LibraryError& library) {
+    throw FileError(
+        fmt::format("{}: not a Sabo checkpoint: it does not open as HDF5 ({}). Fix: restart from a "
+                    "file of RUN_DIR/checkpoints that Sabo wrote",
+                    path.string(), library.what()));
+  }
   const auto text = [&](const char* name) {
     return file.has_attribute(name) ? file.string_attribute(name) : std::string("(none)");
   };
-  const std::string where = info.path.string();
+  const std::string where = path.string();
   if (text("format") != kCheckpointFormat) {
-    throw FileError(fmt::format("{}: not a Sabo checkpoint (format {}, expected {}). Fix: restart from a file of "
-                                "RUN_DIR/checkpoints that Sabo wrote",
-                                where, text("format"), kCheckpointFormat));
+    throw FileError(
+        fmt::format("{}: not a Sabo checkpoint (format {}, expected {}). Fix: restart from a file of "
+                    "RUN_DIR/checkpoints that Sabo wrote",
+                    where, text("format"), kCheckpointFormat));
   }
   if (text("role") != role_) {
     throw FileError(fmt::format("{}: a checkpoint of {}, not of {}. Fix: give the {} its own checkpoint ({}_*.h5)",
@@ -147,15 +171,15 @@ hdf5::File CheckpointStore::open(const CheckpointInfo& info) const {
         "was started with, unchanged (sabo_replay scene --traffic RUN_DIR/traffic.h5 prints it)",
         where, text("scene_digest"), scene_digest_));
   }
-  const auto step = static_cast<std::uint64_t>(file.int_attribute("step"));
-  if (step != info.step) {
-    throw FileError(fmt::format("{}: holds step {}, its name says {}. Fix: do not rename checkpoint files", where,
-                                step, info.step));
-  }
   return file;
 }
 
-double checkpoint_time(const hdf5::File& file) { return file.double_attribute("time"); }
+double checkpoint_time(const hdf5::File& file) {
+  return file.double_attribute("time");
+}
+std::uint64_t checkpoint_step(const hdf5::File& file) {
+  return static_cast<std::uint64_t>(file.int_attribute("step"));
+}
 
 void write_vectors(hdf5::Group& group, const std::string& name, std::span<const Vec3> values) {
   std::vector<double> flat;
@@ -167,6 +191,58 @@ void write_vectors(hdf5::Group& group, const std::string& name, std::span<const 
 void read_vectors(const hdf5::Group& group, const std::string& name, std::span<Vec3> out) {
   const auto flat = read_array<double>(group, name, 3 * out.size());
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
+}
+
+void write_series(hdf5::Group& group, const std::string& name, const vtk::TimeSeries& series) {
+  std::vector<double> times;
+  std::string files;
+  for (const auto& entry : series.entries()) {
+    times.push_back(entry.time);
+    files += entry.file;
+    files += '\n';
+  }
+  write_array(group, name + "_times", times);
+  group.set_attribute(name + "_files", files);
+}
+
+void read_series(const hdf5::Group& group, const std::string& name, vtk::TimeSeries& series) {
+  const auto times = read_array<double>(group, name + "_times");
+  const std::string files = group.string_attribute(name + "_files");
+  std::vector<vtk::TimeSeries::Entry> entries;
+  std::size_t begin = 0;
+  for (const double time : times) {
+    const std::size_t end = files.find('\n', begin);
+    if (end == std::string::npos) {
+      throw FileError(
+          fmt::format("{}: {}_files names fewer files than {}_times has times. Fix: restart from a "
+                      "checkpoint Sabo wrote",
+                      group.file_name(), name, name));
+    }
+    entries.push_back({time, files.substr(begin, end - begin)});
+    begin = end + 1;
+  }
+  series.restore(std::move(entries));
+}
+
+void write_file_size(hdf5::Group& group, const std::string& name, const std::filesystem::path& file) {
+  std::error_code error;
+  const auto size = std::filesystem::file_size(file, error);
+  group.set_attribute(name + "_bytes", static_cast<std::int64_t>(error ? 0 : size));
+}
+
+bool truncate_to_saved_size(const hdf5::Group& group, const std::string& name, const std::filesystem::path& file) {
+  const auto saved = static_cast<std::uintmax_t>(group.int_attribute(name + "_bytes"));
+  std::error_code error;
+  const auto size = std::filesystem::file_size(file, error);
+  if (error) return false;
+  if (size < saved) {
+    throw FileError(
+        fmt::format("{}: {} bytes, shorter than the {} bytes the checkpoint {} had written. Fix: restart "
+                    "in the run folder the checkpoint belongs to",
+                    file.string(), size, saved, group.file_name()));
+  }
+  if (size > saved) std::filesystem::resize_file(file, saved);
+  return true;
 }
 
 }  // namespace sabo::io

@@ -23,6 +23,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/io/hdf5.hpp"
+#include "libsabo/io/vtk.hpp"
 
 namespace sabo::io {
 
@@ -57,6 +58,8 @@ class CheckpointStore {
   // Opens a checkpoint for reading after checking its identity; FileError when it is not one of this role,
   // scene and format, or its step is not `info.step`.
   [[nodiscard]] hdf5::File open(const CheckpointInfo& info) const;
+  // The same for a file of any name (its step: checkpoint_step()).
+  [[nodiscard]] hdf5::File open_file(const std::filesystem::path& path) const;
 
   [[nodiscard]] const std::filesystem::path& folder() const { return folder_; }
   [[nodiscard]] const std::string& role() const { return role_; }
@@ -71,6 +74,8 @@ class CheckpointStore {
 
 // The time (s) a checkpoint was written at.
 [[nodiscard]] double checkpoint_time(const hdf5::File& file);
+// The step a checkpoint resumes at.
+[[nodiscard]] std::uint64_t checkpoint_step(const hdf5::File& file);
 
 // Whole arrays in and out of a group of a checkpoint.
 template <hdf5::Element T>
@@ -103,5 +108,14 @@ template <hdf5::Element T>
 // 3-vectors as 3 doubles each.
 void write_vectors(hdf5::Group& group, const std::string& name, std::span<const Vec3> values);
 void read_vectors(const hdf5::Group& group, const std::string& name, std::span<Vec3> out);
+// A .pvd series' entries (its times and file names), so that a restarted process continues the series.
+void write_series(hdf5::Group& group, const std::string& name, const vtk::TimeSeries& series);
+void read_series(const hdf5::Group& group, const std::string& name, vtk::TimeSeries& series);
+// The byte size of a file a process appends to (a CSV history), and on load the file cut back to it: the rows
+// after the checkpoint are written again by the restarted process. Returns false when the file is not there (a
+// restart into another folder, as a replay does: the process starts the file afresh); FileError when it is
+// shorter than at the checkpoint (not the folder the checkpoint belongs to).
+void write_file_size(hdf5::Group& group, const std::string& name, const std::filesystem::path& file);
+bool truncate_to_saved_size(const hdf5::Group& group, const std::string& name, const std::filesystem::path& file);
 
 }  // namespace sabo::io

@@ -671,6 +671,8 @@ class Builder {
     if (auto v = r.vec3("gravity")) run.gravity = *v;
     if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
     run.max_dt = r.number("max_dt");
+    run.checkpoint_interval = r.number("checkpoint_interval");
+    if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
   }
 
   void read_materials(Reader& root) {

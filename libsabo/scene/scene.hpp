@@ -81,6 +81,10 @@ struct RunSettings {
   Vec3 gravity{0, 0, -9.81};     // m/s^2
   double hang_timeout = 10.0;    // s: a solver silent this long is declared hung
   std::optional<double> max_dt;  // s: upper bound on the coupled dt
+  // s between checkpoints; absent: end_time / 10; 0: none (checkpoint_period() resolves it).
+  std::optional<double> checkpoint_interval;
+  std::size_t checkpoints_kept = 2;
+  [[nodiscard]] double checkpoint_period() const { return checkpoint_interval.value_or(end_time / 10); }
 };
 
 // One solver process. `command` is the program and its fixed arguments; the

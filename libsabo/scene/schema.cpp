@@ -170,6 +170,18 @@ class Schema {
             .unit("s")
             .gt(0)
             .doc("Upper bound on the coupled time step."),
+        K("checkpoint_interval", Type::number)
+            .absent("a tenth of `end_time`")
+            .example("0.5")
+            .unit("s")
+            .ge(0)
+            .doc("Simulated time between two checkpoints: every process writes its whole state at the same step "
+                 "into `RUN_DIR/checkpoints/<role>_<step>.h5`, from which one process is restarted while the others "
+                 "wait (docs/restart.md). `0`: no checkpoints."),
+        K("checkpoints_kept", Type::integer)
+            .def("2")
+            .ge(1)
+            .doc("How many checkpoints of each process are kept (the newest; older ones are removed)."),
     };
   }
 
