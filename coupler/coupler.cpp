@@ -11,6 +11,7 @@
 #include "coupler/contact/pair_factory.hpp"
 #include "coupler/effects.hpp"
 #include "coupler/message_checks.hpp"
+#include "coupler/restart_journal.hpp"
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/protocol/wire.hpp"
@@ -47,6 +48,13 @@ struct Coupler::Peer {
   bool said_goodbye = false;
   sabo::v1::Goodbye goodbye;
   double compute_seconds = 0;  // reported in StepState, summed
+  // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.
+  std::unique_ptr<RestartJournal> journal;
+  std::optional<std::uint64_t> checkpoint_step;  // the step of the checkpoint it was last asked for
+  bool catching_up = false;
+  std::uint64_t resumed_at = 0;  // step of the checkpoint its replacement started from
+  Clock::time_point restarted_wall;
+  std::size_t restarts = 0;
 };
 
 Coupler::Coupler(const scene::Scene& scene, CouplerOptions options, EventStream& events)
@@ -161,6 +169,10 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     refuse(fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
     return;
   }
+  if (registration.resumed()) {
+    accept_replacement(inbound, registration);
+    return;
+  }
   for (const auto& peer : peers_) {
     if (peer->role == role) {
       refuse(fmt::format("the role {} is already taken by pid {}", name, peer->registration.pid()));
@@ -192,6 +204,10 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   }
 
   auto peer = std::make_unique<Peer>();
+  if (scene_.run.restart) {
+    peer->journal =
+        std::make_unique<RestartJournal>(options_.out_dir / "checkpoints" / fmt::format("{}.journal", name));
+  }
   peer->identity = inbound.peer;
   peer->role = role;
   peer->scene_role = settings->role;
@@ -215,6 +231,114 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
                 .registration = &peer->registration,
                 .state = &peer->state});
   peers_.push_back(std::move(peer));
+}
+
+void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v1::Register& registration) {
+  const std::string name = protocol::role_name(registration.role());
+  sabo::v1::RegisterReply reply;
+  reply.set_protocol_version(protocol::kProtocolVersion);
+  reply.set_end_time(scene_.run.end_time);
+  auto refuse = [&](const std::string& why) {
+    spdlog::warn("refused the restarted {}: {}", name, why);
+    reply.set_accepted(false);
+    reply.set_error(why);
+    reply_to_unregistered(reply, inbound.peer);
+  };
+  auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == registration.role(); });
+  if (it == peers_.end()) {
+    refuse(fmt::format("{} registered as resumed from step {}, but no {} has run yet: start it without --resume", name,
+                       registration.resume_step(), name));
+    return;
+  }
+  Peer& peer = **it;
+  const std::uint64_t from = registration.resume_step();
+  if (!peer.journal) {
+    refuse(fmt::format("the scene does not restart solvers ([run] restart = \"off\"): {} cannot rejoin", name));
+    return;
+  }
+  if (from < peer.journal->first_step() || from > current_step_) {
+    refuse(fmt::format(
+        "{} resumes at step {}; the coupler, at step {}, can feed it steps {} to {} (from its newest "
+        "checkpoint): restart it from RUN_DIR/checkpoints/{}_{:010}.h5",
+        name, from, current_step_, peer.journal->first_step(), current_step_, name, peer.journal->first_step()));
+    return;
+  }
+  if (registration.particles().SerializeAsString() != peer.registration.particles().SerializeAsString() ||
+      registration.exposes_surface() != peer.registration.exposes_surface()) {
+    refuse(
+        fmt::format("the restarted {} registers another particle table or surface than the one it replaces: "
+                    "restart the same program with the same scene",
+                    name));
+    return;
+  }
+  reply.set_accepted(true);
+  reply.set_interest_all(true);  // a resumed solver keeps the regions of its checkpoint
+  if (!reply_to_unregistered(reply, inbound.peer)) return;
+  spdlog::warn("{} (pid {}) rejoins from its checkpoint of step {} (pid {} before): catching up {} steps", name,
+               registration.pid(), from, peer.registration.pid(), current_step_ - from);
+  peer.identity = inbound.peer;
+  peer.registration.set_pid(registration.pid());
+  peer.catching_up = from < peer.journal->end_step() || (peer.has_state && from <= current_step_);
+  peer.resumed_at = from;
+  peer.restarted_wall = Clock::now();
+  ++peer.restarts;
+  events_.emit({{"event", "restarted"},
+                {"process", name},
+                {"pid", registration.pid()},
+                {"from_step", from},
+                {"at_step", current_step_},
+                {"catch_up_steps", current_step_ - from}});
+}
+
+bool Coupler::restarting() const {
+  return std::any_of(peers_.begin(), peers_.end(), [](const auto& p) { return p->catching_up; });
+}
+
+bool Coupler::catch_up(Peer& peer, std::uint64_t step) {
+  sabo::v1::StepState state;
+  try {
+    inbound_.parse(state);
+  } catch (const ProtocolError& error) {
+    fail(peer.role_name, error.what());
+  }
+  const std::uint64_t s = state.step();
+  const bool replayed = s < step || (s == step && peer.has_state);
+  if (!replayed) {  // the live step: caught up
+    peer.catching_up = false;
+    return false;
+  }
+  const bool known = s >= peer.journal->first_step() && (s < peer.journal->end_step() || (s == step && peer.has_state));
+  if (!known) {
+    fail(peer.role_name, fmt::format("the restarted process sent the state of step {}; the coupler can check steps {} "
+                                     "to {} (it resumed at step {})",
+                                     s, peer.journal->first_step(), step, peer.resumed_at));
+  }
+  const std::string differs = peer.journal->first_difference(state);
+  if (!differs.empty()) {
+    fail(peer.role_name,
+         fmt::format("restarted from its checkpoint of step {}, it sent a state of step {} that differs from the one "
+                     "it sent before it died, first in field {}: the restart would change the answer, so the run "
+                     "stops. Find where with ./sabo replay RUN_DIR {} --resume RUN_DIR/checkpoints/{}_{:010}.h5",
+                     peer.resumed_at, s, differs, peer.role_name.substr(0, 3), peer.role_name, peer.resumed_at));
+  }
+  if (s < step) socket_.send(peer.journal->forces(s), peer.buffer, peer.identity);
+  if (s + 1 == step || s == step) {
+    peer.catching_up = false;
+    const double seconds = seconds_since(peer.restarted_wall);
+    spdlog::info("{} caught up from step {} to step {} in {:.2f} s", peer.role_name, peer.resumed_at, step, seconds);
+    events_.emit({{"event", "caught_up"},
+                  {"process", peer.role_name},
+                  {"from_step", peer.resumed_at},
+                  {"at_step", step},
+                  {"seconds", seconds}});
+    restarts_.push_back({{"process", peer.role_name},
+                         {"pid", peer.registration.pid()},
+                         {"from_step", peer.resumed_at},
+                         {"at_step", step},
+                         {"catch_up_steps", step - peer.resumed_at},
+                         {"catch_up_seconds", seconds}});
+  }
+  return true;
 }
 
 void Coupler::wait_for_registrations() {
@@ -254,12 +378,17 @@ void Coupler::accept_state(Peer& peer, std::uint64_t step) {
   validate_state(peer);
   peer.has_state = true;
   if (recorder_) recorder_->record_state(peer.role_name, peer.state);
+  if (peer.journal) {
+    // The state after a checkpoint proves the solver has written it: the journal starts again there.
+    if (peer.checkpoint_step && *peer.checkpoint_step == step) peer.journal->begin(step);
+    peer.journal->add_state(peer.state);
+  }
 }
 
 void Coupler::collect_states(std::uint64_t step) {
   auto pending = [&] {
     return static_cast<std::size_t>(
-        std::count_if(peers_.begin(), peers_.end(), [](const auto& p) { return !p->has_state; }));
+        std::count_if(peers_.begin(), peers_.end(), [](const auto& p) { return !p->has_state || p->catching_up; }));
   };
   auto wait_start = Clock::now();
   const auto hang = std::chrono::duration<double>(scene_.run.hang_timeout);
@@ -283,7 +412,14 @@ void Coupler::collect_states(std::uint64_t step) {
     }
     const auto receive_start = Clock::now();
     Peer* peer = route(inbound_, sabo::v1::MESSAGE_TYPE_STEP_STATE, step);
-    if (peer == nullptr) continue;
+    if (peer == nullptr) {
+      if (restarting()) wait_start = Clock::now();  // a replacement registered: the wait starts again
+      continue;
+    }
+    if (peer->catching_up && catch_up(*peer, step)) {
+      wait_start = Clock::now();
+      continue;
+    }
     accept_state(*peer, step);
     receive_seconds_ += seconds_since(receive_start);
   }
@@ -515,7 +651,19 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
       f.set_interest_all(true);
     }
     if (recorder_) recorder_->record_forces(peer->role_name, f);
-    socket_.send(f, peer->buffer, peer->identity);
+    if (checkpoint && peer->registration.checkpoints()) peer->checkpoint_step = step + 1;
+    if (peer->journal) {
+      peer->journal->add_forces(f);
+      // A solver that died after its state: its replacement gets these forces in the catch-up.
+      try {
+        socket_.send(f, peer->buffer, peer->identity);
+      } catch (const LibraryError& error) {
+        spdlog::warn("could not send the forces of step {} to {} (it may have died; it can be restarted): {}", step,
+                     peer->role_name, error.what());
+      }
+    } else {
+      socket_.send(f, peer->buffer, peer->identity);
+    }
   }
   send_seconds_ += seconds_since(start);
 }
@@ -710,6 +858,7 @@ void Coupler::write_summary(const std::string& status) {
       {"steps_per_second", wall > 0 ? static_cast<double>(steps_) / wall : 0.0},
       {"dt", {{"min", std::isfinite(dt_min_) ? dt_min_ : 0.0}, {"max", dt_max_}}},
       {"checkpoints", {{"interval", scene_.run.checkpoint_period()}, {"written", checkpoints_}}},
+      {"restarts", restarts_},
       {"processes", processes},
       {"coupling_overhead",
        {{"seconds", overhead},
@@ -762,6 +911,7 @@ int Coupler::run() {
     const double end_tolerance = 1e-12 * scene_.run.end_time;
     next_checkpoint_time_ = scene_.run.checkpoint_period();
     for (std::uint64_t step = 0;; ++step) {
+      current_step_ = step;
       collect_states(step);
       time_ = peers_.front()->state.time();
       double step_compute = 0;

@@ -48,6 +48,13 @@ class Coupler {
   // frames, late registrations). Returns the peer it came from, if known.
   Peer* route(const protocol::Inbound& inbound, sabo::v1::MessageType expected, std::uint64_t step);
   void accept_registration(const protocol::Inbound& inbound);
+  // A solver restarted from its checkpoint registers again (docs/restart.md): it takes its role back and is fed
+  // the journalled forces from its checkpoint's step while its states are checked against the journal.
+  void accept_replacement(const protocol::Inbound& inbound, const sabo::v1::Register& registration);
+  // A state of a peer that is catching up, in inbound_: checked and answered from the journal. False when it is
+  // the live step's (the catch-up is over; accept it as usual).
+  bool catch_up(Peer& peer, std::uint64_t step);
+  [[nodiscard]] bool restarting() const;
   // Sends a reply to a peer that has not registered (yet); false when it could not be delivered.
   template <class Message>
   bool reply_to_unregistered(const Message& message, const std::string& peer);
@@ -73,11 +80,13 @@ class Coupler {
   zmq::context_t context_{1};
   protocol::Socket socket_;
   protocol::Inbound inbound_;
-  std::vector<std::unique_ptr<Peer>> peers_;  // in registration order
-  Solvers solvers_;                           // the same, by role, as the pairs see them
-  std::size_t surface_nodes_ = 0;             // nodes of the surface now (registration or last topology)
-  std::uint64_t surface_revision_ = 0;        // its topology revision
-  double expected_time_ = 0;                  // s, t_n: the sum of the dt sent
+  std::vector<std::unique_ptr<Peer>> peers_;           // in registration order
+  Solvers solvers_;                                    // the same, by role, as the pairs see them
+  std::size_t surface_nodes_ = 0;                      // nodes of the surface now (registration or last topology)
+  std::uint64_t surface_revision_ = 0;                 // its topology revision
+  double expected_time_ = 0;                           // s, t_n: the sum of the dt sent
+  std::uint64_t current_step_ = 0;                     // the step whose states are being collected
+  nlohmann::json restarts_ = nlohmann::json::array();  // for summary.json
 
   // The contact pairs of the scene (pair_factory.hpp), in the order their forces are summed.
   struct PairSlot {

@@ -32,8 +32,11 @@ class ProcessSpec:
 
 
 class LaunchPlan:
-    def __init__(self, scene, end_time, output_interval, hang_timeout, endpoint, processes):
+    def __init__(self, scene, end_time, output_interval, hang_timeout, endpoint, processes, restart="off",
+                 max_restarts=0):
         self.scene = scene
+        self.restart = restart            # "auto": restart a solver that dies from its newest checkpoint
+        self.max_restarts = max_restarts  # per solver
         self.end_time = end_time
         self.output_interval = output_interval
         self.hang_timeout = hang_timeout
@@ -101,7 +104,9 @@ def parse_plan(text, source):
                       output_interval=_number(plan, "output_interval", source),
                       hang_timeout=_number(plan, "hang_timeout", source),
                       endpoint=endpoint,
-                      processes=processes)
+                      processes=processes,
+                      restart=plan.get("restart", "off"),
+                      max_restarts=int(plan.get("max_restarts", 0)))
 
 
 def check_scene(scene, bin_dir):

@@ -9,6 +9,7 @@ Ctrl-C) ends with every process stopped and a report naming the culprit.
 """
 import json
 import os
+import re
 import selectors
 import shutil
 import signal
@@ -93,6 +94,8 @@ class Supervisor:
         self._buffer = b""
         self._events = None          # coupler.events.jsonl
         self._solvers_started = False
+        self._solver_endpoint = None
+        self._restarts = {}  # role -> restarts so far
         self._start_failure = None
         self._stopping = False       # the coupler said the run is ending
         self._done = None            # the done event
@@ -181,6 +184,7 @@ class Supervisor:
 
     def _start_solvers(self, endpoint):
         self._solvers_started = True
+        self._solver_endpoint = endpoint
         for spec in self.plan.solvers:
             if self._interrupts:
                 return
@@ -206,10 +210,15 @@ class Supervisor:
             if failed:
                 # The coupler may be going down at the same moment, and the solver only because of it
                 # (the coupler's exit code and error events then tell the story): let it settle.
-                self._wait_for_exit(self.coupler, SETTLE_S)
+                # A solver killed by a signal is restarted at once (the coupler waits hang_timeout for it).
+                if not all(p.returncode < 0 for p in failed):
+                    self._wait_for_exit(self.coupler, SETTLE_S)
                 if self.coupler.poll() is not None:
                     return self._on_coupler_exit(failed)
-                return self._fail("; ".join(p.describe() for p in failed), culprits=failed)
+                refused = [reason for reason in (self._restart(p) for p in failed) if reason]
+                if not refused:
+                    continue
+                return self._fail("; ".join(refused), culprits=failed)
             for solver in self.solvers:
                 if solver.poll() is None or solver.handled:
                     continue
@@ -225,6 +234,49 @@ class Supervisor:
                     "hung (the scene's hang_timeout is {:g} s){}".format(
                         now - self._last_activity, self.plan.hang_timeout, self._last_progress_text()),
                     culprits=[self.coupler])
+
+    def _newest_checkpoint(self, role):
+        """(step, path) of the newest complete checkpoint of `role` in RUN_DIR/checkpoints, or None."""
+        folder = os.path.join(self.run_dir, "checkpoints")
+        pattern = re.compile(r"{}_([0-9]{{10}})\.h5$".format(re.escape(role)))
+        try:
+            names = os.listdir(folder)
+        except OSError:
+            return None
+        found = sorted((int(m.group(1)), os.path.join(folder, name)) for name in names for m in [pattern.match(name)]
+                       if m)
+        return found[-1] if found else None
+
+    def _restart(self, process):
+        """Start `process`'s role again from its newest checkpoint (restart = "auto"); None when it was restarted,
+        else the reason the run stops."""
+        died = process.describe()
+        if self.plan.restart != "auto" or self._stopping or self._interrupts:
+            return died
+        count = self._restarts.get(process.role, 0)
+        if count >= self.plan.max_restarts:
+            return "{}; it was restarted {} times already (max_restarts = {})".format(died, count,
+                                                                                        self.plan.max_restarts)
+        checkpoint = self._newest_checkpoint(process.role)
+        if checkpoint is None:
+            return "{}; no checkpoint of it to restart from yet (the first comes at [run] checkpoint_interval)".format(
+                died)
+        step, path = checkpoint
+        spec = next(p for p in self.plan.solvers if p.role == process.role)
+        arguments = ["--scene", self.scene, "--coupler", self._solver_endpoint, "--out", self.run_dir, "--resume", path]
+        try:
+            replacement = start_process(spec.role, spec.command + arguments, self.run_dir,
+                                        os.path.join(self.run_dir, spec.role + ".log"), stdout_to_pipe=False)
+        except OSError as error:
+            return "{}; could not start it again: {}".format(died, error.strerror)
+        process.sweep()
+        self.processes[self.processes.index(process)] = replacement
+        self._write_pids()
+        self._restarts[process.role] = count + 1
+        self._last_activity = time.monotonic()
+        self.display.error("sabo: {}; restarting it from its checkpoint of step {} (pid {}, restart {} of {})".format(
+            died, step, replacement.pid, count + 1, self.plan.max_restarts))
+        return None
 
     def _last_progress_text(self):
         if self._last_progress is None:
@@ -489,6 +541,15 @@ class Supervisor:
             self._errors.append(event)
             self.display.error("sabo: the coupler reports: {}: {}".format(event.get("process", "?"),
                                                                            event.get("message", "?")))
+        elif kind == "restarted":
+            self._last_activity = time.monotonic()
+            self.display.info("sabo: {} (pid {}) rejoined at step {}, catching up {} steps".format(
+                event.get("process", "?"), event.get("pid", "?"), event.get("from_step", "?"),
+                event.get("catch_up_steps", "?")))
+        elif kind == "caught_up":
+            self._last_activity = time.monotonic()
+            self.display.info("sabo: {} caught up with the run at step {} ({:.2f} s)".format(
+                event.get("process", "?"), event.get("at_step", "?"), float(event.get("seconds", 0))))
         elif kind == "stopping":
             self._last_activity = time.monotonic()
             self._stopping = True

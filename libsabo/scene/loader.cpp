@@ -673,6 +673,15 @@ class Builder {
     run.max_dt = r.number("max_dt");
     run.checkpoint_interval = r.number("checkpoint_interval");
     if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
+    if (auto v = r.string("restart")) {
+      if (*v == "auto" || *v == "off") {
+        run.restart = *v == "auto";
+      } else {
+        diag_.add(r.line("restart"), r.key_path("restart"), quote_text(*v), "must be \"auto\" or \"off\"",
+                  "write restart = \"auto\" to restart a solver that dies, or restart = \"off\" to stop the run");
+      }
+    }
+    if (auto v = r.integer("max_restarts")) run.max_restarts = static_cast<std::size_t>(*v);
   }
 
   void read_materials(Reader& root) {

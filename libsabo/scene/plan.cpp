@@ -11,6 +11,8 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
   plan["hang_timeout"] = scene.run.hang_timeout;
   if (scene.run.max_dt) plan["max_dt"] = *scene.run.max_dt;
   plan["endpoint"] = scene.run.endpoint;
+  plan["restart"] = scene.run.restart ? "auto" : "off";
+  plan["max_restarts"] = scene.run.max_restarts;
 
   nlohmann::json processes = nlohmann::json::array();
   processes.push_back({{"role", "coupler"}, {"command", {(bin / "coupler").string()}}});

@@ -182,6 +182,17 @@ class Schema {
             .def("2")
             .ge(1)
             .doc("How many checkpoints of each process are kept (the newest; older ones are removed)."),
+        K("restart", Type::string)
+            .def("\"auto\"")
+            .allowed("`\"auto\"` or `\"off\"`")
+            .doc("`\"auto\"`: a solver that dies (non-zero exit, signal) is started again from its newest "
+                 "checkpoint while the others wait; the coupler feeds it the StepForces it was sent since then and "
+                 "checks that it sends the same states to the bit before it rejoins (docs/restart.md). `\"off\"`: "
+                 "the run stops."),
+        K("max_restarts", Type::integer)
+            .def("3")
+            .ge(0)
+            .doc("Restarts allowed per solver process in one run; one more death stops the run."),
     };
   }
 

@@ -1,0 +1,137 @@
+#include "coupler/restart_journal.hpp"
+
+#include <fmt/format.h>
+
+#include <cassert>
+
+#include "libsabo/core/error.hpp"
+
+namespace sabo::coupler {
+
+RestartJournal::RestartJournal(std::filesystem::path file) : path_(std::move(file)) {
+  begin(0);
+}
+
+void RestartJournal::begin(std::uint64_t step) {
+  if (file_.is_open()) file_.close();
+  std::error_code error;
+  std::filesystem::create_directories(path_.parent_path(), error);
+  file_.open(path_, std::ios::binary | std::ios::in | std::ios::out | std::ios::trunc);
+  if (!file_) {
+    throw FileError(fmt::format("{}: cannot write the restart journal (is the run folder writable?)", path_.string()));
+  }
+  size_ = 0;
+  first_ = step;
+  states_.clear();
+  forces_.clear();
+}
+
+RestartJournal::Span RestartJournal::append(const std::string& bytes) {
+  file_.seekp(static_cast<std::streamoff>(size_));
+  file_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (!file_) throw FileError(fmt::format("{}: cannot append to the restart journal (disk full?)", path_.string()));
+  const Span span{size_, bytes.size()};
+  size_ += bytes.size();
+  return span;
+}
+
+std::string RestartJournal::read(const Span& span) {
+  file_.flush();
+  std::string bytes(span.size, '\0');
+  file_.seekg(static_cast<std::streamoff>(span.offset));
+  file_.read(bytes.data(), static_cast<std::streamsize>(span.size));
+  if (!file_) throw FileError(fmt::format("{}: cannot read the restart journal back", path_.string()));
+  return bytes;
+}
+
+namespace {
+
+std::uint64_t fnv(const void* data, std::size_t size, std::uint64_t hash = 14695981039346656037ULL) {
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  for (std::size_t k = 0; k < size; ++k) {
+    hash ^= bytes[k];
+    hash *= 1099511628211ULL;
+  }
+  return hash;
+}
+
+template <class T>
+std::uint64_t digest_of(const google::protobuf::RepeatedField<T>& values) {
+  return values.empty() ? fnv(nullptr, 0) : fnv(values.data(), static_cast<std::size_t>(values.size()) * sizeof(T));
+}
+
+std::uint64_t digest_of(const google::protobuf::MessageLite& message) {
+  const std::string bytes = message.SerializeAsString();
+  return fnv(bytes.data(), bytes.size());
+}
+
+}  // namespace
+
+const std::vector<std::string>& RestartJournal::field_names() {
+  static const std::vector<std::string> names = {
+      "step",          "time",          "stable_dt",      "index",    "position", "velocity",        "angular_velocity",
+      "node_position", "node_velocity", "boundary_force", "energies", "topology", "the other fields"};
+  return names;
+}
+
+std::vector<std::uint64_t> RestartJournal::digests(const sabo::v1::StepState& state) {
+  const std::uint64_t step = state.step();
+  const double time = state.time(), stable_dt = state.stable_dt();
+  sabo::v1::StepState rest = state;
+  for (auto* field : {rest.mutable_position(), rest.mutable_velocity(), rest.mutable_angular_velocity(),
+                      rest.mutable_node_position(), rest.mutable_node_velocity(), rest.mutable_boundary_force()}) {
+    field->Clear();
+  }
+  rest.clear_index();
+  rest.clear_energies();
+  rest.clear_topology();
+  rest.clear_step();
+  rest.clear_time();
+  rest.clear_stable_dt();
+  rest.clear_compute_seconds();
+  rest.clear_wait_seconds();
+  return {fnv(&step, sizeof step),
+          fnv(&time, sizeof time),
+          fnv(&stable_dt, sizeof stable_dt),
+          digest_of(state.index()),
+          digest_of(state.position()),
+          digest_of(state.velocity()),
+          digest_of(state.angular_velocity()),
+          digest_of(state.node_position()),
+          digest_of(state.node_velocity()),
+          digest_of(state.boundary_force()),
+          digest_of(state.energies()),
+          digest_of(state.topology()),
+          digest_of(rest)};
+}
+
+void RestartJournal::add_state(const sabo::v1::StepState& state) {
+  assert(state.step() == first_ + states_.size() && states_.size() == forces_.size());
+  states_.push_back(digests(state));
+}
+
+void RestartJournal::add_forces(const sabo::v1::StepForces& forces) {
+  assert(forces.step() == first_ + forces_.size() && states_.size() == forces_.size() + 1);
+  forces_.push_back(append(forces.SerializeAsString()));
+}
+
+std::string RestartJournal::first_difference(const sabo::v1::StepState& state) const {
+  assert(state.step() >= first_ && state.step() - first_ < states_.size());
+  const auto now = digests(state);
+  const auto& before = states_[state.step() - first_];
+  for (std::size_t k = 0; k < now.size(); ++k) {
+    if (now[k] != before[k]) return field_names()[k];
+  }
+  return {};
+}
+
+sabo::v1::StepForces RestartJournal::forces(std::uint64_t step) {
+  assert(covers(step));
+  sabo::v1::StepForces forces;
+  if (!forces.ParseFromString(read(forces_[step - first_]))) {
+    throw FileError(fmt::format("{}: the forces of step {} do not parse", path_.string(), step));
+  }
+  return forces;
+}
+
+}  // namespace sabo::coupler

@@ -1,0 +1,98 @@
+"""Restart of one solver while the others wait (issue 19, part 3): in the boulder tank (water, two boulders as SPH
+boundary particles, the tank's walls; 751 steps, a checkpoint every 0.03 s) each solver is killed with SIGKILL at
+a seeded random step, three times per solver. The supervisor restarts it from its newest checkpoint, the coupler
+feeds it the StepForces since then and checks its states against the ones it sent before; the run completes,
+every output file (forces.csv, energy.csv, the .pvd series and each .vtp frame) is byte for byte that of an
+uninterrupted run, and summary.json names the restart. A scene with restart = "off" stops instead."""
+import filecmp
+import json
+import os
+import random
+import signal
+import time
+
+from e2e_support import RealRunTestCase, read_json
+
+TANK = "configs/tests/sph_boulders_tank.toml"
+OUTPUTS = ["forces.csv", "energy.csv", "dem.pvd", "sph.pvd", "fem.pvd"]
+
+
+class RestartTest(RealRunTestCase):
+    def write_scene(self, name, extra_run_lines=""):
+        with open(self.scene_path(TANK), encoding="utf-8") as handle:
+            text = handle.read()
+        self.assertIn("end_time = 0.3", text)
+        text = text.replace("end_time = 0.3", "end_time = 0.3\n" + extra_run_lines)
+        # No traffic recording: the coupler's restart journal is what the catch-up uses.
+        text = text.replace("[recording]", "[recording]\nenabled = false", 1) if "[recording]" in text else text
+        scene = os.path.join(self.tmp, name + ".toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        return scene
+
+    def run_and_kill(self, scene, out, role, at_step):
+        """Runs `scene`, sends SIGKILL to `role` once the coupler reports step `at_step`; returns the exit code."""
+        sabo = self.run_sabo(scene, out)
+        events = os.path.join(out, "coupler.events.jsonl")
+        deadline = time.monotonic() + 120
+        killed = False
+        while sabo.popen.poll() is None and not killed and time.monotonic() < deadline:
+            try:
+                with open(events, encoding="utf-8") as handle:
+                    steps = [json.loads(line).get("step", 0) for line in handle if '"progress"' in line]
+                if steps and steps[-1] >= at_step:
+                    os.kill(read_json(os.path.join(out, "pids.json"))[role], signal.SIGKILL)
+                    killed = True
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.01)
+        self.assertTrue(killed, "the run ended before step {}".format(at_step))
+        return sabo.wait(180), sabo
+
+    def assertSameOutputs(self, reference, run):
+        for name in OUTPUTS:
+            self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
+                            "{} differs from the uninterrupted run's".format(name))
+        for folder in ("dem", "sph", "fem"):
+            names = sorted(os.listdir(os.path.join(reference, folder)))
+            self.assertEqual(names, sorted(os.listdir(os.path.join(run, folder))))
+            _, mismatch, errors = filecmp.cmpfiles(os.path.join(reference, folder), os.path.join(run, folder), names,
+                                                   shallow=False)
+            self.assertEqual(mismatch + errors, [], "{}/ frames differ".format(folder))
+
+    def test_each_solver_killed_at_a_random_step_is_restarted_and_the_run_is_unchanged(self):
+        scene = self.write_scene("tank", "checkpoint_interval = 0.03")
+        reference = os.path.join(self.tmp, "reference")
+        sabo = self.run_sabo(scene, reference)
+        self.assertEqual(sabo.wait(180), 0, sabo.output())
+        steps = read_json(os.path.join(reference, "summary.json"))["steps"]
+        randomness = random.Random(19)
+        for role in ("dem_solver", "sph_solver", "fem_solver"):
+            for trial in range(3):
+                at_step = randomness.randrange(100, steps - 150)
+                out = os.path.join(self.tmp, "{}-{}".format(role, trial))
+                code, sabo = self.run_and_kill(scene, out, role, at_step)
+                summary = read_json(os.path.join(out, "summary.json"))
+                restarts = summary["restarts"]
+                print("{} killed at step {}: exit {}, {}".format(role, at_step, code, restarts))
+                self.assertEqual(code, 0, sabo.output())
+                self.assertEqual(summary["status"], "completed")
+                self.assertEqual(len(restarts), 1)
+                self.assertEqual(restarts[0]["process"], role)
+                # From the newest checkpoint: at most one interval (0.03 s, under 100 steps) to catch up.
+                self.assertEqual(restarts[0]["catch_up_steps"], restarts[0]["at_step"] - restarts[0]["from_step"])
+                self.assertLess(restarts[0]["catch_up_steps"], 100)
+                self.assertIn("restarting it from its checkpoint of step {}".format(restarts[0]["from_step"]),
+                              sabo.output())
+                self.assertSameOutputs(reference, out)
+                self.assertNoProcessLeft(out)
+
+    def test_with_restart_off_a_killed_solver_stops_the_run(self):
+        scene = self.write_scene("tank_off", 'checkpoint_interval = 0.03\nrestart = "off"')
+        out = os.path.join(self.tmp, "off")
+        code, sabo = self.run_and_kill(scene, out, "dem_solver", 200)
+        print(sabo.output()[-400:])
+        self.assertNotEqual(code, 0)
+        self.assertIn("dem_solver", sabo.output())
+        self.assertNotIn("restarting it", sabo.output())
+        self.assertNoProcessLeft(out)
