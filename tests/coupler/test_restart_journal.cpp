@@ -1,0 +1,83 @@
+// The coupler's restart journal: the forces come back as sent, a state's first differing field is named, and the
+// journal starts again at a checkpoint's step.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "coupler/restart_journal.hpp"
+#include "tests/support/scratch.hpp"
+
+using sabo::coupler::RestartJournal;
+
+namespace {
+
+sabo::v1::StepState state_of(std::uint64_t step) {
+  sabo::v1::StepState state;
+  state.set_step(step);
+  state.set_time(1e-3 * static_cast<double>(step));
+  state.set_stable_dt(1e-3);
+  for (std::uint32_t i = 0; i < 4; ++i) {
+    state.add_index(i);
+    for (int c = 0; c < 3; ++c) {
+      state.add_position(0.1 * i + c + static_cast<double>(step));
+      state.add_velocity(-0.2 * i);
+    }
+  }
+  state.mutable_energies()->set_kinetic(3.0 + static_cast<double>(step));
+  state.set_compute_seconds(0.01 * static_cast<double>(step));
+  return state;
+}
+
+sabo::v1::StepForces forces_of(std::uint64_t step) {
+  sabo::v1::StepForces forces;
+  forces.set_step(step);
+  forces.set_dt(1e-3);
+  for (int k = 0; k < 12; ++k) forces.add_force(static_cast<double>(k) * 0.5 + static_cast<double>(step));
+  forces.set_checkpoint(step == 1);
+  return forces;
+}
+
+}  // namespace
+
+TEST(RestartJournal, GivesBackTheForcesAndNamesTheFirstDifferingField) {
+  RestartJournal journal(sabo::testing::scratch("journal/dem_solver.journal"));
+  for (std::uint64_t step = 0; step < 5; ++step) {
+    journal.add_state(state_of(step));
+    journal.add_forces(forces_of(step));
+  }
+  EXPECT_EQ(journal.first_step(), 0U);
+  EXPECT_EQ(journal.end_step(), 5U);
+  for (std::uint64_t step = 0; step < 5; ++step) {
+    EXPECT_EQ(journal.forces(step).SerializeAsString(), forces_of(step).SerializeAsString()) << "step " << step;
+  }
+  auto same = state_of(3);
+  same.set_compute_seconds(7.0);  // the timings of a restarted process differ and are not compared
+  same.set_wait_seconds(2.0);
+  EXPECT_EQ(journal.first_difference(same), "");
+  auto moved = state_of(3);
+  moved.set_position(5, std::nextafter(moved.position(5), 10.0));  // one bit
+  EXPECT_EQ(journal.first_difference(moved), "position");
+  auto hotter = state_of(2);
+  hotter.mutable_energies()->set_kinetic(hotter.energies().kinetic() + 1e-12);
+  EXPECT_EQ(journal.first_difference(hotter), "energies");
+  auto fewer = state_of(4);
+  fewer.mutable_index()->RemoveLast();
+  EXPECT_EQ(journal.first_difference(fewer), "index");
+}
+
+TEST(RestartJournal, StartsAgainAtACheckpoint) {
+  RestartJournal journal(sabo::testing::scratch("journal/fem_solver.journal"));
+  for (std::uint64_t step = 0; step < 3; ++step) {
+    journal.add_state(state_of(step));
+    journal.add_forces(forces_of(step));
+  }
+  journal.begin(3);
+  EXPECT_FALSE(journal.covers(2));
+  journal.add_state(state_of(3));
+  EXPECT_FALSE(journal.covers(3)) << "its forces are not in yet";
+  journal.add_forces(forces_of(3));
+  EXPECT_TRUE(journal.covers(3));
+  EXPECT_EQ(journal.forces(3).SerializeAsString(), forces_of(3).SerializeAsString());
+  EXPECT_EQ(std::filesystem::file_size(journal.path()), forces_of(3).SerializeAsString().size())
+      << "the journal file holds the forces since the checkpoint only";
+}
