@@ -76,6 +76,7 @@ class Coupler {
   Solvers solvers_;                           // the same, by role, as the pairs see them
   std::size_t surface_nodes_ = 0;             // nodes of the surface now (registration or last topology)
   std::uint64_t surface_revision_ = 0;        // its topology revision
+  double expected_time_ = 0;                  // s, t_n: the sum of the dt sent
 
   // The contact pairs of the scene (pair_factory.hpp), in the order their forces are summed.
   struct PairSlot {
