@@ -19,15 +19,17 @@
 namespace sabo::scene {
 
 // Bytes per entity of all the processes together (the solver's model, the coupler's copy, the messages
-// both ways and their buffers), measured on configs/ scenes scaled up (bench/RESULTS.md, "Scene size").
-inline constexpr double kBytesPerFluidParticle = 700;
-inline constexpr double kBytesPerWallParticle = 300;
-inline constexpr double kBytesPerSphere = 1500;
-inline constexpr double kBytesPerHexahedron = 1500;
-inline constexpr double kBytesPerShell = 1500;
-inline constexpr double kBytesPerSurfaceTriangle = 300;  // of rigid structures (an element's carry its own)
-// What the processes take before their first entity (code, libraries, ZeroMQ, HDF5).
-inline constexpr double kBytesPerProcess = 40e6;
+// both ways and their buffers): bench/scene_memory.py's slopes of the peak RSS between two sizes of a scene,
+// rounded up (measured 820, 918, 917, 1179, 2551 and 679 B; bench/RESULTS.md, "Scene size").
+inline constexpr double kBytesPerFluidParticle = 900;
+inline constexpr double kBytesPerWallParticle = 1000;
+inline constexpr double kBytesPerSphere = 1000;
+inline constexpr double kBytesPerHexahedron = 1200;
+inline constexpr double kBytesPerShell = 2600;
+inline constexpr double kBytesPerSurfaceTriangle = 700;  // of rigid structures (an element's carry its own)
+// What the processes take before their first entity (code, libraries, ZeroMQ, HDF5): measured 12 to 18 MB
+// per process (the intercepts), taken as 20 MB.
+inline constexpr double kBytesPerProcess = 20e6;
 
 // A run of more steps than this cannot be made (the coupler refuses a stable step that would need more:
 // a model blown up, or an input such as a Young's modulus of 1e300).
