@@ -16,6 +16,7 @@
 #include "coupler/accounting.hpp"
 #include "coupler/connection_guard.hpp"
 #include "coupler/contact/contact_pair.hpp"
+#include "coupler/eta.hpp"
 #include "coupler/events.hpp"
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/socket.hpp"
@@ -62,7 +63,7 @@ class Coupler {
   double coupled_dt() const;
   void compute_contacts(const StepClock& clock);
   void check_newton_third_law(std::uint64_t step);
-  void send_forces(std::uint64_t step, double dt, bool output, bool stop);
+  void send_forces(std::uint64_t step, double dt, bool output, bool stop, bool checkpoint);
   // Ends the run (naming the entity) when a force about to be sent is not finite.
   void check_forces(const Peer& peer, const sabo::v1::StepForces& forces);
   void account(std::uint64_t step, double time, double dt, bool output);
@@ -118,6 +119,8 @@ class Coupler {
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
   double next_output_time_ = 0;
+  double next_checkpoint_time_ = 0;  // s; set to the first period at the start
+  std::uint64_t checkpoints_ = 0;    // steps whose StepForces asked for a checkpoint
   double previous_time_ = 0;
   bool previous_output_ = false;
   double previous_contact_elastic_ = 0;
@@ -125,6 +128,7 @@ class Coupler {
   std::chrono::steady_clock::time_point start_wall_;
   std::chrono::steady_clock::time_point last_progress_;
   std::chrono::steady_clock::time_point stop_grace_end_;  // wait_for_goodbyes: the wait after a stop signal
+  EtaEstimate eta_;  // the progress line's time to go
   std::string failure_;
 };
 

@@ -254,6 +254,9 @@ DemModel::DemModel(const scene::Scene& scene) : settings_(scene.dem_contact), gr
   dissipative_torque_.assign(size(), Vec3::Zero());
   sphere_contacts_.assign(size(), 0);
   sphere_wall_contacts_.assign(size(), 0);
+  for (std::uint32_t i = 0; i < size(); ++i) {
+    if (scene.particle_sets[body_[i]].fixed) set_fixed(i, true);
+  }
 }
 
 void DemModel::sort_by_cell(std::vector<scene::Sphere>& spheres) {

@@ -10,14 +10,25 @@
 
 namespace sabo::coupler {
 
-BoundaryWalls::BoundaryWalls(double spacing, double support)
+BoundaryWalls::BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic)
     : spacing_(spacing),
       support_(support),
-      layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support / spacing - 1e-9)))) {}
+      layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support / spacing - 1e-9)))),
+      periodic_(std::move(periodic)) {}
 
 void BoundaryWalls::set_surface(const geometry::SurfaceMesh& surface) {
   surface_ = surface;
   sampling_ = geometry::sample_surface(surface_, spacing_, layers_);
+  if (!periodic_.empty()) {
+    std::vector<char> keep(sampling_.size(), 1);
+    for (std::size_t k = 0; k < sampling_.size(); ++k) {
+      const Vec3 x = geometry::boundary_particle_position(surface_, sampling_, k);
+      for (const PeriodicSpan& span : periodic_) {
+        if (x[span.axis] < span.min || x[span.axis] >= span.max) keep[k] = 0;
+      }
+    }
+    geometry::keep_particles(sampling_, keep);
+  }
   node_velocity_.assign(surface_.node_count(), Vec3::Zero());
   previous_node_velocity_ = node_velocity_;
   node_acceleration_ = node_velocity_;

@@ -20,9 +20,16 @@ namespace sabo::coupler {
 
 class BoundaryWalls {
  public:
+  // A periodic axis of the fluid (0: x, 1: y) and its span [min, max), m.
+  struct PeriodicSpan {
+    int axis = 0;
+    double min = 0, max = 0;
+  };
   // spacing: dx (m); support: the SPH kernel's support radius (m); the walls
-  // get ceil(support / dx) layers.
-  BoundaryWalls(double spacing, double support);
+  // get ceil(support / dx) layers. Along a periodic axis the walls keep only the
+  // particles inside the span: beyond a seam, the fluid sees the images of the
+  // particles of the other end (a corner fill that spilled past it would double them).
+  BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic = {});
 
   // (Re)samples the surface at its current node positions.
   void set_surface(const geometry::SurfaceMesh& surface);
@@ -71,6 +78,7 @@ class BoundaryWalls {
   double spacing_;
   double support_;
   std::size_t layers_;
+  std::vector<PeriodicSpan> periodic_;
   geometry::SurfaceMesh surface_;
   geometry::SurfaceSampling sampling_;
   std::vector<Vec3> node_velocity_, previous_node_velocity_, node_acceleration_;

@@ -35,6 +35,8 @@ SphDemBoundaryPair::SphDemBoundaryPair(const scene::Scene& scene)
       support_(scene.sph.kernel_support()),
       layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support_ / spacing_ - 1e-9)))) {
   for (const auto& set : scene.particle_sets) boundary_set_.push_back(scene.boundary_particle_set(set.name) ? 1 : 0);
+  if (scene.sph.periodic_x) periodic_.emplace_back(0, *scene.sph.periodic_x);
+  if (scene.sph.periodic_y) periodic_.emplace_back(1, *scene.sph.periodic_y);
 }
 
 void SphDemBoundaryPair::start(const Solvers& solvers, Replies& replies) {
@@ -125,7 +127,13 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
     centre_cover_.push_back(m.centre);
     const auto& sampling = *sampling_[i];
     for (std::size_t p = 0; p < sampling.size(); ++p) {
-      candidate_position_.push_back(m.centre + sampling.offset[p]);
+      Vec3 x = m.centre + sampling.offset[p];
+      // A boulder at a periodic seam: its particles beyond it stand where the fluid's images are.
+      for (const auto& [axis, span] : periodic_) {
+        const double period = span[1] - span[0];
+        x[axis] -= period * std::floor((x[axis] - span[0]) / period);
+      }
+      candidate_position_.push_back(x);
       candidate_owner_.push_back(static_cast<std::uint32_t>(motion.size()));
       candidate_point_.push_back(static_cast<std::uint32_t>(p));
     }

@@ -50,6 +50,7 @@ class SphDemBoundaryPair final : public ContactPair {
 
   double spacing_, support_;
   std::size_t layers_;
+  std::vector<std::pair<int, std::array<double, 2>>> periodic_;    // the fluid's periodic axes and spans, m
   std::vector<std::uint8_t> boundary_set_;                         // per particle set: meets the fluid so
   std::map<double, geometry::SphereSampling> sampling_by_radius_;  // radius (m) -> its sampling
   std::vector<const geometry::SphereSampling*> sampling_;          // per DEM table index; null: not sampled

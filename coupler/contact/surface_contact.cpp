@@ -52,6 +52,7 @@ struct SurfaceContact::Scratch {
   std::vector<std::size_t> kept;
   std::vector<char> history_used;
   std::vector<Vec3> displacement;
+  std::vector<Vec3> rolling_torque;
   std::vector<double> normal_offset;
   std::vector<char> has_history;
 };
@@ -262,6 +263,11 @@ void SurfaceContact::resolve_pairs() {
       pair.tangential_damping_ratio = settings.tangential_damping_ratio;
       pair.hertz = settings.model == scene::SurfaceContact::Model::hertz_mindlin;
       pair.restitution = settings.restitution;
+      if (settings.has_rolling()) {
+        pair.rolling = settings.rolling == scene::RollingModel::constant ? 1 : 2;
+        pair.rolling_friction = settings.rolling_friction;
+        pair.rolling_viscosity = settings.rolling_viscosity;
+      }
       if (!pair.hertz || !pair.enabled) continue;
       const std::array<double, 4> elastic =
           materials_ ? materials_(source_names_[s], surface_.part_name[p]) : std::array<double, 4>{0, 0, 0, 0};
@@ -468,7 +474,10 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
           result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(reduced_mass / stiffness));
         }
       } else {
-        const double k = face_stiffness(face, source);
+        // The rolling spring's k_r / I is 5.625 mu_r^2 times k_n / m (dem_model.hpp, stable_dt()).
+        const double rolling =
+            settings.rolling == 1 ? std::max(1.0, 5.625 * std::pow(settings.rolling_friction, 2)) : 1.0;
+        const double k = rolling * face_stiffness(face, source);
         result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(reduced_mass / k));
       }
     }
@@ -505,7 +514,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   // only take energy out).
   const std::uint64_t id = particles.id[i];
   const auto range =
-      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}, 0.0, 0.0},
+      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}, 0.0, 0.0, {}},
                        [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
   const auto previous = std::span<const HistoryEntry>(history_).subspan(
       static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
@@ -559,6 +568,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   scratch.history_used.assign(previous.size(), 0);
   scratch.has_history.assign(count, 0);
   scratch.displacement.assign(count, Vec3::Zero());
+  scratch.rolling_torque.assign(count, Vec3::Zero());
   scratch.normal_offset.assign(count, 0.0);
   for (std::size_t c = 0; c < count; ++c) {
     ActiveContact& contact = result.contacts[c];
@@ -569,6 +579,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
         scratch.history_used[e] = 1;
         scratch.has_history[c] = 1;
         scratch.displacement[c] = previous[e].displacement;
+        scratch.rolling_torque[c] = previous[e].rolling_torque;
         scratch.normal_offset[c] = previous[e].normal_offset;
         break;
       }
@@ -592,6 +603,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     if (best < previous.size()) {
       scratch.history_used[best] = 1;
       scratch.displacement[c] = previous[best].displacement;
+      scratch.rolling_torque[c] = previous[best].rolling_torque;
       scratch.normal_offset[c] = std::max(0.0, overlap - previous[best].spring_overlap);
     } else if (!previous.empty()) {
       scratch.normal_offset[c] = overlap;  // born inside a lasting contact: no stored energy
@@ -641,6 +653,29 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     contact.dissipated_power = -contact.law.dissipative_force.dot(relative_velocity);
     force_sum += contact.law.force;
     torque_sum += lever.cross(contact.law.force);
+    if (settings.rolling == 1) {
+      // The elastic-plastic rolling spring of the DEM-DEM contact (physics::rolling_spring_torque) against a
+      // face that does not turn: r_eff = the sphere's radius, its dashpot with the pair's tangential damping
+      // ratio and the sphere's moment of inertia.
+      const double k_r = physics::rolling_stiffness(contact.normal_stiffness, settings.rolling_friction, radius);
+      const physics::RollingSpring law{
+          .stiffness = k_r,
+          .damping = physics::damping_coefficient(k_r, 0.4 * mass * radius * radius, settings.tangential_damping_ratio),
+          .friction = settings.rolling_friction,
+          .effective_radius = radius};
+      physics::RollingHistory rolling{scratch.rolling_torque[c]};
+      const physics::RollingTorque torque =
+          physics::rolling_spring_torque(law, contact.law.normal_force, spin, dt_previous, rolling);
+      contact.rolling_torque = rolling.torque;
+      contact.law.elastic_energy += torque.elastic_energy;
+      contact.dissipated_power -= torque.dissipative_torque.dot(spin);
+      torque_sum += torque.torque;
+    } else if (settings.rolling == 2) {
+      const Vec3 torque =
+          (-settings.rolling_viscosity * radius * std::max(contact.law.normal_force, 0.0) * radius) * spin;
+      contact.dissipated_power -= torque.dot(spin);
+      torque_sum += torque;
+    }
   }
   for (int axis = 0; axis < 3; ++axis) {
     out.particle_force[3 * i + static_cast<std::size_t>(axis)] = force_sum[axis];
@@ -785,7 +820,8 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
       records_.push_back(record);
 
       next_history_.push_back(HistoryEntry{particles.id[i], contact.key, contact.displacement, hit.gap.normal,
-                                           contact.normal_offset, hit.gap.overlap - contact.normal_offset});
+                                           contact.normal_offset, hit.gap.overlap - contact.normal_offset,
+                                           contact.rolling_torque});
     }
   }
   std::stable_sort(next_history_.begin(), next_history_.end(),

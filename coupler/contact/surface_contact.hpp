@@ -43,6 +43,14 @@
 // or the pair's explicit stiffness, k_t = k_n, c = 2 zeta sqrt(k m) with m the
 // particle's mass (the wall is taken as infinitely heavy), Coulomb friction mu.
 //
+// Rolling resistance (spheres, the pair's `rolling` settings): the models of the
+// DEM-DEM contact against a face that does not turn, r_eff = the sphere's radius:
+// the elastic-plastic rolling spring capped at mu_r r F_n (physics::rolling_spring_torque,
+// k_r from k_n, its dashpot with the tangential damping ratio and the sphere's
+// moment of inertia 2/5 m r^2), or the viscous torque -eta_r r F_n (r w). The
+// torque acts on the sphere only (the face takes no moment: forces, not moments,
+// balance across the coupler); its springs are kept with the tangential ones.
+//
 // Stable step (eq. 7's contact term, 0.2 pi sqrt(m / k)) with m the reduced
 // mass of the particle and the face: m_p M / (m_p + M), M the lightest node
 // mass of the face's triangle (SurfaceMesh::node_mass; rigid nodes are
@@ -221,8 +229,9 @@ class SurfaceContact {
     FeatureKey key;
     Vec3 displacement = Vec3::Zero();
     Vec3 normal = Vec3::UnitZ();
-    double normal_offset = 0;   // m, see "Normal offset" in the class comment
-    double spring_overlap = 0;  // m, overlap - normal_offset of the last step
+    double normal_offset = 0;            // m, see "Normal offset" in the class comment
+    double spring_overlap = 0;           // m, overlap - normal_offset of the last step
+    Vec3 rolling_torque = Vec3::Zero();  // N m, the rolling spring (constant rolling resistance)
   };
   // A feature merged into a neighbouring contact (rule 3) in the last step.
   struct MergedEntry {
@@ -250,9 +259,10 @@ class SurfaceContact {
     FeatureKey key;
     double normal_stiffness = 0;
     physics::ContactForce law;
-    Vec3 displacement = Vec3::Zero();  // tangential spring after this step
-    double normal_offset = 0;          // m, overlap the normal spring does not see
-    double dissipated_power = 0;       // W
+    Vec3 displacement = Vec3::Zero();    // tangential spring after this step
+    Vec3 rolling_torque = Vec3::Zero();  // rolling spring after this step, N m
+    double normal_offset = 0;            // m, overlap the normal spring does not see
+    double dissipated_power = 0;         // W
   };
   struct Scratch;
 
@@ -269,6 +279,8 @@ class SurfaceContact {
     double effective_modulus = 0;        // E*, Pa (a flat face: the sphere's and the part's compliances)
     double effective_shear_modulus = 0;  // G*, Pa
     double rayleigh_factor = 0;          // sqrt(rho / G) / (0.1631 nu + 0.8766) of the particle, s/m per unit density
+    int rolling = 0;                     // rolling resistance: 0 none, 1 constant (spring capped), 2 viscous
+    double rolling_friction = 0, rolling_viscosity = 0;
   };
   struct ParticleResult {
     std::vector<ActiveContact> contacts;

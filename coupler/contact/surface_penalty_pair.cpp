@@ -111,12 +111,14 @@ void SurfacePenaltyPair::save_history(io::hdf5::Group& group) const {
   const SurfaceContact::History history = contact_->history();
   std::vector<std::uint64_t> particle, nodes, merged_particle, merged_nodes;
   std::vector<std::uint8_t> kind, merged_kind;
-  std::vector<double> displacement, normal, offset, overlap;
+  std::vector<double> displacement, normal, offset, overlap, rolling;
   for (const auto& e : history.springs) {
     particle.push_back(e.particle);
     kind.push_back(static_cast<std::uint8_t>(e.key.kind));
     nodes.insert(nodes.end(), e.key.node.begin(), e.key.node.end());
-    for (int c = 0; c < 3; ++c) displacement.push_back(e.displacement[c]), normal.push_back(e.normal[c]);
+    for (int c = 0; c < 3; ++c) {
+      displacement.push_back(e.displacement[c]), normal.push_back(e.normal[c]), rolling.push_back(e.rolling_torque[c]);
+    }
     offset.push_back(e.normal_offset);
     overlap.push_back(e.spring_overlap);
   }
@@ -134,6 +136,7 @@ void SurfacePenaltyPair::save_history(io::hdf5::Group& group) const {
   write_array(group, "spring_normal", normal);
   write_array(group, "spring_normal_offset", offset);
   write_array(group, "spring_overlap", overlap);
+  write_array(group, "spring_rolling_torque", rolling);
   write_array(group, "merged_particle", merged_particle);
   write_array(group, "merged_feature", merged_kind);
   write_array(group, "merged_nodes", merged_nodes);
@@ -153,9 +156,10 @@ void SurfacePenaltyPair::restore_history(const io::hdf5::Group& group) {
   const auto normal = read_array<double>(group, "spring_normal");
   const auto offset = read_array<double>(group, "spring_normal_offset");
   const auto overlap = read_array<double>(group, "spring_overlap");
+  const auto rolling = read_array<double>(group, "spring_rolling_torque");
   const std::size_t n = particle.size();
   if (kind.size() != n || nodes.size() != 3 * n || displacement.size() != 3 * n || normal.size() != 3 * n ||
-      offset.size() != n || overlap.size() != n) {
+      offset.size() != n || overlap.size() != n || rolling.size() != 3 * n) {
     throw FileError(fmt::format("{}: the spring arrays differ in length ({} springs)", group.path(), n));
   }
   const auto feature = [&](std::uint8_t k) {
@@ -173,6 +177,7 @@ void SurfacePenaltyPair::restore_history(const io::hdf5::Group& group) {
     e.normal = Vec3(normal[3 * i], normal[3 * i + 1], normal[3 * i + 2]);
     e.normal_offset = offset[i];
     e.spring_overlap = overlap[i];
+    e.rolling_torque = Vec3(rolling[3 * i], rolling[3 * i + 1], rolling[3 * i + 2]);
     history.springs.push_back(e);
   }
   const auto merged_particle = read_array<std::uint64_t>(group, "merged_particle");

@@ -22,8 +22,20 @@ std::size_t steps_back(const sabo::v1::StepState& state) {
 
 }  // namespace
 
+namespace {
+
+std::vector<BoundaryWalls::PeriodicSpan> periodic_spans(const scene::SphSettings& sph) {
+  std::vector<BoundaryWalls::PeriodicSpan> spans;
+  if (sph.periodic_x) spans.push_back({0, (*sph.periodic_x)[0], (*sph.periodic_x)[1]});
+  if (sph.periodic_y) spans.push_back({1, (*sph.periodic_y)[0], (*sph.periodic_y)[1]});
+  return spans;
+}
+
+}  // namespace
+
 WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
-    : walls_(scene.sph.particle_spacing, scene.sph.kernel_support()), spacing_(scene.sph.particle_spacing) {}
+    : walls_(scene.sph.particle_spacing, scene.sph.kernel_support(), periodic_spans(scene.sph)),
+      spacing_(scene.sph.particle_spacing) {}
 
 void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {
   walls_.set_surface(

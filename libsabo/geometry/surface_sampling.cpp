@@ -438,4 +438,27 @@ void spread_boundary_forces(const SurfaceMesh& mesh, const SurfaceSampling& samp
   }
 }
 
+void keep_particles(SurfaceSampling& sampling, const std::vector<char>& keep) {
+  assert(keep.size() == sampling.size());
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < keep.size(); ++k) {
+    if (!keep[k]) continue;
+    sampling.face[kept] = sampling.face[k];
+    sampling.weight[kept] = sampling.weight[k];
+    sampling.offset[kept] = sampling.offset[k];
+    sampling.depth[kept] = sampling.depth[k];
+    sampling.extension[kept] = sampling.extension[k];
+    sampling.partner_face[kept] = sampling.partner_face[k];
+    sampling.partner_weight[kept] = sampling.partner_weight[k];
+    ++kept;
+  }
+  sampling.face.resize(kept);
+  sampling.weight.resize(kept);
+  sampling.offset.resize(kept);
+  sampling.depth.resize(kept);
+  sampling.extension.resize(kept);
+  sampling.partner_face.resize(kept);
+  sampling.partner_weight.resize(kept);
+}
+
 }  // namespace sabo::geometry

@@ -78,6 +78,9 @@ struct SurfaceSampling {
 // layers, or a mesh that fails SurfaceMesh::validate.
 [[nodiscard]] SurfaceSampling sample_surface(const SurfaceMesh& mesh, double spacing, std::size_t layers);
 
+// Keeps the particles k with keep[k] != 0 (one flag per particle), in their order.
+void keep_particles(SurfaceSampling& sampling, const std::vector<char>& keep);
+
 // Position (m) of particle k for the mesh's current node positions.
 [[nodiscard]] Vec3 boundary_particle_position(const SurfaceMesh& mesh, const SurfaceSampling& sampling, std::size_t k);
 

@@ -21,6 +21,7 @@
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -674,6 +675,8 @@ class Builder {
   struct FluidMaterialKeys {
     int line = 0;
     bool has_eos_c1 = false;
+    // Lines of the Herschel-Bulkley keys (0: absent) and of viscosity.
+    int consistency_index_line = 0, flow_index_line = 0, viscosity_line = 0;
   };
   // A sphere of a list, with where it was written, for the overlap check.
   struct ListedSphere {
@@ -706,6 +709,8 @@ class Builder {
     if (auto v = r.vec3("gravity")) run.gravity = *v;
     if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
     run.max_dt = r.number("max_dt");
+    run.checkpoint_interval = r.number("checkpoint_interval");
+    if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
   }
 
   void read_materials(Reader& root) {
@@ -741,13 +746,18 @@ class Builder {
     if (auto v = r.string("rheology")) {
       if (*v == "newtonian") material.rheology = Material::Rheology::newtonian;
       if (*v == "bingham") material.rheology = Material::Rheology::bingham;
+      if (*v == "herschel_bulkley") material.rheology = Material::Rheology::herschel_bulkley;
       if (*v == "elastic_plastic") material.rheology = Material::Rheology::elastic_plastic;
     }
     if (auto v = r.number("viscosity")) material.viscosity = *v;
     if (auto v = r.number("yield_shear_rate")) material.yield_shear_rate = *v;
+    if (auto v = r.number("consistency_index")) material.consistency_index = *v;
+    if (auto v = r.number("flow_index")) material.flow_index = *v;
     if (auto v = r.number("fluid_shear_modulus")) material.fluid_shear_modulus = *v;
     material.artificial_stress = r.number("artificial_stress");
-    fluid_material_keys_[material.name] = {r.line(), r.has("eos_c1")};
+    const auto line_if = [&](const char* key) { return r.has(key) ? r.line(key) : 0; };
+    fluid_material_keys_[material.name] = {r.line(), r.has("eos_c1"), line_if("consistency_index"),
+                                           line_if("flow_index"), line_if("viscosity")};
   }
 
   void read_sph(Reader& root) {
@@ -779,6 +789,7 @@ class Builder {
     if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
     if (auto v = r.string("density_diffusion")) sph.density_diffusion = SphSettings::density_diffusion_named(*v);
     if (auto v = r.number("density_diffusion_delta")) sph.density_diffusion_delta = *v;
+    if (auto v = r.string("viscous_operator")) sph.viscous_operator = SphSettings::viscous_operator_named(*v);
     const auto min = r.vec3("domain_min"), max = r.vec3("domain_max");
     if (r.has("domain_min") != r.has("domain_max")) {
       const char* given = r.has("domain_min") ? "domain_min" : "domain_max";
@@ -976,6 +987,33 @@ class Builder {
                   "missing; a bingham or elastic_plastic fluid needs a positive yield stress" + user,
                   "give yield_stress > 0 (Pa)");
       }
+      if (material->rheology == R::herschel_bulkley) {
+        if (keys.consistency_index_line == 0) {
+          diag_.add(keys.line, path + ".consistency_index", std::nullopt,
+                    "missing; a herschel_bulkley fluid needs its consistency index K (tau = tau_y + K "
+                    "gamma_dot^n)" +
+                        user,
+                    "give consistency_index > 0 (Pa s^n), e.g. consistency_index = 5.0");
+        }
+        if (keys.viscosity_line != 0) {
+          diag_.add(keys.viscosity_line, path + ".viscosity", number_literal(material->viscosity),
+                    "herschel_bulkley does not read viscosity: its viscous part is consistency_index K and "
+                    "flow_index n (K gamma_dot^n)" +
+                        user,
+                    "remove viscosity (flow_index = 1 with consistency_index = the plastic viscosity is bingham's "
+                    "law)");
+        }
+      } else {
+        const std::tuple<const char*, int, double> given[] = {
+            {"consistency_index", keys.consistency_index_line, material->consistency_index},
+            {"flow_index", keys.flow_index_line, material->flow_index}};
+        for (const auto& [key, line, value] : given) {
+          if (line == 0) continue;
+          diag_.add(line, path + "." + key, number_literal(value),
+                    std::string(key) + " is read only by rheology = \"herschel_bulkley\"" + user,
+                    fmt::format("remove {}, or use rheology = \"herschel_bulkley\"", key));
+        }
+      }
       if (material->rheology != R::elastic_plastic && material->artificial_stress.value_or(0.0) > 0) {
         diag_.add(keys.line, path + ".artificial_stress", number_literal(*material->artificial_stress),
                   "artificial stress acts on the stress tensor of an elastic_plastic fluid only" + user,
@@ -1162,6 +1200,7 @@ class Builder {
       set.material = *v;
       check_material(r, set.material);
     }
+    if (auto v = r.boolean("fixed")) set.fixed = *v;
     const bool has_spheres = r.has("spheres"), has_fill = r.has("fill");
     if (has_spheres && has_fill) {
       diag_.add(r.line("fill"), r.key_path("fill"), value_text(*r.node("fill")),
@@ -1663,6 +1702,25 @@ class Builder {
     if (auto v = r.number("tangential_damping_ratio")) contact.tangential_damping_ratio = *v;
   }
 
+  // A sphere's rolling resistance against a structure ([contact.dem_fem] or a set's interaction): the
+  // viscosity only with the viscous model, and a viscous model only with a viscosity.
+  void read_surface_rolling(Reader& r, SurfaceContact& contact) {
+    if (auto v = r.string("rolling"))
+      contact.rolling = *v == "viscous" ? RollingModel::viscous : RollingModel::constant;
+    if (auto v = r.number("rolling_friction")) contact.rolling_friction = *v;
+    if (auto v = r.number("rolling_viscosity")) contact.rolling_viscosity = *v;
+    if (r.has("rolling_viscosity") && contact.rolling != RollingModel::viscous) {
+      diag_.add(r.line("rolling_viscosity"), r.key_path("rolling_viscosity"), value_text(*r.node("rolling_viscosity")),
+                "rolling_viscosity applies to rolling = \"viscous\", and this contact uses the constant model",
+                "remove rolling_viscosity, or set rolling = \"viscous\"");
+    }
+    if (r.has("rolling") && contact.rolling == RollingModel::viscous && !(contact.rolling_viscosity > 0)) {
+      diag_.add(r.line("rolling"), r.key_path("rolling"), "\"viscous\"",
+                "viscous rolling resistance needs rolling_viscosity > 0",
+                "give rolling_viscosity (s/m), e.g. rolling_viscosity = 0.05");
+    }
+  }
+
   // The keys of one DEM-DEM contact law ([contact.dem_dem] or one of its pairs).
   static void read_dem_law(Reader& r, DemContactLaw& law) {
     if (auto v = r.string("model")) law.model = *v == "hertz_mindlin" ? DemLaw::hertz_mindlin : DemLaw::linear;
@@ -1781,6 +1839,7 @@ class Builder {
     Reader df(diag_, spec("contact-dem_fem"), dem_fem != nullptr ? *dem_fem : empty_table(), "contact.dem_fem");
     read_surface_contact_law(df, scene_.dem_fem_default, "in [contact.dem_fem]");
     read_surface_contact(df, scene_.dem_fem_default);
+    read_surface_rolling(df, scene_.dem_fem_default);
 
     const toml::table* sph_fem = contact.table("sph_fem");
     if (sph_fem != nullptr && !(has_fluids_ && has_structures_)) {
@@ -1852,7 +1911,8 @@ class Builder {
       interaction.origin = sph_dem.origin = origin(r.line(), path);
       if (fluid_and_set) {
         sph_dem.contact = scene_.sph_dem_default;
-        for (const char* key : {"restitution", "penalty_scale", "tangential_damping_ratio"}) {
+        for (const char* key : {"restitution", "penalty_scale", "tangential_damping_ratio", "rolling",
+                                "rolling_friction", "rolling_viscosity"}) {
           if (r.has(key)) {
             diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                       "a fluid and a particle set meet through boundary particles or the penalty law of paper "
@@ -1877,7 +1937,7 @@ class Builder {
                     names_fluid ? "remove model (set [sph] wall_model for the fluid's walls)"
                                 : "write model = \"penalty\" or model = \"hertz_mindlin\"");
         } else if (names_fluid) {
-          for (const char* key : {"model", "restitution"}) {
+          for (const char* key : {"model", "restitution", "rolling", "rolling_friction", "rolling_viscosity"}) {
             if (r.has(key)) {
               diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                         "fluid particles meet structures through the penalty law only",
@@ -1888,6 +1948,7 @@ class Builder {
           read_surface_contact_law(r, interaction.contact, "in this interaction or in [contact.dem_fem]");
         }
         read_surface_contact(r, interaction.contact);
+        if (!names_fluid) read_surface_rolling(r, interaction.contact);
         if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
       }
       if (!pair) continue;

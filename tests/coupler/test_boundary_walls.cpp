@@ -92,3 +92,49 @@ TEST(BoundaryWalls, SpreadsTheForcesOfEitherOfTheLastTwoSelections) {
   walls.spread({}, 1, node_force, part_force);
   for (double f : node_force) EXPECT_EQ(f, 0.0);
 }
+
+// Issue 17, item 2: a channel periodic along y whose floor meets an end wall. The floor/wall corner's fill
+// spilled past the seams (a wall particle at y = -0.015 m stopped the sph_solver at step 0); with the span
+// given, every wall particle lies inside it, and the lattice inside is whole.
+TEST(BoundaryWalls, PeriodicSpanKeepsTheCornerFillInsideTheSeams) {
+  const double dx = 0.01, support = 0.03, width = 0.1;
+  scene::Shape floor;
+  floor.type = scene::Shape::Type::plane;
+  floor.origin = Vec3(0.25, 0.5 * width, 0);
+  floor.length = 0.5;
+  floor.width = width;
+  floor.element_size = 0.05;
+  scene::Shape end = floor;
+  end.origin = Vec3(0.5, 0.5 * width, 0.05);
+  end.normal = Vec3(-1, 0, 0);
+  end.direction = Vec3(0, 0, 1);
+  end.length = 0.1;
+  geometry::SurfaceMesh mesh = geometry::triangulate(floor, "floor");
+  geometry::SurfaceMesh wall = geometry::triangulate(end, "end_wall");
+  for (auto& id : wall.node_id) id += 1000;  // ids unique across the parts, as the fem_solver numbers them
+  mesh.append(wall);
+  const auto outside = [&](const coupler::BoundaryWalls& walls) {
+    std::size_t count = 0;
+    for (std::size_t k = 0; k < walls.sampling().size(); ++k) {
+      const double y = geometry::boundary_particle_position(walls.surface(), walls.sampling(), k).y();
+      count += (y < 0 || y >= width) ? 1 : 0;
+    }
+    return count;
+  };
+  coupler::BoundaryWalls open(dx, support);
+  open.set_surface(mesh);
+  coupler::BoundaryWalls periodic(dx, support, {{1, 0.0, width}});
+  periodic.set_surface(mesh);
+  std::cout << "wall particles outside y in [0, " << width << "): " << outside(open) << " of " << open.sampling().size()
+            << " without the span, " << outside(periodic) << " of " << periodic.sampling().size() << " with it\n";
+  EXPECT_GT(outside(open), 0u);  // the failure as reported
+  EXPECT_EQ(outside(periodic), 0u);
+  EXPECT_EQ(periodic.sampling().size(), open.sampling().size() - outside(open));
+  // Inside the span every lattice column across y is there: 10 per row, as the fluid's.
+  std::size_t floor_layer = 0;
+  for (std::size_t k = 0; k < periodic.sampling().size(); ++k) {
+    const Vec3 x = geometry::boundary_particle_position(periodic.surface(), periodic.sampling(), k);
+    if (std::abs(x.z() + 0.5 * dx) < 1e-9 && std::abs(x.x() - 0.105) < 1e-9) ++floor_layer;
+  }
+  EXPECT_EQ(floor_layer, 10u);
+}

@@ -1,4 +1,4 @@
-// DemModel's contact laws against the benchmarks (../shared/refs/benchmarks.md):
+// DemModel's contact laws against the benchmarks (D1, D2, D4 of the validation cases):
 // D1 Hertz impact (tests 1 and 2) through DemModel, D4 sliding to rolling and
 // rolling resistance (constant and viscous), the pair kernel against the physics
 // functions, walls, and the scene-driven size distributions, polygon regions

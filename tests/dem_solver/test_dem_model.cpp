@@ -471,5 +471,39 @@ TEST(DemModelIo, ExternalForcesAndCheckpointedHistories) {
   EXPECT_EQ(a.energies().dissipated, b.energies().dissipated);
 }
 
+// Issue 17, item 3: `fixed = true` on a particle set fixes its spheres from the start, exactly as set_fixed()
+// does (same bits), and they stay where they are under gravity and the load of a sphere resting on them.
+TEST(DemModelRest, FixedSetOfTheSceneIsHeldFromTheStart) {
+  scene::Scene scene = contact_scene(1e5, 0.7, Vec3(0, 0, -9.81));
+  scene.dem_contact.friction = 1.0;
+  const double offset = 2 * kRadius / std::sqrt(3.0);
+  std::vector<scene::Sphere> bed;
+  for (int k = 0; k < 3; ++k) {
+    const double angle = std::numbers::pi / 2 + 2 * std::numbers::pi * k / 3;
+    bed.push_back(scene::Sphere{Vec3(offset * std::cos(angle), offset * std::sin(angle), 0), kRadius});
+  }
+  const double touching_height = std::sqrt(4 * kRadius * kRadius - offset * offset);
+  scene.particle_sets.push_back(list_set("bed", bed));
+  scene.particle_sets.push_back(list_set("stone", {scene::Sphere{Vec3(0, 0, touching_height + 0.01), kRadius}}));
+  DemModel by_hand(scene);
+  for (std::uint32_t k = 0; k < 3; ++k) by_hand.set_fixed(k, true);
+  scene.particle_sets[0].fixed = true;
+  DemModel by_scene(scene);
+  for (std::uint32_t k = 0; k < 4; ++k) EXPECT_EQ(by_scene.is_fixed(k), k < 3);
+  const double dt = 0.2 * by_hand.stable_dt();
+  EXPECT_EQ(by_scene.stable_dt(), by_hand.stable_dt());
+  double dt_previous = 0, dt_previous_scene = 0;
+  for (int n = 0; n < static_cast<int>(0.3 / dt); ++n) {
+    step(by_hand, dt_previous, dt);
+    step(by_scene, dt_previous_scene, dt);
+  }
+  for (std::uint32_t k = 0; k < 4; ++k) ASSERT_EQ(by_scene.positions()[k], by_hand.positions()[k]) << k;
+  EXPECT_EQ(by_scene.energies().total(), by_hand.energies().total());
+  for (std::uint32_t k = 0; k < 3; ++k) EXPECT_EQ(by_scene.positions()[k], bed[k].center);
+  std::cout << "the stone rests at z = " << by_scene.positions()[3].z() << " m on the fixed bed (touching at "
+            << touching_height << " m)\n";
+  EXPECT_NEAR(by_scene.positions()[3].z(), touching_height, 0.01 * kRadius);
+}
+
 }  // namespace
 }  // namespace sabo::dem

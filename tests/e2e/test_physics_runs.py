@@ -15,6 +15,7 @@ SPHERE_DROP = "configs/tests/sphere_drop.toml"
 CHUTE_SMALL = "configs/tests/chute_small.toml"
 HERTZ_WALL = "configs/tests/hertz_wall_impact.toml"
 BOULDER_WALL = "configs/tests/boulder_wall_30ms.toml"
+ROLL = "configs/tests/sphere_roll.toml"
 
 
 def particle_states(run_dir):
@@ -75,6 +76,44 @@ class SphereDropTest(RealRunTestCase):
         rise = summary["energies"]["max_rise_over_initial"]
         print("largest rise of the total energy over its initial value: {:.3e} J".format(rise))
         self.assertLessEqual(rise, 0.0)
+
+
+class RollingAgainstAStructureTest(RealRunTestCase):
+    """D4 through the coupler, and the spheres' rolling resistance against a structure (issue 17, item 3): a
+    sphere launched sliding rolls from t = 2 v0 / (7 mu g) at 5 v0 / 7; a rolling sphere slows at
+    (5/7) mu_r g against a constant rolling resistance, and as exp(-(5/7) eta_r g t) against a viscous one.
+    Tolerance 2 % (benchmarks D4)."""
+
+    def test_d4_and_rolling_resistance_through_the_coupler(self):
+        out = os.path.join(self.tmp, "roll")
+        sabo = self.run_sabo(self.scene_path(ROLL), out)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        scene = load_scene(self.scene_path(ROLL))
+        g = -scene["run"]["gravity"][2]
+        mu = scene["contact"]["dem_fem"]["friction"]
+        mu_r = scene["interactions"][0]["rolling_friction"]
+        eta_r = scene["interactions"][1]["rolling_viscosity"]
+        radius, v0 = 0.25, 2.0
+        with h5py.File(os.path.join(out, "traffic.h5"), "r", swmr=True) as traffic:
+            state = traffic["dem_solver/state"]
+            time = state["time"][()]
+            velocity = state["velocity"][()].reshape(len(time), 3, 3)[:, :, 0]
+            spin = state["angular_velocity"][()].reshape(len(time), 3, 3)[:, :, 1]
+        slip = velocity[:, 0] - radius * spin[:, 0]
+        rolling = np.nonzero(np.abs(slip) < 0.01 * v0)[0][0]
+        checks = [
+            ("sliding time (s)", time[rolling], 2 * v0 / (7 * mu * g)),
+            ("speed when rolling starts (m/s)", velocity[rolling, 0], 5 * v0 / 7),
+        ]
+        later = time > 0.2
+        slope = np.polyfit(time[later], velocity[later, 1], 1)[0]
+        checks.append(("constant rolling resistance: deceleration (m/s^2)", -slope, 5 / 7 * mu_r * g))
+        rate = -np.polyfit(time[later], np.log(velocity[later, 2]), 1)[0]
+        checks.append(("viscous rolling resistance: decay rate (1/s)", rate, 5 / 7 * eta_r * g))
+        for name, measured, expected in checks:
+            print("D4 {}: measured {:.4f}, expected {:.4f} ({:+.2%})".format(name, measured, expected,
+                                                                             measured / expected - 1))
+            self.assertLess(abs(measured / expected - 1), 0.02, name)
 
 
 class HertzWallImpactTest(RealRunTestCase):

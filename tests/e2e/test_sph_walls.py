@@ -140,5 +140,19 @@ class TankTest(RealRunTestCase):
             fem = traffic["fem_solver/forces"]
             self.assertEqual(fem["boundary_volume_count"][:len(fem["step"][()])].sum(), 0)
 
+class PeriodicChannelTest(RealRunTestCase):
+    def test_periodic_channel_ending_in_a_wall_runs(self):
+        """Issue 17, item 2: the floor/end-wall corner of a channel periodic across its width used to put wall
+        particles past the seams (the sph_solver stopped at step 0); the coupler now keeps them inside."""
+        out = os.path.join(self.tmp, "periodic")
+        sabo = self.run_sabo(self.scene_path("configs/tests/sph_periodic_channel.toml"), out)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        summary = read_json(os.path.join(out, "summary.json"))
+        walls = [e for e in summary["active_effects"] if e["effect"] == "sph_fem_boundary_particles"][0]
+        print("periodic channel: {} steps, {} wall particles sampled, at most {} sent".format(
+            summary["steps"], walls["boundary_particles"], walls["max_sent_per_step"]))
+        self.assertEqual(summary["status"], "completed")
+
+
 if __name__ == "__main__":
     unittest.main()

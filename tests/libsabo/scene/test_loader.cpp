@@ -149,6 +149,11 @@ TEST(SceneLoader, SchemaDefaultsEqualSceneModelDefaults) {
   EXPECT_EQ(scene.dem_fem_default.normal_damping_ratio, surface.normal_damping_ratio);
   EXPECT_EQ(scene.dem_fem_default.tangential_damping_ratio, surface.tangential_damping_ratio);
   EXPECT_EQ(scene.dem_fem_default.enabled, surface.enabled);
+  EXPECT_EQ(scene.dem_fem_default.rolling, surface.rolling);
+  EXPECT_EQ(scene.dem_fem_default.rolling_friction, surface.rolling_friction);
+  EXPECT_EQ(scene.dem_fem_default.rolling_viscosity, surface.rolling_viscosity);
+  EXPECT_FALSE(surface.has_rolling());
+  EXPECT_EQ(scene.particle_sets[0].fixed, ParticleSet{}.fixed);
 
   const Recording recording;
   EXPECT_EQ(scene.recording.enabled, recording.enabled);
@@ -313,6 +318,31 @@ enabled = false
   EXPECT_TRUE(dam.enabled);
   EXPECT_FALSE(scene.surface_contact("boulders", "ground").enabled);
   EXPECT_DOUBLE_EQ(scene.surface_contact("boulders", "ground").friction, 0.3);
+
+  // Rolling resistance against structures, per pair; fixed particle sets.
+  const Scene rolling = load_text(std::string(kSceneHead) + R"(
+[[particles]]
+name = "boulders"
+material = "granite"
+fixed = true
+spheres = [ { center = [0.0, 0.0, 3.0], radius = 0.5 } ]
+)" + kGround + R"(
+[contact.dem_fem]
+rolling_friction = 0.05
+[[interactions]]
+pair = ["boulders", "ground"]
+rolling = "viscous"
+rolling_viscosity = 0.2
+)");
+  EXPECT_TRUE(rolling.particle_sets[0].fixed);
+  EXPECT_DOUBLE_EQ(rolling.dem_fem_default.rolling_friction, 0.05);
+  const SurfaceContact ground = rolling.surface_contact("boulders", "ground");
+  EXPECT_EQ(ground.rolling, RollingModel::viscous);
+  EXPECT_DOUBLE_EQ(ground.rolling_viscosity, 0.2);
+  EXPECT_TRUE(ground.has_rolling());
+  const std::string refused =
+      error_of(std::string(kSceneHead) + kOneSphere + kGround + "[contact.dem_fem]\nrolling_viscosity = 0.2\n");
+  EXPECT_NE(refused.find("rolling_viscosity applies to rolling = \"viscous\""), std::string::npos) << refused;
 }
 
 // [contact.sph_dem] and the interactions of a fluid with a particle set: defaults as scene.hpp's, overrides
@@ -418,6 +448,39 @@ TEST(SceneLoader, SphWallWork) {
     EXPECT_NE(message.find("sph.wall_work"), std::string::npos);
     EXPECT_NE(message.find("\"bounded\""), std::string::npos);
     EXPECT_NE(message.find("typo.toml:"), std::string::npos);
+  }
+}
+
+// The viscous operator: strain_rate unless the scene names morris. A Herschel-Bulkley material
+// reads its consistency index, flow index, yield stress and regularisation rate.
+TEST(SceneLoader, SphViscousOperatorAndHerschelBulkley) {
+  using Operator = SphSettings::ViscousOperator;
+  EXPECT_EQ(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").sph.viscous_operator,
+            Operator::strain_rate);
+  TempFolder folder;
+  const std::string anchor = "wall_model = \"boundary_particles\"\n";
+  EXPECT_EQ(load_scene(folder.write("morris.toml", tank_scene_with(anchor, "viscous_operator = \"morris\"\n")))
+                .sph.viscous_operator,
+            Operator::morris);
+  const std::string hb =
+      "rheology = \"herschel_bulkley\"\nconsistency_index = 4.5\nflow_index = 0.4\nyield_stress = 60.0\n"
+      "yield_shear_rate = 0.5\n";
+  const Scene scene = load_scene(folder.write("hb.toml", tank_scene_with("eos = \"tait\"\n", hb)));
+  const Material& water = scene.materials.at(scene.material_index("water"));
+  EXPECT_EQ(water.rheology, Material::Rheology::herschel_bulkley);
+  EXPECT_EQ(water.consistency_index, 4.5);
+  EXPECT_EQ(water.flow_index, 0.4);
+  EXPECT_EQ(water.yield_stress, 60.0);
+  EXPECT_EQ(water.yield_shear_rate, 0.5);
+  // herschel_bulkley takes its viscous part from K and n: viscosity is refused, naming the fix.
+  try {
+    (void)load_scene(folder.write("hb_viscosity.toml", tank_scene_with("eos = \"tait\"\n", hb + "viscosity = 2.0\n")));
+    ADD_FAILURE() << "herschel_bulkley with viscosity was accepted";
+  } catch (const SceneError& e) {
+    const std::string message = e.what();
+    std::cout << message << "\n";
+    EXPECT_NE(message.find("materials.water.viscosity"), std::string::npos);
+    EXPECT_NE(message.find("consistency_index"), std::string::npos);
   }
 }
 
