@@ -10,17 +10,18 @@
 
 namespace sabo::coupler {
 
-namespace {
 std::FILE* open_for_writing(const std::filesystem::path& file) {
   std::FILE* handle = std::fopen(file.c_str(), "w");
   if (handle == nullptr) throw FileError(fmt::format("cannot create '{}': {}", file.string(), std::strerror(errno)));
   return handle;
 }
-}  // namespace
 
 ForceHistory::ForceHistory(const std::filesystem::path& file, std::vector<std::string> part_names,
                            std::vector<std::string> sources)
-    : file_(open_for_writing(file)),
+    : ForceHistory(open_for_writing(file), std::move(part_names), std::move(sources)) {}
+
+ForceHistory::ForceHistory(std::FILE* file, std::vector<std::string> part_names, std::vector<std::string> sources)
+    : file_(file),
       part_names_(std::move(part_names)),
       sources_(std::move(sources)),
       accumulators_(part_names_.size(), std::vector<Accumulator>(sources_.size())),
@@ -61,7 +62,9 @@ void ForceHistory::close() {
   file_ = nullptr;
 }
 
-EnergyHistory::EnergyHistory(const std::filesystem::path& file) : file_(open_for_writing(file)) {
+EnergyHistory::EnergyHistory(const std::filesystem::path& file) : EnergyHistory(open_for_writing(file)) {}
+
+EnergyHistory::EnergyHistory(std::FILE* file) : file_(file) {
   std::fputs("time,kinetic,potential,solver_elastic,contact_elastic,total,dissipated\n", file_);
 }
 

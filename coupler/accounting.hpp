@@ -12,6 +12,9 @@
 
 namespace sabo::coupler {
 
+// Opens `file` for writing (created or truncated); throws FileError naming it.
+[[nodiscard]] std::FILE* open_for_writing(const std::filesystem::path& file);
+
 // forces.csv: one row per output time, part and source:
 //   time, part, source, Fx, Fy, Fz, F, F_peak
 // F* is the mean force over the output interval that ends at `time` (impulse
@@ -21,6 +24,8 @@ class ForceHistory {
  public:
   ForceHistory(const std::filesystem::path& file, std::vector<std::string> part_names,
                std::vector<std::string> sources);
+  // Writes to `file`, opened before (open_for_writing), which it then owns.
+  ForceHistory(std::FILE* file, std::vector<std::string> part_names, std::vector<std::string> sources);
   ~ForceHistory();
   ForceHistory(const ForceHistory&) = delete;
   ForceHistory& operator=(const ForceHistory&) = delete;
@@ -63,6 +68,7 @@ struct EnergySample {
 class EnergyHistory {
  public:
   explicit EnergyHistory(const std::filesystem::path& file);
+  explicit EnergyHistory(std::FILE* file);  // opened before, then owned
   ~EnergyHistory();
   EnergyHistory(const EnergyHistory&) = delete;
   EnergyHistory& operator=(const EnergyHistory&) = delete;

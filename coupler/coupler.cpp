@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -15,6 +16,7 @@
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/protocol/wire.hpp"
+#include "libsabo/scene/estimate.hpp"
 
 namespace sabo::coupler {
 
@@ -31,6 +33,14 @@ double seconds_since(Clock::time_point start) {
 bool all_finite(const google::protobuf::RepeatedField<double>& values) {
   return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
 }
+
+// The position in `values` of the first value that is not finite (NaN, +-inf), or -1.
+int first_non_finite(const google::protobuf::RepeatedField<double>& values) {
+  const auto it = std::find_if(values.begin(), values.end(), [](double v) { return !std::isfinite(v); });
+  return it == values.end() ? -1 : static_cast<int>(it - values.begin());
+}
+
+constexpr std::array<char, 3> kAxis = {'x', 'y', 'z'};
 
 }  // namespace
 
@@ -58,7 +68,15 @@ struct Coupler::Peer {
 };
 
 Coupler::Coupler(const scene::Scene& scene, CouplerOptions options, EventStream& events)
-    : scene_(scene), options_(std::move(options)), events_(events), socket_(context_, zmq::socket_type::router) {}
+    : scene_(scene), options_(std::move(options)), events_(events), socket_(context_, zmq::socket_type::router) {
+  // Frames larger than the scene's largest message (with a margin) are refused unread, so that a peer
+  // cannot make the coupler read a 1 GiB frame (issue 18); peers that do not register are cut off.
+  max_message_bytes_ = options_.max_message_bytes > 0 ? options_.max_message_bytes
+                                                      : scene::max_message_bytes(scene::estimate_scene(scene_));
+  socket_.set_max_message_size(max_message_bytes_);
+  socket_.set_handshake_interval(options_.connections.window);
+  guard_ = std::make_unique<ConnectionGuard>(context_, socket_, options_.connections);
+}
 
 Coupler::~Coupler() = default;
 
@@ -69,7 +87,11 @@ void Coupler::fail(const std::string& process, const std::string& message) {
 
 void Coupler::bind() {
   socket_.bind(options_.endpoint);
-  spdlog::info("listening on {}", socket_.endpoint());
+  spdlog::info(
+      "listening on {}; frames above {:.3g} MB are refused, connections that do not register within {} s "
+      "are closed (at most {} at once)",
+      socket_.endpoint(), static_cast<double>(max_message_bytes_) / 1e6,
+      std::chrono::duration<double>(options_.connections.window).count(), options_.connections.max_unregistered);
   events_.listening(socket_.endpoint());
 }
 
@@ -221,6 +243,7 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
                  peer->registration.pid());
     return;
   }
+  guard_->registered(inbound.source_fd);
   spdlog::info("registered {} (pid {}, '{}'): {} particles, {} surface nodes", name, peer->registration.pid(),
                peer->registration.name(), n, peer->registration.surface().node_id_size());
   events_.registered(name, peer->registration.pid(), peer->registration.name());
@@ -274,6 +297,7 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
   reply.set_accepted(true);
   reply.set_interest_all(true);  // a resumed solver keeps the regions of its checkpoint
   if (!reply_to_unregistered(reply, inbound.peer)) return;
+  guard_->registered(inbound.source_fd);
   spdlog::warn("{} (pid {}) rejoins from its checkpoint of step {} (pid {} before): catching up {} steps", name,
                registration.pid(), from, peer.registration.pid(), current_step_ - from);
   peer.identity = inbound.peer;
@@ -356,6 +380,7 @@ void Coupler::wait_for_registrations() {
       fail("coupler", fmt::format("no registration from {} within {} s", fmt::join(missing, ", "),
                                   std::chrono::duration<double>(options_.registration_timeout).count()));
     }
+    guard_->tick();
     if (!socket_.receive(inbound_, kPollSlice)) continue;
     // A solver registered early may send its first state while others still register.
     const bool is_state = inbound_.valid() && inbound_.header.type == sabo::v1::MESSAGE_TYPE_STEP_STATE;
@@ -394,6 +419,7 @@ void Coupler::collect_states(std::uint64_t step) {
   const auto hang = std::chrono::duration<double>(scene_.run.hang_timeout);
   while (pending() > 0) {
     if (stop_requested()) throw StopRequested(fmt::format("stopped by signal {} at step {}", stop_signal(), step));
+    guard_->tick();
     if (!socket_.receive(inbound_, kPollSlice)) {
       if (Clock::now() - wait_start > hang) {
         std::vector<std::string> silent;
@@ -405,8 +431,10 @@ void Coupler::collect_states(std::uint64_t step) {
           if (first_silent == nullptr) first_silent = peer.get();
         }
         fail(first_silent->role_name,
-             fmt::format("{} sent no state for step {} within hang_timeout = {} s: the process is hung or dead",
-                         fmt::join(silent, " and "), step, scene_.run.hang_timeout));
+             fmt::format("{} sent no state for step {} within hang_timeout = {} s: the process is hung or dead (or "
+                         "it sent a frame larger than the {:.3g} MB the coupler accepts, which ZeroMQ drops)",
+                         fmt::join(silent, " and "), step, scene_.run.hang_timeout,
+                         static_cast<double>(max_message_bytes_) / 1e6));
       }
       continue;
     }
@@ -443,8 +471,18 @@ void Coupler::validate_state(const Peer& peer) {
   for (auto index : s.index()) {
     if (index >= table_size) invalid(fmt::format("particle index {} is outside its table of {}", index, table_size));
   }
-  if (!all_finite(s.position()) || !all_finite(s.velocity()) || !all_finite(s.angular_velocity())) {
-    invalid("non-finite position or velocity (the solver has blown up)");
+  // A NaN or an infinity names the particle, by index and id (issue 18: gravity = [0, 0, -1e300] ran to the end).
+  for (const auto& [what, values] : {std::pair{"position", &s.position()}, std::pair{"velocity", &s.velocity()},
+                                     std::pair{"angular velocity", &s.angular_velocity()}}) {
+    const int k = first_non_finite(*values);
+    if (k < 0) continue;
+    const auto entity = static_cast<std::size_t>(k / 3);
+    const std::uint32_t index = entity < n ? s.index(static_cast<int>(entity)) : 0;
+    invalid(
+        fmt::format("non-finite {}: {}_{} = {} of particle index {} (id {}) (the solver has blown up, or an "
+                    "input such as the gravity is extreme)",
+                    what, what, kAxis[static_cast<std::size_t>(k % 3)], (*values)[k], index,
+                    peer.registration.particles().id(static_cast<int>(index))));
   }
   if (auto problem = stable_dt_problem(s.stable_dt(), scene_.run.end_time)) invalid(*problem);
   // Every solver adds the same dt_n to its time, so t_n is the coupler's sum (to round-off for a solver
@@ -505,7 +543,18 @@ void Coupler::validate_state(const Peer& peer) {
     if (s.node_position_size() != 3 * nodes || s.node_velocity_size() != 3 * nodes) {
       invalid(fmt::format("{} node positions for {} surface nodes", s.node_position_size(), nodes));
     }
-    if (!all_finite(s.node_position()) || !all_finite(s.node_velocity())) invalid("non-finite node position");
+    for (const auto& [what, values] :
+         {std::pair{"node position", &s.node_position()}, std::pair{"node velocity", &s.node_velocity()}}) {
+      const int k = first_non_finite(*values);
+      if (k < 0) continue;
+      const int node = k / 3;
+      const auto& topology = s.has_topology() ? s.topology() : peer.registration.surface();
+      invalid(
+          fmt::format("non-finite {}: component {} = {} of surface node {} (id {}) (the solver has blown up, "
+                      "or an input is extreme)",
+                      what, kAxis[static_cast<std::size_t>(k % 3)], (*values)[k], node,
+                      node < topology.node_id_size() ? topology.node_id(node) : 0));
+    }
   }
 }
 
@@ -650,6 +699,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
       // The coupler keeps the whole surface current.
       f.set_interest_all(true);
     }
+    check_forces(*peer, f);
     if (recorder_) recorder_->record_forces(peer->role_name, f);
     if (checkpoint && peer->registration.checkpoints()) peer->checkpoint_step = step + 1;
     if (peer->journal) {
@@ -666,6 +716,28 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
     }
   }
   send_seconds_ += seconds_since(start);
+}
+
+void Coupler::check_forces(const Peer& peer, const sabo::v1::StepForces& f) {
+  // The contact forces are finite when the states were (checked on arrival); one that is not comes from an
+  // input so extreme that the contact law overflows: it ends the run naming the entity, not reaching a solver.
+  for (const auto& [what, values] : {std::pair{"force", &f.force()}, std::pair{"torque", &f.torque()}}) {
+    const int k = first_non_finite(*values);
+    if (k < 0) continue;
+    const int entity = k / 3;
+    const std::uint32_t index = entity < f.index_size() ? f.index(entity) : 0;
+    fail("coupler",
+         fmt::format("the contact {} on particle index {} (id {}) of the {} at step {} is not finite ({}_{} = "
+                     "{}): an input is extreme (a speed, a stiffness, the gravity)",
+                     what, index, peer.registration.particles().id(static_cast<int>(index)), peer.role_name, f.step(),
+                     what, kAxis[static_cast<std::size_t>(k % 3)], (*values)[k]));
+  }
+  if (const int k = first_non_finite(f.node_force()); k >= 0) {
+    fail("coupler",
+         fmt::format("the contact force on surface node {} of the {} at step {} is not finite (component "
+                     "{} = {}): an input is extreme (a speed, a stiffness, the gravity)",
+                     k / 3, peer.role_name, f.step(), kAxis[static_cast<std::size_t>(k % 3)], f.node_force(k)));
+  }
 }
 
 void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
@@ -712,6 +784,23 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
   }
 }
 
+void Coupler::advance_output_time() {
+  // One interval per output time as a rule; an interval so small against t_n that the steps skip many output
+  // times (the scene check refuses more than scene::kMaxOutputs of them; a scene built by hand may not be
+  // checked) jumps to the first one after t_n, or past t_n where t_n + interval rounds to t_n: bounded, so that
+  // no step can loop for ever (issue 18: output_interval = 1e-300 kept the coupler at step 1, deaf to SIGTERM).
+  const double interval = scene_.run.output_interval;
+  const double reached = time_ + 1e-9 * interval;
+  for (int k = 0; next_output_time_ <= reached; ++k) {
+    if (k == 64) {
+      next_output_time_ = std::max(std::nextafter(reached, std::numeric_limits<double>::infinity()),
+                                   (std::floor(reached / interval) + 1) * interval);
+      break;
+    }
+    next_output_time_ += interval;
+  }
+}
+
 void Coupler::progress(std::uint64_t step, double time, double dt, bool force_emit) {
   const auto now = Clock::now();
   if (!force_emit && now - last_progress_ < std::chrono::milliseconds(500)) return;
@@ -744,10 +833,14 @@ void Coupler::stop_solvers(const std::string& reason) {
 
 void Coupler::wait_for_goodbyes(std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
+  // After a stop signal the solvers still get a moment to say goodbye (they received Stop).
+  stop_grace_end_ = Clock::now() + std::chrono::milliseconds(3000);
   auto missing = [&] {
     return std::any_of(peers_.begin(), peers_.end(), [](const auto& p) { return !p->said_goodbye; });
   };
   while (missing() && Clock::now() < deadline) {
+    if (stop_requested() && Clock::now() > stop_grace_end_) return;  // SIGTERM: the run is ending anyway
+    guard_->tick();
     if (!socket_.receive(inbound_, kPollSlice) || !inbound_.valid()) continue;
     auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->identity == inbound_.peer; });
     if (it == peers_.end()) continue;
@@ -875,13 +968,24 @@ void Coupler::write_summary(const std::string& status) {
         {"violations", newton_violations_},
         {"max_relative_residual_per_pair", pair_residuals}}},
       {"contacts", {{"max_simultaneous", max_contacts_}}},
+      {"connections",
+       {{"max_message_bytes", max_message_bytes_},
+        {"accepted", guard_->stats().accepted},
+        {"closed_unregistered", guard_->stats().dropped_unregistered},
+        {"closed_over_limit", guard_->stats().dropped_over_limit},
+        {"most_unregistered_at_once", guard_->stats().most_unregistered}}},
       {"peak_force", peak_forces},
       {"active_effects", effects},
   };
   const auto file = options_.out_dir / "summary.json";
   const auto temporary = options_.out_dir / "summary.json.tmp";
   {
+    // The descriptor the connection guard kept in reserve, should connections have taken every other one.
     std::ofstream out(temporary);
+    if (!out) {
+      guard_->release_reserve();
+      out.open(temporary);
+    }
     out << summary.dump(2) << "\n";
     if (!out) throw FileError(fmt::format("cannot write '{}'", temporary.string()));
   }
@@ -899,13 +1003,20 @@ int Coupler::run() {
       const std::string scene_text((std::istreambuf_iterator<char>(scene_file)), std::istreambuf_iterator<char>());
       recorder_ = std::make_unique<io::TrafficRecorder>(options_.out_dir / "traffic.h5", scene_.recording, scene_text);
     }
+    // The run's files are opened before anyone can connect: connections of peers that do not register may
+    // take every free descriptor between two of the connection guard's ticks.
+    const auto close_file = [](std::FILE* f) { std::fclose(f); };
+    std::unique_ptr<std::FILE, decltype(close_file)> forces_file(open_for_writing(options_.out_dir / "forces.csv"),
+                                                                 close_file);
+    std::unique_ptr<std::FILE, decltype(close_file)> energy_file(open_for_writing(options_.out_dir / "energy.csv"),
+                                                                 close_file);
     bind();
     wait_for_registrations();
     prepare_contacts();
     std::vector<std::string> parts;
     for (const auto& s : scene_.structures) parts.push_back(s.name);
-    forces_csv_ = std::make_unique<ForceHistory>(options_.out_dir / "forces.csv", parts, force_sources_);
-    energy_csv_ = std::make_unique<EnergyHistory>(options_.out_dir / "energy.csv");
+    forces_csv_ = std::make_unique<ForceHistory>(forces_file.release(), parts, force_sources_);
+    energy_csv_ = std::make_unique<EnergyHistory>(energy_file.release());
 
     double dt_previous = 0;
     const double end_tolerance = 1e-12 * scene_.run.end_time;
@@ -923,9 +1034,7 @@ int Coupler::run() {
 
       const bool last = time_ >= scene_.run.end_time - end_tolerance;
       const bool output = last || time_ >= next_output_time_ - 1e-9 * scene_.run.output_interval;
-      while (next_output_time_ <= time_ + 1e-9 * scene_.run.output_interval) {
-        next_output_time_ += scene_.run.output_interval;
-      }
+      advance_output_time();
       compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous});
       check_newton_third_law(step);
       const double dt = coupled_dt();
@@ -949,7 +1058,9 @@ int Coupler::run() {
       dt_previous = dt;
       expected_time_ += dt;
     }
-    wait_for_goodbyes(std::chrono::milliseconds(static_cast<long>(1000 * std::max(5.0, scene_.run.hang_timeout))));
+    // Bounded whatever hang_timeout says (a SIGTERM ends the wait too).
+    wait_for_goodbyes(
+        std::chrono::milliseconds(static_cast<long>(1000 * std::clamp(scene_.run.hang_timeout, 5.0, 3600.0))));
   } catch (const StopRequested& stop) {
     spdlog::warn("{}", stop.what());
     status = "stopped";
@@ -959,6 +1070,13 @@ int Coupler::run() {
     wait_for_goodbyes(std::chrono::milliseconds(3000));
   } catch (const SceneError& error) {
     spdlog::error("{}", error.what());
+    events_.error("coupler", error.what());
+    status = "failed";
+    exit_code = kBadInput;
+  } catch (const EndpointError& error) {
+    // The scene's (or the command line's) endpoint cannot be bound: bad input, nothing was started.
+    spdlog::error("{}", error.what());
+    failure_ = error.what();
     events_.error("coupler", error.what());
     status = "failed";
     exit_code = kBadInput;

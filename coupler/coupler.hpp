@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "coupler/accounting.hpp"
+#include "coupler/connection_guard.hpp"
 #include "coupler/contact/contact_pair.hpp"
 #include "coupler/eta.hpp"
 #include "coupler/events.hpp"
@@ -27,6 +28,9 @@ struct CouplerOptions {
   std::string endpoint;           // bound by the coupler
   std::filesystem::path out_dir;  // run folder
   std::chrono::milliseconds registration_timeout{30000};
+  ConnectionLimits connections;  // peers that do not register (connection_guard.hpp)
+  // The largest frame accepted, bytes (ZMQ_MAXMSGSIZE); 0: scene::max_message_bytes of the scene's estimate.
+  std::int64_t max_message_bytes = 0;
 };
 
 // Exit codes of the coupler process (the supervisor reads them).
@@ -67,7 +71,11 @@ class Coupler {
   void compute_contacts(const StepClock& clock);
   void check_newton_third_law(std::uint64_t step);
   void send_forces(std::uint64_t step, double dt, bool output, bool stop, bool checkpoint);
+  // Ends the run (naming the entity) when a force about to be sent is not finite.
+  void check_forces(const Peer& peer, const sabo::v1::StepForces& forces);
   void account(std::uint64_t step, double time, double dt, bool output);
+  // next_output_time_ past time_: the next output time.
+  void advance_output_time();
   void progress(std::uint64_t step, double time, double dt, bool force_emit);
   void stop_solvers(const std::string& reason);
   void wait_for_goodbyes(std::chrono::milliseconds timeout);
@@ -79,6 +87,8 @@ class Coupler {
   EventStream& events_;
   zmq::context_t context_{1};
   protocol::Socket socket_;
+  std::int64_t max_message_bytes_ = 0;  // frames above are refused (ZMQ_MAXMSGSIZE)
+  std::unique_ptr<ConnectionGuard> guard_;
   protocol::Inbound inbound_;
   std::vector<std::unique_ptr<Peer>> peers_;           // in registration order
   Solvers solvers_;                                    // the same, by role, as the pairs see them
@@ -126,6 +136,7 @@ class Coupler {
   double contact_dissipated_ = 0;  // J, accumulated dashpot and slip work of the coupler's contacts
   std::chrono::steady_clock::time_point start_wall_;
   std::chrono::steady_clock::time_point last_progress_;
+  std::chrono::steady_clock::time_point stop_grace_end_;  // wait_for_goodbyes: the wait after a stop signal
   EtaEstimate eta_;  // the progress line's time to go
   std::string failure_;
 };

@@ -2,8 +2,10 @@
 //   coupler --scene FILE --endpoint ENDPOINT --out DIR
 // stdout carries the JSON event stream for the supervisor; logs go to stderr.
 #include <fmt/format.h>
+#include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 
 #include "coupler/coupler.hpp"
 #include "libsabo/core/log.hpp"
@@ -24,6 +26,16 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn or error")->capture_default_str();
   app.add_option("--registration-timeout", registration_timeout, "seconds to wait for the solvers to register")
       ->capture_default_str();
+  double connection_window = 10;
+  app.add_option("--connection-window", connection_window,
+                 "seconds a connection may stay without registering before it is closed")
+      ->capture_default_str();
+  app.add_option("--max-unregistered", options.connections.max_unregistered,
+                 "connections without a registration kept at once (the oldest beyond are closed)")
+      ->capture_default_str();
+  app.add_option("--max-message-bytes", options.max_message_bytes,
+                 "largest frame accepted (0: from the scene's sizes; also SABO_MAX_MESSAGE_BYTES)")
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
     setup_logging("coupler", log_level);
@@ -39,6 +51,17 @@ int main(int argc, char** argv) {
   install_stop_handlers();
   coupler::EventStream events;
   options.registration_timeout = std::chrono::milliseconds(static_cast<long>(1000 * registration_timeout));
+  options.connections.window = std::chrono::milliseconds(static_cast<long>(1000 * connection_window));
+  if (const char* bytes = std::getenv("SABO_MAX_MESSAGE_BYTES"); bytes != nullptr && options.max_message_bytes == 0) {
+    options.max_message_bytes = std::atoll(bytes);
+  }
+  // Every connection takes a file descriptor: take all the system allows (the connection guard keeps
+  // peers that do not register to a few of them).
+  rlimit files{};
+  if (::getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < files.rlim_max) {
+    files.rlim_cur = files.rlim_max;
+    (void)::setrlimit(RLIMIT_NOFILE, &files);
+  }
   try {
     const scene::Scene scene = scene::load_scene(scene_file);
     coupler::Coupler coupler(scene, options, events);

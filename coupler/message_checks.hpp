@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "libsabo/scene/estimate.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sabo/v1/sabo.pb.h"
 
@@ -23,8 +24,9 @@ namespace sabo::coupler {
                                                          const scene::Scene& scene);
 
 // A stable step the run cannot be made of, s: not a number, <= 0, or so small that end_time would take more
-// than kMaxSteps steps (a model blown up, or an input such as a Young's modulus of 1e300).
-inline constexpr double kMaxSteps = 1e10;
+// than scene::kMaxSteps steps (a model blown up, or an input such as a Young's modulus of 1e300; the scene
+// check refuses what it can foresee with the same bound, scene/estimate.hpp).
+using scene::kMaxSteps;
 [[nodiscard]] std::optional<std::string> stable_dt_problem(double stable_dt, double end_time);
 
 }  // namespace sabo::coupler

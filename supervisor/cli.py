@@ -1,10 +1,12 @@
-"""The command line of `./sabo`: setup, run, test."""
+"""The command line of `./sabo`: setup, run, replay, test, status."""
 import argparse
+import json
 import os
 import sys
 import time
 
-from .display import Display
+from . import run_folder
+from .display import Display, format_progress, list_run_folder, wrap_items
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 from .plan import check_scene
 from .replay import command_replay
@@ -20,6 +22,7 @@ Sabo: co-simulation of debris flows striking protective structures.
   ./sabo run SCENE         run a scene (does setup first); output goes to a run folder
   ./sabo replay RUN ROLE   replay a run's recorded traffic against one process (sph, dem, fem, coupler)
   ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
+  ./sabo status RUN_DIR    what a run folder holds; repairs what a killed run left behind
 """
 
 EPILOG = """\
@@ -53,6 +56,15 @@ def build_parser():
                             help="run folder; must not exist or be empty (default: runs/<scene>-<date>-<time>)")
     run_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
     run_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+
+    status_parser = commands.add_parser(
+        "status", help="show a run folder; repair what a killed run left behind",
+        description="Show the status of a run folder (summary.json, or the processes still running) and, when "
+                    "no process of the run is alive, repair what a killed run left: traffic.h5's 'open for "
+                    "writing' flags (so that h5ls and h5py open it), a leftover coupler.sock, a missing "
+                    "summary.json (written with status \"killed\"). Exit status: 0, or 2 when RUN_DIR is not a "
+                    "run folder.")
+    status_parser.add_argument("run_dir", metavar="RUN_DIR", help="a run folder, e.g. runs/sphere_drop-20260101-120000")
 
     replay_parser = commands.add_parser(
         "replay", help="replay a run's recorded traffic against one process and compare, field by field",
@@ -158,7 +170,40 @@ def command_run(root, build_dir, args):
         raise
     run_dir = create_run_dir(args.out, scene)
     display = Display(quiet=args.quiet)
-    return Supervisor(plan, scene, run_dir, display).run()
+    return Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin")).run()
+
+
+def command_status(build_dir, args):
+    run_dir = args.run_dir
+    if not os.path.isdir(run_dir) or not os.path.exists(os.path.join(run_dir, PIDS_FILE)):
+        raise SaboError("{}: not a run folder (it has no {})".format(run_dir, PIDS_FILE), EXIT_BAD_INPUT)
+    alive = run_folder.live_processes(run_dir)
+    if alive:
+        progress = run_folder.last_progress(run_dir)
+        print("sabo: {}: running: {}".format(run_dir, ", ".join("{} (pid {})".format(r, p) for r, p in alive)))
+        if progress is not None:
+            print("  last step:   " + format_progress(progress, progress.get("end_time") or 0.0))
+        return 0
+    for line in run_folder.repair(run_dir, os.path.join(build_dir, "bin"),
+                                  summary=run_folder.killed_summary(
+                                      run_dir, "the run was killed: no process of it is alive and the coupler wrote "
+                                               "no summary", written_by="./sabo status")):
+        print("sabo: {}: {}".format(run_dir, line))
+    try:
+        with open(os.path.join(run_dir, run_folder.SUMMARY_FILE), encoding="utf-8") as handle:
+            summary = json.load(handle)
+    except (OSError, ValueError) as error:
+        print("sabo: {}: no readable {} ({})".format(run_dir, run_folder.SUMMARY_FILE, error))
+        return 0
+    print("sabo: {}: {}{}".format(run_dir, summary.get("status", "?"),
+                                  ": " + summary["failure"] if summary.get("failure") else ""))
+    print("  steps:       {}, t = {} of {} s".format(summary.get("steps", "?"), summary.get("simulated_time", "?"),
+                                                   summary.get("end_time", "?")))
+    files = list_run_folder(run_dir)
+    if files:
+        for line in wrap_items(files, "  files:       ", " " * 15):
+            print(line)
+    return 0
 
 
 def command_test(root, build_dir, no_setup, ctest_args):
@@ -191,6 +236,8 @@ def main(root, argv=None):
             return EXIT_BAD_INPUT
         if args.command == "setup":
             return command_setup(root, build_dir, args)
+        if args.command == "status":
+            return command_status(build_dir, args)
         if args.command == "replay":
             if not args.no_setup:
                 setup(root, build_dir, quiet=True)

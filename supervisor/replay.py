@@ -19,6 +19,7 @@ import subprocess
 import sys
 import time
 
+from . import run_folder
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
 from .plan import check_scene
 from .processes import start_process
@@ -91,6 +92,14 @@ def command_replay(root, build_dir, args):
                         EXIT_BAD_INPUT)
     role = ROLES[args.role]
     bin_dir = os.path.join(build_dir, "bin")
+    # A run killed with its supervisor (kill -9) left traffic.h5 flagged open for writing, coupler.sock and no
+    # summary.json: repaired first, as `./sabo status` does (issue 18), when no process of the run lives.
+    if os.path.exists(os.path.join(run_dir, run_folder.PIDS_FILE)):
+        for line in run_folder.repair(run_dir, bin_dir, summary=None if os.path.exists(
+                os.path.join(run_dir, run_folder.SUMMARY_FILE)) else run_folder.killed_summary(
+                    run_dir, "the run was killed: no process of it is alive and the coupler wrote no summary",
+                    written_by="./sabo replay")):
+            print("sabo: {}: {}".format(run_dir, line), file=sys.stderr)
     tool = os.path.join(bin_dir, "sabo_replay")
     if not os.access(tool, os.X_OK):
         raise SaboError("{} is missing: build the project with `./sabo setup`".format(tool), EXIT_FAILED)

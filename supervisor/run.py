@@ -20,7 +20,8 @@ import time
 
 from .display import format_duration, format_progress, list_run_folder, wrap_items
 from .errors import EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED
-from .processes import signal_name, start_process
+from . import run_folder
+from .processes import describe_exit, signal_name, start_process
 
 POLL_INTERVAL_S = 0.1
 # SIGTERM -> SIGKILL when stopping after a fault. The coupler needs some of it to give up waiting for
@@ -75,8 +76,9 @@ def watchdog_seconds(hang_timeout):
 
 
 class Supervisor:
-    def __init__(self, plan, scene, run_dir, display):
+    def __init__(self, plan, scene, run_dir, display, bin_dir=None):
         self.plan = plan
+        self.bin_dir = bin_dir  # the built tools (sabo_traffic), for the repairs after a crash
         self.scene = os.path.abspath(scene)
         self.run_dir = os.path.abspath(run_dir)
         self.display = display
@@ -100,6 +102,7 @@ class Supervisor:
         self._stopping = False       # the coupler said the run is ending
         self._done = None            # the done event
         self._errors = []            # error events
+        self._registered = set()     # roles the coupler reported registered
         self._last_progress = None   # last progress event
         self._last_activity = None   # monotonic time of the last progress (watchdog)
         self._started_at = None
@@ -123,6 +126,7 @@ class Supervisor:
                 self._events.close()
             self._remove_socket()
             self._restore_signal_handlers()
+        self._after_a_crash(outcome)
         self._report(outcome)
         return outcome.exit_code
 
@@ -224,6 +228,15 @@ class Supervisor:
                     continue
                 if self._stopping:
                     solver.handled = True
+                elif solver.role not in self._registered and now - solver.exited_at >= SETTLE_S:
+                    # It never registered, so the coupler will only notice it at its registration timeout.
+                    solver.handled = True
+                    return self._fail("{} (pid {}) exited with code 0 {:.1f} s after it started, before registering "
+                                      "with the coupler: the program ended without taking part in the run (its "
+                                      "command: {})".format(solver.role, solver.pid,
+                                                           solver.exited_at - solver.started_at,
+                                                           " ".join(solver.command)),
+                                      culprits=[solver])
                 elif now - solver.exited_at > self.early_exit_grace_s:
                     solver.handled = True
                     return self._fail("{} (pid {}) exited with code 0 before the coupler reported the end of the run"
@@ -385,18 +398,40 @@ class Supervisor:
             return Outcome("bad input", EXIT_BAD_INPUT, reason)
         if code == COUPLER_EXIT_SOLVER_FAILED:
             culprits = failed + [p for p in named if p is not None and p not in failed]
-            reason = "; ".join([p.describe() for p in failed] +
-                               [reported or "the coupler exited with code 3 (a solver failed or hung) "
-                                            "without an error event"])
-            return self._fail(reason, culprits=culprits or [coupler])
+            first = next((p for p in named if p is not None), failed[0] if failed else None)
+            return self._fail(self._failure_headline(first, failed, code),
+                              culprits=([first] if first is not None else []) + culprits or [coupler])
         if code == COUPLER_EXIT_STOPPED and not failed:
             reason = "the coupler was stopped by a signal that did not come from the supervisor (exit code 130)"
             self.display.error("sabo: " + reason)
             self._terminate(self._running(), INTERRUPT_GRACE_S)
             return Outcome("stopped", EXIT_INTERRUPTED, reason)
-        ended = sorted([coupler] + failed, key=lambda p: p.returncode > 0)
-        reason = "; ".join(p.describe() for p in ended) + ("; " + reported if errors else "")
-        return self._fail(reason, culprits=ended)
+        # Killed by a signal first (the likelier cause), then in the order their ends were seen.
+        ended = sorted([coupler] + failed, key=lambda p: (p.returncode > 0, p.exited_at or 0.0))
+        first = next((p for p in named if p is not None), ended[0])
+        return self._fail(self._failure_headline(first, ended, code),
+                          culprits=[first] + [p for p in ended if p is not first])
+
+    def _failure_headline(self, first, failed, coupler_code):
+        """The first process that failed and what is known of it, then the peers that ended because of it:
+        'sph_solver (pid 12) ...; the coupler reports: sph_solver: ...; stopped because of it: fem_solver (pid
+        13) exited with code 130'."""
+        parts = []
+        if first is not None and first.returncode not in (None, 0):
+            parts.append(first.describe())
+        first_errors = [e for e in self._errors if first is not None and e.get("process") == first.role]
+        other_errors = [e for e in self._errors if e not in first_errors]
+        for event in first_errors[:1] + other_errors:
+            parts.append("the coupler reports: {}: {}".format(event.get("process", "?"), event.get("message", "?")))
+        for event in first_errors[1:]:
+            parts.append("the coupler also reports: {}: {}".format(event.get("process", "?"),
+                                                                    event.get("message", "?")))
+        if not parts:
+            parts.append("the coupler exited with code {} without an error event".format(coupler_code))
+        stopped = [p for p in failed if p is not first and p is not None]
+        if stopped:
+            parts.append("stopped because of it: " + ", ".join(p.describe() for p in stopped))
+        return "; ".join(parts)
 
     def _finish_completed(self):
         """The coupler completed: the solvers have been told to stop and must now exit cleanly."""
@@ -530,6 +565,7 @@ class Supervisor:
                 self._start_solvers(endpoint)
         elif kind == "registered":
             self._last_activity = time.monotonic()
+            self._registered.add(event.get("role"))
             self.display.info("sabo: {} registered (pid {}{})".format(
                 event.get("role", "?"), event.get("pid", "?"),
                 ", " + str(event["name"]) if event.get("name") else ""))
@@ -578,6 +614,33 @@ class Supervisor:
                     os.unlink(path)
             except OSError:
                 pass
+
+    def _after_a_crash(self, outcome):
+        """The coupler died without closing its files (a signal, a crash): traffic.h5 made readable by
+        ordinary tools, and a summary.json that says so (the coupler wrote none)."""
+        coupler = self.coupler
+        if coupler is None or coupler.returncode is None or coupler.returncode in (
+                COUPLER_EXIT_COMPLETED, COUPLER_EXIT_BAD_INPUT, COUPLER_EXIT_SOLVER_FAILED, COUPLER_EXIT_STOPPED):
+            return
+        traffic = os.path.join(self.run_dir, run_folder.TRAFFIC_FILE)
+        if os.path.isfile(traffic) and self.bin_dir is not None:
+            line = run_folder.repair_traffic(traffic, self.bin_dir)
+            if line:
+                self.display.error("sabo: " + line)
+        if os.path.exists(os.path.join(self.run_dir, run_folder.SUMMARY_FILE)):
+            return
+        processes = {p.role: {"pid": p.pid, "exit": describe_exit(p.returncode) if p.returncode is not None
+                              else "still running"} for p in self.processes}
+        summary = run_folder.killed_summary(
+            self.run_dir, outcome.reason or coupler.describe(),
+            status="killed" if coupler.returncode < 0 else "failed", processes=processes,
+            wall_seconds=time.monotonic() - self._started_at, scene=self.scene)
+        try:
+            run_folder.write_summary(self.run_dir, summary)
+            self.display.error("sabo: the coupler wrote no summary: wrote {} with status \"{}\"".format(
+                run_folder.SUMMARY_FILE, summary["status"]))
+        except OSError as error:
+            self.display.error("sabo: could not write {}: {}".format(run_folder.SUMMARY_FILE, error.strerror))
 
     def _relative(self, path):
         relative = os.path.relpath(path)

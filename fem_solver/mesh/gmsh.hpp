@@ -1,15 +1,17 @@
 #pragma once
-// Gmsh .msh version 4 (ASCII) reader for deformable structures: 8-node
-// hexahedra (element type 5, Gmsh's node order is ours) become solid
-// elements, 4-node quadrangles (type 3) shell elements; points and lines
-// (types 15, 1) are skipped; any other element type is an error. Nodes are
-// renumbered in file order; only nodes used by kept elements stay.
+// The fem_solver's view of a Gmsh mesh file: hexahedra as a HexMesh (solids),
+// quadrangles on the same nodes (shells). The reader itself is
+// libsabo/io/gmsh.hpp (issue 18 moved it there, so that the scene check reads
+// every mesh file through the same reader); this keeps the fem_solver's
+// interface of before.
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <utility>
 #include <vector>
 
 #include "fem_solver/mesh/hex_mesh.hpp"
+#include "libsabo/io/gmsh.hpp"
 
 namespace sabo::fem {
 
@@ -18,9 +20,10 @@ struct GmshMesh {
   std::vector<std::array<std::uint32_t, 4>> quads;  // indices into hexahedra.node
 };
 
-// Throws FileError (unreadable file) or SceneError naming file:line, what is
-// wrong and the fix (not version 4, binary, truncated sections, unknown node
-// tags, unsupported element types, inverted hexahedra).
-[[nodiscard]] GmshMesh read_gmsh(const std::filesystem::path& file);
+// Throws FileError naming file:line, what is wrong and the fix (io::read_gmsh).
+[[nodiscard]] inline GmshMesh read_gmsh(const std::filesystem::path& file) {
+  io::GmshMesh mesh = io::read_gmsh(file);
+  return {HexMesh{std::move(mesh.node), std::move(mesh.hexahedra)}, std::move(mesh.quads)};
+}
 
 }  // namespace sabo::fem

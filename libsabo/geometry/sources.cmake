@@ -1,6 +1,7 @@
 # Sources of libsabo/geometry.
 target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/covering_boxes.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/hexahedron.cpp
   ${CMAKE_CURRENT_LIST_DIR}/node_welder.cpp
   ${CMAKE_CURRENT_LIST_DIR}/primitives.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sphere_fill.cpp

@@ -1,6 +1,7 @@
 # Sources of libsabo/io.
 target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/checkpoint.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/gmsh.cpp
   ${CMAKE_CURRENT_LIST_DIR}/hdf5.cpp
   ${CMAKE_CURRENT_LIST_DIR}/stl.cpp
   ${CMAKE_CURRENT_LIST_DIR}/traffic.cpp

@@ -109,14 +109,14 @@ class Tokens {
       fail_expected(fmt::format("a number ({})", what), token, "");
     if (must_be_finite && !std::isfinite(value)) {
       throw FileError(fmt::format("{}:{}: {} is '{}', not a finite number. Fix: repair the mesh and export it again",
-                                  file_.string(), line_, what, token));
+                                  file_.string(), line_, what, excerpt(token, 40)));
     }
     return value;
   }
 
   [[noreturn]] void fail_expected(const std::string& expected, std::string_view found, const char* context) const {
     const std::string found_text =
-        found.empty() ? std::string("the end of the file") : fmt::format("'{}'", found.substr(0, 40));
+        found.empty() ? std::string("the end of the file") : fmt::format("'{}'", excerpt(found, 40));
     throw FileError(fmt::format("{}:{}: ASCII STL: expected {}{} but found {}. Fix: {}", file_.string(), line_,
                                 expected, context, found_text,
                                 found.empty() ? "the file is truncated: export it again"
@@ -196,6 +196,11 @@ StlMesh read_stl(const std::filesystem::path& file, const StlOptions& options) {
     triangles = parse_binary(file, data, declared);
   } else if (solid) {
     triangles = parse_ascii(file, data);
+  } else if (!data.empty() && looks_like_text(data)) {
+    throw FileError(
+        fmt::format("{}: not an STL file: {} bytes of text that does not start with 'solid' (an ASCII STL does; a "
+                    "binary STL holds binary numbers). Fix: export the mesh as STL",
+                    file.string(), data.size()));
   } else if (data.size() < kHeaderBytes) {
     throw FileError(
         fmt::format("{}: not an STL file: {} bytes, but a binary STL has at least 84 and an ASCII STL "

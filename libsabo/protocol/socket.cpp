@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <array>
+#include <cerrno>
 
 namespace sabo::protocol {
 
@@ -68,7 +69,71 @@ void Socket::bind(const std::string& endpoint) {
     socket_.bind(endpoint);
     endpoint_ = socket_.get(zmq::sockopt::last_endpoint);
   } catch (const zmq::error_t& error) {
-    throw_zmq(error, fmt::format("cannot bind '{}' (is another run using it?)", endpoint));
+    throw EndpointError(bind_problem(endpoint, error.num(), error.what()));
+  }
+}
+
+std::string bind_problem(const std::string& endpoint, int error_number, const std::string& library_text) {
+  const bool tcp = endpoint.starts_with("tcp://");
+  const std::string rest = endpoint.substr(endpoint.find("://") == std::string::npos ? 0 : endpoint.find("://") + 3);
+  const std::string host = tcp ? rest.substr(0, rest.rfind(':')) : std::string();
+  const std::string port = tcp && rest.rfind(':') != std::string::npos ? rest.substr(rest.rfind(':') + 1) : "";
+  std::string what, fix;
+  switch (error_number) {
+    case EADDRINUSE:
+      what = tcp ? fmt::format("port {} is in use by another program (another run?)", port)
+                 : "the socket is in use by another program (another run?)";
+      fix = tcp ? "choose another port in the scene's run.endpoint, or stop the program that holds it (ss -ltnp "
+                  "shows it)"
+                : "give the run its own folder";
+      break;
+    case ENODEV:
+      what = fmt::format(
+          "'{}' is neither an IP address of this machine nor the name of one of its network "
+          "interfaces",
+          host);
+      fix =
+          "give an address of this machine in run.endpoint, e.g. tcp://127.0.0.1:5555 (this machine only) or "
+          "tcp://0.0.0.0:5555 (every interface)";
+      break;
+    case EADDRNOTAVAIL:
+      what = fmt::format("'{}' is not an address of this machine", host);
+      fix = "give an address of this machine in run.endpoint (ip addr lists them), e.g. tcp://0.0.0.0:5555";
+      break;
+    case EACCES:
+      what = tcp ? fmt::format("permission denied for port {} (ports below 1024 need root)", port)
+                 : "permission denied for the socket's folder";
+      fix = tcp ? "use a port from 1024 to 65535" : "run in a folder you can write";
+      break;
+    case ENOENT:
+      what = "the socket's folder does not exist";
+      fix = "create the folder first";
+      break;
+    case ENAMETOOLONG:
+      what = "the socket's path is longer than a Unix socket takes (107 bytes)";
+      fix = "use a shorter run folder";
+      break;
+    default:
+      what = "it cannot be bound";
+      fix = "check the endpoint (tcp://ADDRESS:PORT with an address of this machine, or ipc://PATH)";
+      break;
+  }
+  return fmt::format("cannot listen on {}: {} (ZeroMQ: {}, errno {}). Fix: {}", endpoint, what, library_text,
+                     error_number, fix);
+}
+
+void Socket::set_max_message_size(std::int64_t bytes) {
+  socket_.set(zmq::sockopt::maxmsgsize, bytes);
+}
+
+void Socket::set_handshake_interval(std::chrono::milliseconds interval) {
+  socket_.set(zmq::sockopt::handshake_ivl, static_cast<int>(interval.count()));
+}
+
+void Socket::monitor(const std::string& address, int events) {
+  if (zmq_socket_monitor(socket_.handle(), address.empty() ? nullptr : address.c_str(), events) != 0) {
+    throw LibraryError(
+        fmt::format("ZeroMQ: cannot monitor the socket on '{}': {}", address, zmq_strerror(zmq_errno())));
   }
 }
 
@@ -121,6 +186,7 @@ bool Socket::receive(Inbound& inbound, std::chrono::milliseconds timeout) {
   std::size_t first = 0;
   if (is_router_) {
     inbound.peer = frames_[0].to_string();
+    inbound.source_fd = zmq_msg_get(frames_.back().handle(), ZMQ_SRCFD);  // -1 when none (inproc)
     first = 1;
   }
   const std::size_t count = frames_.size() - first;

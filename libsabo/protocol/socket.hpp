@@ -37,17 +37,31 @@ struct Inbound {
   Header header;
   zmq::message_t body;
   std::string problem;  // non-empty: the frames were not a valid Sabo message
+  int source_fd = -1;   // ROUTER: the file descriptor of the connection it came in on (ZMQ_SRCFD)
 
   [[nodiscard]] bool valid() const { return problem.empty(); }
   // Parses the body into `out`; throws ProtocolError when it is not a valid message.
   void parse(google::protobuf::MessageLite& out) const;
 };
 
+// What is wrong with `endpoint` when binding it failed with `error_number` (errno), and the fix: the text
+// of the EndpointError that Socket::bind throws.
+[[nodiscard]] std::string bind_problem(const std::string& endpoint, int error_number, const std::string& library_text);
+
 class Socket {
  public:
   // kind: zmq::socket_type::router (coupler) or dealer (solver).
   Socket(zmq::context_t& context, zmq::socket_type kind);
+  // Throws EndpointError (bind_problem) when the endpoint cannot be bound.
   void bind(const std::string& endpoint);
+  // Before bind: frames larger than `bytes` make ZeroMQ close the connection they come on, unread
+  // (ZMQ_MAXMSGSIZE; -1: no limit); a connection that has not completed ZeroMQ's greeting within `interval`
+  // is closed (ZMQ_HANDSHAKE_IVL).
+  void set_max_message_size(std::int64_t bytes);
+  void set_handshake_interval(std::chrono::milliseconds interval);
+  // Publishes the socket's connection events `events` (ZMQ_EVENT_*) on the inproc `address` (a PAIR socket
+  // reads them); an empty address stops it.
+  void monitor(const std::string& address, int events);
   void connect(const std::string& endpoint);
 
   // Sends header + body (preceded by the peer identity on a ROUTER).

@@ -4,6 +4,7 @@
 #include <toml++/toml.h>
 #include <unistd.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cassert>
@@ -25,7 +26,11 @@
 #include <vector>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/hexahedron.hpp"
 #include "libsabo/geometry/polygon.hpp"
+#include "libsabo/io/gmsh.hpp"
+#include "libsabo/io/stl.hpp"
+#include "libsabo/scene/estimate.hpp"
 #include "libsabo/scene/schema.hpp"
 #include "libsabo/scene/suggest.hpp"
 
@@ -176,6 +181,33 @@ bool valid_endpoint(std::string_view endpoint) {
   }
   const int number = std::stoi(std::string(port));
   return number >= 1 && number <= 65535;
+}
+
+// A host written as digits and dots is an IPv4 address, four numbers 0 to 255 (tcp://999.1.1.1:5555 used to
+// reach the coupler, which could not bind it: "No such device"). The problem, if any.
+std::optional<std::string> ipv4_problem(std::string_view endpoint) {
+  const std::string_view rest = endpoint.substr(std::string_view("tcp://").size());
+  const std::string_view host = rest.substr(0, rest.rfind(':'));
+  if (host.empty() || !std::all_of(host.begin(), host.end(), [](char c) { return std::isdigit(c) || c == '.'; })) {
+    return std::nullopt;
+  }
+  std::vector<std::string> parts;
+  for (std::size_t start = 0;;) {
+    const auto dot = host.find('.', start);
+    parts.emplace_back(host.substr(start, dot == std::string_view::npos ? host.npos : dot - start));
+    if (dot == std::string_view::npos) break;
+    start = dot + 1;
+  }
+  if (parts.size() != 4) {
+    return fmt::format("the host {} is not an IPv4 address: it has {} numbers, an address has 4", host, parts.size());
+  }
+  for (const auto& part : parts) {
+    if (part.empty() || part.size() > 3 || std::stoi(part) > 255) {
+      return fmt::format("the host {} is not an IPv4 address: {} is not a number from 0 to 255", host,
+                         part.empty() ? "an empty part" : part);
+    }
+  }
+  return std::nullopt;
 }
 
 bool is_executable_file(const fs::path& path) {
@@ -624,6 +656,7 @@ class Builder {
     check_sph_dem();
     read_recording(root);
     check_overlaps();
+    if (diag_.count() == 0) check_costs();
 
     diag_.throw_if_any();
     std::sort(scene_.materials.begin(), scene_.materials.end(),
@@ -661,7 +694,12 @@ class Builder {
     if (auto v = r.number("end_time")) run.end_time = *v;
     if (auto v = r.number("output_interval")) run.output_interval = *v;
     if (auto v = r.string("endpoint")) {
-      if (valid_endpoint(*v)) {
+      const auto address = valid_endpoint(*v) && *v != "ipc" ? ipv4_problem(*v) : std::nullopt;
+      if (address) {
+        diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), *address,
+                  "give an address of this machine, e.g. endpoint = \"tcp://127.0.0.1:5555\" (this machine only) or "
+                  "\"tcp://0.0.0.0:5555\" (every interface)");
+      } else if (valid_endpoint(*v)) {
         run.endpoint = *v;
       } else {
         diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), "must be \"ipc\" or \"tcp://HOST:PORT\"",
@@ -1480,7 +1518,11 @@ class Builder {
       s.type = Shape::Type::mesh;
       if (auto v = r.number("scale")) s.scale = *v;
       if (auto v = r.vec3("translate")) s.translate = *v;
-      if (auto v = r.string("file")) s.file = resolve_mesh(r, *v, structure.rigid);
+      if (auto v = r.string("file")) {
+        const std::size_t problems = diag_.count();
+        s.file = resolve_mesh(r, *v, structure.rigid);
+        if (diag_.count() == problems) read_mesh(r, *v, structure);
+      }
     }
     if (s.type != Shape::Type::mesh) {
       if (auto v = r.number("element_size")) s.element_size = *v;
@@ -1516,6 +1558,61 @@ class Builder {
       }
     }
     return fs::weakly_canonical(full, ec);
+  }
+
+  // Reads the mesh file through the reader its solver uses (io/stl.hpp for rigid structures, io/gmsh.hpp
+  // for deformable ones), so that a file the fem_solver would die of is refused here, and keeps its size
+  // for the estimate of the scene (scene/estimate.hpp).
+  void read_mesh(Reader& r, const std::string& file, Structure& structure) {
+    const int line = r.line("file");
+    const std::string key = r.key_path("file");
+    MeshSize size;
+    try {
+      if (structure.rigid) {
+        const io::StlMesh stl = io::read_stl(structure.shape.file);
+        size.nodes = stl.mesh.node_position.size();
+        size.triangles = stl.mesh.triangle.size();
+        for (const auto& t : stl.mesh.triangle) {
+          const auto& x = stl.mesh.node_position;
+          size.area += 0.5 * (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).norm();
+        }
+      } else {
+        const io::GmshMesh gmsh = io::read_gmsh(structure.shape.file);
+        size.nodes = gmsh.node.size();
+        size.hexahedra = gmsh.hexahedra.size();
+        size.quads = gmsh.quads.size();
+        double smallest = std::numeric_limits<double>::infinity();
+        for (const auto& e : gmsh.hexahedra) {
+          std::array<Vec3, 8> x;
+          for (std::size_t a = 0; a < 8; ++a) x[a] = gmsh.node[e[a]];
+          smallest = std::min(smallest, std::cbrt(geometry::hexahedron_volume(x)));
+        }
+        for (const auto& q : gmsh.quads) {
+          const auto& x = gmsh.node;
+          const double area = 0.5 * ((x[q[1]] - x[q[0]]).cross(x[q[2]] - x[q[0]]).norm() +
+                                     (x[q[2]] - x[q[0]]).cross(x[q[3]] - x[q[0]]).norm());
+          smallest = std::min(smallest, std::sqrt(area));
+        }
+        size.smallest = smallest;
+        if (!gmsh.quads.empty() && gmsh.hexahedra.empty() && !(structure.thickness > 0)) {
+          diag_.add(line, key, quote_text(file),
+                    fmt::format("the mesh holds {} quadrangles (shells) but the structure has no thickness",
+                                gmsh.quads.size()),
+                    "give thickness = the shells' thickness in m");
+        }
+      }
+    } catch (const Error& error) {
+      // The reader's message is "FILE[:LINE]: problem. Fix: fix".
+      const std::string text = error.what();
+      const auto fix = text.rfind(". Fix: ");
+      diag_.add(line, key, quote_text(file),
+                fmt::format("the mesh cannot be read: {}", fix == std::string::npos ? text : text.substr(0, fix)),
+                fix == std::string::npos
+                    ? std::string("export the mesh again")
+                    : text.substr(fix + 7, text.ends_with('.') ? text.size() - fix - 8 : text.npos));
+      return;
+    }
+    structure.shape.mesh_size = size;
   }
 
   void read_solvers(Reader& root) {
@@ -2084,6 +2181,103 @@ class Builder {
     }
   }
 
+  // ------------------------------------------------------- costs ----
+
+  // The line of a dotted key of the document ("sph.particle_spacing", "particles[2].fill.count"), else of the
+  // nearest table above it that is written, else 1.
+  [[nodiscard]] int line_of_key(std::string path) const {
+    while (!path.empty()) {
+      const toml::node_view<const toml::node> node = toml::at_path(document_, path);
+      if (node && line_of(*node.node()) > 0) return line_of(*node.node());
+      const auto cut = path.find_last_of(".[");
+      path = cut == std::string::npos ? std::string() : path.substr(0, cut);
+    }
+    return 1;
+  }
+  [[nodiscard]] std::optional<std::string> value_of_key(const std::string& path) const {
+    const toml::node_view<const toml::node> node = toml::at_path(document_, path);
+    if (!node) return std::nullopt;
+    return value_text(*node.node());
+  }
+
+  // What the scene would cost (scene/estimate.hpp): refused when it cannot be run on this machine, naming
+  // the estimate and the key to change.
+  void check_costs() {
+    const SceneEstimate estimate = estimate_scene(scene_);
+    const RunSettings& run = scene_.run;
+    if (estimate.outputs > kMaxOutputs) {
+      diag_.add(
+          line_of_key("run.output_interval"), "run.output_interval", number_literal(run.output_interval),
+          fmt::format("end_time = {} s holds {:.3g} output times, each writing a file per solver; at most {:g} "
+                      "are allowed",
+                      number_literal(run.end_time), estimate.outputs, kMaxOutputs),
+          fmt::format("give output_interval >= end_time / {:g} = {:.3g} s", kMaxOutputs, run.end_time / kMaxOutputs));
+    }
+    if (estimate.steps > kMaxSteps) {
+      const std::string& key = estimate.dt_key;
+      diag_.add(line_of_key(key), key, value_of_key(key),
+                fmt::format("the run would take about {:.3g} steps, more than the {:g} that can be run: {} gives a "
+                            "stable step of about {:.3g} s for end_time = {} s",
+                            estimate.steps, kMaxSteps, estimate.dt_what, estimate.dt, number_literal(run.end_time)),
+                key.ends_with("youngs_modulus")
+                    ? "check the modulus (rock and concrete: 1e10 to 1e11 Pa; a softer material gives a longer step), "
+                      "or shorten run.end_time"
+                    : fmt::format("raise {} (the step grows with it), or shorten run.end_time", key));
+    }
+    const double memory = physical_memory_bytes();
+    if (memory > 0 && estimate.memory_bytes > memory) report_memory(estimate, memory);
+  }
+
+  // The scene needs more memory than the machine has: the estimate, and the key of its largest share.
+  void report_memory(const SceneEstimate& e, double memory) {
+    struct Share {
+      double bytes;
+      std::string what, key, fix;
+    };
+    std::vector<Share> shares;
+    const double fluid = e.total_fluid_particles();
+    if (fluid > 0) {
+      shares.push_back({fluid * kBytesPerFluidParticle,
+                        fmt::format("{:.3g} fluid particles of {:g} B", fluid, kBytesPerFluidParticle),
+                        "sph.particle_spacing",
+                        "raise sph.particle_spacing (doubling it divides the fluid particles by 8 and the wall "
+                        "particles by 4)"});
+    }
+    if (e.wall_particles > 0) {
+      shares.push_back({e.wall_particles * kBytesPerWallParticle,
+                        fmt::format("{:.3g} wall particles of {:g} B", e.wall_particles, kBytesPerWallParticle),
+                        "sph.particle_spacing",
+                        "raise sph.particle_spacing (doubling it divides the wall particles by 4), or use "
+                        "sph.wall_model = \"penalty\""});
+    }
+    for (std::size_t k = 0; k < e.spheres.size(); ++k) {
+      if (scene_.particle_sets[k].kind != ParticleSet::Kind::fill) continue;
+      shares.push_back({e.spheres[k] * kBytesPerSphere,
+                        fmt::format("{:.3g} spheres of {:g} B in particles[{}]", e.spheres[k], kBytesPerSphere, k),
+                        fmt::format("particles[{}].fill.count", k), "lower the count"});
+    }
+    for (std::size_t k = 0; k < scene_.structures.size(); ++k) {
+      const Structure& s = scene_.structures[k];
+      const bool mesh = s.shape.type == Shape::Type::mesh;
+      shares.push_back({e.structure_bytes[k],
+                        s.rigid ? fmt::format("{:.3g} surface triangles in structures[{}]", e.surface_triangles[k], k)
+                                : fmt::format("{:.3g} elements in structures[{}]", e.elements[k], k),
+                        fmt::format("structures[{}].{}", k, mesh ? "file" : "element_size"),
+                        mesh ? std::string("give a coarser mesh") : std::string("raise element_size")});
+    }
+    std::vector<std::string> parts;
+    for (const Share& share : shares) parts.push_back(share.what);
+    const auto largest = std::max_element(shares.begin(), shares.end(),
+                                          [](const Share& a, const Share& b) { return a.bytes < b.bytes; });
+    const std::string key = largest != shares.end() ? largest->key : std::string("run");
+    diag_.add(line_of_key(key), key, value_of_key(key),
+              fmt::format("the scene needs about {:.3g} GiB of memory ({}), more than this machine's {:.3g} GiB",
+                          e.memory_bytes / kGiB, join(parts), memory / kGiB),
+              largest != shares.end() ? largest->fix : std::string("make the scene smaller"));
+  }
+
+  static constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
+
   Diagnostics diag_;
   const toml::table& document_;
   fs::path scene_dir_;
@@ -2127,6 +2321,50 @@ std::string syntax_message(const std::string& file, const std::string& text, con
       file, line, column, where, error.description(), line, column);
 }
 
+// Where `text` stops being UTF-8 text: a NUL byte (TOML allows none), a UTF-16 or UTF-32 file, or a byte
+// sequence that is not UTF-8; the byte offset and what is there. toml++ would read on and report the key
+// before it with no reason.
+struct NotText {
+  enum class Kind { nul, utf16, other };
+  std::size_t offset;
+  std::string what;
+  Kind kind = Kind::other;
+};
+std::optional<NotText> not_utf8_text(std::string_view text) {
+  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[k]); };
+  if (text.size() >= 2 && ((byte(0) == 0xFF && byte(1) == 0xFE) || (byte(0) == 0xFE && byte(1) == 0xFF))) {
+    return NotText{0, fmt::format("the UTF-16 byte-order mark {:02X} {:02X}", byte(0), byte(1)), NotText::Kind::utf16};
+  }
+  for (std::size_t k = 0; k < text.size();) {
+    const unsigned char c = byte(k);
+    if (c == 0) {
+      // UTF-16 text of ASCII characters has a NUL in every other byte.
+      std::size_t nul[2] = {0, 0};
+      const std::size_t head = std::min<std::size_t>(text.size(), 256);
+      for (std::size_t i = 0; i < head; ++i) nul[i % 2] += byte(i) == 0 ? 1 : 0;
+      const bool utf16 = std::max(nul[0], nul[1]) * 4 >= head && std::min(nul[0], nul[1]) == 0;
+      return utf16 ? NotText{k, "a NUL byte (0x00), and every other byte is one: the file looks like UTF-16",
+                             NotText::Kind::utf16}
+                   : NotText{k, "a NUL byte (0x00)", NotText::Kind::nul};
+    }
+    std::size_t length = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    bool valid = length > 0 && k + length <= text.size();
+    for (std::size_t i = 1; valid && i < length; ++i) valid = (byte(k + i) & 0xC0) == 0x80;
+    if (valid && length == 2) valid = c >= 0xC2;  // overlong
+    if (valid && length == 3) {
+      const unsigned next = byte(k + 1);
+      valid = !(c == 0xE0 && next < 0xA0) && !(c == 0xED && next >= 0xA0);  // overlong, surrogates
+    }
+    if (valid && length == 4) {
+      const unsigned next = byte(k + 1);
+      valid = c <= 0xF4 && !(c == 0xF0 && next < 0x90) && !(c == 0xF4 && next >= 0x90);
+    }
+    if (!valid) return NotText{k, fmt::format("the byte 0x{:02X}, which does not start a UTF-8 character", c)};
+    k += length;
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 Scene load_scene(const std::filesystem::path& file) {
@@ -2141,6 +2379,30 @@ Scene load_scene(const std::filesystem::path& file) {
         fmt::format("{}: cannot open the scene file ({}). Fix: check the path.", file.string(), std::strerror(errno)));
   }
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (const auto problem = not_utf8_text(text)) {
+    const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(problem->offset), '\n');
+    const std::string name = file.filename().string();
+    std::string fix;
+    switch (problem->kind) {
+      case NotText::Kind::utf16:
+        fix = fmt::format("save the scene as UTF-8 text (e.g. iconv -f UTF-16 -t UTF-8 {} > scene.toml)", name);
+        break;
+      case NotText::Kind::nul:
+        fix = fmt::format(
+            "remove the NUL byte (most editors do not show it; tr -d '\\000' < {} > scene.toml removes "
+            "every one)",
+            name);
+        break;
+      case NotText::Kind::other:
+        fix = fmt::format(
+            "save the scene as UTF-8 text (a file in another encoding, e.g. Latin-1: iconv -f LATIN1 "
+            "-t UTF-8 {} > scene.toml)",
+            name);
+        break;
+    }
+    throw SceneError(fmt::format("{}:{}: the file is not UTF-8 text: at byte offset {} there is {}. Fix: {}.",
+                                 file.string(), line, problem->offset, problem->what, fix));
+  }
   toml::table document;
   try {
     document = toml::parse(std::string_view(text), file.string());

@@ -1,5 +1,9 @@
 #include "libsabo/scene/plan.hpp"
 
+#include <cmath>
+
+#include "libsabo/scene/estimate.hpp"
+
 namespace sabo::scene {
 
 nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_dir) {
@@ -38,6 +42,18 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
                     {"spheres", spheres},
                     {"structures", scene.structures.size()},
                     {"materials", scene.materials.size()}};
+  const SceneEstimate e = estimate_scene(scene);
+  plan["estimate"] = {{"fluid_particles", e.total_fluid_particles()},
+                      {"wall_particles", e.wall_particles},
+                      {"spheres", e.total_spheres()},
+                      {"elements", e.total_elements()},
+                      {"surface_triangles", e.total_surface_triangles()},
+                      {"steps", e.steps},
+                      {"dt", std::isfinite(e.dt) ? e.dt : 0.0},
+                      {"dt_set_by", e.dt_what},
+                      {"outputs", e.outputs},
+                      {"memory_bytes", e.memory_bytes},
+                      {"max_message_bytes", max_message_bytes(e)}};
   return plan;
 }
 

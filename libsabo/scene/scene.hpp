@@ -193,6 +193,18 @@ struct DemContact : DemContactLaw {
   [[nodiscard]] const DemContactLaw& law(const std::string& material_a, const std::string& material_b) const;
 };
 
+// The size of a structure's mesh file as its reader reads it (io/stl.hpp, io/gmsh.hpp), before the
+// scene's scale: the scene check reads every mesh file (scene/estimate.hpp uses the sizes).
+struct MeshSize {
+  std::size_t nodes = 0;
+  std::size_t triangles = 0;  // STL
+  std::size_t hexahedra = 0;  // Gmsh
+  std::size_t quads = 0;      // Gmsh
+  double area = 0;            // m^2, STL: of the surface
+  double smallest = 0;        // m, Gmsh: the smallest element's length (cube root of a hexahedron's
+                              // volume, square root of a quadrangle's area)
+};
+
 // The geometry of one structure part (FEM).
 struct Shape {
   enum class Type { plane, box, chute, mesh };
@@ -217,6 +229,7 @@ struct Shape {
   std::filesystem::path file;
   double scale = 1.0;
   Vec3 translate = Vec3::Zero();
+  MeshSize mesh_size;       // mesh: the file's, filled by the loader
   double element_size = 0;  // m: target triangle edge for generated shapes (0: coarsest)
 };
 

@@ -1329,7 +1329,9 @@ const std::vector<std::string>& cross_checks() {
       "edges; `direction` is horizontal and not zero.",
       "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
       "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
-      "file and ends in `.stl`. Keys of other shapes are errors. `rigid = false` needs `shape = \"box\"`, "
+      "file and ends in `.stl` (`.msh` for `rigid = false`), and it is read by the solvers' own readers "
+      "(truncated, malformed, non-finite or degenerate meshes are refused with the mesh file's line). Keys of "
+      "other shapes are errors. `rigid = false` needs `shape = \"box\"`, "
       "`shape = \"mesh\"` with a `.msh` file, or `shape = \"plane\"` with a `thickness`; `fixed`, `velocity`, "
       "`floors`, `roof_thickness` and "
       "`roof_material` need `rigid = false` (the last three a box with a `thickness`). Plasticity keys other than "
@@ -1337,6 +1339,13 @@ const std::vector<std::string>& cross_checks() {
       "`failure_strain` need `yield_stress`; `tangent_modulus` is below `youngs_modulus`.",
       "`[recording]`: `first_step` <= `last_step`.",
       "Every number is finite (no `nan`, no `inf`).",
+      "The file is UTF-8 text: a NUL byte or a UTF-16 file is refused with its byte offset.",
+      "What the scene costs (`libsabo/scene/estimate.hpp`, also in the launch plan's `estimate`): the "
+      "particles, elements and surfaces it makes, at about the bytes per entity measured for a whole run, fit "
+      "this machine's memory (else the key of the largest share is named, e.g. `sph.particle_spacing` or a "
+      "structure's `element_size`); `end_time` over the smallest estimated stable step (SPH `cfl h / c`, DEM "
+      "contact, FEM `L / c`, `max_dt`) is at most 1e10 steps; `end_time / output_interval` is at most 1e6 "
+      "output times.",
   };
   return checks;
 }

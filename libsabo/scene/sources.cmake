@@ -1,5 +1,6 @@
 # Sources of libsabo/scene.
 target_sources(sabo_core PRIVATE
+  ${CMAKE_CURRENT_LIST_DIR}/estimate.cpp
   ${CMAKE_CURRENT_LIST_DIR}/scene.cpp
   ${CMAKE_CURRENT_LIST_DIR}/schema.cpp
   ${CMAKE_CURRENT_LIST_DIR}/suggest.cpp

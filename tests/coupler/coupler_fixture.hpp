@@ -23,6 +23,7 @@ struct CouplerFixture : ::testing::Test {
   std::string endpoint;
   scene::Scene scene;
   std::FILE* events_file = nullptr;
+  coupler::ConnectionLimits connection_limits;  // the coupler's, for peers that do not register
 
   void SetUp() override {
     dir = std::filesystem::temp_directory_path() / ("sabo-coupler-" + std::to_string(::getpid()) + "-" +
@@ -43,7 +44,11 @@ struct CouplerFixture : ::testing::Test {
   std::future<int> start_coupler() {
     return std::async(std::launch::async, [this] {
       coupler::EventStream events(events_file);
-      coupler::CouplerOptions options{endpoint, dir, std::chrono::milliseconds(3000)};
+      coupler::CouplerOptions options;
+      options.endpoint = endpoint;
+      options.out_dir = dir;
+      options.registration_timeout = std::chrono::milliseconds(3000);
+      options.connections = connection_limits;
       coupler::Coupler c(scene, options, events);
       return c.run();
     });

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -214,7 +215,10 @@ TEST_F(Fixture, InvalidStateEndsTheRunNamingTheSolver) {
   const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
   ASSERT_NE(error, all.end());
   std::cout << "error event: " << error->dump() << "\n";
-  EXPECT_NE((*error)["message"].get<std::string>().find("non-finite"), std::string::npos);
+  // Issue 18, item 3: the entity is named (it was "non-finite position or velocity").
+  EXPECT_NE(
+      (*error)["message"].get<std::string>().find("non-finite position: position_x = nan of particle index 0 (id 0)"),
+      std::string::npos);
 }
 
 // Issue 18, item 1: a client that connects, sends one frame and leaves at once used to end the run (the reply
@@ -290,5 +294,73 @@ TEST_F(Fixture, NonFiniteEnergyOrWrongTimeEndsTheRunNamingTheSolver) {
     EXPECT_EQ((*error)["process"], "dem_solver");
     EXPECT_NE((*error)["message"].get<std::string>().find(wrong_time ? "time = 0.5 s" : "potential energy is -inf"),
               std::string::npos);
+  }
+}
+
+// Issue 18, item 3: output_interval = 1e-300 (end_time / output_interval = 1e298 output times) kept the coupler
+// for ever in its output-time loop at step 1, deaf to SIGTERM. The scene check refuses such an interval; a
+// coupler given one anyway (a scene built by hand) outputs at every step and completes.
+TEST_F(Fixture, TinyOutputIntervalNeitherHangsNorStopsTheRun) {
+  scene.run.output_interval = 1e-300;
+  auto coupler = start_coupler();
+  protocol::SolverLink link(endpoint, 5000ms);
+  link.register_solver(dem_registration());
+  std::uint64_t steps = 0;
+  auto solver = std::async(std::launch::async, [&] {
+    steps = run_dem(link, 1e-3);
+    sabo::v1::Goodbye goodbye;
+    goodbye.set_steps(steps);
+    goodbye.set_reason("completed");
+    link.send_goodbye(goodbye);
+  });
+  const auto start = std::chrono::steady_clock::now();
+  if (coupler.wait_for(20s) != std::future_status::ready) {
+    ADD_FAILURE() << "the coupler is still running 20 s after the start of a 21-step run (expected: under 1 s); "
+                     "ending the test program";
+    std::cout.flush();
+    std::_Exit(1);  // the coupler's thread cannot be joined
+  }
+  solver.get();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(coupler.get(), coupler::kCompleted);
+  std::cout << "output_interval = 1e-300: " << steps << " steps in " << seconds << " s (expected 21 steps)\n";
+  EXPECT_EQ(steps, 21u);
+  std::ifstream csv(dir / "energy.csv");
+  std::size_t rows = 0;
+  for (std::string line; std::getline(csv, line);) ++rows;
+  std::cout << "energy.csv: " << rows << " lines (expected a header and one row per output step after step 0: 21)\n";
+  EXPECT_EQ(rows, 21u);
+}
+
+// Issue 18, item 4: an endpoint the coupler cannot bind (a port in use, a host that is not this machine's)
+// is bad input (exit code 2, not 1), and the error names the endpoint, what is wrong with it and the fix
+// (it used to read "No such device (errno 19) (is another run using it?)").
+TEST_F(Fixture, AnEndpointThatCannotBeBoundIsBadInputNamingIt) {
+  zmq::context_t context(1);
+  zmq::socket_t holder(context, zmq::socket_type::router);
+  holder.set(zmq::sockopt::linger, 0);
+  holder.bind("tcp://127.0.0.1:*");
+  const std::string taken = holder.get(zmq::sockopt::last_endpoint);
+  struct Case {
+    std::string endpoint, expected;
+  };
+  for (const Case& c : {Case{taken, "is in use by another program"},
+                        Case{"tcp://no-such-interface.invalid:5555",
+                             "'no-such-interface.invalid' is neither an IP address of this machine nor the name of "
+                             "one of its network interfaces"},
+                        Case{"tcp://192.0.2.1:5555", "'192.0.2.1' is not an address of this machine"}}) {
+    endpoint = c.endpoint;
+    auto coupler = start_coupler();
+    const int code = coupler.get();
+    const auto all = events();
+    const auto error = std::find_if(all.rbegin(), all.rend(), [](const auto& e) { return e["event"] == "error"; });
+    ASSERT_NE(error, all.rend());
+    const std::string message = (*error)["message"].get<std::string>();
+    std::cout << c.endpoint << ": exit code " << code << " (expected 2): " << message << "\n";
+    EXPECT_EQ(code, coupler::kBadInput);
+    EXPECT_EQ((*error)["process"], "coupler");
+    EXPECT_NE(message.find("cannot listen on " + c.endpoint), std::string::npos) << message;
+    EXPECT_NE(message.find(c.expected), std::string::npos) << message;
+    EXPECT_NE(message.find("Fix: "), std::string::npos) << message;
   }
 }

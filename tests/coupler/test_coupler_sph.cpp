@@ -439,3 +439,29 @@ TEST_F(SphFixture, WrongBoundaryForceCountEndsTheRunNamingTheSphSolver) {
   EXPECT_NE(s["failure"].get<std::string>().find("sph_solver"), std::string::npos);
   EXPECT_NE(s["failure"].get<std::string>().find("boundary_force"), std::string::npos);
 }
+
+// Issue 18, item 3: a force the coupler computes that is not finite ends the run naming the entity before it
+// reaches a solver (finite but extreme states, here particles 1 cm into the floor approaching it at 1e308 m/s
+// against a normal dashpot, make the contact law overflow). Before, the forces went out as they were.
+TEST_F(SphFixture, ANonFiniteContactForceEndsTheRunNamingTheEntity) {
+  scene.sph.wall_model = scene::SphSettings::WallModel::penalty;
+  scene.sph_fem_default.normal_damping_ratio = 0.5;
+  auto coupler = start_coupler();
+  const std::vector<Vec3> particles{{-0.15, -0.3, 0.04}, {0.15, -0.3, 0.04}};
+  protocol::SolverLink sph(endpoint, 5000ms), fem(endpoint, 5000ms);
+  fem.register_solver(fem_registration());
+  sph.register_solver(sph_registration(particles));
+  sabo::v1::StepState sph_state, fem_state;
+  fill_sph_state(sph_state, 0, 0, particles, Vec3(0, 0, -1e308));
+  fill_fem_state(fem_state, 0, 0);
+  sph.send_state(sph_state);
+  fem.send_state(fem_state);
+  EXPECT_THROW(sph.receive_forces(0), StopRequested);
+  EXPECT_EQ(coupler.get(), coupler::kSolverFailed);
+  const auto s = summary();
+  const std::string failure = s["failure"].get<std::string>();
+  std::cout << "failure: " << failure << "\n";
+  // The fem_solver registered first: its node forces are checked first.
+  EXPECT_EQ(failure.rfind("coupler: the contact force on surface node 0 of the fem_solver at step 0 is not finite", 0),
+            0u);
+}

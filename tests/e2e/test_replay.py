@@ -1,7 +1,7 @@
 """`./sabo replay RUN_DIR ROLE` (issue 19, part 1): a recorded three-solver run (water, two boulders as SPH
 boundary particles, the tank's walls) replayed against each of its processes matches to the bit; a solver with
 one changed parameter reports where it diverges first; a recording that cannot drive a replay is refused with
-exit status 2."""
+exit status 2; the folder of a run killed with its supervisor is repaired first (issue 18)."""
 import json
 import os
 import shutil
@@ -103,3 +103,45 @@ class ReplayTest(RealRunTestCase):
         self.assertEqual(code, 2)
         self.assertIn("choose one of sph, dem, fem, coupler", err)
         shutil.rmtree(foreign)
+
+
+class ReplayAfterAKillTest(RealRunTestCase):
+    """Issue 18, item 5: after a kill -9 of the supervisor (every process of the run dies with it) the run
+    folder holds traffic.h5 flagged open for writing, coupler.sock and no summary.json; `./sabo replay`, the
+    next command that reads the folder, repairs it first and replays what was recorded."""
+
+    replay = ReplayTest.replay
+
+    def test_replay_repairs_the_folder_a_killed_supervisor_left(self):
+        import signal
+        import h5py
+        from e2e_support import progress_count, wait_for_events
+        with open(self.scene_path(TANK), encoding="utf-8") as handle:
+            text = handle.read()
+        self.assertIn("end_time = 0.3", text)
+        scene = os.path.join(self.tmp, "killed.toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text.replace("end_time = 0.3", "end_time = 30.0"))
+        out = os.path.join(self.tmp, "killed")
+        sabo = self.run_sabo(scene, out)
+        wait_for_events(sabo, out, lambda events: progress_count(events) >= 3, 120, "3 progress events")
+        sabo.signal(signal.SIGKILL)
+        sabo.wait(30)
+        self.assertNoProcessLeft(out, wait_s=5.0)
+        left = sorted(os.listdir(out))
+        print("left by kill -9 of the supervisor: {}".format(left))
+        self.assertIn("coupler.sock", left)
+        self.assertNotIn("summary.json", left)
+        with self.assertRaises(OSError):
+            h5py.File(os.path.join(out, "traffic.h5"), "r").close()
+        code, stdout, stderr = self.replay(out, "dem")
+        print("./sabo replay exited with {}; stderr: {}".format(code, stderr.strip()))
+        self.assertIn("repaired", stderr)
+        self.assertIn("removed the leftover coupler.sock", stderr)
+        self.assertIn('wrote summary.json with status "killed"', stderr)
+        self.assertFalse(os.path.exists(os.path.join(out, "coupler.sock")))
+        with h5py.File(os.path.join(out, "traffic.h5"), "r") as traffic:
+            print("traffic.h5 opens with a plain h5py.File: groups {}".format(sorted(traffic)))
+        self.assertEqual(code, 0, stdout + stderr)
+        self.assertIn("every field matches", stdout)
+        self.assertNoProcessLeft(out, pids_file=False)

@@ -25,6 +25,12 @@ class DeadProcessTest(FakeRunTestCase):
                 self.assertIn("sabo: run FAILED: {} (pid {}) was killed by SIGKILL".format(role, pid), sabo.stdout)
                 self.assertIn("last lines of {}/{}.log".format(out, role), sabo.stderr)
                 self.assertNoProcessLeft(out)
+                if role == "coupler":  # issue 18, item 5: the supervisor writes the summary the coupler could not
+                    summary = read_json(os.path.join(out, "summary.json"))
+                    print("kill -9 coupler: summary.json {}".format(summary))
+                    self.assertEqual(summary["status"], "killed")
+                    self.assertIn("coupler (pid {}) was killed by SIGKILL".format(pid), summary["failure"])
+                    self.assertGreaterEqual(summary["steps"], 3)
 
     def test_failing_solver_is_named_with_its_exit_code_and_log(self):
         out = self.out_dir()
@@ -57,6 +63,20 @@ class DeadProcessTest(FakeRunTestCase):
         self.assertIn("the coupler reports: coupler: fake failure with code 9", sabo.stderr)
         self.assertNoProcessLeft(out)
 
+    def test_solver_exiting_at_once_is_reported_at_once(self):
+        # Issue 18, item 4: a command that exits 0 before registering was reported only after hang_timeout + 3 s
+        # (13 s here; the coupler gives up waiting for its registration at 10 s).
+        out = self.out_dir()
+        sabo = self.run_sabo(self.scene(hang_timeout=10.0, commands={"dem_solver": ["true"]}, **LONG_RUN), out=out)
+        self.assertEqual(sabo.wait(30), 1, sabo.output())
+        elapsed = sabo.ended - sabo.started
+        pid = read_json(os.path.join(out, "pids.json"))["dem_solver"]
+        print("a solver command that exits 0 at once: reported after {:.1f} s (expected under 3 s)".format(elapsed))
+        self.assertIn("dem_solver (pid {}) exited with code 0".format(pid), sabo.stderr)
+        self.assertIn("before registering with the coupler", sabo.stderr)
+        self.assertLess(elapsed, 3.0)
+        self.assertNoProcessLeft(out)
+
     def test_solver_leaving_early_with_success_is_a_failure(self):
         # The coupler never notices (never_detect): the supervisor must, after hang_timeout + a grace.
         out = self.out_dir()
@@ -78,6 +98,13 @@ class HangTest(FakeRunTestCase):
         self.assertIn("fem_solver: hung: no message for 0.5 s (hang_timeout)", sabo.stderr)
         self.assertIn("last lines of {}/fem_solver.log".format(out), sabo.stderr)
         self.assertIn("hanging at step 5", sabo.stderr)
+        # Issue 18, item 4: the headline names the hung solver first, and the peer that ended because of it as
+        # such (it used to start with "dem_solver (pid N) exited with code 1").
+        headline = next(line for line in sabo.stdout.splitlines() if line.startswith("sabo: run FAILED"))
+        print("headline: " + headline)
+        dem_pid = read_json(os.path.join(out, "pids.json"))["dem_solver"]
+        self.assertTrue(headline.startswith("sabo: run FAILED: the coupler reports: fem_solver: hung"), headline)
+        self.assertIn("stopped because of it: dem_solver (pid {}) exited with code 1".format(dem_pid), headline)
         self.assertNoProcessLeft(out)
 
     def test_watchdog_stops_a_run_without_progress(self):

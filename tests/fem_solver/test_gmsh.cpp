@@ -1,5 +1,5 @@
-// Gmsh msh 4.1 ASCII reader: hexahedra in Gmsh's node order, and errors that
-// name file:line, the problem and the fix.
+// Deformable structures from Gmsh msh 4.1 ASCII files (the reader itself:
+// tests/libsabo/io/test_gmsh.cpp): solids of hexahedra and shells of quadrangles.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,7 +8,6 @@
 #include <vector>
 
 #include "fem_solver/fem_model.hpp"
-#include "fem_solver/mesh/gmsh.hpp"
 #include "libsabo/core/error.hpp"
 #include "tests/fem_solver/fem_test_support.hpp"
 
@@ -17,33 +16,9 @@ using sabo::fem::test::scene_steel;
 
 namespace {
 std::filesystem::path data(const char* name) {
-  return std::filesystem::path(SABO_SOURCE_DIR) / "tests/fem_solver/data" / name;
+  return std::filesystem::path(SABO_SOURCE_DIR) / "tests/libsabo/io/data" / name;
 }
 }  // namespace
-
-TEST(Gmsh, ReadsHexahedraAndSkipsPoints) {
-  const sabo::fem::GmshMesh mesh = sabo::fem::read_gmsh(data("two_hexes.msh"));
-  EXPECT_EQ(mesh.hexahedra.node.size(), 12u);
-  ASSERT_EQ(mesh.hexahedra.element.size(), 2u);
-  EXPECT_TRUE(mesh.quads.empty());
-  EXPECT_EQ(sabo::fem::exterior_faces(mesh.hexahedra).size(), 10u);
-}
-
-TEST(Gmsh, UnknownNodeTagNamesFileAndLine) {
-  try {
-    (void)sabo::fem::read_gmsh(data("broken_node_tag.msh"));
-    ADD_FAILURE() << "no exception";
-  } catch (const sabo::SceneError& error) {
-    const std::string text = error.what();
-    std::cout << text << "\n";
-    EXPECT_NE(text.find("broken_node_tag.msh:42: element 3 uses node tag 13"), std::string::npos) << text;
-    EXPECT_NE(text.find("Fix:"), std::string::npos) << text;
-  }
-}
-
-TEST(Gmsh, MissingFileIsAFileError) {
-  EXPECT_THROW((void)sabo::fem::read_gmsh(data("no_such.msh")), sabo::FileError);
-}
 
 TEST(Gmsh, DeformableStructureFromAMshFile) {
   sabo::scene::Scene scene;
@@ -59,10 +34,10 @@ TEST(Gmsh, DeformableStructureFromAMshFile) {
   EXPECT_FALSE(model.deformable(0)->is_shell());
   EXPECT_NEAR(model.deformable(0)->solid()->total_mass(), 7850 * 2 * 8.0, 1e-6);
   scene.structures[0].shape.file = data("broken_node_tag.msh");
-  EXPECT_THROW(sabo::fem::FemModel broken(scene), sabo::SceneError);
+  EXPECT_THROW(sabo::fem::FemModel broken(scene), sabo::FileError);
 }
 
-// Shells from a .msh file of quadrangles (tests/fem_solver/data/shell_strip.msh:
+// Shells from a .msh file of quadrangles (tests/libsabo/io/data/shell_strip.msh:
 // the strip 1 m x 0.1 m of Shell.CantileverTipDeflectionAgainstBeamTheory, 20 x
 // 2 quads, thickness from the structure) move exactly as the same strip
 // generated from a plane panel: same mass, and the same tip history under a

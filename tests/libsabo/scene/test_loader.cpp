@@ -206,7 +206,10 @@ slope_deg = 10
 
 TEST(SceneLoader, ReadsEveryShapeAndNormalisesDirections) {
   TempFolder folder;
-  folder.write("meshes/wall.stl", "solid w\nendsolid w\n");
+  // The check reads the mesh (issue 18): one triangle.
+  folder.write("meshes/wall.stl",
+               "solid w\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
+               "endsolid w\n");
   const auto file = folder.write("scene.toml", std::string(kSceneHead) + kOneSphere + R"(
 [[structures]]
 name = "slanted"
@@ -267,6 +270,9 @@ translate = [1, 2, 3]
   EXPECT_EQ(mesh.file, std::filesystem::canonical(folder.path() / "meshes/wall.stl"));
   EXPECT_DOUBLE_EQ(mesh.scale, 2.0);
   EXPECT_EQ(mesh.translate, Vec3(1, 2, 3));
+  EXPECT_EQ(mesh.mesh_size.triangles, 1u);  // read by the check
+  EXPECT_EQ(mesh.mesh_size.nodes, 3u);
+  EXPECT_DOUBLE_EQ(mesh.mesh_size.area, 0.5);
 }
 
 TEST(SceneLoader, MaterialsAreSortedByNameAndRolesFollowBodies) {

@@ -1,0 +1,175 @@
+"""A run folder after the fact: which of its processes still live, and the repairs a killed run needs.
+
+A run whose coupler was killed (kill -9, a crash), or whose supervisor was (every process then gets SIGKILL),
+leaves behind:
+
+* traffic.h5 with HDF5's "open for writing" flags set: h5ls, h5dump and a plain h5py.File(path) refuse it
+  (docs/traffic.md quotes them). `sabo_traffic repair` clears the flags;
+* coupler.sock, the coupler's ipc socket: removed;
+* no summary.json: one is written with status "killed" (or "failed") and what is known.
+
+The supervisor repairs its own run when the coupler dies; `./sabo status RUN_DIR` (any later command that
+reads a run folder) repairs a folder whose supervisor was killed too. Nothing is touched while a process
+of the run is alive.
+"""
+import json
+import os
+import stat
+import subprocess
+import time
+
+PIDS_FILE = "pids.json"
+SUMMARY_FILE = "summary.json"
+TRAFFIC_FILE = "traffic.h5"
+SOCKET_FILE = "coupler.sock"
+
+
+def _command_line(pid):
+    try:
+        with open("/proc/{}/cmdline".format(pid), "rb") as handle:
+            return handle.read().replace(b"\0", b" ").decode("utf-8", "replace")
+    except OSError:
+        return None
+
+
+def _state(pid):
+    try:
+        with open("/proc/{}/stat".format(pid), encoding="utf-8", errors="replace") as handle:
+            return handle.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return None
+
+
+def read_pids(run_dir):
+    """{role: pid} of pids.json ({} when absent or unreadable)."""
+    try:
+        with open(os.path.join(run_dir, PIDS_FILE), encoding="utf-8") as handle:
+            pids = json.load(handle)
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(pids, dict):
+        return {}
+    return {role: pid for role, pid in pids.items() if isinstance(pid, int) and not isinstance(pid, bool)}
+
+
+def live_processes(run_dir):
+    """[(role, pid)] of the run's processes (pids.json) that are alive and are still the run's: the
+    supervisor is `sabo` or python, the others name the run folder on their command line (a reused pid
+    is not the run's)."""
+    run_dir = os.path.abspath(run_dir)
+    alive = []
+    for role, pid in read_pids(run_dir).items():
+        if pid == os.getpid() or _state(pid) in (None, "Z", "X"):
+            continue
+        command = _command_line(pid)
+        if command is None:
+            continue
+        if role == "supervisor" and ("sabo" in command or "python" in command):
+            alive.append((role, pid))
+        elif role != "supervisor" and run_dir in command:
+            alive.append((role, pid))
+    return alive
+
+
+def repair_traffic(path, bin_dir):
+    """Clear the flags a killed writer left in traffic.h5 with sabo_traffic; the line it printed, or why not."""
+    tool = os.path.join(bin_dir, "sabo_traffic")
+    if not os.access(tool, os.X_OK):
+        return "{} was not checked: {} is missing (./sabo setup builds it)".format(TRAFFIC_FILE, tool)
+    result = subprocess.run([tool, "repair", path], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, universal_newlines=True, errors="replace")
+    text = (result.stdout.strip() or result.stderr.strip()).replace(path, TRAFFIC_FILE)
+    if result.returncode != 0:
+        return "{} could not be repaired: {}".format(TRAFFIC_FILE, text)
+    return text if "repaired" in text else None
+
+
+def remove_socket(run_dir):
+    """Remove a leftover coupler.sock; True when there was one."""
+    path = os.path.join(run_dir, SOCKET_FILE)
+    try:
+        if stat.S_ISSOCK(os.lstat(path).st_mode):
+            os.unlink(path)
+            return True
+    except OSError:
+        pass
+    return False
+
+
+def write_summary(run_dir, summary):
+    """summary.json, written whole then renamed (as the coupler writes its own)."""
+    path = os.path.join(run_dir, SUMMARY_FILE)
+    with open(path + ".tmp", "w", encoding="utf-8") as handle:
+        json.dump(summary, handle, indent=2)
+        handle.write("\n")
+    os.replace(path + ".tmp", path)
+
+
+def repair(run_dir, bin_dir, summary=None):
+    """Repair a run folder none of whose processes lives; returns what was done, one line each.
+
+    `summary`: the summary.json to write when there is none (default: status "killed", written by
+    `./sabo status`, from the last progress event in coupler.events.jsonl).
+    """
+    done = []
+    if live_processes(run_dir):
+        return done
+    traffic = os.path.join(run_dir, TRAFFIC_FILE)
+    if os.path.isfile(traffic):
+        line = repair_traffic(traffic, bin_dir)
+        if line:
+            done.append(line)
+    if remove_socket(run_dir):
+        done.append("removed the leftover {}".format(SOCKET_FILE))
+    try:
+        os.unlink(os.path.join(run_dir, SUMMARY_FILE + ".tmp"))
+        done.append("removed the coupler's unfinished {}.tmp".format(SUMMARY_FILE))
+    except OSError:
+        pass
+    if not os.path.exists(os.path.join(run_dir, SUMMARY_FILE)) and os.path.exists(os.path.join(run_dir, PIDS_FILE)):
+        if summary is None:
+            summary = killed_summary(run_dir, "the run was killed: no process of it is alive and the coupler "
+                                              "wrote no summary", written_by="./sabo status")
+        write_summary(run_dir, summary)
+        done.append("wrote {} with status \"{}\"".format(SUMMARY_FILE, summary["status"]))
+    return done
+
+
+def last_progress(run_dir):
+    """The last progress event of coupler.events.jsonl, or None."""
+    last = None
+    try:
+        with open(os.path.join(run_dir, "coupler.events.jsonl"), encoding="utf-8", errors="replace") as handle:
+            for line in handle:
+                try:
+                    event = json.loads(line)
+                except ValueError:
+                    continue
+                if isinstance(event, dict) and event.get("event") == "progress":
+                    last = event
+    except OSError:
+        pass
+    return last
+
+
+def killed_summary(run_dir, failure, status="killed", processes=None, wall_seconds=None, scene=None,
+                   written_by="supervisor"):
+    """A summary.json for a run whose coupler could not write its own: what the supervisor (or `./sabo status`)
+    knows."""
+    progress = last_progress(run_dir) or {}
+    summary = {
+        "status": status,
+        "failure": failure,
+        "written_by": "{} (the coupler wrote no summary)".format(written_by),
+        "written_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "steps": progress.get("step", 0),
+        "simulated_time": progress.get("time", 0.0),
+        "end_time": progress.get("end_time"),
+        "processes": processes if processes is not None else {
+            role: {"pid": pid} for role, pid in read_pids(run_dir).items()},
+    }
+    if wall_seconds is not None:
+        summary["wall_seconds"] = wall_seconds
+    if scene is not None:
+        summary["scene"] = scene
+    return summary
