@@ -11,8 +11,8 @@ namespace sabo::coupler {
 
 namespace {
 
-std::unique_ptr<SurfaceContact> make_contact(const scene::Scene& scene, scene::Role particles) {
-  if (particles == scene::Role::dem) return std::make_unique<SurfaceContact>(scene);
+std::unique_ptr<contact::SurfaceContact> make_contact(const scene::Scene& scene, scene::Role particles) {
+  if (particles == scene::Role::dem) return std::make_unique<contact::SurfaceContact>(scene);
   std::vector<std::string> fluids;
   for (const auto& fluid : scene.fluids) fluids.push_back(fluid.name);
   // Keep only what the pair lookup needs, so that the scene need not outlive the pair.
@@ -23,7 +23,7 @@ std::unique_ptr<SurfaceContact> make_contact(const scene::Scene& scene, scene::R
   auto settings = [pairs_only = std::move(pairs_only)](const std::string& fluid, const std::string& part) {
     return pairs_only.surface_contact(fluid, part);
   };
-  return std::make_unique<SurfaceContact>(std::move(fluids), std::move(settings));
+  return std::make_unique<contact::SurfaceContact>(std::move(fluids), std::move(settings));
 }
 
 std::span<const double> span_of(const google::protobuf::RepeatedField<double>& field) {
@@ -108,7 +108,7 @@ void SurfacePenaltyPair::warn_deep_overlap(double time) {
 }
 
 void SurfacePenaltyPair::save_history(io::hdf5::Group& group) const {
-  const SurfaceContact::History history = contact_->history();
+  const contact::SurfaceContact::History history = contact_->history();
   std::vector<std::uint64_t> particle, nodes, merged_particle, merged_nodes;
   std::vector<std::uint8_t> kind, merged_kind;
   std::vector<double> displacement, normal, offset, overlap, rolling;
@@ -147,7 +147,7 @@ void SurfacePenaltyPair::restore_history(const io::hdf5::Group& group) {
     throw FileError(fmt::format("{}: holds the history of the {} pair, not of {}", group.path(),
                                 group.string_attribute("pair"), name()));
   }
-  SurfaceContact::History history;
+  contact::SurfaceContact::History history;
   history.max_radius_seen = group.double_attribute("max_radius_seen");
   const auto particle = read_array<std::uint64_t>(group, "spring_particle");
   const auto kind = read_array<std::uint8_t>(group, "spring_feature");
@@ -163,13 +163,13 @@ void SurfacePenaltyPair::restore_history(const io::hdf5::Group& group) {
     throw FileError(fmt::format("{}: the spring arrays differ in length ({} springs)", group.path(), n));
   }
   const auto feature = [&](std::uint8_t k) {
-    if (k > static_cast<std::uint8_t>(Feature::vertex)) {
+    if (k > static_cast<std::uint8_t>(contact::Feature::vertex)) {
       throw FileError(fmt::format("{}: feature kind {} is not a face, edge or vertex", group.path(), k));
     }
-    return static_cast<Feature>(k);
+    return static_cast<contact::Feature>(k);
   };
   for (std::size_t i = 0; i < n; ++i) {
-    SurfaceContact::HistoryEntry e;
+    contact::SurfaceContact::HistoryEntry e;
     e.particle = particle[i];
     e.key.kind = feature(kind[i]);
     e.key.node = {nodes[3 * i], nodes[3 * i + 1], nodes[3 * i + 2]};

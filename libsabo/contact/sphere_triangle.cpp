@@ -1,9 +1,9 @@
-#include "coupler/contact/sphere_triangle.hpp"
+#include "libsabo/contact/sphere_triangle.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 const char* feature_name(Feature feature) {
   switch (feature) {
@@ -123,4 +123,4 @@ SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double 
   return gap;
 }
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -1,7 +1,9 @@
 #pragma once
-// Penalty contact of particles (DEM spheres now, SPH particles later) against
-// the triangulated surface of the FEM solver (MODEL.md "SPH-FEM", "DEM-FEM",
-// paper eqs. 3-6). Computed by the coupler once per step.
+// Penalty contact of particles (DEM spheres, SPH particles) against the
+// triangulated surface of the FEM solver (docs/physics.md "Particle-surface
+// contact", paper eqs. 3-6). Computed by the coupler once per step (DEM-FEM,
+// penalty SPH-FEM), and by the fem_solver for the nodes of one structure
+// against the faces of another (fem_solver/structure_contact.hpp).
 //
 // Search: triangle bounds are binned in a physics::CellList whose cell is the
 // larger of the median triangle size and the largest particle's reach; it is
@@ -94,14 +96,14 @@
 #include <string>
 #include <vector>
 
-#include "coupler/contact/sphere_triangle.hpp"
+#include "libsabo/contact/sphere_triangle.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/physics/cell_list.hpp"
 #include "libsabo/physics/contact_law.hpp"
 #include "libsabo/scene/scene.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 // The particles of one solver this step, structure of arrays. 3-vectors are
 // 3 doubles per particle (x0, y0, z0, x1, ...).
@@ -343,4 +345,4 @@ class SurfaceContact {
   double max_radius_seen_ = 0;
 };
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -7,7 +7,7 @@
 
 #include "libsabo/core/types.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 // Which part of a triangle the closest point lies on.
 enum class Feature : std::uint8_t { face = 0, edge = 1, vertex = 2 };
@@ -55,4 +55,4 @@ struct SphereTriangleGap {
 [[nodiscard]] SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double thickness, const Vec3& a,
                                                     const Vec3& unit_normal, const TrianglePoint& closest);
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -1,4 +1,4 @@
-#include "coupler/contact/surface_contact.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 
 #include <fmt/format.h>
 
@@ -14,7 +14,7 @@
 #include "libsabo/geometry/covering_boxes.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 namespace {
 
@@ -832,4 +832,4 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   merged_.swap(next_merged_);
 }
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact
