@@ -82,7 +82,7 @@ double boulder_against_wall(Formulation formulation) {
       position[static_cast<std::size_t>(d)] = centre(d);
       vel[static_cast<std::size_t>(d)] = velocity(d);
     }
-    sabo::contact::ParticleView view{id, position, vel, angular, radii, masses, {}};
+    sabo::contact::ParticleView view{id, position, vel, angular, radii, masses, {}, {}};
     contact.compute(view, dt_previous, out);
     model.apply_node_forces(out.node_force);
     const double dt = std::min(0.9 * model.stable_dt(), contact.stable_dt());

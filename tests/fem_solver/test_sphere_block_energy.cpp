@@ -97,7 +97,7 @@ ImpactResult impact(double penalty_scale, double element_size, bool plastic,
       position[static_cast<std::size_t>(d)] = centre(d);
       vel[static_cast<std::size_t>(d)] = velocity(d);
     }
-    const sabo::contact::ParticleView view{id, position, vel, angular, radii, masses, {}};
+    const sabo::contact::ParticleView view{id, position, vel, angular, radii, masses, {}, {}};
     contact.compute(view, dt_previous, out);
     model.apply_node_forces(out.node_force);
     const double dt = std::min({dt_factor * model.stable_dt(), contact.stable_dt(), max_dt});

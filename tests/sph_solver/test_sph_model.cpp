@@ -470,7 +470,7 @@ struct PenaltyWalls {
         velocity[3 * i + k] = model.velocities()[i][k];
       }
     }
-    const contact::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}};
+    const contact::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}, {}};
     contact.compute(view, dt_previous, out);
     model.add_external_forces(indices, out.particle_force);
     return contact.stable_dt();
