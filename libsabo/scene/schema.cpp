@@ -488,8 +488,10 @@ class Schema {
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
                  "(cheapest, exact in bending with a few elements through the depth); `enhanced_strain`, 2 x 2 x 2 "
                  "points with nine condensed incompatible modes (no hourglass modes and accurate in bending: for "
-                 "concentrated impact loads); `fully_integrated`, 2 x 2 x 2 points with the volume change at the "
-                 "element mean (no hourglass modes, stiffer in bending). Shells (a structure with a `thickness`): "
+                 "concentrated impacts that stay mostly elastic; too soft under large plastic strain: the F2 "
+                 "Taylor bar ends outside the reference, docs/physics.md); `fully_integrated`, 2 x 2 x 2 points "
+                 "with the volume change at the element mean (no hourglass modes, stiffer in bending: for "
+                 "concentrated impacts with large plastic flow). Shells (a structure with a `thickness`): "
                  "`one_point`, Belytschko-Lin-Tsay with hourglass control; `fully_integrated`, 2 x 2 in-plane "
                  "points with MITC4 transverse shear (no hourglass modes, no shear locking: for concentrated "
                  "impact loads; about twice the cost per element); `enhanced_strain` is for solids only."),
