@@ -361,6 +361,75 @@ class WholeRun(Case):
             shutil.rmtree(parent, ignore_errors=True)
 
 
+class ReplaySpeed(Case):
+    """Replay against live: the scene runs live without a recording and with every field recorded at every step
+    (the recording's share of the wall time), then `./sabo replay` of each role on the full recording. The goal
+    (issue 19): each replay faster than the live run, since one process computes alone."""
+
+    def __init__(self, scene, roles):
+        super().__init__(
+            "replay." + os.path.splitext(os.path.basename(scene))[0],
+            "replay",
+            "./sabo run {} (unrecorded, fully recorded), then ./sabo replay RUN_DIR ROLE for {}".format(
+                scene, ", ".join(roles)),
+            "slowest_replay_over_live",
+            "x",
+            timeout_s=1800,
+        )
+        self.scene = scene
+        self.roles = roles
+        self.goal = {"max": 1.0, "text": "< 1: each replay faster than live (the issue)"}
+
+    def binaries(self, bin_dir):
+        return [os.path.join(bin_dir, name) for name in ("sabo_scene", "sabo_replay", "coupler", "dem_solver",
+                                                         "fem_solver", "sph_solver")]
+
+    def command(self, bin_dir, out_dir="RUN_DIR"):
+        return [os.path.join(ROOT, "sabo"), "run", self.scene, "--out", out_dir, "--no-setup", "--quiet"]
+
+    def scene_with_recording(self, parent, name, settings):
+        sys.path.insert(0, ROOT)
+        from supervisor.replay import apply_overrides  # the text overrides `./sabo replay --set` uses
+        with open(os.path.join(ROOT, self.scene), encoding="utf-8") as handle:
+            text = handle.read()
+        if not any(line.strip() == "[recording]" for line in text.splitlines()):
+            text += "\n[recording]\n"
+        path = os.path.join(parent, name + ".toml")
+        with open(path, "w", encoding="utf-8") as handle:
+            handle.write(apply_overrides(text, ["recording." + s for s in settings]))
+        return path
+
+    def timed(self, command):
+        start = time.monotonic()
+        run_process(command, {}, self.timeout_s, cwd=ROOT)
+        return time.monotonic() - start
+
+    def run_once(self, bin_dir):
+        parent = tempfile.mkdtemp(prefix="sabo-bench-")
+        try:
+            sabo = os.path.join(ROOT, "sabo")
+            unrecorded = self.scene_with_recording(parent, "unrecorded", ["enabled=false"])
+            full = self.scene_with_recording(parent, "full", ["enabled=true", "fields=[]", "every=1"])
+            figures = {"live_unrecorded_seconds": self.timed(
+                [sabo, "run", unrecorded, "--out", os.path.join(parent, "unrecorded"), "--no-setup", "--quiet"])}
+            run_dir = os.path.join(parent, "full")
+            live = self.timed([sabo, "run", full, "--out", run_dir, "--no-setup", "--quiet"])
+            figures["live_seconds"] = live
+            figures["recording_share"] = (live - figures["live_unrecorded_seconds"]) / live
+            figures["traffic_megabytes"] = os.path.getsize(os.path.join(run_dir, "traffic.h5")) / 1e6
+            ratios = []
+            for role in self.roles:
+                seconds = self.timed([sabo, "replay", run_dir, role, "--no-setup",
+                                      "--out", os.path.join(parent, "replay-" + role)])
+                figures["replay_{}_seconds".format(role)] = seconds
+                figures["replay_{}_over_live".format(role)] = seconds / live
+                ratios.append(seconds / live)
+            figures["slowest_replay_over_live"] = max(ratios)
+            return figures
+        finally:
+            shutil.rmtree(parent, ignore_errors=True)
+
+
 class RunFailed(Exception):
     pass
 
@@ -462,6 +531,7 @@ def all_cases(quick, cores):
                                 ("wendland_c2", 1.5, False)):
         cases.append(SphThroughput(kernel, ratio, spacing, sph_steps, 2, goal and not quick))
     cases.append(chute)
+    cases.append(ReplaySpeed(chute.scene, ("dem", "fem", "coupler")))
     return cases
 
 

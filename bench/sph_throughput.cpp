@@ -3,7 +3,10 @@
 // boundary-particle walls, the neighbour count per particle and the memory per
 // particle. Threads: OMP_NUM_THREADS.
 //   bench_sph_throughput [--spacing DX] [--steps N] [--kernel wendland_c2|cubic_spline] [--ratio H_OVER_DX]
-//                        [--wall-work bounded|stored|unstored]
+//                        [--wall-work bounded|stored|unstored] [--rheology inviscid|newtonian|bingham]
+//                        [--viscous-operator strain_rate|morris]
+// --rheology: the column's material: inviscid water (the default), water of viscosity 1e-3 Pa s,
+// or a Bingham slurry (tau_y 100 Pa, mu_p 1 Pa s, gamma_0 1/s); --viscous-operator: sph.viscous_operator.
 #include <fmt/format.h>
 #include <omp.h>
 
@@ -39,6 +42,11 @@ int main(int argc, char** argv) {
   std::string wall_work = "bounded";
   app.add_option("--wall-work", wall_work, "sph.wall_work (the default: bounded)")
       ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
+  std::string rheology = "inviscid", viscous_operator = "strain_rate";
+  app.add_option("--rheology", rheology, "the column's rheology (inviscid water: the default)")
+      ->check(CLI::IsMember({"inviscid", "newtonian", "bingham"}));
+  app.add_option("--viscous-operator", viscous_operator, "sph.viscous_operator (the default: strain_rate)")
+      ->check(CLI::IsMember({"strain_rate", "morris"}));
   CLI11_PARSE(app, argc, argv);
 
   using namespace sabo;
@@ -46,6 +54,17 @@ int main(int argc, char** argv) {
   scene::Scene s = sph::testing::water_scene(dx, 10.0 * std::sqrt(2 * 9.81 * 2 * a), ratio);
   s.sph.kernel = scene::SphSettings::kernel_named(kernel);
   s.sph.wall_work = scene::SphSettings::wall_work_named(wall_work);
+  s.sph.viscous_operator = scene::SphSettings::viscous_operator_named(viscous_operator);
+  scene::Material& material = s.materials[0];
+  if (rheology == "newtonian") {
+    material.rheology = scene::Material::Rheology::newtonian;
+    material.viscosity = 1e-3;
+  } else if (rheology == "bingham") {
+    material.rheology = scene::Material::Rheology::bingham;
+    material.viscosity = 1.0;
+    material.yield_stress = 100.0;
+    material.yield_shear_rate = 1.0;
+  }
   s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
 
   const double memory_before = resident_megabytes();
@@ -82,8 +101,8 @@ int main(int argc, char** argv) {
   for (int k = 0; k < steps; ++k) step();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double n = static_cast<double>(model.size());
-  fmt::print("particles {} walls {} threads {} kernel {} h/dx {}\n", model.size(), wall_count, omp_get_max_threads(),
-             kernel, ratio);
+  fmt::print("particles {} walls {} threads {} kernel {} h/dx {} rheology {} viscous operator {}\n", model.size(),
+             wall_count, omp_get_max_threads(), kernel, ratio, rheology, viscous_operator);
   const double rate = n * steps / seconds;
   const double bytes = (memory_after - memory_before) * 1e6 / (n + static_cast<double>(wall_count));
   fmt::print("particle_steps_per_second {:.4g}\n", rate);

@@ -457,7 +457,7 @@ void assign_vectors(google::protobuf::RepeatedField<double>& field,
 }
 }  // namespace
 
-void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop) {
+void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop, bool checkpoint) {
   const auto start = Clock::now();
   replies_.begin_step(solvers_, surface_nodes_);
   for (auto& slot : pairs_) {
@@ -472,6 +472,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop)
     f.set_dt(dt);
     f.set_output(output);
     f.set_stop(stop);
+    f.set_checkpoint(checkpoint);
     if (peer->registration.exposes_particles()) {
       const scene::Role role = peer->scene_role;
       f.mutable_index()->CopyFrom(peer->state.index());
@@ -708,6 +709,7 @@ void Coupler::write_summary(const std::string& status) {
       {"wall_seconds", wall},
       {"steps_per_second", wall > 0 ? static_cast<double>(steps_) / wall : 0.0},
       {"dt", {{"min", std::isfinite(dt_min_) ? dt_min_ : 0.0}, {"max", dt_max_}}},
+      {"checkpoints", {{"interval", scene_.run.checkpoint_period()}, {"written", checkpoints_}}},
       {"processes", processes},
       {"coupling_overhead",
        {{"seconds", overhead},
@@ -758,6 +760,7 @@ int Coupler::run() {
 
     double dt_previous = 0;
     const double end_tolerance = 1e-12 * scene_.run.end_time;
+    next_checkpoint_time_ = scene_.run.checkpoint_period();
     for (std::uint64_t step = 0;; ++step) {
       collect_states(step);
       time_ = peers_.front()->state.time();
@@ -780,7 +783,14 @@ int Coupler::run() {
       dt_max_ = std::max(dt_max_, dt);
       account(step, time_, dt, output);
       if (last) events_.emit({{"event", "stopping"}, {"reason", "end_time reached"}});
-      send_forces(step, dt, output, last);
+      // Checkpoints of the state after this step, t_{n+1}, every checkpoint_period() of simulated time (none of
+      // the final state: nothing would resume from it).
+      const double period = scene_.run.checkpoint_period();
+      const bool checkpoint = !last && period > 0 && time_ + dt < scene_.run.end_time - end_tolerance &&
+                              time_ + dt >= next_checkpoint_time_ - 1e-9 * period;
+      while (checkpoint && next_checkpoint_time_ <= time_ + dt + 1e-9 * period) next_checkpoint_time_ += period;
+      if (checkpoint) ++checkpoints_;
+      send_forces(step, dt, output, last, checkpoint);
       for (auto& peer : peers_) peer->has_state = false;
       if (recorder_) recorder_->end_step(step);
       steps_ = step + 1;

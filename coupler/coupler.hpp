@@ -59,7 +59,7 @@ class Coupler {
   double coupled_dt() const;
   void compute_contacts(const StepClock& clock);
   void check_newton_third_law(std::uint64_t step);
-  void send_forces(std::uint64_t step, double dt, bool output, bool stop);
+  void send_forces(std::uint64_t step, double dt, bool output, bool stop, bool checkpoint);
   void account(std::uint64_t step, double time, double dt, bool output);
   void progress(std::uint64_t step, double time, double dt, bool force_emit);
   void stop_solvers(const std::string& reason);
@@ -109,6 +109,8 @@ class Coupler {
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
   double next_output_time_ = 0;
+  double next_checkpoint_time_ = 0;  // s; set to the first period at the start
+  std::uint64_t checkpoints_ = 0;    // steps whose StepForces asked for a checkpoint
   double previous_time_ = 0;
   bool previous_output_ = false;
   double previous_contact_elastic_ = 0;

@@ -18,6 +18,7 @@ const char* rheology_name(scene::Material::Rheology rheology) {
     case scene::Material::Rheology::inviscid: return "inviscid";
     case scene::Material::Rheology::newtonian: return "newtonian";
     case scene::Material::Rheology::bingham: return "bingham";
+    case scene::Material::Rheology::herschel_bulkley: return "herschel_bulkley";
     case scene::Material::Rheology::elastic_plastic: return "elastic_plastic";
   }
   return "unknown";

@@ -67,6 +67,7 @@
 #include <vector>
 
 #include "libsabo/core/types.hpp"
+#include "libsabo/io/hdf5.hpp"
 #include "libsabo/physics/cell_list.hpp"
 #include "libsabo/physics/contact_law.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
@@ -177,6 +178,10 @@ class DemModel {
   // next compute_internal_forces(), together with positions and velocities.
   [[nodiscard]] std::vector<ContactRecord> contact_histories() const;
   void restore(std::span<const ContactRecord> contacts, double dissipated_energy);
+  // The whole state integrate() leaves for the next step, for checkpoints (dem_checkpoint.cpp): a model built
+  // from the same scene that loads it continues with the same bits. FileError for a checkpoint of another scene.
+  void save_state(io::hdf5::Group& group) const;
+  void load_state(const io::hdf5::Group& group);
 
   // Adds a rigid wall (fixed, infinite mass). Its contacts use the law of the sphere's
   // material with itself; their histories are kept per sphere and wall.

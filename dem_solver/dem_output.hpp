@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "dem_solver/dem_model.hpp"
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/vtk.hpp"
 
 namespace sabo::dem {
@@ -14,6 +15,8 @@ class DemOutput {
   // Spheres at x_n with their half-step velocities and the forces of step n.
   void write(std::uint64_t step, double time);
   void close() {}  // the series is complete on disk after every write
+  void save(io::hdf5::Group& group) const { io::write_series(group, "dem_pvd", series_); }
+  void load(const io::hdf5::Group& group) { io::read_series(group, "dem_pvd", series_); }
 
  private:
   const DemModel& model_;

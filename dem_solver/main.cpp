@@ -54,6 +54,16 @@ class DemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
   void integrate(double dt_previous, double dt) override { model_.integrate(dt_previous, dt); }
+  [[nodiscard]] bool can_checkpoint() const override { return true; }
+  void save_checkpoint(io::hdf5::Group& group) const override {
+    io::hdf5::Group model = group.create_group("model");
+    model_.save_state(model);
+    output_.save(group);
+  }
+  void load_checkpoint(const io::hdf5::Group& group) override {
+    model_.load_state(group.group("model"));
+    output_.load(group);
+  }
   void finish() override { output_.close(); }
 
  private:

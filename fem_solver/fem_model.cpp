@@ -17,6 +17,7 @@
 #include "libsabo/contact/surface_contact_history.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/hdf5.hpp"
 
@@ -656,89 +657,93 @@ void FemModel::step(double dt) {
   time_ += dt;
 }
 
-namespace {
-constexpr const char* kCheckpointFormat = "sabo fem_solver checkpoint 1";
-}  // namespace
-
-void FemModel::write_checkpoint(const std::filesystem::path& file, std::uint64_t step) const {
-  io::hdf5::File out = io::hdf5::File::create(file);
-  out.set_attribute("format", kCheckpointFormat);
-  out.set_attribute("step", static_cast<std::int64_t>(step));
-  out.set_attribute("time", time_);
-  out.set_attribute("surface_revision", static_cast<std::int64_t>(surface_revision_));
-  io::hdf5::Group parts = out.create_group("parts");
+void FemModel::save_state(io::hdf5::Group& group) const {
+  group.set_attribute("time", time_);
+  group.set_attribute("surface_revision", static_cast<std::int64_t>(surface_revision_));
+  io::hdf5::Group parts = group.create_group("parts");
   for (std::size_t index = 0; index < parts_.size(); ++index) {
     const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get());
     if (part == nullptr) continue;
     const BodyState state = part->save_state();
-    io::hdf5::Group group = parts.create_group(info_[index].name);
-    auto write = [&](const std::string& name, const auto& values) {
-      using T = typename std::decay_t<decltype(values)>::value_type;
-      group.create_dataset<T>(name, std::max<std::uint64_t>(1, values.size()))
-          .append(std::span<const T>(values.data(), values.size()));
-    };
-    write("real", state.real);
-    write("active", state.active);
-    write("counters", state.counters);
+    io::hdf5::Group part_group = parts.create_group(info_[index].name);
+    io::write_array(part_group, "real", state.real);
+    io::write_array(part_group, "active", state.active);
+    io::write_array(part_group, "counters", state.counters);
   }
   if (structure_contact_) {
     // The springs between structures and the contact's energy accounts.
-    io::hdf5::Group group = out.create_group("structure_contact");
-    group.set_attribute("dissipated", contact_dissipated_);
-    group.set_attribute("elastic", contact_elastic_);
-    group.set_attribute("power", contact_power_);
-    contact::write_history(group, structure_contact_->history());
+    io::hdf5::Group springs = group.create_group("structure_contact");
+    springs.set_attribute("dissipated", contact_dissipated_);
+    springs.set_attribute("elastic", contact_elastic_);
+    springs.set_attribute("power", contact_power_);
+    contact::write_history(springs, structure_contact_->history());
   }
-  out.flush();
 }
 
-std::uint64_t FemModel::read_checkpoint(const std::filesystem::path& file) {
-  const io::hdf5::File in = io::hdf5::File::open(file);
-  if (!in.has_attribute("format") || in.string_attribute("format") != kCheckpointFormat) {
-    throw FileError(
-        fmt::format("{}: not a fem_solver checkpoint (attribute format is not \"{}\"). Fix: restart "
-                    "from a checkpoint_fem_*.h5 file the fem_solver wrote",
-                    file.string(), kCheckpointFormat));
-  }
-  const io::hdf5::Group parts = in.group("parts");
+void FemModel::load_state(const io::hdf5::Group& group) {
+  const std::string file = group.file_name();
+  const io::hdf5::Group parts = group.group("parts");
   for (std::size_t index = 0; index < parts_.size(); ++index) {
     auto* part = dynamic_cast<DeformablePart*>(parts_[index].get());
     if (part == nullptr) continue;
     const std::string& name = info_[index].name;
-    const std::string what = fmt::format("{}: part '{}'", file.string(), name);
+    const std::string what = fmt::format("{}: part '{}'", file, name);
     if (!parts.exists(name)) {
       throw FileError(
-          fmt::format("{}: no state for this deformable part. Fix: restart from a checkpoint of this "
-                      "scene",
-                      what));
+          fmt::format("{}: no state for this deformable part. Fix: restart from a checkpoint of this scene", what));
     }
-    const io::hdf5::Group group = parts.group(name);
+    const io::hdf5::Group part_group = parts.group(name);
     BodyState state;
-    state.real = group.dataset("real").read_all<double>();
-    state.active = group.dataset("active").read_all<std::uint8_t>();
-    state.counters = group.dataset("counters").read_all<std::uint64_t>();
+    state.real = io::read_array<double>(part_group, "real");
+    state.active = io::read_array<std::uint8_t>(part_group, "active");
+    state.counters = io::read_array<std::uint64_t>(part_group, "counters");
     part->restore_state(state, what);
   }
-  time_ = in.double_attribute("time");
+  time_ = group.double_attribute("time");
   rebuild_surface();
-  surface_revision_ = static_cast<std::uint64_t>(in.int_attribute("surface_revision"));
+  surface_revision_ = static_cast<std::uint64_t>(group.int_attribute("surface_revision"));
   if (structure_contact_) {
-    if (!in.exists("structure_contact")) {
-      throw FileError(
-          fmt::format("{}: no state for the contact between structures. Fix: restart from a checkpoint of this scene",
-                      file.string()));
+    if (!group.exists("structure_contact")) {
+      throw FileError(fmt::format(
+          "{}: no state for the contact between structures. Fix: restart from a checkpoint of this scene", file));
     }
-    const io::hdf5::Group group = in.group("structure_contact");
-    contact_dissipated_ = group.double_attribute("dissipated");
-    contact_elastic_ = group.double_attribute("elastic");
-    contact_power_ = group.double_attribute("power");
+    const io::hdf5::Group springs = group.group("structure_contact");
+    contact_dissipated_ = springs.double_attribute("dissipated");
+    contact_elastic_ = springs.double_attribute("elastic");
+    contact_power_ = springs.double_attribute("power");
     try {
-      structure_contact_->restore(contact::read_history(group));
+      structure_contact_->restore(contact::read_history(springs));
     } catch (const ProtocolError& error) {
-      throw FileError(fmt::format("{}: {}", group.path(), error.what()));
+      throw FileError(fmt::format("{}: {}", springs.path(), error.what()));
     }
   }
-  return static_cast<std::uint64_t>(in.int_attribute("step"));
+}
+
+void FemModel::save_output_state(io::hdf5::Group& group, const std::filesystem::path& run_folder) const {
+  group.set_attribute("energy_history_started", energy_history_started_ ? 1 : 0);
+  io::write_file_size(group, "fem_energy_csv", run_folder / "fem_energy.csv");
+  group.set_attribute("surface_series", series_ ? 1 : 0);
+  if (series_) io::write_series(group, "fem_pvd", *series_);
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    if (part_series_[index]) io::write_series(group, "part_" + info_[index].name, *part_series_[index]);
+  }
+}
+
+void FemModel::load_output_state(const io::hdf5::Group& group, const std::filesystem::path& run_folder) {
+  energy_history_started_ = group.int_attribute("energy_history_started") != 0 &&
+                            io::truncate_to_saved_size(group, "fem_energy_csv", run_folder / "fem_energy.csv");
+  series_.reset();
+  if (group.int_attribute("surface_series") != 0) {
+    series_.emplace(run_folder / "fem.pvd");
+    io::read_series(group, "fem_pvd", *series_);
+  }
+  for (std::size_t index = 0; index < parts_.size(); ++index) {
+    part_series_[index].reset();
+    const std::string name = "part_" + info_[index].name;
+    if (!group.has_attribute(name + "_files")) continue;
+    part_series_[index].emplace(run_folder / fmt::format("fem_{}.pvd", info_[index].name));
+    io::read_series(group, name, *part_series_[index]);
+  }
 }
 
 void FemModel::write_output(const std::filesystem::path& run_folder, std::uint64_t step, double time,

@@ -29,6 +29,7 @@
 #include "fem_solver/solid_body.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
+#include "libsabo/io/hdf5.hpp"
 #include "libsabo/io/vtk.hpp"
 #include "libsabo/scene/scene.hpp"
 
@@ -198,16 +199,20 @@ class FemModel {
   // N, per surface node: the structure contact's forces of the last compute_internal_forces() (empty: none).
   [[nodiscard]] std::span<const Vec3> structure_contact_forces() const { return contact_force_; }
 
-  // Checkpoint (DESIGN.md §5) after step(): every deformable part's state
+  // Checkpoint (docs/restart.md) after step(): every deformable part's state
   // (node positions and velocities, stresses, back stresses, plastic strains,
-  // hourglass forces, eroded flags, energy accounts) and the model's time, in
-  // HDF5 (`file`: attributes format, step, time, surface_revision; a group
-  // parts/<name> per deformable part with datasets real, active, counters).
-  void write_checkpoint(const std::filesystem::path& file, std::uint64_t step) const;
-  // Restores a checkpoint written by a model of the same scene, so that the
-  // next steps give the same bits as the run that wrote it; returns its step.
-  // Throws FileError for an unreadable file or one that does not fit the scene.
-  std::uint64_t read_checkpoint(const std::filesystem::path& file);
+  // hourglass forces, eroded flags, energy accounts) and the model's time
+  // (attributes time, surface_revision; a group parts/<name> per deformable
+  // part with datasets real, active, counters).
+  void save_state(io::hdf5::Group& group) const;
+  // Restores a state saved by a model of the same scene, so that the next
+  // steps give the same bits as the run that saved it. Throws FileError for a
+  // state that does not fit the scene.
+  void load_state(const io::hdf5::Group& group);
+  // What write_output() carries from frame to frame: the .pvd series and the
+  // length of fem_energy.csv, which load cuts back to.
+  void save_output_state(io::hdf5::Group& group, const std::filesystem::path& run_folder) const;
+  void load_output_state(const io::hdf5::Group& group, const std::filesystem::path& run_folder);
 
   // Writes <run_folder>/fem/fem_<step>.vtp (the surface with node_force,
   // node_id, and per face part, material, thickness) and adds it to

@@ -75,8 +75,16 @@ class FemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }
   void integrate(double /*dt_previous*/, double dt) override { model_.step(dt); }
-  void write_checkpoint(std::uint64_t next_step, double /*time*/) override {
-    model_.write_checkpoint(out_dir_ / fmt::format("checkpoint_fem_{:08}.h5", next_step), next_step);
+  [[nodiscard]] bool can_checkpoint() const override { return true; }
+  void save_checkpoint(io::hdf5::Group& group) const override {
+    io::hdf5::Group model = group.create_group("model");
+    model_.save_state(model);
+    io::hdf5::Group output = group.create_group("output");
+    model_.save_output_state(output, out_dir_);
+  }
+  void load_checkpoint(const io::hdf5::Group& group) override {
+    model_.load_state(group.group("model"));
+    model_.load_output_state(group.group("output"), out_dir_);
   }
   void finish() override {
     for (std::size_t index = 0; index < model_.part_count(); ++index) {

@@ -40,6 +40,17 @@ class EnergyAudit {
   [[nodiscard]] double dissipated() const { return dissipated_; }
   // J, accumulated: the work done on the fluid from outside (walls and contact forces).
   [[nodiscard]] double work_in() const { return work_in_; }
+  // Its accounts in and out of a checkpoint (between steps: nothing of a step is pending).
+  void save(io::hdf5::Group& group) const {
+    group.set_attribute("audit_previous_total", previous_total_);
+    group.set_attribute("audit_dissipated", dissipated_);
+    group.set_attribute("audit_work_in", work_in_);
+  }
+  void load(const io::hdf5::Group& group) {
+    previous_total_ = group.double_attribute("audit_previous_total");
+    dissipated_ = group.double_attribute("audit_dissipated");
+    work_in_ = group.double_attribute("audit_work_in");
+  }
 
  private:
   double previous_total_;

@@ -123,6 +123,20 @@ class SphSolver final : public solver::CoupledSolver {
     }
   }
 
+  [[nodiscard]] bool can_checkpoint() const override { return true; }
+  void save_checkpoint(io::hdf5::Group& group) const override {
+    io::hdf5::Group model = group.create_group("model");
+    model_.save_state(model);
+    audit_.save(group);
+    output_.save(group);
+    group.set_attribute("have_boundary_forces", have_boundary_forces_ ? 1 : 0);
+  }
+  void load_checkpoint(const io::hdf5::Group& group) override {
+    model_.load_state(group.group("model"));
+    audit_.load(group);
+    output_.load(group);
+    have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
+  }
   void finish() override {}
 
  private:

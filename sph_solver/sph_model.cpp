@@ -36,6 +36,12 @@ constexpr std::size_t kEnergyTerms = 4;
 constexpr std::size_t kWallMoments = 20;
 // Padding slots sit this far (m) from everything: outside every support.
 constexpr float kFarAway = 1e6f;
+// The kernel-gradient correction of the strain-rate viscosity (compute_velocity_gradients):
+// the eigenvalues of the moment matrix M (1 in the bulk, about 1/2 across a free surface) are
+// held at this or more, so that a particle with almost no neighbours along some direction
+// (a splash) is amplified at most 1 / kMinGradientMoment times. A cube's corner particle has 0.19
+// (Wendland C2, h = 1.5 dx) and is corrected in full.
+constexpr double kMinGradientMoment = 0.1;
 
 // The fraction of a fluid particle's wall credit (wall_compression()) that wall_work =
 // "bounded" applies. stored (J): the compression energy the whole credit would store this
@@ -56,38 +62,54 @@ double bounded_credit(double stored, float& held) {
 
 // The terms a step computes, fixed at compile time: the pair loops carry no
 // branch for a term that no material asks for.
-template <KernelKind Kind, bool Viscous, bool Stress, DensityDiffusion Diffusion, bool Artificial = false>
+template <KernelKind Kind, bool Viscous, bool Stress, DensityDiffusion Diffusion, bool Artificial = false,
+          bool Transpose = false>
 struct Terms {
   static constexpr KernelKind kernel = Kind;
-  static constexpr bool viscous = Viscous;        // velocity gradients, Morris viscosity
+  static constexpr bool viscous = Viscous;        // velocity gradients, Morris's pair term for div(eta L)
   static constexpr bool stress = Stress;          // deviatoric stress (elastic-plastic)
   static constexpr bool artificial = Artificial;  // Monaghan's artificial stress (fluid pairs only)
+  // With viscous: the divergence of eta L~^T, so that the viscous stress is 2 eta D
+  // (sph.viscous_operator = "strain_rate").
+  static constexpr bool transpose = Viscous && Transpose;
   static constexpr bool diffusion = Diffusion != DensityDiffusion::none;
   static constexpr bool hydrostatic = Diffusion == DensityDiffusion::fourtakas;
 };
 
-// AllowArtificial: the caller has an artificial-stress path (only the fluid pair loop); the
-// others are not instantiated for it.
-template <bool AllowArtificial = false, class F>
-void with_terms(KernelKind kind, bool viscous, bool stress, bool artificial, DensityDiffusion diffusion, F&& f) {
-  const auto with_diffusion = [&]<KernelKind K, bool V, bool S, bool A = false>() {
+// AllowArtificial: the caller has an artificial-stress path (only the fluid pair loop);
+// AllowTranspose: the caller has the eta L^T path (the fluid and wall force loops). The
+// others are not instantiated for them.
+template <bool AllowArtificial = false, bool AllowTranspose = false, class F>
+void with_terms(KernelKind kind, bool viscous, bool stress, bool artificial, bool transpose, DensityDiffusion diffusion,
+                F&& f) {
+  const auto with_diffusion = [&]<KernelKind K, bool V, bool S, bool A = false, bool Tr = false>() {
     switch (diffusion) {
-      case DensityDiffusion::none: f(Terms<K, V, S, DensityDiffusion::none, A>{}); return;
-      case DensityDiffusion::molteni: f(Terms<K, V, S, DensityDiffusion::molteni, A>{}); return;
-      case DensityDiffusion::fourtakas: f(Terms<K, V, S, DensityDiffusion::fourtakas, A>{}); return;
+      case DensityDiffusion::none: f(Terms<K, V, S, DensityDiffusion::none, A, Tr>{}); return;
+      case DensityDiffusion::molteni: f(Terms<K, V, S, DensityDiffusion::molteni, A, Tr>{}); return;
+      case DensityDiffusion::fourtakas: f(Terms<K, V, S, DensityDiffusion::fourtakas, A, Tr>{}); return;
     }
+  };
+  // The viscous variants, with or without the eta L^T term.
+  const auto with_transpose = [&]<KernelKind K, bool S, bool A = false>() {
+    if constexpr (AllowTranspose) {
+      if (transpose) {
+        with_diffusion.template operator()<K, true, S, A, true>();
+        return;
+      }
+    }
+    with_diffusion.template operator()<K, true, S, A>();
   };
   const auto with_rheology = [&]<KernelKind K>() {
     if constexpr (AllowArtificial) {
       if (stress && artificial) {
-        with_diffusion.template operator()<K, true, true, true>();
+        with_transpose.template operator()<K, true, true>();
         return;
       }
     }
     if (stress) {
-      with_diffusion.template operator()<K, true, true>();
+      with_transpose.template operator()<K, true>();
     } else if (viscous) {
-      with_diffusion.template operator()<K, true, false>();
+      with_transpose.template operator()<K, false>();
     } else {
       with_diffusion.template operator()<K, false, false>();
     }
@@ -167,15 +189,46 @@ inline void add_stress_dot(const Sym6& s, float f, float rx, float ry, float rz,
   tz += s.zx * gx + s.yz * gy + s.zz * gz;
 }
 
+// A general 3x3 tensor (eta L^T, Pa), nine scalars kept in registers like Sym6; ab is row a, column b.
+struct Mat9 {
+  float xx = 0, xy = 0, xz = 0, yx = 0, yy = 0, yz = 0, zx = 0, zy = 0, zz = 0;
+};
+
+// Component ab of slot j at s[(3 a + b) * stride + j].
+inline Mat9 load_mat9(const float* s, std::size_t stride, std::size_t j) {
+  return {s[j],
+          s[stride + j],
+          s[2 * stride + j],
+          s[3 * stride + j],
+          s[4 * stride + j],
+          s[5 * stride + j],
+          s[6 * stride + j],
+          s[7 * stride + j],
+          s[8 * stride + j]};
+}
+
+// Adds c (A + B) . r to t.
+inline void add_sum_dot(const Mat9& a, const Mat9& b, float c, float rx, float ry, float rz, float& tx, float& ty,
+                        float& tz) {
+  const float gx = c * rx, gy = c * ry, gz = c * rz;
+  tx += (a.xx + b.xx) * gx + (a.xy + b.xy) * gy + (a.xz + b.xz) * gz;
+  ty += (a.yx + b.yx) * gx + (a.yy + b.yy) * gy + (a.yz + b.yz) * gz;
+  tz += (a.zx + b.zx) * gx + (a.zy + b.zy) * gy + (a.zz + b.zz) * gz;
+}
+
 // Acceleration t of fluid particle i (density rho_i, p_i / rho_i^2 = pr_i, viscosity
 // eta_i, stress s_i) from wall particle b (mass m_b, density rho_b, pr_b), r = x_i - x_b,
 // vr = (v_i - v_wall).r, u = v_i - v_b (no-slip wall velocity), s_b the wall's stress
 // (the fluid's, extrapolated in boundary_state). One function for both sides of the
 // pair: the force on the wall particle is minus m_i times the same float.
+// t_i: the fluid particle's eta L~^T (sph.viscous_operator = "strain_rate"); the wall
+// particle carries the same (the no-slip image continues the fluid's velocity gradient, as
+// its velocity 2 v_w - v~ continues the velocity), so the pair adds
+// m_b / (rho_i rho_b) 2 t_i . grad W, with Morris's r^2 / (r^2 + eta^2).
 template <class T>
 inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_i, float eta_i, const Sym6& s_i,
-                      const Sym6& s_b, float f, float rx, float ry, float rz, float r2, float vr, float inverse_r2,
-                      float ux, float uy, float uz, float alpha_hc, float& tx, float& ty, float& tz) {
+                      const Sym6& s_b, const Mat9& t_i, float f, float rx, float ry, float rz, float r2, float vr,
+                      float inverse_r2, float ux, float uy, float uz, float alpha_hc, float& tx, float& ty, float& tz) {
   const float sf = pair_scalar(m_b, pr_i, pr_b, vr, inverse_r2, rho_i, rho_b, alpha_hc) * f;
   tx = sf * rx;
   ty = sf * ry;
@@ -185,6 +238,10 @@ inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_
     tx += viscous * ux;
     ty += viscous * uy;
     tz += viscous * uz;
+  }
+  if constexpr (T::transpose) {
+    const float c = m_b / (rho_i * rho_b) * f * r2 * inverse_r2;
+    add_sum_dot(t_i, t_i, c, rx, ry, rz, tx, ty, tz);
   }
   if constexpr (T::stress) {
     const float a_i = m_b / (rho_i * rho_i), a_b = m_b / (rho_b * rho_b);
@@ -263,11 +320,32 @@ inline float dynamic_density_difference(float p_i, float p_j, float rho_i, float
 
 }  // namespace
 
+double FluidMaterial::viscosity_at(double shear_rate) const {
+  // Papanastasiou's yield term tau_y (1 - exp(-gamma_dot / gamma_0)) / gamma_dot, limit tau_y / gamma_0.
+  const auto yield_term = [&] {
+    const double x_rate = shear_rate / yield_shear_rate;
+    const double factor = x_rate > 1e-8 ? -std::expm1(-x_rate) / shear_rate : 1.0 / yield_shear_rate;
+    return yield_stress * factor;
+  };
+  switch (rheology) {
+    case Rheology::inviscid: return 0;
+    case Rheology::newtonian: return viscosity;
+    case Rheology::bingham: return viscosity + yield_term();
+    case Rheology::herschel_bulkley:
+      // K gamma_dot^(n-1), held at its value at gamma_0 below it (bounded for n < 1).
+      return consistency_index * std::pow(std::max(shear_rate, yield_shear_rate), flow_index - 1.0) + yield_term();
+    case Rheology::elastic_plastic: return viscosity;
+  }
+  return 0;
+}
+
 double FluidMaterial::max_viscosity() const {
   switch (rheology) {
     case Rheology::inviscid: return 0;
     case Rheology::newtonian: return viscosity;
     case Rheology::bingham: return viscosity + yield_stress / yield_shear_rate;
+    case Rheology::herschel_bulkley:
+      return consistency_index * std::pow(yield_shear_rate, flow_index - 1.0) + yield_stress / yield_shear_rate;
     case Rheology::elastic_plastic: return viscosity;
   }
   return 0;
@@ -330,6 +408,8 @@ SphModel::SphModel(const scene::Scene& scene)
     material.viscosity = source.viscosity;
     material.yield_stress = source.yield_stress.value_or(0.0);
     material.yield_shear_rate = source.yield_shear_rate;
+    material.consistency_index = source.consistency_index;
+    material.flow_index = source.flow_index;
     material.shear_modulus = source.fluid_shear_modulus > 0 ? source.fluid_shear_modulus : source.shear_modulus();
     if (material.rheology == Rheology::elastic_plastic) {
       material.artificial_stress = source.artificial_stress.value_or(kDefaultArtificialStress);
@@ -345,7 +425,10 @@ SphModel::SphModel(const scene::Scene& scene)
     any_gradient_ = any_gradient_ || materials_[m].needs_velocity_gradient();
     has_stress_ = has_stress_ || materials_[m].rheology == Rheology::elastic_plastic;
     any_artificial_stress_ = any_artificial_stress_ || materials_[m].artificial_stress > 0;
+    strain_rate_viscosity_ = strain_rate_viscosity_ || materials_[m].max_viscosity() > 0;
   }
+  strain_rate_viscosity_ =
+      strain_rate_viscosity_ && settings_.viscous_operator == scene::SphSettings::ViscousOperator::strain_rate;
   FluidFill fill = fill_fluids(scene, materials_, body_material);
   position_ = std::move(fill.position);
   velocity_ = std::move(fill.velocity);
@@ -712,7 +795,7 @@ void SphModel::copy_wall_image_state() {
 void SphModel::compute_boundary_state() {
   boundary_pressure_.assign(boundary_.size(), 0.0);
   if (has_stress_) bmoment_.resize(kWallMoments * b_order_.size());
-  with_terms(kernel_.type, any_gradient_, has_stress_, false, DensityDiffusion::none,
+  with_terms(kernel_.type, any_gradient_, has_stress_, false, false, DensityDiffusion::none,
              [&](auto terms) { boundary_state(terms); });
   if (has_stress_) {
     boundary_stress_.resize(6 * boundary_.size());  // every entry is written: b_order_ holds every wall particle
@@ -958,6 +1041,11 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
     return;
   }
   fgrad_.assign(9 * n, 0.0);
+  // The eta L~^T term of the strain-rate viscosity: from the first pass of a step (integrate()'s
+  // elastic-plastic pass reads only the gradients).
+  const bool transpose = strain_rate_viscosity_ && !elastic_plastic_only;
+  const std::size_t stride = n + kLanes;
+  if (transpose) ftranspose_.assign(9 * stride, 0.0f);
   const std::size_t particles = position_.size();
   const double support2 = kernel_.support() * kernel_.support();
   const double h = kernel_.h;
@@ -973,6 +1061,8 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
     if (elastic_plastic_only && material.rheology != Rheology::elastic_plastic) continue;
     const double x = fx_[i], y = fy_[i], z = fz_[i];
     double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    // M = -sum_j V_j F r r^T (xx yy zz xy yz zx): L of the linear field v_j - v_i = G (x_j - x_i) is G M.
+    double M[6] = {0, 0, 0, 0, 0, 0};
     const auto add = [&](double rx, double ry, double rz, double r2, double dvx, double dvy, double dvz,
                          double volume) {
       const double f = kernel_.gradient_factor(std::sqrt(r2)) * volume;
@@ -980,6 +1070,14 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
       const double dv[3] = {dvx, dvy, dvz};
       for (int a = 0; a < 3; ++a) {
         for (int b = 0; b < 3; ++b) L[3 * a + b] += dv[a] * g[b];
+      }
+      if (transpose) {
+        M[0] -= g[0] * rx;
+        M[1] -= g[1] * ry;
+        M[2] -= g[2] * rz;
+        M[3] -= g[0] * ry;
+        M[4] -= g[1] * rz;
+        M[5] -= g[2] * rx;
       }
     };
     const Vec3& position = position_[f_order_[i]];
@@ -1000,41 +1098,77 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
       }
     });
     std::copy_n(L, 9, &fgrad_[9 * i]);
+    // The strain-rate viscosity works with the kernel-gradient-corrected L~ = L M^-1, exact for
+    // a linear velocity field whatever the neighbours: at a free surface L itself falls short by
+    // the missing neighbours (M about 1/2 across it), which would leave the surface layers a
+    // lower shear rate, so a higher viscosity (a crust), than the flow below them
+    // (docs/physics.md, "Viscosity"). M's eigenvalues are held at kMinGradientMoment or more.
+    // The stress rates of elastic-plastic fluids keep L (fgrad_, above).
+    const double* rate_gradient = L;
+    double corrected[9];
+    if (transpose) {
+      Mat3 moment;
+      moment << M[0], M[3], M[5], M[3], M[1], M[4], M[5], M[4], M[2];
+      Eigen::SelfAdjointEigenSolver<Mat3> eigen;
+      eigen.computeDirect(moment, Eigen::EigenvaluesOnly);
+      Mat3 inverse;
+      if (eigen.eigenvalues().minCoeff() >= kMinGradientMoment) {
+        inverse = moment.inverse();
+      } else {
+        eigen.computeDirect(moment);
+        const Vec3 held = eigen.eigenvalues().cwiseMax(kMinGradientMoment);
+        inverse = eigen.eigenvectors() * held.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+      }
+      Mat3 grad;
+      grad << L[0], L[1], L[2], L[3], L[4], L[5], L[6], L[7], L[8];
+      const Mat3 product = grad * inverse;
+      for (int a = 0; a < 3; ++a) {
+        for (int b = 0; b < 3; ++b) corrected[3 * a + b] = product(a, b);
+      }
+      rate_gradient = corrected;
+    }
+    const double* G = rate_gradient;
     // Strain rate D = (L + L^T)/2; shear rate sqrt(2 D':D').
-    double d[6] = {L[0], L[4], L[8], 0.5 * (L[1] + L[3]), 0.5 * (L[5] + L[7]), 0.5 * (L[6] + L[2])};
+    double d[6] = {G[0], G[4], G[8], 0.5 * (G[1] + G[3]), 0.5 * (G[5] + G[7]), 0.5 * (G[6] + G[2])};
     const double trace = (d[0] + d[1] + d[2]) / 3.0;
     d[0] -= trace;
     d[1] -= trace;
     d[2] -= trace;
     const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] + 2.0 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
     const double shear_rate = std::sqrt(2.0 * dd);
-    double eta = 0;
-    switch (material.rheology) {
-      case Rheology::newtonian: eta = material.viscosity; break;
-      case Rheology::bingham: {
-        // Papanastasiou: eta = mu_p + tau_y (1 - exp(-gamma_dot / gamma_0)) / gamma_dot, limit mu_p + tau_y / gamma_0.
-        const double x_rate = shear_rate / material.yield_shear_rate;
-        const double factor = x_rate > 1e-8 ? -std::expm1(-x_rate) / shear_rate : 1.0 / material.yield_shear_rate;
-        eta = material.viscosity + material.yield_stress * factor;
-        break;
-      }
-      case Rheology::elastic_plastic: eta = material.viscosity; break;
-      case Rheology::inviscid: break;
-    }
+    // Papanastasiou for bingham and herschel_bulkley (FluidMaterial::viscosity_at).
+    const double eta = material.viscosity_at(shear_rate);
     feta_[i] = static_cast<float>(eta);
     if (eta > 0) min_viscous_dt = std::min(min_viscous_dt, double{frho_[i]} * h * h / (8.0 * eta));
+    if (transpose) {
+      // eta (L~^T - 2/3 tr(L~) I): with Morris's eta L the stress is 2 eta D', deviatoric (no bulk
+      // viscosity on the weakly compressible fluid's density changes). A rigid rotation gives
+      // L~^T = -L~, and this term cancels Morris's pair by pair.
+      const double dilatation = (2.0 / 3.0) * (G[0] + G[4] + G[8]);
+      for (int a = 0; a < 3; ++a) {
+        for (int b = 0; b < 3; ++b) {
+          const double t = eta * (G[3 * b + a] - (a == b ? dilatation : 0.0));
+          ftranspose_[static_cast<std::size_t>(3 * a + b) * stride + i] = static_cast<float>(t);
+        }
+      }
+    }
   }
   min_viscous_dt_ = min_viscous_dt;
   if (!f_image_source_.empty()) {
     for (std::size_t s = 0; s < n; ++s) {
-      if (f_order_[s] >= particles) feta_[s] = feta_[f_slot_of_[fluid_source(f_order_[s])]];
+      if (f_order_[s] < particles) continue;
+      const std::size_t source = f_slot_of_[fluid_source(f_order_[s])];
+      feta_[s] = feta_[source];
+      if (transpose) {
+        for (std::size_t q = 0; q < 9; ++q) ftranspose_[q * stride + s] = ftranspose_[q * stride + source];
+      }
     }
   }
 }
 
 void SphModel::compute_fluid_forces() {
-  with_terms<true>(kernel_.type, any_gradient_, has_stress_, any_artificial_stress_, settings_.density_diffusion,
-                   [&](auto terms) { fluid_forces(terms); });
+  with_terms<true, true>(kernel_.type, any_gradient_, has_stress_, any_artificial_stress_, strain_rate_viscosity_,
+                         settings_.density_diffusion, [&](auto terms) { fluid_forces(terms); });
 }
 
 template <class T>
@@ -1064,6 +1198,7 @@ void SphModel::fluid_forces(T) {
   const float* fstress = fstress_.data();
   const float* fartificial = fartificial_.data();
   const std::size_t stress_stride = f_order_.size() + kLanes;
+  const float* ftr = ftranspose_.data();  // like fstress_, 9 components (only with T::transpose)
   const float* bstress = bstress_.data();
   const std::size_t bstress_stride = b_order_.size() + kLanes;
   // 1 / W(dx): f_ij = W(r_ij) / W(dx) in the artificial-stress term.
@@ -1107,6 +1242,8 @@ void SphModel::fluid_forces(T) {
         }
         Sym6 r_i;  // R_i, artificial stress over rho_i^2
         if constexpr (T::artificial) r_i = load_sym6(fartificial, stress_stride, i);
+        Mat9 t_i;  // eta_i L~_i^T
+        if constexpr (T::transpose) t_i = load_mat9(ftr, stress_stride, i);
         alignas(64) double ax[kLanes] = {}, ay[kLanes] = {}, az[kLanes] = {};
         alignas(64) float diffuse[kLanes] = {}, mu_max[kLanes] = {};
         alignas(64) std::int32_t neighbours[kLanes] = {};
@@ -1134,6 +1271,12 @@ void SphModel::fluid_forces(T) {
               tx += viscous * dvx;
               ty += viscous * dvy;
               tz += viscous * dvz;
+            }
+            if constexpr (T::transpose) {
+              // div(eta L^T): m_j / (rho_i rho_j) (t_i + t_j) . grad W, with Morris's r^2 / (r^2 + eta^2).
+              const Mat9 t_j = load_mat9(ftr, stress_stride, j);
+              const float scale = m_j / (rho_i * rho_j) * f * r2 * inverse_r2;
+              add_sum_dot(t_i, t_j, scale, rx, ry, rz, tx, ty, tz);
             }
             if constexpr (T::stress) {
               const Sym6 s_j = load_sym6(fstress, stress_stride, j);
@@ -1190,8 +1333,8 @@ void SphModel::fluid_forces(T) {
             Sym6 s_b;
             if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, j);
             float tx, ty, tz;
-            wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, s_b, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
-                         uz, alpha_hc, tx, ty, tz);
+            wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, s_b, t_i, f, rx, ry, rz, r2, vr, inverse_r2, ux,
+                         uy, uz, alpha_hc, tx, ty, tz);
             ax[l] += tx;
             ay[l] += ty;
             az[l] += tz;
@@ -1227,8 +1370,8 @@ void SphModel::fluid_forces(T) {
 void SphModel::compute_boundary_forces() {
   const std::size_t walls = boundary_.size();
   boundary_force_.assign(walls + b_image_source_.size(), Vec3::Zero());
-  with_terms(kernel_.type, any_gradient_, has_stress_, false, DensityDiffusion::none,
-             [&](auto terms) { boundary_forces(terms); });
+  with_terms<false, true>(kernel_.type, any_gradient_, has_stress_, false, strain_rate_viscosity_,
+                          DensityDiffusion::none, [&](auto terms) { boundary_forces(terms); });
   // The fluid's force on a wall image is its source's (action = reaction), in image order.
   for (std::size_t k = 0; k < b_image_source_.size(); ++k)
     boundary_force_[b_image_source_[k]] += boundary_force_[walls + k];
@@ -1255,6 +1398,7 @@ void SphModel::boundary_forces(T) {
   const float* feta = feta_.data();
   const float* fstress = fstress_.data();
   const std::size_t stress_stride = f_order_.size() + kLanes;
+  const float* ftr = ftranspose_.data();
   const float* bstress = bstress_.data();
   const std::size_t bstress_stride = b_order_.size() + kLanes;
   // With images, the real fluid only: a wall (or wall image) sees each fluid particle once.
@@ -1302,9 +1446,11 @@ void SphModel::boundary_forces(T) {
               eta_i = feta[j];
             }
             if constexpr (T::stress) s_i = load_sym6(fstress, stress_stride, j);
+            Mat9 t_i;
+            if constexpr (T::transpose) t_i = load_mat9(ftr, stress_stride, j);
             float tx, ty, tz;
-            wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, s_b, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
-                         uz, alpha_hc, tx, ty, tz);
+            wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, s_b, t_i, f, rx, ry, rz, r2, vr, inverse_r2, ux,
+                         uy, uz, alpha_hc, tx, ty, tz);
             const double m_i = inside ? fm[j] : 0.0;
             fbx[l] -= m_i * tx;
             fby[l] -= m_i * ty;
@@ -1333,7 +1479,7 @@ void SphModel::compute_velocity_divergence(double dt) {
     fvy_[s] = static_cast<float>(v.y());
     fvz_[s] = static_cast<float>(v.z());
   }
-  with_terms(kernel_.type, false, false, false, DensityDiffusion::none, [&](auto terms) {
+  with_terms(kernel_.type, false, false, false, false, DensityDiffusion::none, [&](auto terms) {
     if (credits_wall_work()) wall_compression(terms);  // read by velocity_divergence()
     velocity_divergence(terms, dt);
   });

@@ -58,6 +58,7 @@
 #include <vector>
 
 #include "libsabo/core/types.hpp"
+#include "libsabo/io/hdf5.hpp"
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
@@ -87,10 +88,16 @@ struct FluidMaterial {
   double viscosity = 0;          // Pa s
   double yield_stress = 0;       // Pa
   double yield_shear_rate = 1;   // 1/s
+  double consistency_index = 0;  // Pa s^n (herschel_bulkley)
+  double flow_index = 1;         // herschel_bulkley
   double shear_modulus = 0;      // Pa
   double artificial_stress = 0;  // epsilon of Monaghan's artificial stress (elastic_plastic; 0: off)
   [[nodiscard]] bool needs_velocity_gradient() const { return rheology != scene::Material::Rheology::inviscid; }
-  // Largest effective viscosity of the material (viscous dt condition), Pa s.
+  // Effective viscosity eta(gamma_dot) of the viscous stress 2 eta D (docs/scene.md, rheology), Pa s;
+  // shear_rate = sqrt(2 D':D') >= 0, 1/s. 0 for inviscid.
+  [[nodiscard]] double viscosity_at(double shear_rate) const;
+  // Effective viscosity at rest, the largest but for a shear-thickening herschel_bulkley fluid
+  // (the initial viscous dt condition; later steps take the particles' own), Pa s.
   [[nodiscard]] double max_viscosity() const;
 };
 
@@ -176,6 +183,11 @@ class SphModel {
   [[nodiscard]] double mean_neighbours() const { return mean_neighbours_; }
   // Box around all active particles; empty when there are none.
   [[nodiscard]] Aabb bounds() const;
+
+  // The whole state integrate() leaves for the next step, for checkpoints (sph_checkpoint.cpp): a model built
+  // from the same scene that loads it continues with the same bits. FileError for a checkpoint of another scene.
+  void save_state(io::hdf5::Group& group) const;
+  void load_state(const io::hdf5::Group& group);
 
  private:
   // The particle (wall particle) id whose state a sorted slot's id carries: itself, or an
@@ -370,6 +382,11 @@ class SphModel {
   double max_mu_ = 0;                  // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s
   double max_acceleration_ = 0;        // m/s^2, largest |a| in the last compute
   double min_viscous_dt_ = std::numeric_limits<double>::infinity();  // s
+  // sph.viscous_operator = "strain_rate" with a viscous material: eta L~^T per sorted slot, component
+  // ab (row-major) of slot s at (3 a + b) (n + kLanes) + s, L~ = L M^-1 the kernel-gradient-corrected
+  // velocity gradient (compute_velocity_gradients), Pa. Empty otherwise.
+  bool strain_rate_viscosity_ = false;
+  std::vector<float> ftranspose_;
 
   double stable_dt_ = 0;
   double mean_neighbours_ = 0;

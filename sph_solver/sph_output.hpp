@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/vtk.hpp"
 #include "sph_solver/sph_model.hpp"
 
@@ -15,6 +16,8 @@ class SphOutput {
  public:
   SphOutput(const std::filesystem::path& run_dir, const SphModel& model);
   void write(std::uint64_t step, double time);
+  void save(io::hdf5::Group& group) const { io::write_series(group, "sph_pvd", series_); }
+  void load(const io::hdf5::Group& group) { io::read_series(group, "sph_pvd", series_); }
 
  private:
   const SphModel& model_;

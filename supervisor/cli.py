@@ -7,6 +7,7 @@ import time
 from .display import Display
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 from .plan import check_scene
+from .replay import command_replay
 from .run import PIDS_FILE, Supervisor
 from .setup_env import setup
 
@@ -17,6 +18,7 @@ Sabo: co-simulation of debris flows striking protective structures.
 
   ./sabo setup             install the Debian packages, configure and build (idempotent)
   ./sabo run SCENE         run a scene (does setup first); output goes to a run folder
+  ./sabo replay RUN ROLE   replay a run's recorded traffic against one process (sph, dem, fem, coupler)
   ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
 """
 
@@ -51,6 +53,32 @@ def build_parser():
                             help="run folder; must not exist or be empty (default: runs/<scene>-<date>-<time>)")
     run_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
     run_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+
+    replay_parser = commands.add_parser(
+        "replay", help="replay a run's recorded traffic against one process and compare, field by field",
+        description="Replay RUN_DIR/traffic.h5 against one process: for a solver role the recording plays the "
+                    "coupler (every recorded StepForces in order) and each StepState the solver sends is compared "
+                    "with the recorded one; for the coupler the recording plays every solver and each StepForces is "
+                    "compared. Prints the first divergence (step, time, field, entity, recorded and replayed values, "
+                    "their difference, the tolerance) and a table per field. Exit status: 0 everything matches, "
+                    "1 a divergence, 2 bad input, 3 the process failed. docs/traffic.md, 'Replay'.")
+    replay_parser.add_argument("run_dir", metavar="RUN_DIR", help="the run folder (with traffic.h5)")
+    replay_parser.add_argument("role", metavar="ROLE", help="sph, dem, fem or coupler")
+    replay_parser.add_argument("--command", dest="program", metavar="CMD",
+                               help="the program to check instead of the scene's "
+                                                                 "(a shell-quoted command line)")
+    replay_parser.add_argument("--set", metavar="TABLE.KEY=VALUE", action="append",
+                               help="override a key of the recorded scene, e.g. materials.granite.density=3100 "
+                                    "(repeatable)")
+    replay_parser.add_argument("--rtol", metavar="FIELD=VALUE", action="append",
+                               help="relative tolerance of a field, e.g. position=1e-12 (default: exact)")
+    replay_parser.add_argument("--atol", metavar="FIELD=VALUE", action="append",
+                               help="absolute tolerance of a field (default: exact)")
+    replay_parser.add_argument("--resume", metavar="CHECKPOINT",
+                               help="start the solver from this checkpoint (RUN_DIR/checkpoints/<role>_<step>.h5) "
+                                    "and replay from its step")
+    replay_parser.add_argument("--out", metavar="DIR", help="the replay's folder (default: RUN_DIR/replay/ROLE-<time>)")
+    replay_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
 
     test_parser = commands.add_parser(
         "test", help="build, then run the tests with ctest",
@@ -163,6 +191,10 @@ def main(root, argv=None):
             return EXIT_BAD_INPUT
         if args.command == "setup":
             return command_setup(root, build_dir, args)
+        if args.command == "replay":
+            if not args.no_setup:
+                setup(root, build_dir, quiet=True)
+            return command_replay(root, build_dir, args)
         return command_run(root, build_dir, args)
     except SaboError as error:
         print("sabo: error: {}".format(error), file=sys.stderr)

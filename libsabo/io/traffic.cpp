@@ -597,6 +597,25 @@ std::string TrafficReader::scene_text() const {
   return {bytes.begin(), bytes.end()};
 }
 
+std::vector<std::string> TrafficReader::recorded_fields() const {
+  const std::string fields = impl_->file.string_attribute("fields");
+  if (fields == "all") return traffic_field_names();
+  std::vector<std::string> names;
+  std::size_t start = 0;
+  while (start <= fields.size()) {
+    const std::size_t comma = std::min(fields.find(',', start), fields.size());
+    std::string name = fields.substr(start, comma - start);
+    name.erase(0, name.find_first_not_of(' '));
+    if (!name.empty()) names.push_back(name);
+    start = comma + 1;
+  }
+  return names;
+}
+
+std::uint64_t TrafficReader::every() const {
+  return static_cast<std::uint64_t>(impl_->file.int_attribute("every"));
+}
+
 std::vector<std::string> TrafficReader::roles() const {
   std::vector<std::string> names;
   for (const auto& [name, reader] : impl_->roles) {

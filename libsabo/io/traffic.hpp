@@ -90,6 +90,10 @@ class TrafficReader {
   ~TrafficReader();
 
   [[nodiscard]] std::string scene_text() const;
+  // What the recording's settings selected: the fields (traffic_field_names() when all were), and every
+  // N-th step.
+  [[nodiscard]] std::vector<std::string> recorded_fields() const;
+  [[nodiscard]] std::uint64_t every() const;
   [[nodiscard]] std::vector<std::string> roles() const;  // roles with a registration or a recorded message
   [[nodiscard]] std::vector<std::uint64_t> steps(const std::string& role) const;        // recorded states
   [[nodiscard]] std::vector<std::uint64_t> force_steps(const std::string& role) const;  // recorded forces

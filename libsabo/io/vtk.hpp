@@ -80,11 +80,15 @@ class TimeSeries {
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
   [[nodiscard]] std::size_t size() const { return entries_.size(); }
 
- private:
   struct Entry {
-    double time;
-    std::string file;
+    double time;       // s
+    std::string file;  // relative to the .pvd's folder
   };
+  [[nodiscard]] const std::vector<Entry>& entries() const { return entries_; }
+  // The entries of a checkpoint: the .pvd is rewritten at the next add().
+  void restore(std::vector<Entry> entries) { entries_ = std::move(entries); }
+
+ private:
   std::filesystem::path path_;
   std::vector<Entry> entries_;
 };

@@ -21,6 +21,7 @@
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -643,6 +644,8 @@ class Builder {
   struct FluidMaterialKeys {
     int line = 0;
     bool has_eos_c1 = false;
+    // Lines of the Herschel-Bulkley keys (0: absent) and of viscosity.
+    int consistency_index_line = 0, flow_index_line = 0, viscosity_line = 0;
   };
   // A sphere of a list, with where it was written, for the overlap check.
   struct ListedSphere {
@@ -670,6 +673,8 @@ class Builder {
     if (auto v = r.vec3("gravity")) run.gravity = *v;
     if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
     run.max_dt = r.number("max_dt");
+    run.checkpoint_interval = r.number("checkpoint_interval");
+    if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
   }
 
   void read_materials(Reader& root) {
@@ -705,13 +710,18 @@ class Builder {
     if (auto v = r.string("rheology")) {
       if (*v == "newtonian") material.rheology = Material::Rheology::newtonian;
       if (*v == "bingham") material.rheology = Material::Rheology::bingham;
+      if (*v == "herschel_bulkley") material.rheology = Material::Rheology::herschel_bulkley;
       if (*v == "elastic_plastic") material.rheology = Material::Rheology::elastic_plastic;
     }
     if (auto v = r.number("viscosity")) material.viscosity = *v;
     if (auto v = r.number("yield_shear_rate")) material.yield_shear_rate = *v;
+    if (auto v = r.number("consistency_index")) material.consistency_index = *v;
+    if (auto v = r.number("flow_index")) material.flow_index = *v;
     if (auto v = r.number("fluid_shear_modulus")) material.fluid_shear_modulus = *v;
     material.artificial_stress = r.number("artificial_stress");
-    fluid_material_keys_[material.name] = {r.line(), r.has("eos_c1")};
+    const auto line_if = [&](const char* key) { return r.has(key) ? r.line(key) : 0; };
+    fluid_material_keys_[material.name] = {r.line(), r.has("eos_c1"), line_if("consistency_index"),
+                                           line_if("flow_index"), line_if("viscosity")};
   }
 
   void read_sph(Reader& root) {
@@ -743,6 +753,7 @@ class Builder {
     if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
     if (auto v = r.string("density_diffusion")) sph.density_diffusion = SphSettings::density_diffusion_named(*v);
     if (auto v = r.number("density_diffusion_delta")) sph.density_diffusion_delta = *v;
+    if (auto v = r.string("viscous_operator")) sph.viscous_operator = SphSettings::viscous_operator_named(*v);
     const auto min = r.vec3("domain_min"), max = r.vec3("domain_max");
     if (r.has("domain_min") != r.has("domain_max")) {
       const char* given = r.has("domain_min") ? "domain_min" : "domain_max";
@@ -939,6 +950,33 @@ class Builder {
         diag_.add(keys.line, path + ".yield_stress", std::nullopt,
                   "missing; a bingham or elastic_plastic fluid needs a positive yield stress" + user,
                   "give yield_stress > 0 (Pa)");
+      }
+      if (material->rheology == R::herschel_bulkley) {
+        if (keys.consistency_index_line == 0) {
+          diag_.add(keys.line, path + ".consistency_index", std::nullopt,
+                    "missing; a herschel_bulkley fluid needs its consistency index K (tau = tau_y + K "
+                    "gamma_dot^n)" +
+                        user,
+                    "give consistency_index > 0 (Pa s^n), e.g. consistency_index = 5.0");
+        }
+        if (keys.viscosity_line != 0) {
+          diag_.add(keys.viscosity_line, path + ".viscosity", number_literal(material->viscosity),
+                    "herschel_bulkley does not read viscosity: its viscous part is consistency_index K and "
+                    "flow_index n (K gamma_dot^n)" +
+                        user,
+                    "remove viscosity (flow_index = 1 with consistency_index = the plastic viscosity is bingham's "
+                    "law)");
+        }
+      } else {
+        const std::tuple<const char*, int, double> given[] = {
+            {"consistency_index", keys.consistency_index_line, material->consistency_index},
+            {"flow_index", keys.flow_index_line, material->flow_index}};
+        for (const auto& [key, line, value] : given) {
+          if (line == 0) continue;
+          diag_.add(line, path + "." + key, number_literal(value),
+                    std::string(key) + " is read only by rheology = \"herschel_bulkley\"" + user,
+                    fmt::format("remove {}, or use rheology = \"herschel_bulkley\"", key));
+        }
       }
       if (material->rheology != R::elastic_plastic && material->artificial_stress.value_or(0.0) > 0) {
         diag_.add(keys.line, path + ".artificial_stress", number_literal(*material->artificial_stress),

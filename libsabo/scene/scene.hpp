@@ -51,17 +51,23 @@ struct Material {
   Eos eos = Eos::tait;
   double tait_exponent = 7.0;                             // gamma, >= 1
   double eos_c0 = 0, eos_c1 = 0, eos_c2 = 0, eos_c3 = 0;  // Pa (polynomial; C1 > 0)
-  // Rheology: only the terms a material asks for are computed.
-  //   inviscid:        no physical viscosity (artificial viscosity only)
-  //   newtonian:       dynamic viscosity `viscosity` (Morris operator)
-  //   bingham:         regularised: eta = viscosity + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot
-  //                    (Papanastasiou), plastic viscosity `viscosity`
-  //   elastic_plastic: deviatoric stress with Jaumann rate, shear modulus `fluid_shear_modulus`,
-  //                    von Mises yield `yield_stress`, radial return (LS-DYNA MAT_ELASTIC_PLASTIC_HYDRO)
-  enum class Rheology { inviscid, newtonian, bingham, elastic_plastic };
+  // Rheology: only the terms a material asks for are computed. The viscous stress is
+  // 2 eta(gamma_dot) D (SphSettings::viscous_operator), gamma_dot = sqrt(2 D':D').
+  //   inviscid:         no physical viscosity (artificial viscosity only)
+  //   newtonian:        dynamic viscosity `viscosity`
+  //   bingham:          regularised: eta = viscosity + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot
+  //                     (Papanastasiou), plastic viscosity `viscosity`
+  //   herschel_bulkley: eta = consistency_index max(gamma_dot, yield_shear_rate)^(flow_index - 1)
+  //                     + yield_stress (1 - exp(-gamma_dot/yield_shear_rate)) / gamma_dot: the yield term
+  //                     regularised as bingham's, the power law held at its value at yield_shear_rate below it
+  //   elastic_plastic:  deviatoric stress with Jaumann rate, shear modulus `fluid_shear_modulus`,
+  //                     von Mises yield `yield_stress`, radial return (LS-DYNA MAT_ELASTIC_PLASTIC_HYDRO)
+  enum class Rheology { inviscid, newtonian, bingham, herschel_bulkley, elastic_plastic };
   Rheology rheology = Rheology::inviscid;
   double viscosity = 0;            // Pa s (newtonian: dynamic; bingham: plastic)
-  double yield_shear_rate = 1.0;   // 1/s (bingham regularisation)
+  double yield_shear_rate = 1.0;   // 1/s (bingham and herschel_bulkley regularisation)
+  double consistency_index = 0;    // Pa s^n (herschel_bulkley: K, > 0)
+  double flow_index = 1.0;         // herschel_bulkley: n, > 0 (< 1 shear-thinning)
   double fluid_shear_modulus = 0;  // Pa (elastic_plastic; 0: shear_modulus() from E and nu)
   // Monaghan's artificial stress against the tensile instability (elastic_plastic only): its
   // epsilon (0: off); absent: sph::kDefaultArtificialStress for elastic_plastic, none otherwise.
@@ -75,6 +81,10 @@ struct RunSettings {
   Vec3 gravity{0, 0, -9.81};     // m/s^2
   double hang_timeout = 10.0;    // s: a solver silent this long is declared hung
   std::optional<double> max_dt;  // s: upper bound on the coupled dt
+  // s between checkpoints; absent: end_time / 10; 0: none (checkpoint_period() resolves it).
+  std::optional<double> checkpoint_interval;
+  std::size_t checkpoints_kept = 2;
+  [[nodiscard]] double checkpoint_period() const { return checkpoint_interval.value_or(end_time / 10); }
 };
 
 // One solver process. `command` is the program and its fixed arguments; the
@@ -358,6 +368,13 @@ struct SphSettings {
   // Periodic boundaries, m: [min, max) along x and y; a particle leaving it re-enters at the
   // other end, and the fluid sees across the seam (docs/physics.md, "Periodic boundaries").
   std::optional<std::array<double, 2>> periodic_x, periodic_y;
+  // The viscous term (docs/physics.md, "Viscosity"): strain_rate, the divergence of
+  // 2 eta D = eta (L + L^T) (Morris et al.'s pair term for eta L plus the symmetric SPH
+  // divergence of each particle's eta L^T); morris, Morris et al. 1997's pair term alone,
+  // the divergence of eta L, which equals div(2 eta D) only where eta is uniform and the
+  // flow incompressible and far from a free surface.
+  enum class ViscousOperator { strain_rate, morris };
+  ViscousOperator viscous_operator = ViscousOperator::strain_rate;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
   // The scene's names (docs/scene.md) of the choices above; the name must be one of them.
@@ -366,6 +383,9 @@ struct SphSettings {
   }
   [[nodiscard]] static WallWork wall_work_named(std::string_view name) {
     return name == "stored" ? WallWork::stored : name == "unstored" ? WallWork::unstored : WallWork::bounded;
+  }
+  [[nodiscard]] static ViscousOperator viscous_operator_named(std::string_view name) {
+    return name == "morris" ? ViscousOperator::morris : ViscousOperator::strain_rate;
   }
   [[nodiscard]] static DensityDiffusion density_diffusion_named(std::string_view name) {
     return name == "none"      ? DensityDiffusion::none

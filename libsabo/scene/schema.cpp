@@ -173,6 +173,18 @@ class Schema {
             .unit("s")
             .gt(0)
             .doc("Upper bound on the coupled time step."),
+        K("checkpoint_interval", Type::number)
+            .absent("a tenth of `end_time`")
+            .example("0.5")
+            .unit("s")
+            .ge(0)
+            .doc("Simulated time between two checkpoints: every process writes its whole state at the same step "
+                 "into `RUN_DIR/checkpoints/<role>_<step>.h5`, from which one process is restarted while the others "
+                 "wait (docs/restart.md). `0`: no checkpoints."),
+        K("checkpoints_kept", Type::integer)
+            .def("2")
+            .ge(1)
+            .doc("How many checkpoints of each process are kept (the newest; older ones are removed)."),
     };
   }
 
@@ -226,11 +238,17 @@ class Schema {
         "* `eos = \"polynomial\"` (LS-DYNA's linear polynomial, the paper's slurry): p = C0 + s (C1 mu + C2 mu^2 "
         "+ C3 mu^3), mu = rho/rho0 - 1, s = rho0 c^2 / C1: the artificial sound speed sets the stiffness, "
         "the coefficients the shape.\n"
-        "* `rheology`: `inviscid` (artificial viscosity only); `newtonian` (dynamic `viscosity`, Morris "
-        "operator); `bingham` (Papanastasiou-regularised, eta = `viscosity` + `yield_stress` (1 - "
-        "exp(-gamma_dot / `yield_shear_rate`)) / gamma_dot); `elastic_plastic` (the paper's "
-        "MAT_ELASTIC_PLASTIC_HYDRO: deviatoric stress by the Jaumann rate with shear modulus "
-        "`fluid_shear_modulus`, von Mises yield `yield_stress`, radial return; `viscosity` optional).";
+        "* `rheology`: `inviscid` (artificial viscosity only); `newtonian` (dynamic `viscosity`); `bingham` "
+        "(Papanastasiou-regularised, eta = `viscosity` + `yield_stress` (1 - exp(-gamma_dot / "
+        "`yield_shear_rate`)) / gamma_dot); `herschel_bulkley` (tau = tau_y + K gamma_dot^n, eta = "
+        "`consistency_index` max(gamma_dot, `yield_shear_rate`)^(`flow_index` - 1) + `yield_stress` (1 - "
+        "exp(-gamma_dot / `yield_shear_rate`)) / gamma_dot: the yield term regularised as bingham's "
+        "(Papanastasiou), the power law held at its value at `yield_shear_rate` below that rate so that a "
+        "shear-thinning fluid's viscosity stays bounded; `yield_stress` absent: a power-law fluid); "
+        "`elastic_plastic` (the paper's MAT_ELASTIC_PLASTIC_HYDRO: deviatoric stress by the Jaumann rate with "
+        "shear modulus `fluid_shear_modulus`, von Mises yield `yield_stress`, radial return; `viscosity` "
+        "optional). gamma_dot = sqrt(2 D':D'), so that the yield stresses act as von Mises yield in shear; the "
+        "viscous stress 2 eta D enters the momentum by `sph.viscous_operator`.";
     material.keys = {
         K("density", Type::number).required("3000.0").unit("kg/m^3").gt(0).doc("Mass density."),
         K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
@@ -248,7 +266,7 @@ class Schema {
         K("eos_c3", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C3."),
         K("rheology", Type::string)
             .def("\"inviscid\"")
-            .choices({"inviscid", "newtonian", "bingham", "elastic_plastic"})
+            .choices({"inviscid", "newtonian", "bingham", "herschel_bulkley", "elastic_plastic"})
             .doc("Fluids: constitutive model of the deviatoric stress."),
         K("viscosity", Type::number)
             .def("0.0")
@@ -260,8 +278,23 @@ class Schema {
             .def("1.0")
             .unit("1/s")
             .gt(0)
-            .doc("Fluids, bingham: shear rate below which the regularised law turns viscous (largest viscosity "
-                 "`viscosity` + `yield_stress` / `yield_shear_rate`)."),
+            .doc("Fluids, bingham and herschel_bulkley: shear rate below which the regularised law turns viscous "
+                 "(largest viscosity `viscosity` + `yield_stress` / `yield_shear_rate`; herschel_bulkley with "
+                 "`flow_index` <= 1: `consistency_index` `yield_shear_rate`^(`flow_index` - 1) + `yield_stress` / "
+                 "`yield_shear_rate`). Below it a regularised fluid creeps (at about `yield_shear_rate` times "
+                 "stress / `yield_stress`); the explicit viscous step falls in proportion to it."),
+        K("consistency_index", Type::number)
+            .absent("required with rheology = \"herschel_bulkley\"")
+            .example("5.0")
+            .unit("Pa s^n")
+            .gt(0)
+            .doc("Fluids, herschel_bulkley: consistency index K of tau = tau_y + K gamma_dot^n."),
+        K("flow_index", Type::number)
+            .def("1.0")
+            .gt(0)
+            .le(2)
+            .doc("Fluids, herschel_bulkley: flow index n of tau = tau_y + K gamma_dot^n (< 1 shear-thinning, 1 "
+                 "bingham, > 1 shear-thickening)."),
         K("fluid_shear_modulus", Type::number)
             .absent("E / (2 (1 + nu)) of this material")
             .example("1.68e6")
@@ -290,11 +323,12 @@ class Schema {
         "and erosion of elements whose maximum principal strain reaches `failure_strain`.";
     material.keys.push_back(
         K("yield_stress", Type::number)
-            .absent("elastic (structures); required by bingham and elastic_plastic fluids")
+            .absent("elastic (structures); required by bingham and elastic_plastic fluids; 0 for herschel_bulkley")
             .unit("Pa")
             .gt(0)
             .doc("Structures: initial yield stress sigma_0 of the plastic kinematic law. Fluids: the Bingham yield "
-                 "stress tau_y, or the von Mises yield stress sigma_y (elastic_plastic)."));
+                 "stress tau_y (bingham, herschel_bulkley), or the von Mises yield stress sigma_y "
+                 "(elastic_plastic)."));
     material.keys.push_back(K("tangent_modulus", Type::number)
                                 .def("0.0")
                                 .unit("Pa")
@@ -707,6 +741,23 @@ class Schema {
             .doc("delta-SPH term of the continuity equation: Molteni & Colagrossi 2009, or with the hydrostatic "
                  "part taken out (Fourtakas et al. 2019)."),
         K("density_diffusion_delta", Type::number).def("0.1").ge(0).le(1).doc("delta of the density diffusion."),
+        K("viscous_operator", Type::string)
+            .def("\"strain_rate\"")
+            .choices({"strain_rate", "morris"})
+            .doc(
+                "How the viscous stress 2 eta D of the fluids (`rheology` newtonian, bingham, herschel_bulkley, "
+                "elastic_plastic's `viscosity`) enters the momentum (docs/physics.md, \"Viscosity\"). "
+                "`\"strain_rate\"`: the divergence of the deviatoric 2 eta D' = eta (L + L^T) - 2/3 eta tr(L) I, "
+                "L = grad v: Morris et al. 1997's pair term for eta L and the symmetric SPH divergence of each "
+                "particle's eta (L^T - 2/3 tr(L) I), with the kernel-gradient-corrected L (exact for a linear velocity "
+                "field up to a free surface), which the shear rate of the rheology takes too; action equals "
+                "reaction per pair and a rigid rotation feels no force. A uniaxial extension carries Trouton's 3 eta "
+                "eps_dot (S9: 1.2 % off) and a yield stress acts in compression as in shear. `\"morris\"`: Morris's "
+                "pair term alone with the uncorrected L (the operator until 2026-12-01), 6-13 % cheaper per viscous "
+                "particle-step: the same in simple shear (S5, "
+                "S8's slope), but it drops eta L^T, half the normal stress of an extension, wherever the viscosity "
+                "varies or a free surface is near (S9: 49 % short; a Bingham column slumps to 24-28 % below the slump "
+                "analysis' height, against 9-12 % with `\"strain_rate\"`)."),
         K("domain_min", Type::vec3)
             .absent("no domain: particles are never taken out")
             .example("[-1.0, -1.0, -1.0]")
@@ -1361,7 +1412,9 @@ const std::vector<std::string>& cross_checks() {
       "`periodic_x` and `periodic_y` have min < max, a period of at least 4h + dx (h = `smoothing_ratio` * "
       "`particle_spacing`), and hold every fluid body along their axis.",
       "A fluid material: `eos = \"polynomial\"` needs `eos_c1`; `newtonian` and `bingham` need `viscosity` > 0; "
-      "`bingham` and `elastic_plastic` need `yield_stress` > 0; `artificial_stress` > 0 needs `elastic_plastic`. "
+      "`bingham` and `elastic_plastic` need `yield_stress` > 0; `herschel_bulkley` needs `consistency_index` and "
+      "takes no `viscosity`; `consistency_index` and `flow_index` need `herschel_bulkley`; `artificial_stress` > 0 "
+      "needs `elastic_plastic`. "
       "A fluid body holds at least one particle; a "
       "box has min < max on every axis; a profile has at least 3 points, no zero-length edge, no crossing "
       "edges; `direction` is horizontal and not zero.",

@@ -10,6 +10,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/core/log.hpp"
 #include "libsabo/core/signals.hpp"
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/protocol/solver_link.hpp"
 #include "libsabo/scene/loader.hpp"
 
@@ -31,6 +32,35 @@ void Interest::update(const google::protobuf::RepeatedPtrField<sabo::v1::Box>& b
   bounds_ = Aabb{};
   for (const auto& box : boxes) {
     boxes_.push_back(Aabb{Vec3(box.min_x(), box.min_y(), box.min_z()), Vec3(box.max_x(), box.max_y(), box.max_z())});
+    bounds_.extend(boxes_.back());
+  }
+}
+
+void Interest::save(io::hdf5::Group& group) const {
+  group.set_attribute("interest_all", all_ ? 1 : 0);
+  std::vector<double> corners;
+  corners.reserve(6 * boxes_.size());
+  for (const auto& box : boxes_) {
+    for (int c = 0; c < 3; ++c) corners.push_back(box.min[c]);
+    for (int c = 0; c < 3; ++c) corners.push_back(box.max[c]);
+  }
+  io::write_array(group, "interest_boxes", corners);
+}
+
+void Interest::load(const io::hdf5::Group& group) {
+  all_ = group.int_attribute("interest_all") != 0;
+  const auto corners = io::read_array<double>(group, "interest_boxes");
+  if (corners.size() % 6 != 0) {
+    throw FileError(
+        fmt::format("{}: interest_boxes holds {} values, not 6 per box. Fix: restart from a checkpoint "
+                    "Sabo wrote",
+                    group.file_name(), corners.size()));
+  }
+  boxes_.clear();
+  bounds_ = Aabb{};
+  for (std::size_t b = 0; b < corners.size(); b += 6) {
+    boxes_.push_back(
+        Aabb{Vec3(corners[b], corners[b + 1], corners[b + 2]), Vec3(corners[b + 3], corners[b + 4], corners[b + 5])});
     bounds_.extend(boxes_.back());
   }
 }
@@ -82,6 +112,8 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
       ->required();
   app.add_option("--out", options.out_dir, "run folder for output files")->capture_default_str();
   app.add_option("--log-level", options.log_level, "trace, debug, info, warn or error")->capture_default_str();
+  app.add_option("--resume", options.resume,
+                 "start from this checkpoint (RUN_DIR/checkpoints/<role>_<step>.h5) instead of step 0");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& help) {
@@ -103,21 +135,45 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   registration.set_role(role);
   registration.set_pid(static_cast<std::uint32_t>(::getpid()));
   solver.describe(registration);
+  registration.set_checkpoints(solver.can_checkpoint());
+
+  const std::string role_text = protocol::role_name(role);
+  const io::CheckpointStore checkpoints(options.out_dir / "checkpoints", role_text, io::file_digest(options.scene),
+                                        scene.run.checkpoints_kept);
+  std::uint64_t step = 0;
+  double time = 0;
+  double dt_previous = 0;
+  Interest interest;
+  bool resumed = false;
+  if (!options.resume.empty()) {
+    if (!solver.can_checkpoint()) {
+      throw FileError(
+          fmt::format("--resume {}: the {} cannot restart from a checkpoint. Fix: start it without --resume",
+                      options.resume.string(), role_text));
+    }
+    const io::hdf5::File file = checkpoints.open_file(options.resume);
+    step = io::checkpoint_step(file);
+    time = io::checkpoint_time(file);
+    dt_previous = file.double_attribute("dt_previous");
+    const io::hdf5::Group driver = file.group("driver");
+    interest.load(driver);
+    solver.load_checkpoint(file.group("solver"));
+    resumed = true;
+    registration.set_resumed(true);
+    registration.set_resume_step(step);
+    spdlog::info("resumed from {} at step {}, t = {:.9g} s", options.resume.string(), step, time);
+  }
   registration.set_stable_dt(solver.stable_dt());
 
   sabo::v1::Goodbye goodbye;
   double compute_seconds = 0;
-  std::uint64_t step = 0;
   int exit_code = 0;
   try {
     const auto& reply = link.register_solver(registration);
     spdlog::info("registered with the coupler at {} (protocol {})", options.coupler_endpoint, reply.protocol_version());
-    Interest interest;
-    interest.update(reply.interest(), reply.interest_all());
+    if (!resumed) interest.update(reply.interest(), reply.interest_all());
 
     sabo::v1::StepState state;
-    double time = 0;
-    double dt_previous = 0;
     double compute_since_last = 0;
     for (;; ++step) {
       auto start = Clock::now();
@@ -149,7 +205,15 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       solver.integrate(dt_previous, forces.dt());
       time += forces.dt();
       dt_previous = forces.dt();
-      if (forces.checkpoint()) solver.write_checkpoint(step + 1, time);
+      if (forces.checkpoint() && solver.can_checkpoint()) {
+        checkpoints.write(step + 1, time, [&](io::hdf5::File& file) {
+          file.set_attribute("dt_previous", dt_previous);
+          io::hdf5::Group driver = file.create_group("driver");
+          interest.save(driver);
+          io::hdf5::Group group = file.create_group("solver");
+          solver.save_checkpoint(group);
+        });
+      }
       compute_since_last = overlapped + seconds_since(start);
       compute_seconds += compute_since_last;
     }
@@ -194,6 +258,9 @@ int solver_main(int argc, char** argv, const std::string& program, sabo::v1::Rol
     auto solver = make(scene, *options);
     return run_solver(*solver, scene, *options, role);
   } catch (const SceneError& error) {
+    spdlog::error("{}", error.what());
+    return 2;
+  } catch (const FileError& error) {  // a checkpoint given with --resume that does not fit
     spdlog::error("{}", error.what());
     return 2;
   } catch (const std::exception& error) {

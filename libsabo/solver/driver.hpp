@@ -10,6 +10,7 @@
 #include <span>
 #include <string>
 
+#include "libsabo/io/hdf5.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sabo/v1/sabo.pb.h"
 
@@ -21,6 +22,9 @@ class Interest {
   void update(const google::protobuf::RepeatedPtrField<sabo::v1::Box>& boxes, bool all);
   [[nodiscard]] bool all() const { return all_; }
   [[nodiscard]] bool contains(const Vec3& point) const;
+  // In and out of a checkpoint: the regions of the next step are part of the solver's state.
+  void save(io::hdf5::Group& group) const;
+  void load(const io::hdf5::Group& group);
 
  private:
   bool all_ = true;
@@ -36,8 +40,12 @@ class Interest {
 //   3. apply_coupling_forces(): the contact forces received for step n;
 //   4. write_output() when the coupler asks for output at t_n;
 //   5. integrate(dt_{n-1}, dt_n): v_{n+1/2}, x_{n+1} (skipped on the last step).
-//   6. write_checkpoint(n + 1, t_{n+1}) when StepForces.checkpoint is set
-//      (after integrate: the state a restart resumes from at step n + 1).
+//   6. save_checkpoint() when StepForces.checkpoint is set (after integrate:
+//      the state a restart resumes from at step n + 1, docs/restart.md). The
+//      driver writes step, time, dt_n and the interest regions beside it.
+// A solver started with --resume FILE is built from the scene as usual, then
+// load_checkpoint() puts it back at step n + 1: from there it must produce
+// the same bits as the process that wrote the file.
 class CoupledSolver {
  public:
   virtual ~CoupledSolver() = default;
@@ -51,8 +59,11 @@ class CoupledSolver {
   virtual void apply_coupling_forces(const sabo::v1::StepForces& forces) = 0;
   virtual void write_output(std::uint64_t step, double time) = 0;
   virtual void integrate(double dt_previous, double dt) = 0;
-  // Solvers that support restarts write their state here; the default writes nothing.
-  virtual void write_checkpoint(std::uint64_t /*next_step*/, double /*time*/) {}
+  // Restarts: a solver that can write its whole state says so; save writes it into `group`, load
+  // restores it from a group that save wrote for the same scene (FileError otherwise).
+  [[nodiscard]] virtual bool can_checkpoint() const { return false; }
+  virtual void save_checkpoint(io::hdf5::Group& /*group*/) const {}
+  virtual void load_checkpoint(const io::hdf5::Group& /*group*/) {}
   // Called once at the end, also after errors: close files.
   virtual void finish() = 0;
 };
@@ -80,10 +91,11 @@ struct SolverOptions {
   std::string coupler_endpoint;
   std::filesystem::path out_dir = ".";
   std::string log_level = "info";
+  std::filesystem::path resume;  // a checkpoint file to start from; empty: start at step 0
 };
 
 // Parses the command line shared by every solver:
-//   <solver> --scene FILE --coupler ENDPOINT [--out DIR] [--log-level L]
+//   <solver> --scene FILE --coupler ENDPOINT [--out DIR] [--log-level L] [--resume CHECKPOINT]
 // Returns nullopt after printing help; throws sabo::Error on a bad command line.
 std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, const std::string& program);
 

@@ -16,6 +16,7 @@
 #include "fem_solver/fem_model.hpp"
 #include "fem_solver/structure_contact.hpp"
 #include "libsabo/core/error.hpp"
+#include "libsabo/io/hdf5.hpp"
 #include "tests/fem_solver/fem_test_support.hpp"
 #include "tests/support/scratch.hpp"
 
@@ -576,11 +577,14 @@ TEST(StructureContact, RestartDuringContactContinuesWithTheSameBits) {
     dt = advance(uninterrupted, dt), ++steps;
   for (int n = 0; n < 20; ++n) dt = advance(uninterrupted, dt), ++steps;
   ASSERT_GT(uninterrupted.structure_contact()->contact_count(), 0u) << "the checkpoint should fall in contact";
-  uninterrupted.write_checkpoint(file, static_cast<std::uint64_t>(steps));
+  {
+    auto out = sabo::io::hdf5::File::create(file);
+    uninterrupted.save_state(out);
+  }
   const double dt_at_checkpoint = dt;
   for (int n = 0; n < 300; ++n) dt = advance(uninterrupted, dt);
   FemModel restarted(scene);
-  restarted.read_checkpoint(file);
+  restarted.load_state(sabo::io::hdf5::File::open(file));
   dt = dt_at_checkpoint;
   for (int n = 0; n < 300; ++n) dt = advance(restarted, dt);
   auto a = positions_of(uninterrupted, 0), b = positions_of(restarted, 0);

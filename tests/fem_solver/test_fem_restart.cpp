@@ -118,14 +118,17 @@ void check_restart(Formulation formulation, const std::string& name) {
   FemModel uninterrupted(restart_scene(formulation));
   double dt_previous = 0;
   for (int n = 0; n < kBefore; ++n) dt_previous = advance(uninterrupted, dt_previous);
-  uninterrupted.write_checkpoint(file, kBefore);
+  {
+    auto out = sabo::io::hdf5::File::create(file);
+    uninterrupted.save_state(out);
+  }
   const Snapshot at_checkpoint = snapshot(uninterrupted, false);
   const double dt_at_checkpoint = dt_previous;
   for (int n = 0; n < kAfter; ++n) dt_previous = advance(uninterrupted, dt_previous);
   const Snapshot expected = snapshot(uninterrupted);
 
   FemModel restarted(restart_scene(formulation));
-  EXPECT_EQ(restarted.read_checkpoint(file), static_cast<std::uint64_t>(kBefore));
+  restarted.load_state(sabo::io::hdf5::File::open(file));
   const Snapshot restored = snapshot(restarted, false);
   EXPECT_TRUE(same_bits(restored.values, at_checkpoint.values)) << "the restored state differs from the saved one";
   EXPECT_EQ(restored.active, at_checkpoint.active);
@@ -165,12 +168,15 @@ TEST(FemRestart, EnhancedStrainRestoredModelContinuesWithTheSameBits) {
 TEST(FemRestart, CheckpointOfAnotherSceneIsRefused) {
   const auto file = sabo::testing::scratch("checkpoint_other.h5");
   FemModel model(restart_scene());
-  model.write_checkpoint(file, 3);
+  {
+    auto out = sabo::io::hdf5::File::create(file);
+    model.save_state(out);
+  }
   sabo::scene::Scene other = restart_scene();
   other.structures[0].shape.element_size = 0.1;  // a coarser bar
   FemModel coarse(other);
   try {
-    (void)coarse.read_checkpoint(file);
+    coarse.load_state(sabo::io::hdf5::File::open(file));
     ADD_FAILURE() << "no exception";
   } catch (const sabo::FileError& error) {
     const std::string text = error.what();

@@ -445,6 +445,39 @@ TEST(SceneLoader, SphWallWork) {
   }
 }
 
+// The viscous operator: strain_rate unless the scene names morris. A Herschel-Bulkley material
+// reads its consistency index, flow index, yield stress and regularisation rate.
+TEST(SceneLoader, SphViscousOperatorAndHerschelBulkley) {
+  using Operator = SphSettings::ViscousOperator;
+  EXPECT_EQ(load_scene(testing::source_dir() / "configs/tests/sph_tank_boundary.toml").sph.viscous_operator,
+            Operator::strain_rate);
+  TempFolder folder;
+  const std::string anchor = "wall_model = \"boundary_particles\"\n";
+  EXPECT_EQ(load_scene(folder.write("morris.toml", tank_scene_with(anchor, "viscous_operator = \"morris\"\n")))
+                .sph.viscous_operator,
+            Operator::morris);
+  const std::string hb =
+      "rheology = \"herschel_bulkley\"\nconsistency_index = 4.5\nflow_index = 0.4\nyield_stress = 60.0\n"
+      "yield_shear_rate = 0.5\n";
+  const Scene scene = load_scene(folder.write("hb.toml", tank_scene_with("eos = \"tait\"\n", hb)));
+  const Material& water = scene.materials.at(scene.material_index("water"));
+  EXPECT_EQ(water.rheology, Material::Rheology::herschel_bulkley);
+  EXPECT_EQ(water.consistency_index, 4.5);
+  EXPECT_EQ(water.flow_index, 0.4);
+  EXPECT_EQ(water.yield_stress, 60.0);
+  EXPECT_EQ(water.yield_shear_rate, 0.5);
+  // herschel_bulkley takes its viscous part from K and n: viscosity is refused, naming the fix.
+  try {
+    (void)load_scene(folder.write("hb_viscosity.toml", tank_scene_with("eos = \"tait\"\n", hb + "viscosity = 2.0\n")));
+    ADD_FAILURE() << "herschel_bulkley with viscosity was accepted";
+  } catch (const SceneError& e) {
+    const std::string message = e.what();
+    std::cout << message << "\n";
+    EXPECT_NE(message.find("materials.water.viscosity"), std::string::npos);
+    EXPECT_NE(message.find("consistency_index"), std::string::npos);
+  }
+}
+
 TEST(SceneLoader, SolverCommandsResolve) {
   TempFolder folder;
   const auto program = folder.write("bin/my_dem", "#!/bin/sh\nexit 0\n");

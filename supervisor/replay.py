@@ -1,0 +1,204 @@
+"""`./sabo replay RUN_DIR ROLE`: one process of a recorded run against its recorded traffic.
+
+For a solver role, `sabo_replay solver` plays the coupler from RUN_DIR/traffic.h5 (the registration's answer,
+then every recorded StepForces in order) and compares each StepState the solver sends with the recorded one;
+for ROLE = coupler, `sabo_replay coupler` plays every solver (the recorded registrations and states) and
+compares each StepForces the coupler sends. The process is the scene's own (the built executable or the
+scene's `command`), or `--command ...`: the program a user wants to check in place of the original. The
+scene is the recorded one, with `--set KEY=VALUE` overrides. `--resume CHECKPOINT` starts the solver from one of
+its checkpoints (RUN_DIR/checkpoints/<role>_<step>.h5, with the run's own scene file) and replays from that step:
+the check that a restart continues with the same bits. Everything runs in RUN_DIR/replay/<role>-<time>/.
+
+Exit status: 0 every field matches, 1 a divergence (the first is printed, then a table per field), 2 bad input,
+3 the process failed.
+"""
+import os
+import re
+import shlex
+import subprocess
+import sys
+import time
+
+from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
+from .plan import check_scene
+from .processes import start_process
+
+ROLES = {"sph": "sph_solver", "dem": "dem_solver", "fem": "fem_solver", "coupler": "coupler"}
+EXIT_PROCESS_FAILED = 3
+
+
+def _absolute_file_keys(text, scene_folder):
+    """The scene's relative `file = "..."` paths made absolute against the recorded scene's folder (the
+    replayed scene lives elsewhere)."""
+    def absolute(match):
+        path = match.group(2)
+        if os.path.isabs(path):
+            return match.group(0)
+        return '{}"{}"'.format(match.group(1), os.path.normpath(os.path.join(scene_folder, path)))
+    return re.sub(r'(^\s*file\s*=\s*)"([^"]*)"', absolute, text, flags=re.MULTILINE)
+
+
+def apply_overrides(text, overrides):
+    """`text` with each KEY=VALUE of `overrides` set: KEY is TABLE.KEY (e.g. materials.granite.density or
+    run.end_time), VALUE a TOML value. The key's line in the table is replaced, or added under the table's
+    header. SaboError (exit 2) for a malformed override or a table the scene does not have."""
+    lines = text.splitlines()
+    for override in overrides:
+        key, equals, value = override.partition("=")
+        key, value = key.strip(), value.strip()
+        if not equals or "." not in key or not value:
+            raise SaboError("--set {}: expected TABLE.KEY=VALUE, e.g. --set materials.granite.density=3100".format(
+                override), EXIT_BAD_INPUT)
+        table, name = key.rsplit(".", 1)
+        header = re.compile(r"^\s*\[\s*{}\s*\]\s*(#.*)?$".format(re.escape(table)))
+        start = next((k for k, line in enumerate(lines) if header.match(line)), None)
+        if start is None:
+            raise SaboError("--set {}: the scene has no table [{}] (the table must be written as a header; "
+                            "arrays of tables are not overridden)".format(override, table), EXIT_BAD_INPUT)
+        end = next((k for k in range(start + 1, len(lines)) if lines[k].lstrip().startswith("[")), len(lines))
+        line_of_key = re.compile(r"^\s*{}\s*=".format(re.escape(name)))
+        at = next((k for k in range(start + 1, end) if line_of_key.match(lines[k])), None)
+        if at is None:
+            lines.insert(start + 1, "{} = {}".format(name, value))
+        else:
+            lines[at] = "{} = {}".format(name, value)
+    return "\n".join(lines) + "\n"
+
+
+def _wait(process, timeout_s):
+    deadline = time.monotonic() + timeout_s
+    while process.running and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return not process.running
+
+
+def _stop(process):
+    if process.running:
+        process.send(15)
+        if not _wait(process, 3):
+            process.send(9)
+            _wait(process, 3)
+    process.sweep()
+
+
+def command_replay(root, build_dir, args):
+    run_dir = os.path.abspath(args.run_dir)
+    traffic = os.path.join(run_dir, "traffic.h5")
+    if args.role not in ROLES:
+        raise SaboError("role {!r}: choose one of {}".format(args.role, ", ".join(ROLES)), EXIT_BAD_INPUT)
+    if not os.path.isfile(traffic):
+        raise SaboError("{}: no traffic.h5 (was the run recorded? [recording] enabled = true)".format(run_dir),
+                        EXIT_BAD_INPUT)
+    role = ROLES[args.role]
+    bin_dir = os.path.join(build_dir, "bin")
+    tool = os.path.join(bin_dir, "sabo_replay")
+    if not os.access(tool, os.X_OK):
+        raise SaboError("{} is missing: build the project with `./sabo setup`".format(tool), EXIT_FAILED)
+
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    folder = os.path.abspath(args.out) if args.out else os.path.join(run_dir, "replay", "{}-{}".format(args.role, stamp))
+    os.makedirs(folder, exist_ok=True)
+    scene_text = subprocess.run([tool, "scene", "--traffic", traffic], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
+    if scene_text.returncode != 0:
+        raise SaboError(scene_text.stderr.strip() or "sabo_replay could not read {}".format(traffic), EXIT_BAD_INPUT)
+    recorded_scene = _recorded_scene_path(run_dir)
+    resume = os.path.abspath(args.resume) if args.resume else None
+    if resume:
+        # A checkpoint belongs to the scene file it was written with (its digest): replay with that file.
+        if role == "coupler":
+            raise SaboError("--resume: the coupler is replayed from step 0 (its own restart is not built yet); "
+                            "give --resume with sph, dem or fem", EXIT_BAD_INPUT)
+        if args.set:
+            raise SaboError("--resume with --set: a checkpoint continues the scene it was written with, unchanged; "
+                            "replay from step 0 to try a changed scene", EXIT_BAD_INPUT)
+        if not os.path.isfile(resume):
+            raise SaboError("--resume {}: no such file (checkpoints are in RUN_DIR/checkpoints)".format(resume),
+                            EXIT_BAD_INPUT)
+        if not recorded_scene or not os.path.isfile(recorded_scene):
+            raise SaboError("--resume: the run's scene file {} is gone; a checkpoint needs the scene it was written "
+                            "with".format(recorded_scene or "(unknown: no summary.json)"), EXIT_BAD_INPUT)
+        scene = recorded_scene
+    else:
+        text = _absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
+        text = apply_overrides(text, args.set or [])
+        scene = os.path.join(folder, "scene.toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+    plan = check_scene(scene, bin_dir)
+    spec = next((p for p in plan.processes if p.role == role), None)
+    if spec is None:
+        raise SaboError("the recorded scene has no {}".format(role), EXIT_BAD_INPUT)
+    command = shlex.split(args.program) if args.program else list(spec.command)
+
+    endpoint = "ipc://" + os.path.join(folder, "replay.sock")
+    tolerances = []
+    for option, values in (("rtol", args.rtol or []), ("atol", args.atol or [])):
+        for value in values:
+            field, equals, number = value.partition("=")
+            if not equals:
+                raise SaboError("--{} {}: expected FIELD=VALUE, e.g. --{} position=1e-12".format(option, value, option,),
+                                EXIT_BAD_INPUT)
+            tolerances.append((field, option, number))
+    merged = {}
+    for field, option, number in tolerances:
+        merged.setdefault(field, {"rtol": "0", "atol": "0"})[option] = number
+    tool_command = [tool, "solver" if role != "coupler" else "coupler", "--traffic", traffic, "--endpoint", endpoint,
+                    "--json", os.path.join(folder, "replay.json")]
+    for field, values in merged.items():
+        tool_command += ["--tolerance", "{}={}:{}".format(field, values["rtol"], values["atol"])]
+    if role != "coupler":
+        tool_command += ["--role", role]
+        process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", os.path.join(folder, "out")]
+        if resume:
+            tool_command += ["--resume", resume]
+            process_command += ["--resume", resume]
+    else:
+        process_command = command + ["--scene", scene, "--endpoint", endpoint, "--out", os.path.join(folder, "out")]
+    os.makedirs(os.path.join(folder, "out"), exist_ok=True)
+
+    print("sabo: replaying the {} of {} ({})".format(role, run_dir, folder), file=sys.stderr)
+    replay_log = os.path.join(folder, "replay.log")
+    process_log = os.path.join(folder, "{}.log".format(role))
+    started = []
+    try:
+        # The side that binds the endpoint starts first: the replay for a solver, the coupler for ROLE coupler.
+        if role != "coupler":
+            tool_process = start_process("replay", tool_command, folder, replay_log, stdout_to_pipe=True)
+            started.append(tool_process)
+            time.sleep(0.3)
+            started.append(start_process(role, process_command, folder, process_log, stdout_to_pipe=False))
+        else:
+            started.append(start_process(role, process_command, folder, process_log, stdout_to_pipe=False))
+            time.sleep(0.3)
+            tool_process = start_process("replay", tool_command, folder, replay_log, stdout_to_pipe=True)
+            started.append(tool_process)
+        report, _ = tool_process.popen.communicate()
+        code = tool_process.returncode
+    finally:
+        for process in started:
+            if not _wait(process, 10):
+                _stop(process)
+            process.sweep()
+    sys.stdout.write(report.decode("utf-8", "replace") if isinstance(report, bytes) else (report or ""))
+    if code == EXIT_PROCESS_FAILED:
+        print("sabo: the {} failed; its log: {}".format(role, process_log), file=sys.stderr)
+    elif code == EXIT_BAD_INPUT:
+        print("sabo: replay could not run; see {}".format(replay_log), file=sys.stderr)
+        try:
+            with open(replay_log, encoding="utf-8", errors="replace") as handle:
+                sys.stderr.write(handle.read()[-2000:])
+        except OSError:
+            pass
+    return code
+
+
+def _recorded_scene_path(run_dir):
+    """The path of the scene the run was started with (summary.json), or None."""
+    import json
+    try:
+        with open(os.path.join(run_dir, "summary.json"), encoding="utf-8") as handle:
+            scene = json.load(handle).get("scene")
+    except (OSError, ValueError):
+        return None
+    return scene if isinstance(scene, str) and scene else None

@@ -1,0 +1,105 @@
+"""`./sabo replay RUN_DIR ROLE` (issue 19, part 1): a recorded three-solver run (water, two boulders as SPH
+boundary particles, the tank's walls) replayed against each of its processes matches to the bit; a solver with
+one changed parameter reports where it diverges first; a recording that cannot drive a replay is refused with
+exit status 2."""
+import json
+import os
+import shutil
+
+from e2e_support import RealRunTestCase
+
+TANK = "configs/tests/sph_boulders_tank.toml"
+
+
+class ReplayTest(RealRunTestCase):
+    def recorded_run(self, name="recorded", fields_line=None):
+        """A short run of the boulder tank recorded in full (or with `fields_line` in [recording])."""
+        with open(self.scene_path(TANK), encoding="utf-8") as handle:
+            text = handle.read()
+        self.assertIn("end_time = 0.3", text)
+        self.assertIn('fields = ["position", "velocity", "force", "torque", "energies"]', text)
+        text = text.replace("end_time = 0.3", "end_time = 0.04")
+        text = text.replace('fields = ["position", "velocity", "force", "torque", "energies"]', fields_line or "")
+        scene = os.path.join(self.tmp, name + ".toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        out = os.path.join(self.tmp, name)
+        sabo = self.run_sabo(scene, out)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        return out
+
+    @staticmethod
+    def report_of(run_dir, role):
+        """replay.json of the latest replay of `role` in `run_dir`."""
+        folder = sorted(f for f in os.listdir(os.path.join(run_dir, "replay")) if f.startswith(role + "-"))[-1]
+        return os.path.join(run_dir, "replay", folder, "replay.json")
+
+    def replay(self, run_dir, role, extra=()):
+        env = {"SABO_BUILD_DIR": os.environ.get("SABO_BUILD_DIR", ""), "SABO_PLAN_OVERRIDE": ""}
+        sabo = self.sabo(["replay", run_dir, role, "--no-setup"] + list(extra), env=env)
+        code = sabo.wait(120)
+        return code, sabo.stdout, sabo.stderr
+
+    def test_every_process_of_an_unchanged_build_matches_its_recording(self):
+        run = self.recorded_run()
+        for role in ("sph", "dem", "fem", "coupler"):
+            code, out, err = self.replay(run, role)
+            print("replay {}: exit {}; {}".format(role, code, out.splitlines()[0] if out else err))
+            self.assertEqual(code, 0, out + err)
+            self.assertIn("every field matches", out)
+        self.assertNoProcessLeft(run, pids_file=False)
+
+    def test_a_changed_parameter_is_reported_where_it_first_diverges(self):
+        run = self.recorded_run()
+        code, out, err = self.replay(run, "dem", ["--set", "materials.granite.density=2700.0"])
+        print(out)
+        self.assertEqual(code, 1, out + err)
+        # The heavier stone starts with more kinetic energy (it is launched at 0.5 m/s): step 0, energies.
+        self.assertIn("first divergence: step 0, t = 0 s, field energies, kinetic", out)
+        with open(self.report_of(run, "dem"), encoding="utf-8") as handle:
+            report = json.load(handle)
+        self.assertFalse(report["matches"])
+        self.assertEqual(report["first_divergence"]["field"], "energies")
+        # Its motion diverges once the same forces act on more mass (the first forces reach it at step 1).
+        velocity = report["fields"]["velocity"]
+        print("velocity diverges from step {} in {} values".format(velocity["first_step"], velocity["values"]))
+        self.assertEqual(velocity["first_step"], 2)
+        # With the energies allowed to differ, the first divergence is that motion.
+        code, out, err = self.replay(run, "dem", ["--set", "materials.granite.density=2700.0",
+                                                  "--rtol", "energies=1"])
+        self.assertEqual(code, 1, out + err)
+        self.assertRegex(out, r"first divergence: step 2, .* field (velocity|angular_velocity|position)")
+
+    def test_a_recording_of_some_fields_compares_those(self):
+        run = self.recorded_run("scene_fields", 'fields = ["position", "velocity", "force", "torque", "energies"]')
+        code, out, err = self.replay(run, "dem")
+        print(out)
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("not compared (not recorded): angular_velocity", out)
+        with open(self.report_of(run, "dem"), encoding="utf-8") as handle:
+            report = json.load(handle)
+        self.assertTrue(report["matches"])
+        self.assertGreater(report["fields"]["velocity"]["compared"], 0)
+
+    def test_recordings_that_cannot_drive_a_replay_are_refused(self):
+        partial = self.recorded_run("partial", 'fields = ["position", "velocity"]')
+        code, out, err = self.replay(partial, "dem")
+        print("partial recording: exit {}: {}".format(code, err.strip().splitlines()[-1] if err.strip() else out))
+        self.assertEqual(code, 2)
+        self.assertIn("lacks the field(s) force, torque", err + out)
+        empty = os.path.join(self.tmp, "empty")
+        os.makedirs(empty)
+        code, out, err = self.replay(empty, "dem")
+        self.assertEqual(code, 2)
+        self.assertIn("no traffic.h5", err)
+        foreign = os.path.join(self.tmp, "foreign")
+        os.makedirs(foreign)
+        with open(os.path.join(foreign, "traffic.h5"), "w", encoding="utf-8") as handle:
+            handle.write("not HDF5\n")
+        code, out, err = self.replay(foreign, "dem")
+        print("foreign traffic.h5: exit {}: {}".format(code, err.strip().splitlines()[-1]))
+        self.assertEqual(code, 2)
+        code, out, err = self.replay(partial, "boulders")
+        self.assertEqual(code, 2)
+        self.assertIn("choose one of sph, dem, fem, coupler", err)
+        shutil.rmtree(foreign)
