@@ -7,12 +7,18 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <optional>
+#include <string>
 #include <type_traits>
 
+#include "fem_solver/elements/hex8.hpp"
 #include "fem_solver/mesh/gmsh.hpp"
+#include "fem_solver/structure_contact.hpp"
+#include "libsabo/contact/surface_contact_history.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "libsabo/io/checkpoint.hpp"
+#include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/hdf5.hpp"
 
 namespace sabo::fem {
@@ -132,11 +138,87 @@ ShellFormulation shell_formulation(const scene::Structure& structure) {
              : ShellFormulation::one_point;
 }
 
-// Gravity, the fixed faces and the initial velocity of a new body.
+static_assert(scene::Constraint::x == dof_x && scene::Constraint::y == dof_y && scene::Constraint::z == dof_z &&
+              scene::Constraint::rx == rotation_x && scene::Constraint::ry == rotation_y &&
+              scene::Constraint::rz == rotation_z);
+
+std::string vector_text(const Vec3& v) {
+  return fmt::format("[{:.6g}, {:.6g}, {:.6g}]", v.x(), v.y(), v.z());
+}
+
+// Body nodes at exactly the given positions (a mesh's physical group, placed as the body's nodes were:
+// the same numbers through the same scale and translation).
+std::vector<std::size_t> nodes_at(std::span<const Vec3> body_nodes, const std::vector<Vec3>& positions) {
+  const auto less = [](const Vec3& a, const Vec3& b) {
+    if (a.x() != b.x()) return a.x() < b.x();
+    if (a.y() != b.y()) return a.y() < b.y();
+    return a.z() < b.z();
+  };
+  std::vector<std::size_t> order(body_nodes.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return less(body_nodes[a], body_nodes[b]) || (body_nodes[a] == body_nodes[b] && a < b);
+  });
+  std::vector<std::size_t> found;
+  for (const Vec3& p : positions) {
+    auto it = std::lower_bound(order.begin(), order.end(), p,
+                               [&](std::size_t node, const Vec3& q) { return less(body_nodes[node], q); });
+    for (; it != order.end() && body_nodes[*it] == p; ++it) found.push_back(*it);
+  }
+  std::sort(found.begin(), found.end());
+  found.erase(std::unique(found.begin(), found.end()), found.end());
+  return found;
+}
+
+// The structure's constraints on a new body: the DOFs of the nodes each selects (docs/scene.md
+// constraints). Throws SceneError for a selection without nodes and for rotations on a solid.
+template <class Body>
+void apply_constraints(Body& body, const scene::Structure& structure, bool shell) {
+  std::optional<io::GmshGroups> groups;
+  const unsigned all = shell ? (dof_all | rotations_all) : dof_all;
+  for (const scene::Constraint& c : structure.constraints) {
+    const std::string where = fmt::format("{}:{}: key '{}'", c.origin.file.string(), c.origin.line, c.origin.key);
+    const unsigned dofs = c.all ? all : c.dofs;
+    if ((dofs & ~all) != 0) {
+      throw SceneError(fmt::format(
+          "{}: structure '{}' is a solid (the mesh {} holds hexahedra): its nodes have no rotations to hold. Fix: "
+          "hold \"x\", \"y\", \"z\" or \"all\"",
+          where, structure.name, structure.shape.file.string()));
+    }
+    std::size_t count = 0;
+    if (c.selection == scene::Constraint::Selection::box) {
+      count = body.fix_in_box(c.box, dofs);
+    } else {
+      if (!groups) groups = io::read_gmsh_groups(structure.shape.file);
+      const io::GmshGroup* group = groups->find(c.tag);
+      std::vector<Vec3> positions;
+      if (group != nullptr) {
+        for (std::uint32_t n : group->node) {
+          positions.push_back(structure.shape.scale * groups->node[n] + structure.shape.translate);
+        }
+      }
+      const std::vector<std::size_t> nodes = nodes_at(body.reference_positions(), positions);
+      for (std::size_t node : nodes) body.fix(node, dofs);
+      count = nodes.size();
+    }
+    if (count == 0) {
+      const Aabb extent = bounds_of(body.reference_positions());
+      throw SceneError(fmt::format(
+          "{}: selects no node of structure '{}' (its nodes span {} to {}). Fix: {}", where, structure.name,
+          vector_text(extent.min), vector_text(extent.max),
+          c.selection == scene::Constraint::Selection::box
+              ? "move or grow the box over the nodes to hold (the mesh's node planes lie every element_size)"
+              : "assign the group's elements in Gmsh and export again"));
+    }
+  }
+}
+
+// Gravity, the fixed faces, the constraints and the initial velocity of a new body.
 template <class Body>
 void set_up(Body& body, const scene::Structure& structure, const Vec3& gravity, unsigned fixed_dofs) {
   body.set_gravity(gravity);
   fix_faces(body, structure.fixed_faces, fixed_dofs);
+  apply_constraints(body, structure, fixed_dofs != dof_all);
   body.set_velocity(structure.velocity);
 }
 
@@ -278,12 +360,13 @@ bool DeformablePart::refresh_surface() {
   return true;
 }
 
-geometry::SurfaceMesh DeformablePart::surface() const {
+geometry::SurfaceMesh DeformablePart::surface(bool reference) const {
   geometry::SurfaceMesh mesh;
   const std::span<const double> masses = with_body([](const auto& body) { return body.masses(); });
+  const std::span<const Vec3> undeformed = with_body([](const auto& body) { return body.reference_positions(); });
   for (std::uint32_t n : surface_nodes_) {
     mesh.node_id.push_back(n);  // the model offsets ids per part
-    mesh.node_position.push_back(position(n));
+    mesh.node_position.push_back(reference ? undeformed[n] : position(n));
     mesh.node_mass.push_back(masses[n]);
   }
   for (const BoundaryFace& face : faces_) {
@@ -291,7 +374,13 @@ geometry::SurfaceMesh DeformablePart::surface() const {
     std::uint32_t body_material = 0;
     double thickness = 0, volume = 0;
     if (solid_) {
-      volume = solid_->element_state(face.element).volume;
+      if (reference) {
+        HexNodes x;
+        for (std::size_t a = 0; a < 8; ++a) x[a] = undeformed[solid_->mesh().element[face.element][a]];
+        volume = hex8_volume(x);
+      } else {
+        volume = solid_->element_state(face.element).volume;
+      }
     } else {
       body_material = shell_->mesh().material[face.element];
       thickness = shell_->mesh().thickness[face.element];
@@ -387,19 +476,39 @@ FemModel::FemModel(const scene::Scene& scene) {
     parts_.push_back(std::make_unique<RigidPart>());
   }
   part_series_.resize(parts_.size());
+  if (StructureContact::any_pair(scene)) structure_contact_ = std::make_unique<StructureContact>(scene);
   rebuild_surface();
+  if (structure_contact_) {
+    // The state at t = 0 (the same as step 0 computes with dt_previous = 0): the contact's first stable step.
+    structure_contact_->compute(surface_.node_position, node_velocity_, 0.0);
+    contact_elastic_ = structure_contact_->elastic_energy();
+  }
 }
 
 void FemModel::rebuild_surface() {
   surface_ = geometry::SurfaceMesh{};
+  geometry::SurfaceMesh reference;  // the same at the undeformed geometry, for the structure contact
   for (std::size_t index = 0; index < parts_.size(); ++index) {
     PartInfo& info = info_[index];
     geometry::SurfaceMesh part_surface;
     if (const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get())) {
       part_surface = part->surface();
       for (auto& id : part_surface.node_id) id += kDeformableIdBase * (index + 1);
+      if (structure_contact_) {
+        geometry::SurfaceMesh undeformed = part->surface(true);
+        undeformed.node_id = part_surface.node_id;
+        undeformed.part_name = {info.name};
+        undeformed.face_part.assign(undeformed.face_count(), 0);
+        reference.append(undeformed);
+      }
     } else {
       part_surface = rigid_surface_[index];
+      if (structure_contact_) {
+        geometry::SurfaceMesh rigid = part_surface;
+        rigid.part_name = {info.name};
+        rigid.face_part.assign(rigid.face_count(), 0);
+        reference.append(rigid);
+      }
     }
     part_surface.part_name = {info.name};
     part_surface.face_part.assign(part_surface.face_count(), 0);
@@ -425,9 +534,22 @@ void FemModel::rebuild_surface() {
   node_force_.assign(surface_.node_count(), Vec3::Zero());
   node_velocity_.assign(surface_.node_count(), Vec3::Zero());
   update_surface();
+  if (structure_contact_) {
+    structure_contact_->set_surface(reference);
+    contact_force_.assign(surface_.node_count(), Vec3::Zero());
+  }
 }
 
 void FemModel::compute_internal_forces(double dt_previous) {
+  if (structure_contact_) {
+    // At x_n on the surface the coupler sees this step (erosion below changes it at the next update_surface()).
+    sync_surface_nodes();
+    structure_contact_->compute(surface_.node_position, node_velocity_, dt_previous);
+    const auto force = structure_contact_->node_force();
+    contact_force_.assign(force.begin(), force.end());
+    contact_elastic_ = structure_contact_->elastic_energy();
+    contact_power_ = structure_contact_->dissipated_power();
+  }
   for (auto& part : parts_) part->compute_internal_forces(dt_previous);
 }
 
@@ -442,6 +564,11 @@ bool FemModel::update_surface() {
     rebuild_surface();
     return true;
   }
+  sync_surface_nodes();
+  return false;
+}
+
+void FemModel::sync_surface_nodes() {
   for (std::size_t index = 0; index < parts_.size(); ++index) {
     const auto* part = dynamic_cast<const DeformablePart*>(parts_[index].get());
     if (part == nullptr) continue;
@@ -452,7 +579,6 @@ bool FemModel::update_surface() {
       node_velocity_[begin + i] = part->velocity(nodes[i]);
     }
   }
-  return false;
 }
 
 FemModel::~FemModel() = default;
@@ -460,6 +586,7 @@ FemModel::~FemModel() = default;
 double FemModel::stable_dt() const {
   double dt = std::numeric_limits<double>::infinity();
   for (const auto& part : parts_) dt = std::min(dt, part->stable_dt());
+  if (structure_contact_) dt = std::min(dt, structure_contact_->stable_dt());
   return dt;
 }
 
@@ -472,6 +599,8 @@ Energies FemModel::energies() const {
     total.elastic += e.elastic;
     total.dissipated += e.dissipated;
   }
+  total.elastic += contact_elastic_;
+  total.dissipated += contact_dissipated_;
   return total;
 }
 
@@ -513,9 +642,17 @@ void FemModel::apply_node_forces(std::span<const double> node_force) {
 }
 
 void FemModel::step(double dt) {
+  std::span<const Vec3> force = node_force_;
+  if (structure_contact_) {
+    total_force_.resize(node_force_.size());
+    for (std::size_t i = 0; i < node_force_.size(); ++i) total_force_[i] = node_force_[i] + contact_force_[i];
+    force = total_force_;
+    // The dashpots' and friction's power of step n acts over dt_n (as the coupler's pairs).
+    contact_dissipated_ += contact_power_ * dt;
+  }
   for (std::size_t p = 0; p < parts_.size(); ++p) {
     const PartInfo& info = info_[p];
-    parts_[p]->step(dt, std::span<const Vec3>(node_force_).subspan(info.node_begin, info.node_end - info.node_begin));
+    parts_[p]->step(dt, force.subspan(info.node_begin, info.node_end - info.node_begin));
   }
   time_ += dt;
 }
@@ -532,6 +669,14 @@ void FemModel::save_state(io::hdf5::Group& group) const {
     io::write_array(part_group, "real", state.real);
     io::write_array(part_group, "active", state.active);
     io::write_array(part_group, "counters", state.counters);
+  }
+  if (structure_contact_) {
+    // The springs between structures and the contact's energy accounts.
+    io::hdf5::Group springs = group.create_group("structure_contact");
+    springs.set_attribute("dissipated", contact_dissipated_);
+    springs.set_attribute("elastic", contact_elastic_);
+    springs.set_attribute("power", contact_power_);
+    contact::write_history(springs, structure_contact_->history());
   }
 }
 
@@ -557,6 +702,21 @@ void FemModel::load_state(const io::hdf5::Group& group) {
   time_ = group.double_attribute("time");
   rebuild_surface();
   surface_revision_ = static_cast<std::uint64_t>(group.int_attribute("surface_revision"));
+  if (structure_contact_) {
+    if (!group.exists("structure_contact")) {
+      throw FileError(fmt::format(
+          "{}: no state for the contact between structures. Fix: restart from a checkpoint of this scene", file));
+    }
+    const io::hdf5::Group springs = group.group("structure_contact");
+    contact_dissipated_ = springs.double_attribute("dissipated");
+    contact_elastic_ = springs.double_attribute("elastic");
+    contact_power_ = springs.double_attribute("power");
+    try {
+      structure_contact_->restore(contact::read_history(springs));
+    } catch (const ProtocolError& error) {
+      throw FileError(fmt::format("{}: {}", springs.path(), error.what()));
+    }
+  }
 }
 
 void FemModel::save_output_state(io::hdf5::Group& group, const std::filesystem::path& run_folder) const {
@@ -595,8 +755,9 @@ void FemModel::write_output(const std::filesystem::path& run_folder, std::uint64
     throw FileError(fmt::format("{}: cannot create the output folder: {}", folder.string(), error.message()));
   }
   const std::filesystem::path file = folder / fmt::format("fem_{:08}.vtp", step);
-  const std::vector<io::vtk::Array> point_data{io::vtk::Array::vectors("node_force", node_force_),
-                                               io::vtk::Array::of<std::uint64_t>("node_id", surface_.node_id)};
+  std::vector<io::vtk::Array> point_data{io::vtk::Array::vectors("node_force", node_force_),
+                                         io::vtk::Array::of<std::uint64_t>("node_id", surface_.node_id)};
+  if (structure_contact_) point_data.push_back(io::vtk::Array::vectors("structure_contact_force", contact_force_));
   const std::vector<io::vtk::Array> cell_data{io::vtk::Array::of<std::uint32_t>("part", surface_.face_part),
                                               io::vtk::Array::of<std::uint32_t>("material", surface_.face_material),
                                               io::vtk::Array::scalars("thickness", surface_.face_thickness)};
@@ -638,11 +799,15 @@ void FemModel::write_energy_history(const std::filesystem::path& run_folder, dou
   std::ofstream out(file, fresh ? std::ios::trunc : std::ios::app);
   if (!out) throw FileError(fmt::format("{}: cannot write the FEM energy history", file.string()));
   if (fresh) {
-    out << "time_s,kinetic_J,internal_J,plastic_work_J,hourglass_J,eroded_J,external_work_J,eroded_elements\n";
+    out << "time_s,kinetic_J,internal_J,plastic_work_J,hourglass_J,eroded_J,external_work_J,eroded_elements";
+    // With contact between structures, its springs and its dissipated work (the parts' external work holds
+    // the work of its forces).
+    out << (structure_contact_ ? ",contact_elastic_J,contact_dissipated_J\n" : "\n");
     energy_history_started_ = true;
   }
-  out << fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}\n", time, total.kinetic, total.internal,
+  out << fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{}", time, total.kinetic, total.internal,
                      total.plastic_work, total.hourglass, total.eroded, total.external_work, eroded);
+  out << (structure_contact_ ? fmt::format(",{:.9g},{:.9g}\n", contact_elastic_, contact_dissipated_) : "\n");
 }
 
 }  // namespace sabo::fem

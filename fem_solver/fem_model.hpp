@@ -35,6 +35,8 @@
 
 namespace sabo::fem {
 
+class StructureContact;
+
 struct Energies {
   double kinetic = 0;     // J
   double potential = 0;   // J, gravity relative to z = 0
@@ -73,8 +75,10 @@ class DeformablePart final : public Part {
   void step(double dt, std::span<const Vec3> node_force) override;
   void compute_internal_forces(double dt_previous) override;
 
-  // The contact surface of the active elements now: nodes in surface_nodes() order.
-  [[nodiscard]] geometry::SurfaceMesh surface() const;
+  // The contact surface of the active elements now: nodes in surface_nodes() order. reference: at the
+  // undeformed node positions, with the elements' undeformed volumes (the structure contact's eq. 6
+  // stiffness and depths, independent of when the topology last changed).
+  [[nodiscard]] geometry::SurfaceMesh surface(bool reference = false) const;
   [[nodiscard]] std::span<const std::uint32_t> surface_nodes() const { return surface_nodes_; }
   // Recomputes the surface after erosion; returns whether it changed.
   bool refresh_surface();
@@ -173,8 +177,11 @@ class FemModel {
     return dynamic_cast<const DeformablePart*>(parts_.at(index).get());
   }
 
-  [[nodiscard]] double stable_dt() const;              // s; minimum over parts (rigid only: +infinity)
-  [[nodiscard]] Energies energies() const;             // sum over parts (rigid: zero)
+  // s; minimum over parts and the structure contact (rigid only: +infinity)
+  [[nodiscard]] double stable_dt() const;
+  // Sum over parts (rigid: zero) and the structure contact: its springs' energy is elastic, the work of
+  // its dashpots and friction dissipated.
+  [[nodiscard]] Energies energies() const;
   [[nodiscard]] bool moved() const;                    // whether any surface node moved since registration
   [[nodiscard]] double time() const { return time_; }  // s
 
@@ -184,6 +191,13 @@ class FemModel {
   [[nodiscard]] std::span<const Vec3> node_forces() const { return node_force_; }  // last applied, N
 
   void step(double dt);  // s; see the step contract above
+
+  // Contact between structures ([contact.fem_fem], [[interactions]] of two structures; nullptr when the
+  // scene has none): computed in compute_internal_forces() at x_n from the surface of the last
+  // update_surface(), applied with the coupler's forces in step().
+  [[nodiscard]] const StructureContact* structure_contact() const { return structure_contact_.get(); }
+  // N, per surface node: the structure contact's forces of the last compute_internal_forces() (empty: none).
+  [[nodiscard]] std::span<const Vec3> structure_contact_forces() const { return contact_force_; }
 
   // Checkpoint (docs/restart.md) after step(): every deformable part's state
   // (node positions and velocities, stresses, back stresses, plastic strains,
@@ -213,6 +227,8 @@ class FemModel {
 
  private:
   void rebuild_surface();
+  // Surface node positions and velocities from the parts (x_n, v_{n-1/2}), topology unchanged.
+  void sync_surface_nodes();
   // Appends the deformable parts' energies at `time` to <run_folder>/fem_energy.csv.
   void write_energy_history(const std::filesystem::path& run_folder, double time);
 
@@ -225,6 +241,11 @@ class FemModel {
   std::vector<std::unique_ptr<Part>> parts_;
   std::vector<PartInfo> info_;
   std::vector<Vec3> node_force_;
+  std::unique_ptr<StructureContact> structure_contact_;
+  std::vector<Vec3> contact_force_, total_force_;  // per surface node, N
+  double contact_elastic_ = 0;                     // J, the springs at the last compute
+  double contact_power_ = 0;                       // W, dissipated at the last compute
+  double contact_dissipated_ = 0;                  // J, accumulated
   double time_ = 0;
   std::optional<io::vtk::TimeSeries> series_;
 };

@@ -2,12 +2,12 @@
 // Penalty contact of a particle solver's particles (DEM spheres, or SPH
 // particles with sph.wall_model = "penalty") against the fem_solver's surface:
 // the DEM-FEM pair and the penalty SPH-FEM pair (paper eqs. 3-6, or
-// Hertz-Mindlin for spheres), on the SurfaceContact kernel.
+// Hertz-Mindlin for spheres), on the contact::SurfaceContact kernel (libsabo/contact).
 #include <memory>
 
 #include "coupler/contact/contact_pair.hpp"
 #include "coupler/contact/particle_gather.hpp"
-#include "coupler/contact/surface_contact.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 
 namespace sabo::coupler {
 
@@ -33,7 +33,7 @@ class SurfacePenaltyPair final : public ContactPair {
   void save_history(io::hdf5::Group& group) const override;
   void restore_history(const io::hdf5::Group& group) override;
 
-  [[nodiscard]] const SurfaceContact& contact() const { return *contact_; }
+  [[nodiscard]] const contact::SurfaceContact& contact() const { return *contact_; }
 
  private:
   // Warns (once per run) when a contact overlaps beyond half its face's edge.
@@ -41,10 +41,10 @@ class SurfacePenaltyPair final : public ContactPair {
 
   scene::Role particles_;
   std::string source_;  // forces.csv: "particles" or "fluid"
-  std::unique_ptr<SurfaceContact> contact_;
+  std::unique_ptr<contact::SurfaceContact> contact_;
   double beta_ = 1;  // of the particle solver: the contact limits its particles
   ParticleGather gather_;
-  ContactOutput out_;
+  contact::ContactOutput out_;
   bool warned_deep_overlap_ = false;
 };
 

@@ -2,6 +2,7 @@
 target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/checkpoint.cpp
   ${CMAKE_CURRENT_LIST_DIR}/gmsh.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/gmsh_groups.cpp
   ${CMAKE_CURRENT_LIST_DIR}/hdf5.cpp
   ${CMAKE_CURRENT_LIST_DIR}/stl.cpp
   ${CMAKE_CURRENT_LIST_DIR}/traffic.cpp

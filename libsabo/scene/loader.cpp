@@ -29,6 +29,7 @@
 #include "libsabo/geometry/hexahedron.hpp"
 #include "libsabo/geometry/polygon.hpp"
 #include "libsabo/io/gmsh.hpp"
+#include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/stl.hpp"
 #include "libsabo/scene/estimate.hpp"
 #include "libsabo/scene/schema.hpp"
@@ -1060,6 +1061,7 @@ class Builder {
   // Deformable structures: a box meshed with hexahedra, fixed faces, initial velocity.
   void read_deformable(Reader& r, Structure& structure, const std::optional<std::string>& shape) {
     if (auto v = r.strings("fixed")) structure.fixed_faces = *v;
+    if (const toml::array* list = r.table_list("constraints")) read_constraints(r, *list, structure);
     if (auto v = r.vec3("velocity")) structure.velocity = *v;
     if (auto v = r.string("element_formulation")) {
       structure.element_formulation = *v == "fully_integrated"  ? Structure::ElementFormulation::fully_integrated
@@ -1107,8 +1109,8 @@ class Builder {
       }
     }
     if (structure.rigid) {
-      for (const char* key : {"fixed", "velocity", "element_formulation", "floors", "roof_thickness", "roof_material",
-                              "slit_count", "slit_width", "slit_depth", "slit_axis"}) {
+      for (const char* key : {"fixed", "constraints", "velocity", "element_formulation", "floors", "roof_thickness",
+                              "roof_material", "slit_count", "slit_width", "slit_depth", "slit_axis"}) {
         if (r.has(key)) {
           diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
                     "belongs to deformable structures, but this one is rigid",
@@ -1127,6 +1129,203 @@ class Builder {
   }
 
   static constexpr std::array<const char*, 4> kSlitKeys{"slit_count", "slit_width", "slit_depth", "slit_axis"};
+
+  // Where a constraint's keys were written, for the checks that need the structure's shape (read later).
+  struct ConstraintKeys {
+    int line = 0, box_line = 0, tag_line = 0;
+    std::string path, box_value;
+  };
+
+  // The constraints of a deformable structure: each a box or a tag, and its DOFs. What needs the shape
+  // (the mesh file, the structure's extent) is checked by check_constraints once the shape is read.
+  void read_constraints(Reader& structure_reader, const toml::array& list, Structure& structure) {
+    constraint_keys_.clear();
+    for (std::size_t k = 0; k < list.size(); ++k) {
+      const std::string path = structure_reader.key_path(fmt::format("constraints[{}]", k));
+      Reader r(diag_, spec("structures-constraints"), *list.get(k)->as_table(), path);
+      Constraint constraint;
+      constraint.origin = origin(r.line(), path);
+      ConstraintKeys keys{r.line(), r.line("box"), r.line("tag"), path, {}};
+      const toml::table* box = r.table("box");
+      const auto tag = r.string("tag");
+      if (box != nullptr) {
+        keys.box_value = value_text(*r.node("box"));
+        Reader b(diag_, spec("structures-constraints-box"), *box, r.key_path("box"));
+        const auto min = b.vec3("min"), max = b.vec3("max");
+        if (min && max) {
+          constraint.box = Aabb{*min, *max};
+          if (((*max).array() < (*min).array()).any()) {
+            diag_.add(b.line("max"), b.key_path("max"), value_text(*b.node("max")),
+                      fmt::format("the box is inverted: max must be at least min = {} on every axis",
+                                  value_text(*b.node("min"))),
+                      "swap the values of min and max where max < min");
+          }
+        }
+      }
+      if (tag) {
+        constraint.selection = Constraint::Selection::tag;
+        constraint.tag = *tag;
+      }
+      const bool both = r.has("box") && r.has("tag"), neither = !r.has("box") && !r.has("tag");
+      if (both || neither) {
+        diag_.add(r.line(), path, value_text(*list.get(k)),
+                  both ? "gives both box and tag: a constraint selects its nodes one way"
+                       : "selects no nodes: it needs a box or a tag",
+                  both ? "keep one of box and tag (two constraints for two node sets)"
+                       : "add box = { min = [...], max = [...] }, or tag = \"GROUP\" for a mesh's physical group");
+      }
+      if (auto dofs = r.strings("dofs")) {
+        if (dofs->empty()) {
+          diag_.add(r.line("dofs"), r.key_path("dofs"), "[]", "holds no degree of freedom",
+                    "name at least one of \"x\", \"y\", \"z\", \"rx\", \"ry\", \"rz\" or \"all\"");
+        }
+        for (const std::string& dof : *dofs) {
+          if (dof == "all") {
+            constraint.all = true;
+            constraint.dofs |= Constraint::translations;
+            continue;
+          }
+          static constexpr std::array<std::pair<const char*, unsigned>, 6> kBits{{{"x", Constraint::x},
+                                                                                  {"y", Constraint::y},
+                                                                                  {"z", Constraint::z},
+                                                                                  {"rx", Constraint::rx},
+                                                                                  {"ry", Constraint::ry},
+                                                                                  {"rz", Constraint::rz}}};
+          for (const auto& [name, bit] : kBits) {
+            if (dof == name) constraint.dofs |= bit;
+          }
+        }
+        if ((constraint.dofs & Constraint::rotations) != 0 && structure.thickness == 0) {
+          diag_.add(r.line("dofs"), r.key_path("dofs"), value_text(*r.node("dofs")),
+                    "rotations belong to shells, and this structure has no thickness (a solid: its nodes have the "
+                    "three translations only)",
+                    "hold \"x\", \"y\" or \"z\" (or \"all\"), or give the structure a thickness for shells");
+        }
+      }
+      structure.constraints.push_back(std::move(constraint));
+      constraint_keys_.push_back(std::move(keys));
+    }
+  }
+
+  // The constraints' selections against the structure's shape: a tag names a non-empty physical group of
+  // the structure's .msh file; a box holds one of its nodes (meshes) or meets its extent (generated shapes,
+  // checked node by node by the fem_solver).
+  void check_constraints(const Structure& structure, const std::optional<std::string>& shape) {
+    if (structure.rigid || structure.constraints.empty() || !shape) return;
+    const bool mesh = structure.shape.type == Shape::Type::mesh;
+    std::optional<io::GmshGroups> groups;
+    std::optional<std::string> unreadable;
+    // A missing file or one that is not a .msh file is reported with the key `file`.
+    bool reported = false;
+    const auto read_groups = [&]() {
+      if (groups || unreadable) return;
+      std::error_code ec;
+      std::string extension = structure.shape.file.extension().string();
+      std::transform(extension.begin(), extension.end(), extension.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (structure.shape.file.empty() || !fs::is_regular_file(structure.shape.file, ec) || extension != ".msh") {
+        unreadable = "the mesh file is missing";
+        reported = true;
+        return;
+      }
+      try {
+        groups = io::read_gmsh_groups(structure.shape.file);
+      } catch (const Error& error) {
+        unreadable = error.what();
+      }
+    };
+    const auto final_position = [&](const Vec3& p) {
+      return Vec3(structure.shape.scale * p + structure.shape.translate);
+    };
+    for (std::size_t k = 0; k < structure.constraints.size(); ++k) {
+      const Constraint& c = structure.constraints[k];
+      const ConstraintKeys& keys = constraint_keys_[k];
+      if (c.selection == Constraint::Selection::tag) {
+        const std::string key = keys.path + ".tag";
+        if (!mesh) {
+          diag_.add(keys.tag_line, key, quote_text(c.tag),
+                    fmt::format("a tag names a physical group of a Gmsh mesh, and this structure's shape is {}",
+                                quote_text(*shape)),
+                    "select the nodes with box = { min = [...], max = [...] }");
+          continue;
+        }
+        read_groups();
+        if (unreadable) {
+          if (reported) continue;
+          diag_.add(
+              keys.tag_line, key, quote_text(c.tag),
+              fmt::format("cannot read the physical groups of {}: {}", structure.shape.file.string(), *unreadable),
+              "repair the mesh file");
+          continue;
+        }
+        const io::GmshGroup* group = groups->find(c.tag);
+        if (group == nullptr) {
+          const auto names = groups->names();
+          const auto suggestion = closest_match(c.tag, names);
+          diag_.add(keys.tag_line, key, quote_text(c.tag),
+                    fmt::format("{} has no physical group of that name{}", structure.shape.file.filename().string(),
+                                suggestion ? fmt::format(". Did you mean '{}'?", *suggestion) : std::string()),
+                    names.empty() ? std::string("name the node set in Gmsh (Physical Surface, Physical Curve, ...) "
+                                                "and export again, or select the nodes with a box")
+                                  : fmt::format("use one of the file's groups: {}", join(names)));
+          continue;
+        }
+        if (group->node.empty()) {
+          diag_.add(keys.tag_line, key, quote_text(c.tag),
+                    fmt::format("the physical group {} of {} holds no elements, so no nodes", quote_text(c.tag),
+                                structure.shape.file.filename().string()),
+                    "assign elements to the group in Gmsh and export again (Save all elements off), or select the "
+                    "nodes with a box");
+        }
+        continue;
+      }
+      if (!(c.box.max.array() >= c.box.min.array()).all()) continue;  // inverted: reported
+      const std::string key = keys.path + ".box";
+      if (mesh) {
+        read_groups();
+        if (!groups) continue;  // the file's problem is reported with the file (or by the fem_solver)
+        Aabb extent;
+        bool hit = false;
+        for (const Vec3& p : groups->node) {
+          const Vec3 q = final_position(p);
+          extent.extend(q);
+          hit = hit || c.box.contains(q);
+        }
+        if (!hit) {
+          diag_.add(keys.box_line, key, keys.box_value,
+                    fmt::format("the box holds no node of the mesh, whose nodes span {} to {} (after scale and "
+                                "translate)",
+                                vec_text(extent.min), vec_text(extent.max)),
+                    "move or grow the box over the nodes to hold");
+        }
+        continue;
+      }
+      const Aabb extent = structure_extent(structure);
+      if (!extent.overlaps(c.box)) {
+        diag_.add(keys.box_line, key, keys.box_value,
+                  fmt::format("the box misses the structure, which spans {} to {}", vec_text(extent.min),
+                              vec_text(extent.max)),
+                  "move or grow the box over the nodes to hold");
+      }
+    }
+  }
+
+  static std::string vec_text(const Vec3& v) {
+    return fmt::format("[{}, {}, {}]", number_literal(v.x()), number_literal(v.y()), number_literal(v.z()));
+  }
+
+  // The box around a generated deformable structure (a box, or a plane panel).
+  static Aabb structure_extent(const Structure& structure) {
+    const Shape& shape = structure.shape;
+    if (shape.type != Shape::Type::plane) return shape.box;
+    const Vec3 side = shape.normal.cross(shape.direction).normalized();
+    Aabb extent;
+    for (double a : {-0.5, 0.5}) {
+      for (double b : {-0.5, 0.5})
+        extent.extend(shape.origin + a * shape.length * shape.direction + b * shape.width * side);
+    }
+    return extent;
+  }
 
   // A slit dam's slits must fit the (deformable, solid) box read before.
   void check_slits(Reader& r, const Structure& structure) {
@@ -1527,6 +1726,7 @@ class Builder {
     if (s.type != Shape::Type::mesh) {
       if (auto v = r.number("element_size")) s.element_size = *v;
     }
+    check_constraints(structure, shape);
     scene_.structures.push_back(std::move(structure));
   }
 
@@ -1865,6 +2065,16 @@ class Builder {
                 "fluid-sphere contact needs both fluids and particles",
                 "remove [contact.sph_dem] or add the missing [[fluids]] or [[particles]]");
     }
+    const toml::table* fem_fem = contact.table("fem_fem");
+    if (fem_fem != nullptr && !deformable_pair_possible()) {
+      diag_.add(line_of(*fem_fem), "contact.fem_fem", std::nullopt,
+                "structure-structure contact needs two structures, one of them deformable",
+                "remove [contact.fem_fem], or add the structures (rigid = false for a deformable one)");
+    }
+    Reader ff(diag_, spec("contact-fem_fem"), fem_fem != nullptr ? *fem_fem : empty_table(), "contact.fem_fem");
+    if (auto v = ff.boolean("enabled")) scene_.fem_fem_default.enabled = *v;
+    read_surface_contact(ff, scene_.fem_fem_default);
+
     Reader sd(diag_, spec("contact-sph_dem"), sph_dem != nullptr ? *sph_dem : empty_table(), "contact.sph_dem");
     read_sph_dem_contact(sd, scene_.sph_dem_default);
     if (sph_dem != nullptr) {
@@ -1883,13 +2093,50 @@ class Builder {
     if (auto v = r.number("friction")) contact.friction = *v;
   }
 
+  // Whether two structures, one deformable, are in the scene (FEM-FEM contact can exist).
+  [[nodiscard]] bool deformable_pair_possible() const {
+    const bool deformable =
+        std::any_of(scene_.structures.begin(), scene_.structures.end(), [](const Structure& s) { return !s.rigid; });
+    return scene_.structures.size() >= 2 && deformable;
+  }
+
+  [[nodiscard]] const Structure* structure_named(const std::string& name) const {
+    for (const auto& s : scene_.structures) {
+      if (s.name == name) return &s;
+    }
+    return nullptr;
+  }
+
+  // An interaction of two structures (FEM-FEM contact in the fem_solver): the penalty keys of
+  // [contact.fem_fem]; the pair is in contact unless it says enabled = false.
+  void read_fem_fem_interaction(Reader& r, FemFemInteraction& interaction) {
+    interaction.contact = scene_.fem_fem_default;
+    interaction.contact.enabled = true;
+    for (const char* key : {"restitution", "rolling", "rolling_friction", "rolling_viscosity"}) {
+      if (r.has(key)) {
+        diag_.add(r.line(key), r.key_path(key), value_text(*r.node(key)),
+                  "two structures meet through the penalty law of paper eqs. 3-6 (node to segment), which has no "
+                  "such key",
+                  "remove the key; friction, penalty_scale, normal_stiffness and the damping ratios apply");
+      }
+    }
+    if (auto model = r.string("model"); model && *model != "penalty") {
+      diag_.add(r.line("model"), r.key_path("model"), quote_text(*model),
+                "two structures meet through the penalty law (node to segment) only",
+                "write model = \"penalty\", or remove model");
+    }
+    read_surface_contact(r, interaction.contact);
+    if (auto v = r.boolean("enabled")) interaction.contact.enabled = *v;
+  }
+
   void read_interactions(Reader& root) {
     const toml::array* interactions = root.table_list("interactions");
     if (interactions == nullptr || interactions->empty()) return;
-    if (!((has_particles_ || has_fluids_) && has_structures_) && !(has_fluids_ && has_particles_)) {
+    if (!((has_particles_ || has_fluids_) && has_structures_) && !(has_fluids_ && has_particles_) &&
+        scene_.structures.size() < 2) {
       diag_.add(root.line("interactions"), "interactions", std::nullopt,
-                "interactions pair a particle set or fluid with a structure, or a fluid with a particle set, but "
-                "the scene lacks the bodies for either",
+                "interactions pair a particle set or fluid with a structure, a fluid with a particle set, or two "
+                "structures, but the scene lacks the bodies for any",
                 "remove the [[interactions]] tables or add the missing bodies");
       return;
     }
@@ -1915,10 +2162,15 @@ class Builder {
       const bool fluid_and_set =
           (is_fluid(bodies[0]) && is_set(bodies[1])) || (is_set(bodies[0]) && is_fluid(bodies[1]));
       const bool names_fluid = is_fluid(bodies[0]) || is_fluid(bodies[1]);
+      const bool two_structures = bodies[0] != nullptr && bodies[1] != nullptr && !is_fluid(bodies[0]) &&
+                                  !is_set(bodies[0]) && !is_fluid(bodies[1]) && !is_set(bodies[1]);
       Interaction interaction;
       SphDemInteraction sph_dem;
-      interaction.origin = sph_dem.origin = origin(r.line(), path);
-      if (fluid_and_set) {
+      FemFemInteraction fem_fem;
+      interaction.origin = sph_dem.origin = fem_fem.origin = origin(r.line(), path);
+      if (two_structures) {
+        read_fem_fem_interaction(r, fem_fem);
+      } else if (fluid_and_set) {
         sph_dem.contact = scene_.sph_dem_default;
         for (const char* key : {"restitution", "penalty_scale", "tangential_damping_ratio", "rolling",
                                 "rolling_friction", "rolling_viscosity"}) {
@@ -2009,8 +2261,29 @@ class Builder {
         continue;
       }
       if (!first_moves && !second_moves) {
-        diag_.add(line, r.key_path("pair"), value, "both are structures; a pair is one particle set and one structure",
-                  "pair a particle set with a structure");
+        const Structure* a = structure_named((*pair)[0]);
+        const Structure* b = structure_named((*pair)[1]);
+        if ((*pair)[0] == (*pair)[1]) {
+          diag_.add(line, r.key_path("pair"), value,
+                    "names one structure twice; a structure does not meet its own faces (there is no self-contact)",
+                    "pair two different structures");
+          continue;
+        }
+        if (a != nullptr && b != nullptr && a->rigid && b->rigid) {
+          diag_.add(line, r.key_path("pair"), value,
+                    "both structures are rigid: they never move, so they never come into contact",
+                    "pair a deformable structure (rigid = false) with another structure");
+          continue;
+        }
+        fem_fem.a = (*pair)[0];
+        fem_fem.b = (*pair)[1];
+        auto [it, inserted] = seen.try_emplace({std::min(fem_fem.a, fem_fem.b), std::max(fem_fem.a, fem_fem.b)}, line);
+        if (!inserted) {
+          diag_.add(line, r.key_path("pair"), value, fmt::format("this pair is already given at line {}", it->second),
+                    "merge the two [[interactions]] tables of this pair");
+          continue;
+        }
+        scene_.fem_fem_interactions.push_back(std::move(fem_fem));
         continue;
       }
       interaction.a = first_moves ? (*pair)[0] : (*pair)[1];
@@ -2288,6 +2561,7 @@ class Builder {
   int periodic_line_[2] = {0, 0};
   std::vector<std::string> material_names_;
   std::map<std::string, BodyName> bodies_;
+  std::vector<ConstraintKeys> constraint_keys_;  // of the structure being read
   std::vector<ListedSphere> listed_;
   Where sph_dem_default_where_{0, "contact.sph_dem"};
   std::map<std::pair<std::string, std::string>, Where> sph_dem_where_;  // (fluid, set) -> its interaction

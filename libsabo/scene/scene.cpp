@@ -149,6 +149,26 @@ SurfaceContact Scene::surface_contact(const std::string& set, const std::string&
   return is_fluid ? sph_fem_default : dem_fem_default;
 }
 
+SurfaceContact Scene::fem_fem_contact(const std::string& a, const std::string& b) const {
+  SurfaceContact off = fem_fem_default;
+  off.enabled = false;
+  const auto structure = [&](const std::string& name) -> const Structure* {
+    for (const auto& s : structures) {
+      if (s.name == name) return &s;
+    }
+    return nullptr;
+  };
+  const Structure* first = structure(a);
+  const Structure* second = structure(b);
+  if (a == b || first == nullptr || second == nullptr || (first->rigid && second->rigid)) return off;
+  for (const auto& interaction : fem_fem_interactions) {
+    if ((interaction.a == a && interaction.b == b) || (interaction.a == b && interaction.b == a)) {
+      return interaction.contact;
+    }
+  }
+  return fem_fem_default;
+}
+
 SphDemContact Scene::sph_dem_contact(const std::string& fluid, const std::string& set) const {
   for (const auto& interaction : sph_dem_interactions) {
     if (interaction.fluid == fluid && interaction.set == set) return interaction.contact;

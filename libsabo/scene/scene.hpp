@@ -233,6 +233,26 @@ struct Shape {
   double element_size = 0;  // m: target triangle edge for generated shapes (0: coarsest)
 };
 
+// Degrees of freedom held by a deformable structure's constraint on the nodes it selects (zero
+// velocity along each from the start): translations along x, y, z and, for shells, rotations about
+// them. Bits of Constraint::dofs.
+struct Constraint {
+  static constexpr unsigned x = 1, y = 2, z = 4, rx = 8, ry = 16, rz = 32;
+  static constexpr unsigned translations = x | y | z, rotations = rx | ry | rz;
+  enum class Selection {
+    box,  // the nodes inside `box` (its faces included), in the structure's final coordinates
+    tag,  // the nodes of the elements of the physical group `tag` of the structure's Gmsh mesh
+  };
+  Selection selection = Selection::box;
+  Aabb box;         // m
+  std::string tag;  // a physical group of Shape::file (checked: exists, not empty)
+  // Constraint bits; "all" in the scene is every DOF the structure's nodes have (translations on solids,
+  // translations and rotations on shells).
+  unsigned dofs = 0;
+  bool all = false;  // the scene said "all"
+  Origin origin;     // the constraint's table
+};
+
 struct Structure {
   std::string name;
   std::string material;  // a key of Scene::materials (checked)
@@ -252,8 +272,11 @@ struct Structure {
   double slit_width = 0;  // m
   double slit_depth = 0;  // m
   int slit_axis = 1;
-  std::vector<std::string> fixed_faces;  // deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" with all DOFs fixed
-  Vec3 velocity = Vec3::Zero();          // m/s, deformable: initial velocity
+  // Deformable: faces "x-", "x+", "y-", "y+", "z-", "z+" of the box around the structure's nodes (a box
+  // shape: its own faces) whose nodes have every DOF fixed.
+  std::vector<std::string> fixed_faces;
+  std::vector<Constraint> constraints;  // deformable: per-direction constraints, in file order
+  Vec3 velocity = Vec3::Zero();         // m/s, deformable: initial velocity
   // Deformable solids: one-point hexahedra with hourglass control, or fully
   // integrated (2 x 2 x 2 points, mean dilatation) or enhanced-strain (2 x 2 x 2
   // points, condensed incompatible modes) without zero-energy modes.
@@ -287,6 +310,14 @@ struct SurfaceContact {
   [[nodiscard]] bool has_rolling() const {
     return rolling == RollingModel::constant ? rolling_friction > 0 : rolling_viscosity > 0;
   }
+};
+
+// Contact between two structures (FEM-FEM), computed by the fem_solver: the nodes of each against the
+// faces of the other, with the penalty law of SurfaceContact (eqs. 3-6, no Hertz-Mindlin, no rolling).
+struct FemFemInteraction {
+  std::string a, b;  // two structures, not both rigid (checked), in file order of the pair
+  Origin origin;
+  SurfaceContact contact;  // defaults filled from [contact.fem_fem]; enabled unless the pair says false
 };
 
 struct Interaction {
@@ -442,6 +473,13 @@ struct Scene {
   std::vector<Interaction> interactions;                // explicit per-pair settings
   SphDemContact sph_dem_default;                        // fluid particles against DEM spheres
   std::vector<SphDemInteraction> sph_dem_interactions;  // per (fluid body, particle set)
+  // Structure against structure ([contact.fem_fem]): off unless its `enabled` or a pair's interaction.
+  SurfaceContact fem_fem_default = [] {
+    SurfaceContact contact;
+    contact.enabled = false;
+    return contact;
+  }();
+  std::vector<FemFemInteraction> fem_fem_interactions;  // per pair of structures
   Recording recording;
 
   [[nodiscard]] bool needs(Role role) const;
@@ -449,6 +487,10 @@ struct Scene {
   [[nodiscard]] std::size_t material_index(const std::string& name) const;  // asserts it exists
   // Contact settings for particle set or fluid body `set` against structure `structure`.
   [[nodiscard]] SurfaceContact surface_contact(const std::string& set, const std::string& structure) const;
+  // Contact settings of the nodes of structure `a` against the faces of structure `b`: the pair's
+  // interaction (either order), else [contact.fem_fem]; disabled for a structure with itself, two rigid
+  // structures or names that are not structures.
+  [[nodiscard]] SurfaceContact fem_fem_contact(const std::string& a, const std::string& b) const;
   // Contact settings of fluid body `fluid` against particle set `set`: its interaction, else [contact.sph_dem].
   [[nodiscard]] SphDemContact sph_dem_contact(const std::string& fluid, const std::string& set) const;
   // Whether particle set `set` meets the fluid as boundary particles (every fluid pair of a set agrees; checked).

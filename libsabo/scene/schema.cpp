@@ -82,8 +82,8 @@ class K {
 // All tables, built once in place (tables point at each other).
 class Schema {
  public:
-  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, sph, fluid, contact,
-      dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, interaction, recording;
+  Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, constraint, constraint_box,
+      sph, fluid, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording;
 
   Schema(const Schema&) = delete;
   Schema& operator=(const Schema&) = delete;
@@ -99,13 +99,15 @@ class Schema {
     build_contact();
     build_sph_fem();
     build_sph_dem();
+    build_fem_fem();
     build_interactions();
     build_recording();
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root, &run,   &solvers, &solver,  &materials, &material, &particles, &sphere,  &fill,        &structure,
-            &sph,  &fluid, &contact, &dem_dem, &dem_pair,  &dem_fem,  &sph_fem,   &sph_dem, &interaction, &recording};
+    return {&root,     &run,       &solvers,    &solver,         &materials, &material,    &particles, &sphere,
+            &fill,     &structure, &constraint, &constraint_box, &sph,       &fluid,       &contact,   &dem_dem,
+            &dem_pair, &dem_fem,   &sph_fem,    &sph_dem,        &fem_fem,   &interaction, &recording};
   }
 
  private:
@@ -136,7 +138,8 @@ class Schema {
         K("contact", Type::table).inside(contact).absent("defaults").doc("Contact laws between kinds of bodies."),
         K("interactions", Type::table_list)
             .inside(interaction)
-            .absent("every pair uses `[contact.dem_fem]` or `[contact.sph_fem]`")
+            .absent(
+                "every pair uses `[contact.dem_fem]`, `[contact.sph_fem]`, `[contact.sph_dem]` or `[contact.fem_fem]`")
             .doc("Per-pair contact overrides."),
         K("recording", Type::table).inside(recording).absent("defaults").doc("What the coupler records."),
     };
@@ -512,7 +515,16 @@ class Schema {
         K("fixed", Type::string_list)
             .def("[]")
             .choices({"x-", "x+", "y-", "y+", "z-", "z+"})
-            .doc("Deformable: faces of the box whose nodes have every degree of freedom fixed."),
+            .doc("Deformable: faces of the box around the structure's nodes whose nodes have every degree of "
+                 "freedom fixed (a `box`: its own faces; a `mesh`: the faces of the box that bounds its nodes, "
+                 "after `scale` and `translate`; a `plane`: the box around the panel). One direction, or a node "
+                 "set of its own: `constraints`."),
+        K("constraints", Type::table_list)
+            .inside(constraint)
+            .absent("none")
+            .example("[ { box = { min = [-1.0, -1.0, -0.001], max = [1.0, 1.0, 0.001] }, dofs = [\"z\"] } ]")
+            .doc("Deformable: degrees of freedom held on node sets, each selected by a box or a mesh's physical "
+                 "group (a roller, a symmetry plane, a frictionless anvil; inline tables, see below)."),
         K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Deformable: initial velocity."),
         K("element_formulation", Type::string)
             .def("\"one_point\"")
@@ -521,8 +533,10 @@ class Schema {
             .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
                  "(cheapest, exact in bending with a few elements through the depth); `enhanced_strain`, 2 x 2 x 2 "
                  "points with nine condensed incompatible modes (no hourglass modes and accurate in bending: for "
-                 "concentrated impact loads); `fully_integrated`, 2 x 2 x 2 points with the volume change at the "
-                 "element mean (no hourglass modes, stiffer in bending). Shells (a structure with a `thickness`): "
+                 "concentrated impacts that stay mostly elastic; too soft under large plastic strain: the F2 "
+                 "Taylor bar ends outside the reference, docs/physics.md); `fully_integrated`, 2 x 2 x 2 points "
+                 "with the volume change at the element mean (no hourglass modes, stiffer in bending: for "
+                 "concentrated impacts with large plastic flow). Shells (a structure with a `thickness`): "
                  "`one_point`, Belytschko-Lin-Tsay with hourglass control; `fully_integrated`, 2 x 2 in-plane "
                  "points with MITC4 transverse shear (no hourglass modes, no shear locking: for concentrated "
                  "impact loads; about twice the cost per element); `enhanced_strain` is for solids only."),
@@ -638,6 +652,43 @@ class Schema {
             .unit("m")
             .only_for({"mesh"})
             .doc("Translation applied after scaling."),
+    };
+    constraint.title = "[[structures]] constraints = [ { ... } ]";
+    constraint.anchor = "structures-constraints";
+    constraint.description =
+        "One constraint of a deformable structure: the degrees of freedom `dofs` of the nodes it selects keep "
+        "zero velocity from the start (the reactions are whatever holds them). It selects the nodes inside a "
+        "`box` (its faces included: a box flat on one axis picks the nodes of a plane), in the structure's final "
+        "coordinates (a mesh after `scale` and `translate`), or the nodes of the elements of a physical group "
+        "`tag` of the structure's Gmsh mesh (`$PhysicalNames`; any dimension: a volume, a surface, a curve, a "
+        "point). Give exactly one of `box` and `tag`. Examples: a roller or a frictionless anvil, `dofs = "
+        "[\"z\"]` on the face that rests on it; a symmetry plane x = 0, `dofs = [\"x\"]` on its nodes (and, for "
+        "shells, `\"ry\"`, `\"rz\"`); a clamped edge, `dofs = [\"all\"]`. Constraints add to `fixed` and to each "
+        "other. A selection that holds no node is an error.";
+    constraint.keys = {
+        K("box", Type::table)
+            .inside(constraint_box)
+            .absent("use `tag`")
+            .example("{ min = [-1.0, -1.0, -0.001], max = [1.0, 1.0, 0.001] }")
+            .doc("The nodes inside this box (inline table, see below)."),
+        K("tag", Type::string)
+            .absent("use `box`")
+            .example("\"base\"")
+            .allowed("a physical group of the `.msh` file")
+            .doc("The nodes of a physical group of the structure's Gmsh mesh (`shape = \"mesh\"` only)."),
+        K("dofs", Type::string_list)
+            .required("[\"z\"]")
+            .choices({"x", "y", "z", "rx", "ry", "rz", "all"})
+            .doc("Degrees of freedom held, at least one: translations along x, y, z; rotations about x, y, z "
+                 "(shells only: a solid's nodes have none); `all`, every one the nodes have (3 on solids, 6 on "
+                 "shells)."),
+    };
+    constraint_box.title = "[[structures]] constraints = [ { box = { ... } } ]";
+    constraint_box.anchor = "structures-constraints-box";
+    constraint_box.description = "The box of a constraint: `min` <= `max` on every axis (equal: flat on that axis).";
+    constraint_box.keys = {
+        K("min", Type::vec3).required("[-1.0, -1.0, -0.001]").unit("m").doc("Lower corner."),
+        K("max", Type::vec3).required("[1.0, 1.0, 0.001]").unit("m").doc("Upper corner."),
     };
   }
 
@@ -882,7 +933,7 @@ class Schema {
     contact.description =
         "Contact laws between kinds of bodies. `[contact.dem_dem]` needs particles; `[contact.dem_fem]` needs "
         "particles and structures; `[contact.sph_fem]` needs fluids and structures; `[contact.sph_dem]` needs "
-        "fluids and particles.";
+        "fluids and particles; `[contact.fem_fem]` needs two structures, one of them deformable.";
     contact.keys = {
         K("dem_dem", Type::table).inside(dem_dem).absent("defaults").doc("Sphere-sphere contact (dem_solver)."),
         K("dem_fem", Type::table)
@@ -897,6 +948,10 @@ class Schema {
             .inside(sph_dem)
             .absent("defaults")
             .doc("Fluid-sphere contact (coupler), default of every pair."),
+        K("fem_fem", Type::table)
+            .inside(fem_fem)
+            .absent("defaults (off)")
+            .doc("Structure-structure contact (fem_solver), default of every pair of structures."),
     };
     dem_dem.title = "[contact.dem_dem]";
     dem_dem.anchor = "contact-dem_dem";
@@ -1074,21 +1129,68 @@ class Schema {
     };
   }
 
+  void build_fem_fem() {
+    fem_fem.title = "[contact.fem_fem]";
+    fem_fem.anchor = "contact-fem_fem";
+    fem_fem.description =
+        "Contact between structures, computed by the fem_solver, which holds both sides (docs/physics.md, "
+        "\"Structure against structure\"): node-to-segment penalty contact with the law of `[contact.dem_fem]` "
+        "(paper eqs. 3-6): every surface node of one structure is a point against the faces of the other, both "
+        "ways, with the face's eq. 6 stiffness (solid face: k1 K s^2 / V; shell or rigid face: k1 K s / L), "
+        "a tangential spring with Coulomb `friction`, and dashpots from the damping ratios with the reduced mass "
+        "of the node and the face. Faces of eroded elements leave the contact, exposed ones join. A structure "
+        "never meets its own faces, two rigid structures never meet. Off unless `enabled = true` (every pair "
+        "of structures, at least one deformable) or a pair's `[[interactions]]` table names two structures "
+        "(those pairs only, with these settings as their defaults). The spring energy and the dissipated work "
+        "are the fem_solver's (energy.csv: `solver_elastic`, `dissipated`); the contact's stable step 0.2 pi "
+        "sqrt(m / k_n) is part of the fem_solver's.";
+    fem_fem.keys = {
+        K("enabled", Type::boolean)
+            .def("false")
+            .doc("`true`: every pair of structures (at least one deformable) is in contact."),
+        K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
+        K("penalty_scale", Type::number)
+            .def("0.1")
+            .gt(0)
+            .doc("k1 of eq. 6: k_n = k1 K s^2 / V (solid face) or k1 K s / max_diagonal (shell or rigid face)."),
+        K("normal_stiffness", Type::number)
+            .absent("eq. 6")
+            .example("1e8")
+            .unit("N/m")
+            .gt(0)
+            .doc("Normal stiffness replacing eq. 6."),
+        K("normal_damping_ratio", Type::number)
+            .def("0.0")
+            .ge(0)
+            .lt(1)
+            .doc("Normal damping: c_n = 2 ratio sqrt(k_n m), m the reduced mass of the node and the face's "
+                 "lightest node (a rigid side is infinitely heavy)."),
+        K("tangential_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Tangential damping ratio."),
+    };
+  }
+
   void build_interactions() {
     interaction.title = "[[interactions]]";
     interaction.anchor = "interactions";
     interaction.description =
         "Contact settings of one pair, each pair at most once, its two bodies in either order: a particle set "
-        "or a fluid body with a structure, or a fluid body with a particle set. Keys left out take their value "
-        "from `[contact.dem_fem]` (a particle set and a structure), `[contact.sph_fem]` (a fluid and a "
-        "structure) or `[contact.sph_dem]` (a fluid and a particle set).";
-    const std::string from_default = "as in `[contact.dem_fem]` / `[contact.sph_fem]` / `[contact.sph_dem]`";
+        "or a fluid body with a structure, a fluid body with a particle set, or two structures (not both rigid; "
+        "naming them puts them in contact). Keys left out take their value from `[contact.dem_fem]` (a particle "
+        "set and a structure), `[contact.sph_fem]` (a fluid and a structure), `[contact.sph_dem]` (a fluid and "
+        "a particle set) or `[contact.fem_fem]` (two structures: the penalty keys, `friction` and the damping "
+        "ratios only).";
+    const std::string from_default =
+        "as in `[contact.dem_fem]` / `[contact.sph_fem]` / `[contact.sph_dem]` / `[contact.fem_fem]`";
     interaction.keys = {
         K("pair", Type::string_list)
             .required("[\"boulders\", \"chute\"]")
-            .allowed("a particle set or fluid body and a structure, or a fluid body and a particle set")
+            .allowed("a particle set or fluid body and a structure, a fluid body and a particle set, or two "
+                     "structures")
             .doc("The two bodies."),
-        K("enabled", Type::boolean).def("true").doc("`false` switches contact of this pair off."),
+        K("enabled", Type::boolean)
+            .def("true")
+            .doc("`false` switches contact of this pair off (two structures: also when `[contact.fem_fem]` "
+                 "enables every pair)."),
         K("model", Type::string)
             .absent(from_default)
             .example("\"hertz_mindlin\"")
@@ -1332,11 +1434,19 @@ const std::vector<std::string>& cross_checks() {
       "file and ends in `.stl` (`.msh` for `rigid = false`), and it is read by the solvers' own readers "
       "(truncated, malformed, non-finite or degenerate meshes are refused with the mesh file's line). Keys of "
       "other shapes are errors. `rigid = false` needs `shape = \"box\"`, "
-      "`shape = \"mesh\"` with a `.msh` file, or `shape = \"plane\"` with a `thickness`; `fixed`, `velocity`, "
+      "`shape = \"mesh\"` with a `.msh` file, or `shape = \"plane\"` with a `thickness`; `fixed`, `constraints`, "
+      "`velocity`, "
       "`floors`, `roof_thickness` and "
       "`roof_material` need `rigid = false` (the last three a box with a `thickness`). Plasticity keys other than "
       "`yield_stress` and "
       "`failure_strain` need `yield_stress`; `tangent_modulus` is below `youngs_modulus`.",
+      "`constraints` (deformable structures only): each gives exactly one of `box` (`min` <= `max` on every "
+      "axis) and `tag` (a `mesh` structure's physical group, present in its `.msh` file and not empty), and at "
+      "least one of `dofs`; a box must hold a node of the structure (a mesh's nodes are checked here, a "
+      "generated mesh's box against the structure's extent here and node by node when the fem_solver builds "
+      "it); rotations (`rx`, `ry`, `rz`) only on shells.",
+      "Two structures in `[[interactions]]`: not the same structure twice, not both rigid; the keys are those of "
+      "`[contact.fem_fem]` (`model` only `\"penalty\"`; no `restitution`, no rolling resistance).",
       "`[recording]`: `first_step` <= `last_step`.",
       "Every number is finite (no `nan`, no `inf`).",
       "The file is UTF-8 text: a NUL byte or a UTF-16 file is refused with its byte offset.",

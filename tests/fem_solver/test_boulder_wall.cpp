@@ -14,8 +14,8 @@
 #include <limits>
 #include <numbers>
 
-#include "coupler/contact/surface_contact.hpp"
 #include "fem_solver/fem_model.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 #include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Vec3;
@@ -50,7 +50,7 @@ double boulder_against_wall(Formulation formulation) {
   sabo::scene::SurfaceContact settings;
   settings.friction = 0.4;
   settings.penalty_scale = 1.0;
-  sabo::coupler::SurfaceContact contact({"boulder"}, [&](const std::string&, const std::string&) { return settings; });
+  sabo::contact::SurfaceContact contact({"boulder"}, [&](const std::string&, const std::string&) { return settings; });
   contact.set_surface(model.surface());
 
   const double radius = 0.75, speed = 30.0, density = 3000;
@@ -64,7 +64,7 @@ double boulder_against_wall(Formulation formulation) {
   bool finite = true;
   sabo::fem::test::HourglassMonitor hourglass;
   double worst_drilling = 0;
-  sabo::coupler::ContactOutput out;
+  sabo::contact::ContactOutput out;
   while (t < 0.06) {
     model.compute_internal_forces(dt_previous);
     if (model.update_surface()) contact.set_surface(model.surface());
@@ -82,7 +82,7 @@ double boulder_against_wall(Formulation formulation) {
       position[static_cast<std::size_t>(d)] = centre(d);
       vel[static_cast<std::size_t>(d)] = velocity(d);
     }
-    sabo::coupler::ParticleView view{id, position, vel, angular, radii, masses, {}};
+    sabo::contact::ParticleView view{id, position, vel, angular, radii, masses, {}, {}};
     contact.compute(view, dt_previous, out);
     model.apply_node_forces(out.node_force);
     const double dt = std::min(0.9 * model.stable_dt(), contact.stable_dt());

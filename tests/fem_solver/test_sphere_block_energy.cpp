@@ -15,8 +15,8 @@
 #include <sstream>
 #include <vector>
 
-#include "coupler/contact/surface_contact.hpp"
 #include "fem_solver/fem_model.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 #include "tests/fem_solver/fem_test_support.hpp"
 
 using sabo::Vec3;
@@ -63,7 +63,7 @@ ImpactResult impact(double penalty_scale, double element_size, bool plastic,
   sabo::scene::SurfaceContact settings;
   settings.friction = 0.0;
   settings.penalty_scale = penalty_scale;
-  sabo::coupler::SurfaceContact contact({"sphere"}, [&](const std::string&, const std::string&) { return settings; });
+  sabo::contact::SurfaceContact contact({"sphere"}, [&](const std::string&, const std::string&) { return settings; });
   contact.set_surface(model.surface());
 
   const double radius = 0.25, density = 3000;
@@ -76,7 +76,7 @@ ImpactResult impact(double penalty_scale, double element_size, bool plastic,
   result.initial = 0.5 * mass * velocity.squaredNorm();
   result.largest = result.initial;
   double dt_previous = 0, t = 0;
-  sabo::coupler::ContactOutput out;
+  sabo::contact::ContactOutput out;
   std::vector<double> node_position, node_velocity;
   std::uint64_t step = 0;
   while (t < 0.07) {
@@ -97,7 +97,7 @@ ImpactResult impact(double penalty_scale, double element_size, bool plastic,
       position[static_cast<std::size_t>(d)] = centre(d);
       vel[static_cast<std::size_t>(d)] = velocity(d);
     }
-    const sabo::coupler::ParticleView view{id, position, vel, angular, radii, masses, {}};
+    const sabo::contact::ParticleView view{id, position, vel, angular, radii, masses, {}, {}};
     contact.compute(view, dt_previous, out);
     model.apply_node_forces(out.node_force);
     const double dt = std::min({dt_factor * model.stable_dt(), contact.stable_dt(), max_dt});

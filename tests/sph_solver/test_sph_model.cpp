@@ -10,7 +10,7 @@
 #include <numeric>
 #include <utility>
 
-#include "coupler/contact/surface_contact.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
@@ -470,17 +470,17 @@ struct PenaltyWalls {
         velocity[3 * i + k] = model.velocities()[i][k];
       }
     }
-    const coupler::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}};
+    const contact::ParticleView view{ids, position, velocity, {}, radius, model.masses(), {}, {}};
     contact.compute(view, dt_previous, out);
     model.add_external_forces(indices, out.particle_force);
     return contact.stable_dt();
   }
   SphModel& model;
-  coupler::SurfaceContact contact;
+  contact::SurfaceContact contact;
   std::vector<std::uint64_t> ids;
   std::vector<std::uint32_t> indices;
   std::vector<double> radius, position, velocity;
-  coupler::ContactOutput out;
+  contact::ContactOutput out;
 };
 
 // The floor and four sides of the container [min, max] as planes, normals inward, parts

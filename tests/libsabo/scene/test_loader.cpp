@@ -595,8 +595,8 @@ TEST(SceneLoader, ChecksAcrossKeys) {
       {head + kGround + "[contact.dem_fem]\nfriction = 0.5\n",
        "key 'contact.dem_fem': sphere-structure contact needs both particles and structures"},
       {head + kOneSphere + "[[interactions]]\npair = [\"boulders\", \"x\"]\n",
-       "key 'interactions': interactions pair a particle set or fluid with a structure, or a fluid with a particle "
-       "set, but the scene lacks the bodies"},
+       "key 'interactions': interactions pair a particle set or fluid with a structure, a fluid with a particle "
+       "set, or two structures, but the scene lacks the bodies for any"},
       {head + kOneSphere + kGround +
            "[[interactions]]\npair = [\"boulders\", \"ground\"]\n[[interactions]]\npair = "
            "[\"ground\", \"boulders\"]\n",
@@ -654,6 +654,224 @@ TEST(SceneLoader, ChecksAcrossKeys) {
        "[[particles]] header"},
       {"format_version = 1\n[run]\nend_time = 1.0\noutput_interval = 0.1\nparticles = []\nstructures = []\n",
        "the scene has no bodies"},
+  };
+  for (const auto& c : cases) {
+    const std::string message = error_of(c.text);
+    EXPECT_NE(message.find(c.expected), std::string::npos) << "expected: " << c.expected << "\ngot: " << message;
+  }
+}
+
+// Two hexahedra (x in [0, 2], y and z in [0, 1]) with the physical groups "solid" (the volume), "base"
+// (the bottom quadrangles, z = 0) and "empty" (a name without elements).
+constexpr const char* kTaggedHexes = R"($MeshFormat
+4.1 0 8
+$EndMeshFormat
+$PhysicalNames
+3
+3 1 "solid"
+2 2 "base"
+2 3 "empty"
+$EndPhysicalNames
+$Entities
+0 0 1 1
+1 0 0 0 2 1 0 1 2 0
+1 0 0 0 2 1 1 1 1 0
+$EndEntities
+$Nodes
+1 12 1 12
+3 1 0 12
+1
+2
+3
+4
+5
+6
+7
+8
+9
+10
+11
+12
+0 0 0
+1 0 0
+2 0 0
+0 1 0
+1 1 0
+2 1 0
+0 0 1
+1 0 1
+2 0 1
+0 1 1
+1 1 1
+2 1 1
+$EndNodes
+$Elements
+2 4 1 4
+3 1 5 2
+1 1 2 5 4 7 8 11 10
+2 2 3 6 5 8 9 12 11
+2 1 3 2
+3 1 4 5 2
+4 2 5 6 3
+$EndElements
+)";
+
+// A deformable mesh structure of kTaggedHexes written beside the scene, with `keys` added.
+std::string tagged_mesh_structure(const std::string& keys) {
+  return "\n[[structures]]\nname = \"block\"\nmaterial = \"concrete\"\nrigid = false\nshape = \"mesh\"\n"
+         "file = \"hexes.msh\"\n" +
+         keys + "\n";
+}
+
+std::string error_with_mesh(const std::string& text) {
+  TempFolder folder;
+  folder.write("hexes.msh", kTaggedHexes);
+  try {
+    (void)load_scene(folder.write("scene.toml", text));
+  } catch (const SceneError& error) {
+    return error.what();
+  }
+  return {};
+}
+
+TEST(SceneLoader, ConstraintsByBoxAndByMeshTag) {
+  TempFolder folder;
+  folder.write("hexes.msh", kTaggedHexes);
+  const std::string text =
+      std::string(kSceneHead) +
+      tagged_mesh_structure(
+          "translate = [0.0, 0.0, 1.0]\nconstraints = [ { tag = \"base\", dofs = [\"z\"] }, "
+          "{ box = { min = [-1.0, -1.0, 1.0], max = [0.0, 2.0, 3.0] }, dofs = [\"x\", \"y\"] } ]") +
+      "[[structures]]\nname = \"wall\"\nmaterial = \"concrete\"\nrigid = false\nshape = \"plane\"\n"
+      "thickness = 0.1\norigin = [5.0, 0.0, 1.0]\nnormal = [1.0, 0.0, 0.0]\n"
+      "direction = [0.0, 0.0, 1.0]\nlength = 2.0\nwidth = 4.0\nelement_size = 0.5\n"
+      "constraints = [ { box = { min = [4.0, -3.0, 0.0], max = [6.0, 3.0, 0.0] }, "
+      "dofs = [\"all\"] }, { box = { min = [4.0, -3.0, 0.0], max = [6.0, 3.0, 2.0] }, "
+      "dofs = [\"x\", \"ry\", \"rz\"] } ]\n";
+  const Scene scene = load_scene(folder.write("scene.toml", text));
+  const auto& block = scene.structures[0].constraints;
+  ASSERT_EQ(block.size(), 2u);
+  EXPECT_EQ(block[0].selection, Constraint::Selection::tag);
+  EXPECT_EQ(block[0].tag, "base");
+  EXPECT_EQ(block[0].dofs, Constraint::z);
+  EXPECT_EQ(block[0].origin.key, "structures[0].constraints[0]");
+  EXPECT_EQ(block[1].selection, Constraint::Selection::box);
+  EXPECT_EQ(block[1].box.min, Vec3(-1, -1, 1));
+  EXPECT_EQ(block[1].box.max, Vec3(0, 2, 3));
+  EXPECT_EQ(block[1].dofs, Constraint::x | Constraint::y);
+  const auto& wall = scene.structures[1].constraints;
+  ASSERT_EQ(wall.size(), 2u);
+  EXPECT_TRUE(wall[0].all);
+  EXPECT_EQ(wall[1].dofs, Constraint::x | Constraint::ry | Constraint::rz);
+  EXPECT_FALSE(wall[1].all);
+}
+
+TEST(SceneLoader, ConstraintErrorsNameTheKeyTheValueAndTheFix) {
+  struct Case {
+    std::string keys;  // of the mesh structure
+    std::string expected;
+  };
+  const std::vector<Case> cases{
+      {"constraints = [ { tag = \"bsae\", dofs = [\"z\"] } ]",
+       "key 'structures[0].constraints[0].tag' = \"bsae\": hexes.msh has no physical group of that name. Did you "
+       "mean 'base'? Fix: use one of the file's groups: solid, base, empty"},
+      {"constraints = [ { tag = \"empty\", dofs = [\"z\"] } ]",
+       "key 'structures[0].constraints[0].tag' = \"empty\": the physical group \"empty\" of hexes.msh holds no "
+       "elements, so no nodes"},
+      {"constraints = [ { box = { min = [5.0, 5.0, 5.0], max = [6.0, 6.0, 6.0] }, dofs = [\"z\"] } ]",
+       "key 'structures[0].constraints[0].box' = { max = [6.0, 6.0, 6.0], min = [5.0, 5.0, 5.0] }: the box holds "
+       "no node of the mesh, whose nodes span [0.0, 0.0, 0.0] to [2.0, 1.0, 1.0] (after scale and translate)"},
+      {"constraints = [ { box = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, -1.0] }, dofs = [\"z\"] } ]",
+       "key 'structures[0].constraints[0].box.max' = [1.0, 1.0, -1.0]: the box is inverted"},
+      {"constraints = [ { dofs = [\"z\"] } ]",
+       "key 'structures[0].constraints[0]' = { dofs = [\"z\"] }: selects no nodes: it needs a box or a tag"},
+      {"constraints = [ { tag = \"base\", box = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0] }, dofs = [\"z\"] } ]",
+       "gives both box and tag: a constraint selects its nodes one way"},
+      {"constraints = [ { tag = \"base\", dofs = [\"w\"] } ]",
+       "key 'structures[0].constraints[0].dofs' = [\"w\"]: \"w\" is not one of \"x\", \"y\", \"z\", \"rx\", \"ry\", "
+       "\"rz\", \"all\""},
+      {"constraints = [ { tag = \"base\", dofs = [] } ]",
+       "key 'structures[0].constraints[0].dofs' = []: holds no degree of freedom"},
+      {"constraints = [ { tag = \"base\", dofs = [\"rx\"] } ]",
+       "key 'structures[0].constraints[0].dofs' = [\"rx\"]: rotations belong to shells, and this structure has no "
+       "thickness"},
+      {"constraints = [ { tag = \"base\" } ]", "key 'structures[0].constraints[0].dofs': missing; it is required"},
+  };
+  for (const auto& c : cases) {
+    const std::string message = error_with_mesh(std::string(kSceneHead) + tagged_mesh_structure(c.keys));
+    EXPECT_NE(message.find(c.expected), std::string::npos) << "expected: " << c.expected << "\ngot: " << message;
+  }
+  // A tag on a generated shape, a box beside a box, constraints on a rigid structure.
+  const std::string box =
+      "[[structures]]\nname = \"b\"\nmaterial = \"concrete\"\nrigid = false\nshape = \"box\"\n"
+      "min = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\n";
+  const std::vector<Case> shapes{
+      {box + "constraints = [ { tag = \"base\", dofs = [\"z\"] } ]",
+       "key 'structures[0].constraints[0].tag' = \"base\": a tag names a physical group of a Gmsh mesh, and this "
+       "structure's shape is \"box\". Fix: select the nodes with box = { min = [...], max = [...] }"},
+      {box + "constraints = [ { box = { min = [2.0, 0.0, 0.0], max = [3.0, 1.0, 1.0] }, dofs = [\"z\"] } ]",
+       "the box misses the structure, which spans [0.0, 0.0, 0.0] to [1.0, 1.0, 1.0]"},
+      {std::string(kGround) + "constraints = [ { box = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 1.0] }, dofs = "
+                              "[\"z\"] } ]",
+       "belongs to deformable structures, but this one is rigid"},
+  };
+  for (const auto& c : shapes) {
+    const std::string message = error_of(std::string(kSceneHead) + kOneSphere + "\n" + c.keys + "\n");
+    EXPECT_NE(message.find(c.expected), std::string::npos) << "expected: " << c.expected << "\ngot: " << message;
+  }
+}
+
+TEST(SceneLoader, ContactBetweenStructures) {
+  const std::string head = kSceneHead;
+  const std::string bar =
+      "[[structures]]\nname = \"bar\"\nmaterial = \"concrete\"\nrigid = false\nshape = \"box\"\n"
+      "min = [0.0, 0.0, 0.1]\nmax = [1.0, 1.0, 1.0]\n";
+  const std::string plate =
+      "[[structures]]\nname = \"plate\"\nmaterial = \"concrete\"\nrigid = false\nshape = \"box\"\n"
+      "min = [0.0, 0.0, 2.0]\nmax = [1.0, 1.0, 2.5]\n";
+  // Off by default; a pair's interaction turns that pair on, with [contact.fem_fem]'s keys as its defaults.
+  const Scene off = load_text(head + kGround + bar);
+  EXPECT_FALSE(off.fem_fem_default.enabled);
+  EXPECT_FALSE(off.fem_fem_contact("bar", "ground").enabled);
+  const Scene paired = load_text(head + kGround + bar + plate +
+                                 "[contact.fem_fem]\nfriction = 0.2\npenalty_scale = 0.5\n"
+                                 "[[interactions]]\npair = [\"ground\", \"bar\"]\nnormal_damping_ratio = 0.1\n");
+  ASSERT_EQ(paired.fem_fem_interactions.size(), 1u);
+  for (const auto& [a, b] : {std::pair{"bar", "ground"}, std::pair{"ground", "bar"}}) {
+    const SurfaceContact c = paired.fem_fem_contact(a, b);
+    EXPECT_TRUE(c.enabled);
+    EXPECT_DOUBLE_EQ(c.friction, 0.2);
+    EXPECT_DOUBLE_EQ(c.penalty_scale, 0.5);
+    EXPECT_DOUBLE_EQ(c.normal_damping_ratio, 0.1);
+  }
+  EXPECT_FALSE(paired.fem_fem_contact("bar", "plate").enabled);
+  EXPECT_FALSE(paired.fem_fem_contact("bar", "bar").enabled);
+  // [contact.fem_fem] enabled: every pair with a deformable structure, unless its interaction says no.
+  const Scene all = load_text(head + kGround + bar + plate +
+                              "[contact.fem_fem]\nenabled = true\n"
+                              "[[interactions]]\npair = [\"plate\", \"ground\"]\nenabled = false\n");
+  EXPECT_TRUE(all.fem_fem_contact("bar", "plate").enabled);
+  EXPECT_TRUE(all.fem_fem_contact("ground", "bar").enabled);
+  EXPECT_FALSE(all.fem_fem_contact("plate", "ground").enabled);
+  EXPECT_FALSE(all.fem_fem_contact("plate", "plate").enabled);
+
+  struct Case {
+    std::string text;
+    std::string expected;
+  };
+  const std::vector<Case> cases{
+      {head + kGround + bar + "[[interactions]]\npair = [\"bar\", \"bar\"]\n",
+       "key 'interactions[0].pair' = [\"bar\", \"bar\"]: names one structure twice; a structure does not meet its own "
+       "faces"},
+      {head + kGround + bar + "[[interactions]]\npair = [\"bar\", \"ground\"]\nmodel = \"hertz_mindlin\"\n",
+       "key 'interactions[0].model' = \"hertz_mindlin\": two structures meet through the penalty law (node to "
+       "segment) only"},
+      {head + kGround + bar + "[[interactions]]\npair = [\"bar\", \"ground\"]\nrestitution = 0.5\n",
+       "key 'interactions[0].restitution' = 0.5: two structures meet through the penalty law"},
+      {head + kGround + bar + "[[interactions]]\npair = [\"bar\", \"ground\"]\nrolling_friction = 0.1\n",
+       "key 'interactions[0].rolling_friction' = 0.1: two structures meet"},
+      {head + kGround + "[contact.fem_fem]\nenabled = true\n",
+       "key 'contact.fem_fem': structure-structure contact needs two structures, one of them deformable"},
   };
   for (const auto& c : cases) {
     const std::string message = error_of(c.text);

@@ -7,7 +7,7 @@
 
 #include "libsabo/core/types.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 // Which part of a triangle the closest point lies on.
 enum class Feature : std::uint8_t { face = 0, edge = 1, vertex = 2 };
@@ -51,8 +51,16 @@ struct SphereTriangleGap {
   bool reachable = true;        // false: behind a one-sided face by more than radius + thickness / 2
 };
 
-// unit_normal: the triangle's outward unit normal ((b - a) x (c - a), normalised).
+// unit_normal: the triangle's outward unit normal ((b - a) x (c - a), normalised). depth: how far
+// behind a one-sided face's plane the centre is still pushed out (reachable), beyond thickness / 2; a
+// sphere's is its radius, a point's (radius 0, a node of another structure) its own.
 [[nodiscard]] SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double thickness, const Vec3& a,
-                                                    const Vec3& unit_normal, const TrianglePoint& closest);
+                                                    const Vec3& unit_normal, const TrianglePoint& closest,
+                                                    double depth);
+[[nodiscard]] inline SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double thickness,
+                                                           const Vec3& a, const Vec3& unit_normal,
+                                                           const TrianglePoint& closest) {
+  return sphere_triangle_gap(centre, radius, thickness, a, unit_normal, closest, radius);
+}
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -1,7 +1,9 @@
 #pragma once
-// Penalty contact of particles (DEM spheres now, SPH particles later) against
-// the triangulated surface of the FEM solver (MODEL.md "SPH-FEM", "DEM-FEM",
-// paper eqs. 3-6). Computed by the coupler once per step.
+// Penalty contact of particles (DEM spheres, SPH particles) against the
+// triangulated surface of the FEM solver (docs/physics.md "Particle-surface
+// contact", paper eqs. 3-6). Computed by the coupler once per step (DEM-FEM,
+// penalty SPH-FEM), and by the fem_solver for the nodes of one structure
+// against the faces of another (fem_solver/structure_contact.hpp).
 //
 // Search: triangle bounds are binned in a physics::CellList whose cell is the
 // larger of the median triangle size and the largest particle's reach; it is
@@ -94,14 +96,14 @@
 #include <string>
 #include <vector>
 
-#include "coupler/contact/sphere_triangle.hpp"
+#include "libsabo/contact/sphere_triangle.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/physics/cell_list.hpp"
 #include "libsabo/physics/contact_law.hpp"
 #include "libsabo/scene/scene.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 // The particles of one solver this step, structure of arrays. 3-vectors are
 // 3 doubles per particle (x0, y0, z0, x1, ...).
@@ -113,6 +115,11 @@ struct ParticleView {
   std::span<const double> radius;            // m: sphere radius, or SPH contact radius h
   std::span<const double> mass;              // kg
   std::span<const std::uint32_t> body;       // index into the source names; empty: all 0
+  // m: points instead of spheres (the nodes of a structure against another's faces): how far behind a
+  // one-sided face a point is still pushed out, and the scale of its potential zone (potential_margin *
+  // depth beyond its radius counts for stable_dt()); radius may then be 0, depth >= radius, > 0. Empty:
+  // spheres, depth = radius.
+  std::span<const double> depth;
   [[nodiscard]] std::size_t size() const { return id.size(); }
 };
 
@@ -165,6 +172,12 @@ struct SurfaceContactOptions {
   double history_transfer_angle_deg = 30.0;
   // Test every triangle against every particle instead of using the grid (tests and debugging only: O(N F)).
   bool brute_force_search = false;
+  // The mass of the penalty law's dashpots, c = 2 zeta sqrt(k m): the particle's (the coupler: the wall is
+  // taken as infinitely heavy), or the reduced mass m M / (m + M) of the particle and the face's lightest
+  // node (the fem_solver, which knows both sides; a particle may then be infinitely heavy, mass = +inf:
+  // a rigid structure's node).
+  enum class DampingMass { particle, reduced };
+  DampingMass damping_mass = DampingMass::particle;
 };
 
 class SurfaceContact {
@@ -290,17 +303,18 @@ class SurfaceContact {
 
   void refresh_geometry();
   void resolve_pairs();
-  void build_grid(double query_reach);
+  void build_grid(double query_reach, bool points);
   [[nodiscard]] const Pair& pair(std::uint32_t source, std::size_t face) const {
     return pairs_[source * surface_.part_name.size() + surface_.face_part[face]];
   }
   [[nodiscard]] bool usable(std::uint32_t source, std::size_t face) const {
     return !degenerate_[face] && pair(source, face).enabled;
   }
-  Hit evaluate(std::size_t face, const Vec3& centre, double radius) const;
+  // depth: ParticleView::depth (spheres: their radius); point: a point of ParticleView::depth.
+  Hit evaluate(std::size_t face, const Vec3& centre, double radius, double depth, bool point) const;
   [[nodiscard]] const Hit* find_hit(const Scratch& scratch, std::uint32_t face) const;
   [[nodiscard]] bool feature_is_local_minimum(const Hit& hit, std::uint32_t source, const Vec3& centre, double radius,
-                                              Scratch& scratch) const;
+                                              double depth, bool point, Scratch& scratch) const;
   [[nodiscard]] bool shares_node(std::uint32_t face_a, std::uint32_t face_b) const;
   [[nodiscard]] FeatureKey feature_key(const Hit& hit) const;
   void process_particle(std::size_t i, const ParticleView& particles, double dt_previous, Scratch& scratch,
@@ -343,4 +357,4 @@ class SurfaceContact {
   double max_radius_seen_ = 0;
 };
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -1,4 +1,4 @@
-#include "coupler/contact/surface_contact.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 
 #include <fmt/format.h>
 
@@ -14,7 +14,7 @@
 #include "libsabo/geometry/covering_boxes.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 namespace {
 
@@ -41,6 +41,13 @@ void add_at(std::vector<double>& values, std::size_t i, const Vec3& v) {
 
 int feature_rank(Feature feature) {
   return static_cast<int>(feature);
+}
+
+// m M / (m + M); an infinitely heavy side leaves the other's mass.
+double reduced_mass(double particle, double face) {
+  if (std::isinf(face)) return particle;
+  if (std::isinf(particle)) return face;
+  return particle * face / (particle + face);
 }
 
 }  // namespace
@@ -340,8 +347,10 @@ void SurfaceContact::update_nodes(std::span<const double> position, std::span<co
   }
 }
 
-void SurfaceContact::build_grid(double query_reach) {
-  double cell = std::max(median_face_size_, query_reach);
+void SurfaceContact::build_grid(double query_reach, bool points) {
+  // Spheres: cells of their reach at least. Points: of the faces' size (a rigid part's few nodes may reach
+  // far: their queries visit more cells, rather than every node's query visiting every face).
+  double cell = points && median_face_size_ > 0 ? median_face_size_ : std::max(median_face_size_, query_reach);
   if (!(cell > 0)) cell = 1.0;
   grid_.build_boxes(face_box_, cell);
   grid_reach_ = query_reach;
@@ -358,13 +367,31 @@ std::vector<Aabb> SurfaceContact::interest_regions(double max_radius) const {
 
 // ------------------------------------------------------------- per particle --
 
-SurfaceContact::Hit SurfaceContact::evaluate(std::size_t face, const Vec3& centre, double radius) const {
+SurfaceContact::Hit SurfaceContact::evaluate(std::size_t face, const Vec3& centre, double radius, double depth,
+                                             bool point) const {
   const auto& tri = surface_.triangle[face];
   const Vec3& a = surface_.node_position[tri[0]];
+  const Vec3& b = surface_.node_position[tri[1]];
+  const Vec3& c = surface_.node_position[tri[2]];
   Hit hit;
   hit.face = static_cast<std::uint32_t>(face);
-  hit.closest = closest_point_on_triangle(centre, a, surface_.node_position[tri[1]], surface_.node_position[tri[2]]);
-  hit.gap = sphere_triangle_gap(centre, radius, surface_.face_thickness[face], a, face_normal_[face], hit.closest);
+  hit.closest = closest_point_on_triangle(centre, a, b, c);
+  if (point && hit.closest.feature != Feature::face && surface_.face_thickness[face] == 0) {
+    // A point behind a one-sided face whose projection falls on the face's boundary (a node facing a node or
+    // an edge of the other structure, as meshes aligned across the contact put them) meets the face: every
+    // triangle around that vertex or edge calls it a vertex or edge point, which a point of radius 0 cannot
+    // touch, and it would pass through until it drifted inside a face with its whole overlap at once.
+    const Vec3& n = face_normal_[face];
+    const double height = (centre - a).dot(n);
+    const Vec3 projection = centre - height * n;
+    const double size = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    if (height < 0 && (projection - hit.closest.point).norm() <= kDistanceSlack * size) {
+      hit.closest.feature = Feature::face;
+      hit.closest.index = 0;
+    }
+  }
+  hit.gap =
+      sphere_triangle_gap(centre, radius, surface_.face_thickness[face], a, face_normal_[face], hit.closest, depth);
   return hit;
 }
 
@@ -395,7 +422,7 @@ SurfaceContact::FeatureKey SurfaceContact::feature_key(const Hit& hit) const {
 }
 
 bool SurfaceContact::feature_is_local_minimum(const Hit& hit, std::uint32_t source, const Vec3& centre, double radius,
-                                              Scratch& scratch) const {
+                                              double depth, bool point, Scratch& scratch) const {
   const auto& tri = surface_.triangle[hit.face];
   const auto corner = [&](int k) { return canonical_[tri[static_cast<std::size_t>(k % 3)]]; };
   const bool is_edge = hit.closest.feature == Feature::edge;
@@ -411,7 +438,7 @@ bool SurfaceContact::feature_is_local_minimum(const Hit& hit, std::uint32_t sour
     auto found = std::lower_bound(scratch.hits.begin(), scratch.hits.end(), other,
                                   [](const Hit& h, std::uint32_t face) { return h.face < face; });
     const Hit other_hit =
-        (found != scratch.hits.end() && found->face == other) ? *found : evaluate(other, centre, radius);
+        (found != scratch.hits.end() && found->face == other) ? *found : evaluate(other, centre, radius, depth, point);
     const TrianglePoint& closest = other_hit.closest;
     if (closest.feature == Feature::face) return false;
     const std::uint32_t p = nodes[static_cast<std::size_t>(closest.index)];
@@ -435,7 +462,11 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   const double radius = particles.radius[i];
   const double mass = particles.mass[i];
   const std::uint32_t source = particles.body.empty() ? 0U : particles.body[i];
-  const double potential_reach = radius * (1.0 + options_.potential_margin);
+  // Spheres: depth = radius, and the potential zone one margin of radii wide; points: of depths.
+  const bool point = !particles.depth.empty();
+  const double depth = point ? particles.depth[i] : radius;
+  const double potential_reach =
+      point ? radius + options_.potential_margin * depth : radius * (1.0 + options_.potential_margin);
   const double reach = potential_reach + 0.5 * max_thickness_;
 
   if (options_.brute_force_search) {
@@ -457,12 +488,11 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   double nearest = std::numeric_limits<double>::infinity();
   for (std::uint32_t face : scratch.candidates) {
     if (!usable(source, face)) continue;
-    const Hit hit = evaluate(face, centre, radius);
+    const Hit hit = evaluate(face, centre, radius, depth, point);
     nearest = std::min(nearest, hit.gap.distance);
     if (hit.gap.reachable && hit.gap.overlap > radius - potential_reach) {
       const Pair& settings = pair(source, face);
-      const double face_mass = face_mass_[face];
-      const double reduced_mass = std::isinf(face_mass) ? mass : mass * face_mass / (mass + face_mass);
+      const double pair_mass = reduced_mass(mass, face_mass_[face]);
       if (settings.hertz) {
         // A fifth of the particle's Rayleigh time pi r sqrt(rho / G) / (0.1631 nu + 0.8766), and a tenth of the
         // contact period at the current overlap (fast impacts go deeper than the Rayleigh bound assumes).
@@ -471,14 +501,14 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
             std::min(result.stable_dt, 0.2 * std::numbers::pi * radius * std::sqrt(density) * settings.rayleigh_factor);
         if (hit.gap.overlap > 0) {
           const double stiffness = 2.0 * settings.effective_modulus * std::sqrt(radius * hit.gap.overlap);
-          result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(reduced_mass / stiffness));
+          result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(pair_mass / stiffness));
         }
       } else {
         // The rolling spring's k_r / I is 5.625 mu_r^2 times k_n / m (dem_model.hpp, stable_dt()).
         const double rolling =
             settings.rolling == 1 ? std::max(1.0, 5.625 * std::pow(settings.rolling_friction, 2)) : 1.0;
         const double k = rolling * face_stiffness(face, source);
-        result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(reduced_mass / k));
+        result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(pair_mass / k));
       }
     }
     scratch.hits.push_back(hit);
@@ -491,7 +521,8 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     const Hit& hit = scratch.hits[h];
     if (!(hit.gap.overlap > 0) || !hit.gap.reachable) continue;
     if (hit.gap.behind && hit.gap.distance > nearest * (1.0 + kDistanceSlack)) continue;
-    if (hit.closest.feature != Feature::face && !feature_is_local_minimum(hit, source, centre, radius, scratch)) {
+    if (hit.closest.feature != Feature::face &&
+        !feature_is_local_minimum(hit, source, centre, radius, depth, point, scratch)) {
       continue;
     }
     scratch.touching.push_back(h);
@@ -640,11 +671,14 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
       contact.normal_stiffness = physics::hertz_normal_stiffness(law, spring_overlap);
     } else {
       const double k = face_stiffness(hit.face, source);
+      const double damping_mass = options_.damping_mass == SurfaceContactOptions::DampingMass::reduced
+                                      ? reduced_mass(mass, face_mass_[hit.face])
+                                      : mass;
       physics::SpringDashpot law{};
       law.normal_stiffness = k;
-      law.normal_damping = physics::damping_coefficient(k, mass, settings.normal_damping_ratio);
+      law.normal_damping = physics::damping_coefficient(k, damping_mass, settings.normal_damping_ratio);
       law.tangential_stiffness = k;
-      law.tangential_damping = physics::damping_coefficient(k, mass, settings.tangential_damping_ratio);
+      law.tangential_damping = physics::damping_coefficient(k, damping_mass, settings.tangential_damping_ratio);
       law.friction = settings.friction;
       contact.law = physics::spring_dashpot_force(law, spring_overlap, n, relative_velocity, dt_previous, spring);
       contact.normal_stiffness = k;
@@ -704,7 +738,8 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   if (particles.position.size() != 3 * n || particles.velocity.size() != 3 * n ||
       (!particles.angular_velocity.empty() && particles.angular_velocity.size() != 3 * n) ||
       particles.radius.size() != n || particles.mass.size() != n ||
-      (!particles.body.empty() && particles.body.size() != n)) {
+      (!particles.body.empty() && particles.body.size() != n) ||
+      (!particles.depth.empty() && particles.depth.size() != n)) {
     fail(
         fmt::format("array sizes disagree: {} ids, {} positions, {} velocities, {} angular velocities, {} radii, "
                     "{} masses, {} bodies",
@@ -714,12 +749,24 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   if (!(dt_previous >= 0)) fail(fmt::format("dt_previous = {} s must be >= 0", dt_previous));
   if (n >= std::numeric_limits<std::uint32_t>::max()) fail(fmt::format("{} particles exceed 32-bit indices", n));
   double max_radius = 0;
+  const bool points = !particles.depth.empty();
+  const bool heavy_allowed = options_.damping_mass == SurfaceContactOptions::DampingMass::reduced;
+  double max_potential_reach = 0;  // points
   for (std::size_t i = 0; i < n; ++i) {
-    if (!(particles.radius[i] > 0) || !std::isfinite(particles.radius[i])) {
-      fail(fmt::format("particle {} (id {}) has radius {} m", i, particles.id[i], particles.radius[i]));
+    const double radius = particles.radius[i];
+    if (!(points ? radius >= 0 : radius > 0) || !std::isfinite(radius)) {
+      fail(fmt::format("particle {} (id {}) has radius {} m", i, particles.id[i], radius));
     }
-    if (!(particles.mass[i] > 0) || !std::isfinite(particles.mass[i])) {
-      fail(fmt::format("particle {} (id {}) has mass {} kg", i, particles.id[i], particles.mass[i]));
+    if (points) {
+      const double depth = particles.depth[i];
+      if (!(depth > 0) || !(depth >= radius) || !std::isfinite(depth)) {
+        fail(fmt::format("point {} (id {}) has depth {} m (radius {} m)", i, particles.id[i], depth, radius));
+      }
+      max_potential_reach = std::max(max_potential_reach, radius + options_.potential_margin * depth);
+    }
+    const double mass = particles.mass[i];
+    if (!(mass > 0) || (!std::isfinite(mass) && !(heavy_allowed && std::isinf(mass)))) {
+      fail(fmt::format("particle {} (id {}) has mass {} kg", i, particles.id[i], mass));
     }
     if (!particles.body.empty() && particles.body[i] >= source_names_.size()) {
       fail(fmt::format("particle {} (id {}) belongs to body {} but there are {} bodies", i, particles.id[i],
@@ -757,8 +804,9 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
     return;
   }
 
-  const double query_reach = max_radius * (1.0 + options_.potential_margin) + 0.5 * max_thickness_;
-  if (!grid_valid_ || query_reach > grid_reach_) build_grid(query_reach);
+  const double query_reach =
+      (points ? max_potential_reach : max_radius * (1.0 + options_.potential_margin)) + 0.5 * max_thickness_;
+  if (!grid_valid_ || query_reach > grid_reach_) build_grid(query_reach, points);
 
   if (results_.size() < n) results_.resize(n);
   const auto count = static_cast<std::int64_t>(n);
@@ -832,4 +880,4 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   merged_.swap(next_merged_);
 }
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -15,7 +15,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/covering_boxes.hpp"
 
-namespace sabo::coupler {
+namespace sabo::contact {
 namespace {
 
 using test::Cloud;
@@ -927,9 +927,9 @@ TEST(SurfaceContact, HertzImpactOnARigidFloorIsBenchmarkD1) {
 }
 
 }  // namespace
-}  // namespace sabo::coupler
+}  // namespace sabo::contact
 
-namespace sabo::coupler {
+namespace sabo::contact {
 namespace {
 
 // Eq. 7's contact term with the node masses: 0.2 pi sqrt(m_r / k), m_r the
@@ -970,4 +970,4 @@ TEST(SurfaceContact, StableDtUsesTheReducedMassWithTheFaceNodes) {
 }
 
 }  // namespace
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

@@ -1,9 +1,9 @@
-#include "coupler/contact/sphere_triangle.hpp"
+#include "libsabo/contact/sphere_triangle.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace sabo::coupler {
+namespace sabo::contact {
 
 const char* feature_name(Feature feature) {
   switch (feature) {
@@ -99,7 +99,7 @@ TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3
 }
 
 SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double thickness, const Vec3& a,
-                                      const Vec3& unit_normal, const TrianglePoint& closest) {
+                                      const Vec3& unit_normal, const TrianglePoint& closest, double depth) {
   SphereTriangleGap gap;
   const double reach = radius + 0.5 * thickness;
   if (closest.feature == Feature::face) {
@@ -112,7 +112,7 @@ SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double 
       gap.normal = unit_normal;
       gap.overlap = reach - height;
       gap.behind = height < 0;
-      gap.reachable = height > -reach;
+      gap.reachable = height > -(depth + 0.5 * thickness);
     }
     return gap;
   }
@@ -123,4 +123,4 @@ SphereTriangleGap sphere_triangle_gap(const Vec3& centre, double radius, double 
   return gap;
 }
 
-}  // namespace sabo::coupler
+}  // namespace sabo::contact

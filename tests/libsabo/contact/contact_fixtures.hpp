@@ -4,9 +4,9 @@
 #include <string>
 #include <vector>
 
-#include "coupler/contact/surface_contact.hpp"
+#include "libsabo/contact/surface_contact.hpp"
 
-namespace sabo::coupler::test {
+namespace sabo::contact::test {
 
 // Builds a SurfaceMesh triangle by triangle.
 class MeshBuilder {
@@ -128,4 +128,4 @@ inline scene::SurfaceContact explicit_stiffness(double k, double friction = 0.0)
   return s;
 }
 
-}  // namespace sabo::coupler::test
+}  // namespace sabo::contact::test
