@@ -1061,6 +1061,10 @@ int Coupler::run() {
     // Bounded whatever hang_timeout says (a SIGTERM ends the wait too).
     wait_for_goodbyes(
         std::chrono::milliseconds(static_cast<long>(1000 * std::clamp(scene_.run.hang_timeout, 5.0, 3600.0))));
+    // The run is complete: nothing can restart any more.
+    for (auto& peer : peers_) {
+      if (peer->journal) peer->journal->remove();
+    }
   } catch (const StopRequested& stop) {
     spdlog::warn("{}", stop.what());
     status = "stopped";

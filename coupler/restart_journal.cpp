@@ -26,6 +26,14 @@ void RestartJournal::begin(std::uint64_t step) {
   forces_.clear();
 }
 
+void RestartJournal::remove() {
+  if (file_.is_open()) file_.close();
+  std::error_code error;
+  std::filesystem::remove(path_, error);
+  states_.clear();
+  forces_.clear();
+}
+
 RestartJournal::Span RestartJournal::append(const std::string& bytes) {
   file_.seekp(static_cast<std::streamoff>(size_));
   file_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));

@@ -42,6 +42,8 @@ class RestartJournal {
   [[nodiscard]] static const std::vector<std::string>& field_names();
 
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+  // At the end of a completed run nothing can restart any more: the file goes.
+  void remove();
 
  private:
   struct Span {

@@ -45,10 +45,17 @@ class RunFolderTest(RealRunTestCase):
 
 class FaultTest(RealRunTestCase):
     def test_killed_process_is_named_and_files_stay_readable(self):
+        # With restarts off: a killed solver stops the run (test_restart.py covers restart = "auto").
+        scene = os.path.join(self.tmp, "chute_small_no_restart.toml")
+        with open(self.scene_path(CHUTE_SMALL), encoding="utf-8") as handle:
+            text = handle.read()
+        self.assertIn("[run]\n", text)
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text.replace("[run]\n", '[run]\nrestart = "off"\n', 1))
         for role in ("coupler", "dem_solver", "fem_solver"):
             with self.subTest(role=role):
                 out = os.path.join(self.tmp, "kill_" + role)
-                sabo = self.run_sabo(self.scene_path(CHUTE_SMALL), out)
+                sabo = self.run_sabo(scene, out)
                 wait_for_events(sabo, out, lambda events: progress_count(events) >= 3, STARTUP_TIMEOUT_S,
                                 "3 progress events")
                 pids = read_json(os.path.join(out, "pids.json"))
