@@ -264,7 +264,9 @@ class Supervisor:
         """Start `process`'s role again from its newest checkpoint (restart = "auto"); None when it was restarted,
         else the reason the run stops."""
         died = process.describe()
-        if self.plan.restart != "auto" or self._stopping or self._interrupts:
+        # Only a death by a signal (a crash, kill -9, the out-of-memory killer) is restarted: a solver that exits
+        # with an error code decided to stop (bad input, a failure it reported), and would do so again.
+        if self.plan.restart != "auto" or self._stopping or self._interrupts or process.returncode >= 0:
             return died
         count = self._restarts.get(process.role, 0)
         if count >= self.plan.max_restarts:

@@ -185,11 +185,11 @@ std::vector<scene::Sphere> fill_region(const scene::ParticleSet& set, std::span<
                     "random placement rarely exceeds 30-35%)",
                     placed.size(), set.count, placed.size() + 1, 2 * radius, attempts_per_sphere,
                     100.0 * requested_volume / region_volume);
-      throw SceneError(
-          fmt::format("{}:{}: particle set '{}' ({}): {}. Fix: enlarge the region, or lower 'count' or "
-                      "the diameters.",
-                      set.origin.file.string(), set.origin.line, set.name,
-                      set.origin.key.empty() ? std::string("fill") : set.origin.key, problem));
+      throw FillError(fmt::format("{}:{}: particle set '{}' ({}): {}. Fix: enlarge the region, or lower 'count' or "
+                                  "the diameters.",
+                                  set.origin.file.string(), set.origin.line, set.name,
+                                  set.origin.key.empty() ? std::string("fill") : set.origin.key, problem),
+                      set.name, problem);
     }
   }
   return placed;

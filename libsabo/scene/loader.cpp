@@ -28,6 +28,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/hexahedron.hpp"
 #include "libsabo/geometry/polygon.hpp"
+#include "libsabo/geometry/sphere_fill.hpp"
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/stl.hpp"
@@ -658,6 +659,7 @@ class Builder {
     read_recording(root);
     check_overlaps();
     if (diag_.count() == 0) check_costs();
+    if (diag_.count() == 0) check_fills();
 
     diag_.throw_if_any();
     std::sort(scene_.materials.begin(), scene_.materials.end(),
@@ -2451,6 +2453,22 @@ class Builder {
                         "\"penalty\" for this set (in [contact.sph_dem] or an interaction of '{}' with the fluid)",
                         kMinBoundaryParticleDiameter * dx, smallest / kMinBoundaryParticleDiameter, set.name));
       }
+    }
+  }
+
+  // The fills placed as the dem_solver places them (the same function, the same seed): the 30 % rule is a quick
+  // estimate, and a region narrower than its spheres somewhere (a slanted strip whose bounding box is wide
+  // enough) passes it and still cannot be filled.
+  void check_fills() {
+    try {
+      (void)geometry::initial_spheres(scene_);
+    } catch (const geometry::FillError& error) {
+      std::size_t k = 0;
+      while (k + 1 < scene_.particle_sets.size() && scene_.particle_sets[k].name != error.set_name()) ++k;
+      const std::string key = fmt::format("particles[{}].fill.count", k);
+      diag_.add(line_of_key(key), key, value_of_key(key), error.problem(),
+                "enlarge the region (it must be wider than the largest diameter everywhere, not only its bounding "
+                "box), or lower 'count' or the diameters");
     }
   }
 

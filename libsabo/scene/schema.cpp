@@ -188,7 +188,8 @@ class Schema {
         K("restart", Type::string)
             .def("\"auto\"")
             .allowed("`\"auto\"` or `\"off\"`")
-            .doc("`\"auto\"`: a solver that dies (non-zero exit, signal) is started again from its newest "
+            .doc("`\"auto\"`: a solver killed by a signal (a crash, kill -9, out of memory) is started again from its "
+                 "newest "
                  "checkpoint while the others wait; the coupler feeds it the StepForces it was sent since then and "
                  "checks that it sends the same states to the bit before it rejoins (docs/restart.md). `\"off\"`: "
                  "the run stops."),

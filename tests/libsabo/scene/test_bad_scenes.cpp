@@ -189,6 +189,12 @@ const std::vector<BadScene>& bad_scenes() {
        "[2.0, 1.0]",
        {"inverted", "write diameter = [1.0, 2.0]"}},
       {"fill_too_dense.toml", 16, "particles[0].fill.count", "100", {"42 % of the region's volume", "at most 30 %"}},
+      // Issue 17, item 5: under the 30 % rule, but a 45-degree strip 0.18 m across cannot hold spheres of 0.2 m.
+      {"fill_narrow_region.toml",
+       16,
+       "particles[0].fill.count",
+       "40",
+       {"only 0 of 40 spheres could be placed without overlap", "wider than the largest diameter everywhere"}},
       {"fill_polygon_not_simple.toml",
        16,
        "particles[0].fill.polygon_xz",
