@@ -1,7 +1,7 @@
 """`./sabo run`: supervise one coupled run.
 
 The coupler starts first; its stdout is a stream of JSON event lines (see
-docs in README.md, "What the supervisor expects"). When it reports
+docs/protocol.md, "What the supervisor expects from the coupler"). When it reports
 `listening`, the solvers start. Every ~100 ms the supervisor reads events and
 polls every process; whatever goes wrong (a process dies, a solver exits too
 early, the coupler reports a failure, nothing progresses, the user presses
