@@ -226,10 +226,7 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   }
 
   auto peer = std::make_unique<Peer>();
-  if (scene_.run.restart) {
-    peer->journal =
-        std::make_unique<RestartJournal>(options_.out_dir / "checkpoints" / fmt::format("{}.journal", name));
-  }
+  if (auto journal = journals_.find(role); journal != journals_.end()) peer->journal = std::move(journal->second);
   peer->identity = inbound.peer;
   peer->role = role;
   peer->scene_role = settings->role;
@@ -1010,6 +1007,15 @@ int Coupler::run() {
                                                                  close_file);
     std::unique_ptr<std::FILE, decltype(close_file)> energy_file(open_for_writing(options_.out_dir / "energy.csv"),
                                                                  close_file);
+    // The restart journals are opened before binding, as the run's other files: idle connections may take
+    // every free descriptor later.
+    if (scene_.run.restart) {
+      for (const auto& solver : scene_.solvers) {
+        const auto role = protocol::role_from_scene_name(scene::role_name(solver.role));
+        journals_[role] = std::make_unique<RestartJournal>(options_.out_dir / "checkpoints" /
+                                                           fmt::format("{}.journal", protocol::role_name(role)));
+      }
+    }
     bind();
     wait_for_registrations();
     prepare_contacts();

@@ -24,6 +24,8 @@
 
 namespace sabo::coupler {
 
+class RestartJournal;
+
 struct CouplerOptions {
   std::string endpoint;           // bound by the coupler
   std::filesystem::path out_dir;  // run folder
@@ -97,6 +99,7 @@ class Coupler {
   double expected_time_ = 0;                           // s, t_n: the sum of the dt sent
   std::uint64_t current_step_ = 0;                     // the step whose states are being collected
   nlohmann::json restarts_ = nlohmann::json::array();  // for summary.json
+  std::map<sabo::v1::Role, std::unique_ptr<RestartJournal>> journals_;  // opened before binding, until registered
 
   // The contact pairs of the scene (pair_factory.hpp), in the order their forces are summed.
   struct PairSlot {
@@ -137,7 +140,7 @@ class Coupler {
   std::chrono::steady_clock::time_point start_wall_;
   std::chrono::steady_clock::time_point last_progress_;
   std::chrono::steady_clock::time_point stop_grace_end_;  // wait_for_goodbyes: the wait after a stop signal
-  EtaEstimate eta_;  // the progress line's time to go
+  EtaEstimate eta_;                                       // the progress line's time to go
   std::string failure_;
 };
 
