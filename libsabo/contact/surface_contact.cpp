@@ -28,6 +28,9 @@ constexpr double kStableStepFactor = 0.2 * std::numbers::pi;
 constexpr std::int64_t kParallelThreshold = 64;
 // Relative slack when comparing distances of the same point computed from different triangles.
 constexpr double kDistanceSlack = 1e-9;
+// How far outside a one-sided face (relative to its longest edge) a point behind it may project and still meet
+// it as a face (evaluate(): nodes facing the nodes or edges of another structure).
+constexpr double kFaceExtension = 0.01;
 
 Vec3 vec3_at(std::span<const double> values, std::size_t i) {
   return {values[3 * i], values[3 * i + 1], values[3 * i + 2]};
@@ -380,12 +383,16 @@ SurfaceContact::Hit SurfaceContact::evaluate(std::size_t face, const Vec3& centr
     // A point behind a one-sided face whose projection falls on the face's boundary (a node facing a node or
     // an edge of the other structure, as meshes aligned across the contact put them) meets the face: every
     // triangle around that vertex or edge calls it a vertex or edge point, which a point of radius 0 cannot
-    // touch, and it would pass through until it drifted inside a face with its whole overlap at once.
+    // touch, and it would pass through until it drifted inside a face with its whole overlap at once. "On the
+    // boundary" within kFaceExtension of the face's size: once pressed, the faces tilt by 1e-6 rad and a
+    // node under a node projects 1e-9 m outside every triangle around it, and a rim node bulges past the
+    // other block's edge by its Poisson expansion (1e-4 m on 0.25 m elements); with a round-off slack both
+    // lost their contact and passed in (energy +207 % for two equal blocks stacked node on node).
     const Vec3& n = face_normal_[face];
     const double height = (centre - a).dot(n);
     const Vec3 projection = centre - height * n;
     const double size = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    if (height < 0 && (projection - hit.closest.point).norm() <= kDistanceSlack * size) {
+    if (height < 0 && (projection - hit.closest.point).norm() <= kFaceExtension * size) {
       hit.closest.feature = Feature::face;
       hit.closest.index = 0;
     }
@@ -514,13 +521,39 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     scratch.hits.push_back(hit);
   }
 
-  // Contacts: in reach, not behind a one-sided face unless it is the nearest,
-  // edges and vertices only where they are a local minimum of the distance.
+  const std::uint64_t id = particles.id[i];
+  const auto range =
+      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}, 0.0, 0.0, {}},
+                       [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
+  const auto previous = std::span<const HistoryEntry>(history_).subspan(
+      static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
+  const Vec3 velocity = vec3_at(particles.velocity, i);
+  // Whether the particle is behind `hit`'s face because it went through it: it held a contact on that face in
+  // the previous step, or its centre was in front of the face's plane one step ago (the approach over
+  // dt_previous, relative to the face's nodes, covers its depth behind the plane).
+  const auto entered_through = [&](const Hit& hit) {
+    const FeatureKey key = feature_key(hit);
+    if (std::any_of(previous.begin(), previous.end(), [&](const HistoryEntry& e) { return e.key == key; })) {
+      return true;
+    }
+    const auto& tri = surface_.triangle[hit.face];
+    const auto& w = hit.closest.weight;
+    const Vec3 surface_velocity =
+        w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
+    const Vec3& n = face_normal_[hit.face];
+    const double height = (centre - surface_.node_position[tri[0]]).dot(n);
+    return height - (velocity - surface_velocity).dot(n) * dt_previous >= 0;
+  };
+
+  // Contacts: in reach, not behind a one-sided face unless it is the nearest or the particle went through
+  // it (two blocks meshed alike and stacked node on node: a rim node that has crossed the other block's top
+  // lies on that block's side face, at distance 0, the nearest; judged by the distance alone, the rims
+  // passed into each other), edges and vertices only where they are a local minimum of the distance.
   scratch.touching.clear();
   for (std::size_t h = 0; h < scratch.hits.size(); ++h) {
     const Hit& hit = scratch.hits[h];
     if (!(hit.gap.overlap > 0) || !hit.gap.reachable) continue;
-    if (hit.gap.behind && hit.gap.distance > nearest * (1.0 + kDistanceSlack)) continue;
+    if (hit.gap.behind && hit.gap.distance > nearest * (1.0 + kDistanceSlack) && !entered_through(hit)) continue;
     if (hit.closest.feature != Feature::face &&
         !feature_is_local_minimum(hit, source, centre, radius, depth, point, scratch)) {
       continue;
@@ -543,12 +576,6 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
   // smooth angle: a jump of the force and of the penalty energy, energy created
   // (docs/physics.md, FEM, "coupling"). Merging stays immediate (a merge can
   // only take energy out).
-  const std::uint64_t id = particles.id[i];
-  const auto range =
-      std::equal_range(history_.begin(), history_.end(), HistoryEntry{id, {}, {}, {}, 0.0, 0.0, {}},
-                       [](const HistoryEntry& a, const HistoryEntry& b) { return a.particle < b.particle; });
-  const auto previous = std::span<const HistoryEntry>(history_).subspan(
-      static_cast<std::size_t>(range.first - history_.begin()), static_cast<std::size_t>(range.second - range.first));
   const auto merged_range =
       std::equal_range(merged_.begin(), merged_.end(), MergedEntry{id, {}},
                        [](const MergedEntry& a, const MergedEntry& b) { return a.particle < b.particle; });
@@ -641,7 +668,6 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     }
   }
 
-  const Vec3 velocity = vec3_at(particles.velocity, i);
   const Vec3 spin = particles.angular_velocity.empty() ? Vec3::Zero() : vec3_at(particles.angular_velocity, i);
   Vec3 force_sum = Vec3::Zero();
   Vec3 torque_sum = Vec3::Zero();

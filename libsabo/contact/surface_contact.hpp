@@ -31,7 +31,12 @@
 //     overlap at once, a jump of force and energy;
 //  4. a face contact with the centre behind a one-sided face counts only if
 //     that face is the particle's nearest triangle (a particle on top of a
-//     thin solid is not pulled through by its bottom face).
+//     thin solid is not pulled through by its bottom face), or if the
+//     particle went through that face: it held a contact on it in the
+//     previous step, or its centre was in front of the face's plane one step
+//     ago (meshes aligned across a contact put a rim node that crossed a top
+//     face on the side face below it, at distance 0: by the distance alone it
+//     would pass in).
 // Nodes at exactly the same position are merged for this bookkeeping (STL
 // meshes arrive unwelded).
 //
