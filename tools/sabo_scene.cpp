@@ -1,5 +1,5 @@
 // sabo_scene: checks scene files and prints the scene reference.
-//   sabo_scene check SCENE [--bin-dir DIR]  -> launch plan (JSON) on stdout
+//   sabo_scene check SCENE [--bin-dir DIR]  -> launch plan (JSON) on stdout, warnings on stderr
 //   sabo_scene schema-doc                   -> docs/scene.md on stdout
 // Exit status: 0 success, 2 the scene is wrong (message on stderr), 1 any
 // other error (unreadable file, bad command line).
@@ -12,6 +12,7 @@
 #include "libsabo/scene/loader.hpp"
 #include "libsabo/scene/plan.hpp"
 #include "libsabo/scene/schema.hpp"
+#include "libsabo/scene/warnings.hpp"
 
 namespace {
 
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
   try {
     if (check->parsed()) {
       const auto scene = sabo::scene::load_scene(scene_path);
+      for (const auto& warning : sabo::scene::scene_warnings(scene)) std::cerr << warning << "\n";
       std::cout << sabo::scene::launch_plan(scene, bin_dir).dump(2) << "\n";
     } else {
       std::cout << sabo::scene::schema::markdown();

@@ -52,6 +52,7 @@ class LineReader {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     return true;
   }
+  [[nodiscard]] std::uintmax_t size() const { return size_; }
   [[noreturn]] void fail(const std::string& problem, const std::string& fix) const {
     throw FileError(fmt::format("{}:{}: {}. Fix: {}", file_.string(), line_, problem, fix));
   }
@@ -114,6 +115,12 @@ double quad_area(const std::vector<Vec3>& nodes, const std::array<std::uint32_t,
 
 GmshMesh read_gmsh(const std::filesystem::path& file) {
   LineReader reader(file);
+  if (reader.size() == 0) {
+    throw FileError(
+        fmt::format("{}: not a Gmsh mesh: the file is empty (0 bytes). Fix: export the mesh from Gmsh as "
+                    "msh 4.1 ASCII",
+                    file.string()));
+  }
   GmshMesh mesh;
   std::unordered_map<std::size_t, std::uint32_t> node_index;  // tag -> index
   std::vector<Vec3> nodes;

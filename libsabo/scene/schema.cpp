@@ -1457,6 +1457,9 @@ const std::vector<std::string>& cross_checks() {
       "structure's `element_size`); `end_time` over the smallest estimated stable step (SPH `cfl h / c`, DEM "
       "contact, FEM `L / c`, `max_dt`) is at most 1e10 steps; `end_time / output_interval` is at most 1e6 "
       "output times.",
+      "Warnings (printed, the run still starts; `libsabo/scene/warnings.hpp`): a structure that nothing can touch "
+      "(no particle set, fluid or other structure has contact with it enabled), when it is rigid or the scene has "
+      "other bodies (a lone deformable structure under its weight is a valid scene).",
   };
   return checks;
 }

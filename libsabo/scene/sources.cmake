@@ -5,4 +5,5 @@ target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/schema.cpp
   ${CMAKE_CURRENT_LIST_DIR}/suggest.cpp
   ${CMAKE_CURRENT_LIST_DIR}/loader.cpp
-  ${CMAKE_CURRENT_LIST_DIR}/plan.cpp)
+  ${CMAKE_CURRENT_LIST_DIR}/plan.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/warnings.cpp)

@@ -68,6 +68,7 @@ TEST(GmshReader, BadMeshesAreRefusedWithLineAndProblem) {
   };
   const std::vector<Bad> cases{
       {"garbage.msh", "garbage.msh:2: missing $MeshFormat, $Nodes or $Elements"},
+      {"empty.msh", "empty.msh: not a Gmsh mesh: the file is empty (0 bytes)"},
       {"truncated.msh", "truncated.msh:26: the file ends where node coordinates was expected"},
       {"huge_count.msh", "huge_count.msh:9: the header declares 4000000000 nodes, more than a file of"},
       {"nan_node.msh", "nan_node.msh:27: node coordinates x y z: 'nan 1 0' is not a finite number"},

@@ -1,0 +1,106 @@
+// The scene check's warnings (libsabo/scene/warnings.hpp): a structure that
+// nothing can touch is named with its line and the fix, sabo_scene check
+// prints it and still gives the launch plan, and no scene of configs/ warns.
+#include <gtest/gtest.h>
+
+#include <iostream>
+
+#include "libsabo/scene/loader.hpp"
+#include "libsabo/scene/warnings.hpp"
+#include "scene_test_support.hpp"
+
+namespace sabo::scene {
+namespace {
+
+using testing::kGround;
+using testing::kOneSphere;
+using testing::kSceneHead;
+
+std::vector<std::string> warnings_of(const std::string& text) {
+  testing::TempFolder folder;
+  return scene_warnings(load_scene(folder.write("scene.toml", text)));
+}
+
+TEST(SceneWarnings, StructureThatNothingTouchesIsNamed) {
+  const auto file = testing::source_dir() / "tests/scenes/warn/untouchable_structure.toml";
+  const auto warnings = scene_warnings(load_scene(file));
+  for (const auto& w : warnings) std::cout << w << "\n";
+  ASSERT_EQ(warnings.size(), 1u) << "expected one warning, for the marker only";
+  const std::string& w = warnings[0];
+  EXPECT_NE(w.find("untouchable_structure.toml:32: key 'structures[1]': warning: nothing can touch structure "
+                   "\"marker\""),
+            std::string::npos)
+      << w;
+  EXPECT_NE(w.find("none of the scene's particle sets and other structures has contact with it enabled"),
+            std::string::npos)
+      << w;
+  EXPECT_NE(w.find("Fix: give it a contact"), std::string::npos) << w;
+}
+
+TEST(SceneWarnings, CheckPrintsTheWarningAndStillPlansTheRun) {
+  const auto result =
+      testing::run_tool("check '" + (testing::source_dir() / "tests/scenes/warn/untouchable_structure.toml").string() +
+                        "' --bin-dir '" + testing::bin_dir().string() + "'");
+  EXPECT_EQ(result.exit_code, 0) << result.err;
+  EXPECT_NE(result.err.find("nothing can touch structure \"marker\""), std::string::npos) << result.err;
+  EXPECT_NE(result.out.find("\"processes\""), std::string::npos) << result.out;
+}
+
+TEST(SceneWarnings, TouchedStructuresAndALoneDeformableOneGiveNone) {
+  // Boulders on the ground: the default DEM-FEM contact touches it.
+  EXPECT_TRUE(warnings_of(std::string(kSceneHead) + kOneSphere + kGround).empty());
+  // A lone deformable beam under its own weight is a valid FEM scene.
+  EXPECT_TRUE(warnings_of(std::string(kSceneHead) + R"(
+[[structures]]
+name = "beam"
+material = "concrete"
+rigid = false
+shape = "box"
+min = [0.0, 0.0, 0.0]
+max = [2.0, 0.2, 0.2]
+fixed = ["x-"]
+)")
+                  .empty());
+}
+
+TEST(SceneWarnings, TwoDeformableStructuresWithoutContactAreBothNamed) {
+  const std::string block = R"(
+[[structures]]
+name = "NAME"
+material = "concrete"
+rigid = false
+shape = "box"
+min = [0.0, 0.0, Z0]
+max = [1.0, 1.0, Z1]
+)";
+  auto with = [&](const char* name, const char* z0, const char* z1) {
+    std::string s = block;
+    s.replace(s.find("NAME"), 4, name);
+    s.replace(s.find("Z0"), 2, z0);
+    s.replace(s.find("Z1"), 2, z1);
+    return s;
+  };
+  const std::string scene = std::string(kSceneHead) + with("lower", "0.0", "1.0") + with("upper", "1.5", "2.5");
+  const auto warnings = warnings_of(scene);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_NE(warnings[0].find("\"lower\""), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[1].find("\"upper\""), std::string::npos) << warnings[1];
+  // [contact.fem_fem] enabled: they can meet.
+  EXPECT_TRUE(warnings_of(scene + "\n[contact.fem_fem]\nenabled = true\n").empty());
+}
+
+TEST(SceneWarnings, NoSceneOfTheConfigsWarns) {
+  std::size_t scenes = 0;
+  for (const char* folder : {"configs", "configs/tests"}) {
+    for (const auto& entry : std::filesystem::directory_iterator(testing::source_dir() / folder)) {
+      if (entry.path().extension() != ".toml") continue;
+      ++scenes;
+      const auto warnings = scene_warnings(load_scene(entry.path()));
+      EXPECT_TRUE(warnings.empty()) << entry.path() << ": " << (warnings.empty() ? "" : warnings[0]);
+    }
+  }
+  EXPECT_GT(scenes, 10u);
+}
+
+}  // namespace
+}  // namespace sabo::scene
