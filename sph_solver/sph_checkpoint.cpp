@@ -50,29 +50,18 @@ void SphModel::load_state(const io::hdf5::Group& group) {
                     "checkpoint of this scene, unchanged",
                     group.file_name(), particles, size()));
   }
-  const auto vectors = [&](const char* name, std::vector<Vec3>& values) {
-    const auto flat = io::read_array<double>(group, name);
-    if (flat.size() % 3 != 0) {
-      throw FileError(
-          fmt::format("{}: {} holds {} values, not 3 per vector. Fix: restart from a checkpoint Sabo "
-                      "wrote",
-                      group.file_name(), name, flat.size()));
-    }
-    values.resize(flat.size() / 3);
-    for (std::size_t i = 0; i < values.size(); ++i) values[i] = Vec3(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
-  };
   io::read_vectors(group, "position", position_);
   io::read_vectors(group, "velocity", velocity_);
   io::read_vectors(group, "acceleration", acceleration_);
-  vectors("external_force", external_force_);
+  external_force_ = io::read_vectors(group, "external_force");
   density_ = io::read_array<double>(group, "density", size());
   pressure_ = io::read_array<double>(group, "pressure", size());
   stress_ = io::read_array<double>(group, "stress", has_stress_ ? 6 * size() : 0);
   stress_rate_ = io::read_array<double>(group, "stress_rate");
   active_ = io::read_array<std::uint8_t>(group, "active", size());
   settle_factor_ = io::read_array<double>(group, "settle_factor");
-  vectors("wrap_offset", wrap_offset_);
-  vectors("boundary_force", boundary_force_);
+  wrap_offset_ = io::read_vectors(group, "wrap_offset");
+  boundary_force_ = io::read_vectors(group, "boundary_force");
   boundary_pressure_ = io::read_array<double>(group, "boundary_pressure");
   boundary_stress_ = io::read_array<double>(group, "boundary_stress");
   const auto support = io::read_array<double>(group, "support_neighbours");

@@ -193,6 +193,19 @@ void read_vectors(const hdf5::Group& group, const std::string& name, std::span<V
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
 }
 
+std::vector<Vec3> read_vectors(const hdf5::Group& group, const std::string& name) {
+  const auto flat = read_array<double>(group, name);
+  if (flat.size() % 3 != 0) {
+    throw FileError(
+        fmt::format("{}: {}/{} holds {} values, not 3 per vector. Fix: restart from a checkpoint Sabo "
+                    "wrote",
+                    group.file_name(), group.path(), name, flat.size()));
+  }
+  std::vector<Vec3> out(flat.size() / 3);
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
+  return out;
+}
+
 void write_series(hdf5::Group& group, const std::string& name, const vtk::TimeSeries& series) {
   std::vector<double> times;
   std::string files;

@@ -108,6 +108,8 @@ template <hdf5::Element T>
 // 3-vectors as 3 doubles each.
 void write_vectors(hdf5::Group& group, const std::string& name, std::span<const Vec3> values);
 void read_vectors(const hdf5::Group& group, const std::string& name, std::span<Vec3> out);
+// As many vectors as the dataset holds (a FileError unless its size is a multiple of 3).
+[[nodiscard]] std::vector<Vec3> read_vectors(const hdf5::Group& group, const std::string& name);
 // A .pvd series' entries (its times and file names), so that a restarted process continues the series.
 void write_series(hdf5::Group& group, const std::string& name, const vtk::TimeSeries& series);
 void read_series(const hdf5::Group& group, const std::string& name, vtk::TimeSeries& series);

@@ -12,6 +12,7 @@
 #include "coupler/coupler.hpp"
 #include "coupler_fixture.hpp"
 #include "libsabo/protocol/solver_link.hpp"
+#include "tests/support/one_boulder.hpp"
 
 using namespace sabo;
 using namespace std::chrono_literals;
@@ -24,48 +25,18 @@ struct Fixture : sabo::testing::CouplerFixture {
     scene.run.end_time = 0.01;
     scene.run.output_interval = 0.005;
     scene.run.hang_timeout = 1.0;
-    sabo::scene::Material rock;
-    rock.name = "rock";
-    rock.density = 3000;
-    rock.youngs_modulus = 30e9;
-    rock.poisson_ratio = 0.3;
-    scene.materials.push_back(rock);
-    scene::ParticleSet set;
-    set.name = "boulders";
-    set.material = "rock";
-    set.spheres.push_back({Vec3(0, 0, 1), 0.5, Vec3::Zero(), Vec3::Zero()});
-    scene.particle_sets.push_back(set);
-    scene::SolverSettings dem;
-    dem.role = scene::Role::dem;
-    dem.beta = 0.5;
-    scene.solvers.push_back(dem);
+    sabo::testing::add_one_boulder(scene);
+    scene.solvers.back().beta = 0.5;
   }
 
-  static sabo::v1::Register dem_registration() {
-    sabo::v1::Register r;
-    r.set_protocol_version(protocol::kProtocolVersion);
-    r.set_role(sabo::v1::ROLE_DEM);
-    r.set_name("scripted dem");
-    r.set_pid(static_cast<std::uint32_t>(::getpid()));
-    r.set_exposes_particles(true);
-    r.set_exposes_angular_velocity(true);
-    auto* t = r.mutable_particles();
-    t->add_id(0), t->add_radius(0.5), t->add_mass(1570.8), t->add_material(0), t->add_body(0);
-    return r;
-  }
+  static sabo::v1::Register dem_registration() { return sabo::testing::boulder_registration("scripted dem"); }
 
   // Drives a complete run as a DEM solver; returns the number of steps.
   static std::uint64_t run_dem(protocol::SolverLink& link, double stable_dt) {
     sabo::v1::StepState state;
     double time = 0;
     for (std::uint64_t step = 0;; ++step) {
-      state.Clear();
-      state.set_step(step);
-      state.set_time(time);
-      state.set_stable_dt(stable_dt);
-      state.add_index(0);
-      for (double v : {0.0, 0.0, 1.0}) state.add_position(v);
-      for (int c = 0; c < 3; ++c) state.add_velocity(0), state.add_angular_velocity(0);
+      state = sabo::testing::boulder_state(step, time, stable_dt);
       link.send_state(state);
       const auto& forces = link.receive_forces(step);
       EXPECT_DOUBLE_EQ(forces.dt(), 0.5 * stable_dt) << "dt = beta * stable_dt (eq. 7)";
