@@ -67,6 +67,12 @@ class SphDemHarness {
   [[nodiscard]] Vec3 initial_momentum() const { return initial_momentum_; }
   [[nodiscard]] Vec3 external_impulse() const { return gravity_impulse_ + tank_impulse_ + in_flight_; }
   [[nodiscard]] Vec3 gravity_impulse() const { return gravity_impulse_; }
+  // A constant force on sphere j from the next step on, N, besides gravity and the fluid (e.g. its
+  // submerged weight when the fluid carries no hydrostatic pressure); counted with gravity's impulse.
+  void set_sphere_body_force(std::size_t j, const Vec3& force) {
+    body_force_.resize(3 * dem_.size(), 0.0);
+    for (int c = 0; c < 3; ++c) body_force_.at(3 * j + c) = force[c];
+  }
   // Energy of both models (kinetic, potential, elastic; the SPH's held wall work and the
   // dissipation counted as gone) and of the pairs' springs, J, at the last step.
   [[nodiscard]] double energy() const { return energy_; }
@@ -107,6 +113,12 @@ class SphDemHarness {
     const auto& dem_index = dem_state_.index();
     dem_.add_external_forces({dem_index.data(), static_cast<std::size_t>(dem_index.size())},
                              replies_.particle_force(scene::Role::dem), replies_.particle_torque(scene::Role::dem));
+    if (!body_force_.empty()) {
+      if (body_index_.empty()) {
+        for (std::size_t j = 0; j < dem_.size(); ++j) body_index_.push_back(static_cast<std::uint32_t>(j));
+      }
+      dem_.add_external_forces(body_index_, body_force_, {});
+    }
     dem_seconds_ += since(start);
 
     // The impulses of this step act over dt_avg, as both models integrate them.
@@ -116,6 +128,9 @@ class SphDemHarness {
     for (std::size_t j = 0; j < dem_.size(); ++j)
       mass += dem_.is_fixed(static_cast<std::uint32_t>(j)) ? 0.0 : dem_.masses()[j];
     gravity_impulse_ += dt_avg * mass * scene_.run.gravity;
+    for (std::size_t j = 0; j < body_force_.size() / 3; ++j) {
+      gravity_impulse_ += dt_avg * Vec3(body_force_[3 * j], body_force_[3 * j + 1], body_force_[3 * j + 2]);
+    }
     const auto forces = sph_.boundary_forces();
     Vec3 on_tank = Vec3::Zero(), on_boulders = Vec3::Zero();
     for (std::size_t k = 0; k < forces.size(); ++k) (k < tank_.size() ? on_tank : on_boulders) += forces[k];
@@ -183,6 +198,8 @@ class SphDemHarness {
   coupler::Replies replies_;
   double time_ = 0, dt_previous_ = 0;
   std::uint64_t step_ = 0;
+  std::vector<double> body_force_;  // 3 per sphere, or empty
+  std::vector<std::uint32_t> body_index_;
   Vec3 initial_momentum_ = Vec3::Zero(), gravity_impulse_ = Vec3::Zero(), tank_impulse_ = Vec3::Zero(),
        in_flight_ = Vec3::Zero();
   double energy_ = 0, initial_energy_ = 0, max_energy_ = 0;

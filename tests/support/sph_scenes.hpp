@@ -38,11 +38,13 @@ inline scene::FluidBody box_body(const std::string& name, const Vec3& min, const
 
 // Wall particles on a lattice of spacing dx filling `layers` layers outside the
 // faces of the container [min, max] (bottom and the four sides; the top is open
-// up to max.z). Lattice points sit at min + (k + 1/2) dx like the fluid's.
-inline physics::BoundaryParticles container_walls(const Vec3& min, const Vec3& max, double dx, int layers) {
+// up to max.z, or closed by a lid above max.z). Lattice points sit at min + (k + 1/2) dx
+// like the fluid's.
+inline physics::BoundaryParticles container_walls(const Vec3& min, const Vec3& max, double dx, int layers,
+                                                  bool lid = false) {
   physics::BoundaryParticles walls;
   const Vec3 outer_min = min - Vec3::Constant(layers * dx);
-  const Vec3 outer_max(max.x() + layers * dx, max.y() + layers * dx, max.z());
+  const Vec3 outer_max(max.x() + layers * dx, max.y() + layers * dx, max.z() + (lid ? layers * dx : 0.0));
   const Vec3 extent = outer_max - outer_min;
   const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
   for (int k = 0; k < count(extent.z()); ++k) {
