@@ -977,9 +977,10 @@ void Coupler::write_summary(const std::string& status) {
   const auto file = options_.out_dir / "summary.json";
   const auto temporary = options_.out_dir / "summary.json.tmp";
   {
-    // The descriptor the connection guard kept in reserve, should connections have taken every other one.
-    std::ofstream out(temporary);
+    std::ofstream out = std::move(summary_out_);
+    if (!out.is_open()) out.open(temporary);
     if (!out) {
+      // The descriptor the connection guard kept in reserve, should connections have taken every other one.
       guard_->release_reserve();
       out.open(temporary);
     }
@@ -1016,6 +1017,7 @@ int Coupler::run() {
                                                            fmt::format("{}.journal", protocol::role_name(role)));
       }
     }
+    summary_out_.open(options_.out_dir / "summary.json.tmp");
     bind();
     wait_for_registrations();
     prepare_contacts();

@@ -7,6 +7,7 @@
 // traffic and replies with StepForces.
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <optional>
@@ -100,6 +101,9 @@ class Coupler {
   std::uint64_t current_step_ = 0;                     // the step whose states are being collected
   nlohmann::json restarts_ = nlohmann::json::array();  // for summary.json
   std::map<sabo::v1::Role, std::unique_ptr<RestartJournal>> journals_;  // opened before binding, until registered
+  // summary.json's temporary file, opened before binding as the other run files: at the end of a run idle
+  // connections may hold every descriptor, and one freed for it can be taken by the next accept.
+  std::ofstream summary_out_;
 
   // The contact pairs of the scene (pair_factory.hpp), in the order their forces are summed.
   struct PairSlot {
