@@ -9,11 +9,14 @@
 #include <vector>
 
 #include "libsabo/core/types.hpp"
+#include "libsabo/io/hdf5.hpp"
 
 namespace sabo::coupler {
 
 // Opens `file` for writing (created or truncated); throws FileError naming it.
 [[nodiscard]] std::FILE* open_for_writing(const std::filesystem::path& file);
+// Opens `file` to append to it (a resumed run continues its histories); FileError naming it when it cannot.
+[[nodiscard]] std::FILE* open_for_appending(const std::filesystem::path& file);
 
 // forces.csv: one row per output time, part and source:
 //   time, part, source, Fx, Fy, Fz, F, F_peak
@@ -24,8 +27,10 @@ class ForceHistory {
  public:
   ForceHistory(const std::filesystem::path& file, std::vector<std::string> part_names,
                std::vector<std::string> sources);
-  // Writes to `file`, opened before (open_for_writing), which it then owns.
-  ForceHistory(std::FILE* file, std::vector<std::string> part_names, std::vector<std::string> sources);
+  // Writes to `file`, opened before (open_for_writing), which it then owns; `header`: false when continuing
+  // a file (open_for_appending) whose state restore() then reads.
+  ForceHistory(std::FILE* file, std::vector<std::string> part_names, std::vector<std::string> sources,
+               bool header = true);
   ~ForceHistory();
   ForceHistory(const ForceHistory&) = delete;
   ForceHistory& operator=(const ForceHistory&) = delete;
@@ -34,6 +39,10 @@ class ForceHistory {
   void add(std::size_t part, std::size_t source, const Vec3& force, double dt);
   void write(double time);
   void close();
+  // The open output interval and the run's peaks, for the coupler's checkpoint. restore() throws FileError
+  // when the parts or sources differ.
+  void save(io::hdf5::Group& group) const;
+  void restore(const io::hdf5::Group& group);
   // Largest instantaneous |F| over the run per part and source, N.
   [[nodiscard]] const std::vector<std::vector<double>>& peak() const { return run_peak_; }
   [[nodiscard]] const std::vector<std::string>& part_names() const { return part_names_; }
@@ -68,7 +77,7 @@ struct EnergySample {
 class EnergyHistory {
  public:
   explicit EnergyHistory(const std::filesystem::path& file);
-  explicit EnergyHistory(std::FILE* file);  // opened before, then owned
+  explicit EnergyHistory(std::FILE* file, bool header = true);  // opened before, then owned
   ~EnergyHistory();
   EnergyHistory(const EnergyHistory&) = delete;
   EnergyHistory& operator=(const EnergyHistory&) = delete;
@@ -76,6 +85,8 @@ class EnergyHistory {
   // Every step: tracks the initial and the largest total. `write` appends a row.
   void observe(const EnergySample& sample, bool write);
   void close();
+  void save(io::hdf5::Group& group) const;
+  void restore(const io::hdf5::Group& group);
   [[nodiscard]] const EnergySample& initial() const { return initial_; }
   [[nodiscard]] const EnergySample& last() const { return last_; }
   [[nodiscard]] double max_total() const { return max_total_; }
@@ -102,6 +113,8 @@ class PartEnergyHistory {
   void observe(const PartEnergySample& sample, const std::string& part, bool keep);
   // Per part (sorted by name): the kept samples, the last one appended when it was not kept.
   [[nodiscard]] std::map<std::string, std::vector<PartEnergySample>> history() const;
+  void save(io::hdf5::Group& group) const;
+  void restore(const io::hdf5::Group& group);
 
  private:
   struct Series {

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "coupler/contact/pair_factory.hpp"
+#include "coupler/coupler_peer.hpp"
 #include "coupler/effects.hpp"
 #include "coupler/message_checks.hpp"
 #include "coupler/restart_journal.hpp"
@@ -43,29 +44,6 @@ int first_non_finite(const google::protobuf::RepeatedField<double>& values) {
 constexpr std::array<char, 3> kAxis = {'x', 'y', 'z'};
 
 }  // namespace
-
-struct Coupler::Peer {
-  std::string identity;
-  sabo::v1::Role role = sabo::v1::ROLE_UNSPECIFIED;
-  scene::Role scene_role = scene::Role::dem;
-  std::string role_name;
-  double beta = 1.0;
-  sabo::v1::Register registration;
-  sabo::v1::StepState state;
-  sabo::v1::StepForces forces;
-  protocol::SendBuffer buffer;
-  bool has_state = false;
-  bool said_goodbye = false;
-  sabo::v1::Goodbye goodbye;
-  double compute_seconds = 0;  // reported in StepState, summed
-  // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.
-  std::unique_ptr<RestartJournal> journal;
-  std::optional<std::uint64_t> checkpoint_step;  // the step of the checkpoint it was last asked for
-  bool catching_up = false;
-  std::uint64_t resumed_at = 0;  // step of the checkpoint its replacement started from
-  Clock::time_point restarted_wall;
-  std::size_t restarts = 0;
-};
 
 Coupler::Coupler(const scene::Scene& scene, CouplerOptions options, EventStream& events)
     : scene_(scene), options_(std::move(options)), events_(events), socket_(context_, zmq::socket_type::router) {
@@ -191,9 +169,28 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     refuse(fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
     return;
   }
-  if (registration.resumed()) {
+  const bool role_taken =
+      std::any_of(peers_.begin(), peers_.end(), [&](const auto& peer) { return peer->role == role; });
+  if (registration.resumed() && (role_taken || !resume_step_)) {
     accept_replacement(inbound, registration);
     return;
+  }
+  if (resume_step_ && !role_taken) {
+    // A resumed run (docs/restart.md, "Resuming a run"): every solver continues from its checkpoint of the
+    // coupler's step.
+    const std::string fix = fmt::format("start it with --resume RUN_DIR/checkpoints/{}_{:010}.h5", name, *resume_step_);
+    if (!registration.resumed()) {
+      refuse(
+          fmt::format("the coupler resumes this run at step {} from its checkpoint, and {} registered to start at "
+                      "step 0: {}",
+                      *resume_step_, name, fix));
+      return;
+    }
+    if (registration.resume_step() != *resume_step_) {
+      refuse(fmt::format("{} resumes at step {}, the coupler at step {}: {}", name, registration.resume_step(),
+                         *resume_step_, fix));
+      return;
+    }
   }
   for (const auto& peer : peers_) {
     if (peer->role == role) {
@@ -244,7 +241,9 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   spdlog::info("registered {} (pid {}, '{}'): {} particles, {} surface nodes", name, peer->registration.pid(),
                peer->registration.name(), n, peer->registration.surface().node_id_size());
   events_.registered(name, peer->registration.pid(), peer->registration.name());
-  if (recorder_) recorder_->record_registration(name, peer->registration);
+  // A resumed run's recording holds the registrations of its start already.
+  if (recorder_ && !resume_step_) recorder_->record_registration(name, peer->registration);
+  if (resume_step_) peer->checkpoint_step = *resume_step_;  // its restart journal starts at its checkpoint
   solvers_.set({.role = peer->scene_role,
                 .name = peer->role_name,
                 .beta = peer->beta,
@@ -382,7 +381,14 @@ void Coupler::wait_for_registrations() {
     // A solver registered early may send its first state while others still register.
     const bool is_state = inbound_.valid() && inbound_.header.type == sabo::v1::MESSAGE_TYPE_STEP_STATE;
     Peer* peer = route(inbound_, is_state ? sabo::v1::MESSAGE_TYPE_STEP_STATE : sabo::v1::MESSAGE_TYPE_REGISTER, 0);
-    if (peer != nullptr && is_state) accept_state(*peer, 0);
+    if (peer == nullptr || !is_state) continue;
+    if (resume_step_) {
+      // Checked once the pairs and the boundary particles' lists are restored (they judge it).
+      early_states_.emplace_back(peer, std::move(inbound_));
+      inbound_ = protocol::Inbound{};
+    } else {
+      accept_state(*peer, current_step_);
+    }
   }
 }
 
@@ -516,6 +522,7 @@ void Coupler::validate_state(const Peer& peer) {
     }
     surface_revision_ = topology.revision();
     surface_nodes_ = static_cast<std::size_t>(topology.node_id_size());
+    surface_topology_ = topology.SerializeAsString();  // what a resumed run's pairs start from
   }
   // Boundary particles go to the sph_solver only (docs/protocol.md, "SPH walls").
   const bool receives_boundary = peer.scene_role == scene::Role::sph && replies_.boundary().active();
@@ -803,7 +810,7 @@ void Coupler::progress(std::uint64_t step, double time, double dt, bool force_em
   if (!force_emit && now - last_progress_ < std::chrono::milliseconds(500)) return;
   last_progress_ = now;
   const double wall = seconds_since(start_wall_);
-  const double rate = wall > 0 ? static_cast<double>(step) / wall : 0.0;
+  const double rate = wall > 0 ? static_cast<double>(step - resume_step_.value_or(0)) / wall : 0.0;
   eta_.observe(wall, time);
   const double eta = eta_.seconds_to(scene_.run.end_time);
   events_.emit({{"event", "progress"},
@@ -855,7 +862,7 @@ void Coupler::wait_for_goodbyes(std::chrono::milliseconds timeout) {
 
 void Coupler::write_summary(const std::string& status) {
   using nlohmann::json;
-  const double wall = seconds_since(start_wall_);
+  const double wall = wall_before_ + seconds_since(start_wall_);
   json processes = json::object();
   processes["coupler"] = {{"contact_seconds", contact_seconds_},
                           {"messaging_seconds", receive_seconds_ + send_seconds_},
@@ -947,17 +954,23 @@ void Coupler::write_summary(const std::string& status) {
       {"wall_seconds", wall},
       {"steps_per_second", wall > 0 ? static_cast<double>(steps_) / wall : 0.0},
       {"dt", {{"min", std::isfinite(dt_min_) ? dt_min_ : 0.0}, {"max", dt_max_}}},
-      {"checkpoints", {{"interval", scene_.run.checkpoint_period()}, {"written", checkpoints_}}},
+      {"checkpoints",
+       {{"interval", scene_.run.checkpoint_period()},
+        {"written", checkpoints_},
+        {"coupler_failed", checkpoint_failures_}}},
       {"restarts", restarts_},
+      {"resumes", resumes_},
       {"processes", processes},
       {"coupling_overhead",
        {{"seconds", overhead},
         {"microseconds_per_step", 1e6 * overhead * per_step},
         {"fraction_of_wall", wall > 0 ? overhead / wall : 0.0}}},
       {"bytes_exchanged",
-       {{"received", socket_.bytes_received()},
-        {"sent", socket_.bytes_sent()},
-        {"per_step", static_cast<double>(socket_.bytes_received() + socket_.bytes_sent()) * per_step}}},
+       {{"received", bytes_received_before_ + socket_.bytes_received()},
+        {"sent", bytes_sent_before_ + socket_.bytes_sent()},
+        {"per_step", static_cast<double>(bytes_received_before_ + socket_.bytes_received() + bytes_sent_before_ +
+                                         socket_.bytes_sent()) *
+                         per_step}}},
       {"traffic", {{"file", "traffic.h5"}, {"bytes", recorder_ ? recorder_->bytes_written() : 0}}},
       {"energies", energies},
       {"newton_third_law",
@@ -990,23 +1003,45 @@ void Coupler::write_summary(const std::string& status) {
   std::filesystem::rename(temporary, file);
 }
 
+void Coupler::handle_failure(const std::exception& error, std::string& status, int& exit_code) {
+  const bool solver_failed = !failure_.empty();
+  const std::string process = solver_failed ? failure_.substr(0, failure_.find(':')) : "coupler";
+  spdlog::error("{}", error.what());
+  events_.error(process, solver_failed ? failure_.substr(failure_.find(':') + 2) : error.what());
+  status = "failed";
+  exit_code = solver_failed ? kSolverFailed : kFailed;
+  if (failure_.empty()) failure_ = error.what();
+  stop_solvers(fmt::format("the run failed: {}", failure_));
+  wait_for_goodbyes(std::chrono::milliseconds(2000));
+}
+
 int Coupler::run() {
   start_wall_ = Clock::now();
   last_progress_ = start_wall_ - std::chrono::seconds(10);
   std::string status = "completed";
   int exit_code = kCompleted;
   try {
+    checkpoint_store_ = std::make_unique<io::CheckpointStore>(
+        options_.out_dir / "checkpoints", "coupler", io::file_digest(scene_.file), scene_.run.checkpoints_kept);
+    if (!options_.resume.empty()) open_resume();
+    const bool resuming = resume_step_.has_value();
+    current_step_ = resume_step_.value_or(0);
     if (scene_.recording.enabled) {
       std::ifstream scene_file(scene_.file);
       const std::string scene_text((std::istreambuf_iterator<char>(scene_file)), std::istreambuf_iterator<char>());
-      recorder_ = std::make_unique<io::TrafficRecorder>(options_.out_dir / "traffic.h5", scene_.recording, scene_text);
+      const auto traffic = options_.out_dir / "traffic.h5";
+      recorder_ = resuming ? std::make_unique<io::TrafficRecorder>(traffic, scene_.recording, scene_text,
+                                                                   io::TrafficRecorder::ContinueAt{*resume_step_})
+                           : std::make_unique<io::TrafficRecorder>(traffic, scene_.recording, scene_text);
     }
     // The run's files are opened before anyone can connect: connections of peers that do not register may
     // take every free descriptor between two of the connection guard's ticks.
+    if (resuming) cut_histories();
     const auto close_file = [](std::FILE* f) { std::fclose(f); };
-    std::unique_ptr<std::FILE, decltype(close_file)> forces_file(open_for_writing(options_.out_dir / "forces.csv"),
+    const auto open_history = resuming ? open_for_appending : open_for_writing;
+    std::unique_ptr<std::FILE, decltype(close_file)> forces_file(open_history(options_.out_dir / "forces.csv"),
                                                                  close_file);
-    std::unique_ptr<std::FILE, decltype(close_file)> energy_file(open_for_writing(options_.out_dir / "energy.csv"),
+    std::unique_ptr<std::FILE, decltype(close_file)> energy_file(open_history(options_.out_dir / "energy.csv"),
                                                                  close_file);
     // The restart journals are opened before binding, as the run's other files: idle connections may take
     // every free descriptor later.
@@ -1019,17 +1054,26 @@ int Coupler::run() {
     }
     summary_out_.open(options_.out_dir / "summary.json.tmp");
     bind();
+    bound_ = true;
     wait_for_registrations();
+    if (resuming) restore_surface();
     prepare_contacts();
     std::vector<std::string> parts;
     for (const auto& s : scene_.structures) parts.push_back(s.name);
-    forces_csv_ = std::make_unique<ForceHistory>(forces_file.release(), parts, force_sources_);
-    energy_csv_ = std::make_unique<EnergyHistory>(energy_file.release());
+    forces_csv_ = std::make_unique<ForceHistory>(forces_file.release(), parts, force_sources_, !resuming);
+    energy_csv_ = std::make_unique<EnergyHistory>(energy_file.release(), !resuming);
 
-    double dt_previous = 0;
     const double end_tolerance = 1e-12 * scene_.run.end_time;
     next_checkpoint_time_ = scene_.run.checkpoint_period();
-    for (std::uint64_t step = 0;; ++step) {
+    if (resuming) {
+      restore_state();
+      for (auto& [peer, inbound] : early_states_) {
+        inbound_ = std::move(inbound);
+        accept_state(*peer, current_step_);
+      }
+      early_states_.clear();
+    }
+    for (std::uint64_t step = current_step_;; ++step) {
       current_step_ = step;
       collect_states(step);
       time_ = peers_.front()->state.time();
@@ -1043,7 +1087,7 @@ int Coupler::run() {
       const bool last = time_ >= scene_.run.end_time - end_tolerance;
       const bool output = last || time_ >= next_output_time_ - 1e-9 * scene_.run.output_interval;
       advance_output_time();
-      compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous});
+      compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous_});
       check_newton_third_law(step);
       const double dt = coupled_dt();
       dt_min_ = std::min(dt_min_, dt);
@@ -1063,8 +1107,9 @@ int Coupler::run() {
       steps_ = step + 1;
       progress(step, time_, dt, last);
       if (last) break;
-      dt_previous = dt;
+      dt_previous_ = dt;
       expected_time_ += dt;
+      if (checkpoint) write_checkpoint(step + 1);
     }
     // Bounded whatever hang_timeout says (a SIGTERM ends the wait too).
     wait_for_goodbyes(
@@ -1092,22 +1137,26 @@ int Coupler::run() {
     events_.error("coupler", error.what());
     status = "failed";
     exit_code = kBadInput;
+  } catch (const FileError& error) {
+    if (bound_) {
+      handle_failure(error, status, exit_code);
+    } else {
+      // A checkpoint to resume from (or a run file) that does not fit: bad input, nothing was started.
+      spdlog::error("{}", error.what());
+      failure_ = error.what();
+      events_.error("coupler", error.what());
+      status = "failed";
+      exit_code = kBadInput;
+    }
   } catch (const std::exception& error) {
-    const bool solver_failed = !failure_.empty();
-    const std::string process = solver_failed ? failure_.substr(0, failure_.find(':')) : "coupler";
-    spdlog::error("{}", error.what());
-    events_.error(process, solver_failed ? failure_.substr(failure_.find(':') + 2) : error.what());
-    status = "failed";
-    exit_code = solver_failed ? kSolverFailed : kFailed;
-    if (failure_.empty()) failure_ = error.what();
-    stop_solvers(fmt::format("the run failed: {}", failure_));
-    wait_for_goodbyes(std::chrono::milliseconds(2000));
+    handle_failure(error, status, exit_code);
   }
   try {
     if (recorder_) recorder_->close();
     if (forces_csv_) forces_csv_->close();
     if (energy_csv_) energy_csv_->close();
-    write_summary(status);
+    // A resume refused before it started leaves the run folder's summary as it was.
+    if (bound_ || options_.resume.empty()) write_summary(status);
   } catch (const std::exception& error) {
     spdlog::error("while closing the run files: {}", error.what());
     if (exit_code == kCompleted) exit_code = kFailed;

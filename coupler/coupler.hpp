@@ -19,6 +19,7 @@
 #include "coupler/contact/contact_pair.hpp"
 #include "coupler/eta.hpp"
 #include "coupler/events.hpp"
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/socket.hpp"
 #include "libsabo/scene/scene.hpp"
@@ -34,6 +35,10 @@ struct CouplerOptions {
   ConnectionLimits connections;  // peers that do not register (connection_guard.hpp)
   // The largest frame accepted, bytes (ZMQ_MAXMSGSIZE); 0: scene::max_message_bytes of the scene's estimate.
   std::int64_t max_message_bytes = 0;
+  // The coupler's checkpoint to continue the run in out_dir from (docs/restart.md, "Resuming a run"); empty:
+  // start at step 0. The solvers must register resumed from their checkpoints of the same step.
+  std::filesystem::path resume;
+  std::string resume_reason;  // why the run is resumed, for summary.json (the supervisor says)
 };
 
 // Exit codes of the coupler process (the supervisor reads them).
@@ -83,6 +88,20 @@ class Coupler {
   void stop_solvers(const std::string& reason);
   void wait_for_goodbyes(std::chrono::milliseconds timeout);
   void write_summary(const std::string& status);
+  // A failure after the run started: reported, and the solvers told to stop.
+  void handle_failure(const std::exception& error, std::string& status, int& exit_code);
+
+  // Checkpoints of the coupler (coupler_checkpoint.cpp, docs/restart.md): everything the loop carries from
+  // one step to the next, written when the solvers write theirs.
+  void write_checkpoint(std::uint64_t step);
+  void write_checkpoint_file(std::uint64_t step);
+  // Resuming: the checkpoint opened and checked; forces.csv and energy.csv cut back to their length at it
+  // (before anything binds, once traffic.h5 has been continued); after the registrations, the surface the
+  // pairs start from; after the pairs and the histories exist, their state.
+  void open_resume();
+  void cut_histories();
+  void restore_surface();
+  void restore_state();
   [[noreturn]] void fail(const std::string& process, const std::string& message);
 
   const scene::Scene& scene_;
@@ -146,6 +165,20 @@ class Coupler {
   std::chrono::steady_clock::time_point stop_grace_end_;  // wait_for_goodbyes: the wait after a stop signal
   EtaEstimate eta_;                                       // the progress line's time to go
   std::string failure_;
+
+  // Checkpoints and resuming.
+  std::unique_ptr<io::CheckpointStore> checkpoint_store_;
+  io::hdf5::File resume_file_;                // the checkpoint being resumed from, until restored
+  std::optional<std::uint64_t> resume_step_;  // the step the run resumes at
+  bool bound_ = false;                        // the endpoint is bound: the run has started
+  std::uint64_t checkpoint_failures_ = 0;     // coupler checkpoints that could not be written
+  double dt_previous_ = 0;                    // s, dt_{n-1}
+  std::string surface_topology_;              // the FEM surface's newest topology (serialized), if it changed
+  double wall_before_ = 0;                    // s of wall time of the run before it was resumed
+  std::uint64_t bytes_received_before_ = 0, bytes_sent_before_ = 0;
+  nlohmann::json resumes_ = nlohmann::json::array();  // for summary.json
+  // States that arrived while the others registered, in a resumed run: accepted once its state is restored.
+  std::vector<std::pair<Peer*, protocol::Inbound>> early_states_;
 };
 
 }  // namespace sabo::coupler

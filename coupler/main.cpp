@@ -1,5 +1,5 @@
 // coupler: the central process of a Sabo run (DESIGN.md §1-2).
-//   coupler --scene FILE --endpoint ENDPOINT --out DIR
+//   coupler --scene FILE --endpoint ENDPOINT --out DIR [--resume RUN_DIR/checkpoints/coupler_<step>.h5]
 // stdout carries the JSON event stream for the supervisor; logs go to stderr.
 #include <fmt/format.h>
 #include <sys/resource.h>
@@ -36,6 +36,11 @@ int main(int argc, char** argv) {
   app.add_option("--max-message-bytes", options.max_message_bytes,
                  "largest frame accepted (0: from the scene's sizes; also SABO_MAX_MESSAGE_BYTES)")
       ->capture_default_str();
+  app.add_option(
+      "--resume", options.resume,
+      "continue the run in --out from this checkpoint of the coupler (RUN_DIR/checkpoints/coupler_<step>.h5); "
+      "every solver must start from its checkpoint of the same step");
+  app.add_option("--resume-reason", options.resume_reason, "why the run is resumed (for summary.json)");
   try {
     app.parse(argc, argv);
     setup_logging("coupler", log_level);

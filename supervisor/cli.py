@@ -1,4 +1,4 @@
-"""The command line of `./sabo`: setup, run, replay, test, status."""
+"""The command line of `./sabo`: setup, run, resume, replay, test, status."""
 import argparse
 import json
 import os
@@ -20,6 +20,7 @@ Sabo: co-simulation of debris flows striking protective structures.
 
   ./sabo setup             install the Debian packages, configure and build (idempotent)
   ./sabo run SCENE         run a scene (does setup first); output goes to a run folder
+  ./sabo resume RUN_DIR    continue a run that was killed, from its newest checkpoint common to every process
   ./sabo replay RUN ROLE   replay a run's recorded traffic against one process (sph, dem, fem, coupler)
   ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
   ./sabo status RUN_DIR    what a run folder holds; repairs what a killed run left behind
@@ -56,6 +57,15 @@ def build_parser():
                             help="run folder; must not exist or be empty (default: runs/<scene>-<date>-<time>)")
     run_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
     run_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+
+    resume_parser = commands.add_parser(
+        "resume", help="continue a killed run from its checkpoints",
+        description="Continue a run whose supervisor, coupler or machine died, from the newest step every process "
+                    "of it has a checkpoint of, in the same run folder: forces.csv, energy.csv, the .pvd series and "
+                    "traffic.h5 continue without duplicate or missing rows (docs/restart.md).")
+    resume_parser.add_argument("run_dir", metavar="RUN_DIR", help="the run folder, e.g. runs/boulders_chute-20260101-120000")
+    resume_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
+    resume_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
 
     status_parser = commands.add_parser(
         "status", help="show a run folder; repair what a killed run left behind",
@@ -153,24 +163,71 @@ def command_setup(root, build_dir, args):
     return 0
 
 
+def set_up_and_check(root, build_dir, args, scene):
+    """The setup (unless --no-setup), then the scene check: the launch plan, or SaboError (bad input)."""
+    if not args.no_setup:
+        setup(root, build_dir, quiet=args.quiet)
+    try:
+        return check_scene(scene, os.path.join(build_dir, "bin"))
+    except SaboError as error:
+        if error.exit_code == EXIT_BAD_INPUT:
+            print(error, file=sys.stderr)
+            raise SaboError("{}: the scene has errors (above); nothing was started".format(scene), EXIT_BAD_INPUT)
+        raise
+
+
 def command_run(root, build_dir, args):
     scene = args.scene
     if not os.path.isfile(scene):
         raise SaboError("scene file not found: {}".format(scene), EXIT_BAD_INPUT)
     if args.out is not None:
         refuse_used_run_dir(args.out)
-    if not args.no_setup:
-        setup(root, build_dir, quiet=args.quiet)
-    try:
-        plan = check_scene(scene, os.path.join(build_dir, "bin"))
-    except SaboError as error:
-        if error.exit_code == EXIT_BAD_INPUT:
-            print(error, file=sys.stderr)
-            raise SaboError("{}: the scene has errors (above); nothing was started".format(scene), EXIT_BAD_INPUT)
-        raise
+    plan = set_up_and_check(root, build_dir, args, scene)
     run_dir = create_run_dir(args.out, scene)
     display = Display(quiet=args.quiet)
     return Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin")).run()
+
+
+def command_resume(root, build_dir, args):
+    run_dir = args.run_dir
+    if not os.path.isdir(run_dir) or not os.path.exists(os.path.join(run_dir, PIDS_FILE)):
+        raise SaboError("{}: not a run folder (it has no {})".format(run_dir, PIDS_FILE), EXIT_BAD_INPUT)
+    alive = run_folder.live_processes(run_dir)
+    if alive:
+        raise SaboError("{}: the run is still running ({}): nothing to resume. Stop it first (Ctrl-C in its "
+                        "terminal, or kill {})".format(run_dir, ", ".join("{} pid {}".format(r, p) for r, p in alive),
+                                                       " ".join(str(p) for _, p in alive)), EXIT_BAD_INPUT)
+    try:
+        with open(os.path.join(run_dir, run_folder.SUMMARY_FILE), encoding="utf-8") as handle:
+            status = json.load(handle).get("status")
+    except (OSError, ValueError, AttributeError):
+        status = None
+    if status == "completed":
+        raise SaboError("{}: the run completed: nothing to resume".format(run_dir), EXIT_BAD_INPUT)
+    scene = run_folder.run_scene(run_dir)
+    if scene is None:
+        raise SaboError("{}: names no scene ({} is missing): the run cannot be resumed. Fix: start it again with "
+                        "./sabo run SCENE".format(run_dir, run_folder.RUN_FILE), EXIT_BAD_INPUT)
+    if not os.path.isfile(scene):
+        raise SaboError("{}: the run's scene {} is not there any more. Fix: put the scene back, unchanged, and "
+                        "resume again".format(run_dir, scene), EXIT_BAD_INPUT)
+    plan = set_up_and_check(root, build_dir, args, scene)
+    roles = ["coupler"] + [spec.role for spec in plan.solvers]
+    common = run_folder.common_checkpoint(run_dir, roles)
+    if common is None:
+        raise SaboError("{}: no step that every process ({}) has a checkpoint of in {}: the run died before its "
+                        "first checkpoint ([run] checkpoint_interval), or it never wrote any. Fix: start it again "
+                        "with ./sabo run {}".format(run_dir, ", ".join(roles),
+                                                    os.path.join(run_dir, "checkpoints"), scene), EXIT_BAD_INPUT)
+    # What the killed run left behind (its socket, an unfinished summary) goes; the rest continues.
+    run_folder.remove_socket(run_dir)
+    try:
+        os.unlink(os.path.join(run_dir, run_folder.SUMMARY_FILE + ".tmp"))
+    except OSError:
+        pass
+    display = Display(quiet=args.quiet)
+    display.info("sabo: resuming {} at step {} (checkpoints of {})".format(run_dir, common[0], ", ".join(roles)))
+    return Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin"), resume=common).run()
 
 
 def command_status(build_dir, args):
@@ -236,6 +293,8 @@ def main(root, argv=None):
             return EXIT_BAD_INPUT
         if args.command == "setup":
             return command_setup(root, build_dir, args)
+        if args.command == "resume":
+            return command_resume(root, build_dir, args)
         if args.command == "status":
             return command_status(build_dir, args)
         if args.command == "replay":

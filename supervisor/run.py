@@ -9,7 +9,6 @@ Ctrl-C) ends with every process stopped and a report naming the culprit.
 """
 import json
 import os
-import re
 import selectors
 import shutil
 import signal
@@ -76,8 +75,12 @@ def watchdog_seconds(hang_timeout):
 
 
 class Supervisor:
-    def __init__(self, plan, scene, run_dir, display, bin_dir=None):
+    def __init__(self, plan, scene, run_dir, display, bin_dir=None, resume=None):
+        """`resume`: (step, {role: checkpoint path}) to continue the run in `run_dir` from (`./sabo resume`), with
+        the coupler's checkpoint under "coupler"; None: a new run."""
         self.plan = plan
+        self._resume = resume
+        self._resume_reason = "./sabo resume" if resume is not None else None
         self.bin_dir = bin_dir  # the built tools (sabo_traffic), for the repairs after a crash
         self.scene = os.path.abspath(scene)
         self.run_dir = os.path.abspath(run_dir)
@@ -118,6 +121,8 @@ class Supervisor:
         try:
             self._events = open(os.path.join(self.run_dir, EVENTS_FILE), "a", encoding="utf-8")
             self._write_pids()
+            if self._resume is None:
+                run_folder.write_run_file(self.run_dir, self.scene)
             outcome = self._start_and_supervise()
         finally:
             self._kill_leftovers()
@@ -174,17 +179,26 @@ class Supervisor:
         os.replace(path + ".tmp", path)
 
     def _start_and_supervise(self):
+        problem = self._start_coupler()
+        if problem is not None:
+            return self._outcome_failed(problem)
+        return self._supervise()
+
+    def _start_coupler(self):
+        """Starts the coupler (from its checkpoint when resuming); None, or why it could not be started."""
         spec = self.plan.coupler
+        arguments = ["--scene", self.scene, "--endpoint", self.endpoint, "--out", self.run_dir]
+        if self._resume is not None:
+            arguments += ["--resume", self._resume[1]["coupler"], "--resume-reason", self._resume_reason]
         try:
-            coupler = self._start(spec, ["--scene", self.scene, "--endpoint", self.endpoint, "--out", self.run_dir],
-                                  pipe=True)
+            coupler = self._start(spec, arguments, pipe=True)
         except OSError as error:
-            return self._outcome_failed("could not start the coupler: {}: {}".format(spec.command[0], error.strerror))
+            return "could not start the coupler: {}: {}".format(spec.command[0], error.strerror)
         self._pipe = coupler.popen.stdout
         os.set_blocking(self._pipe.fileno(), False)
         self._selector = selectors.DefaultSelector()
         self._selector.register(self._pipe, selectors.EVENT_READ)
-        return self._supervise()
+        return None
 
     def _start_solvers(self, endpoint):
         self._solvers_started = True
@@ -192,8 +206,11 @@ class Supervisor:
         for spec in self.plan.solvers:
             if self._interrupts:
                 return
+            arguments = ["--scene", self.scene, "--coupler", endpoint, "--out", self.run_dir]
+            if self._resume is not None:
+                arguments += ["--resume", self._resume[1][spec.role]]
             try:
-                self._start(spec, ["--scene", self.scene, "--coupler", endpoint, "--out", self.run_dir], pipe=False)
+                self._start(spec, arguments, pipe=False)
             except OSError as error:
                 self._start_failure = "could not start {}: {}: {}".format(spec.role, spec.command[0], error.strerror)
                 return
@@ -209,7 +226,13 @@ class Supervisor:
             if self._start_failure:
                 return self._fail(self._start_failure)
             if self.coupler.poll() is not None:
-                return self._on_coupler_exit()
+                if not self._coupler_may_restart():
+                    return self._on_coupler_exit()
+                dead = self.coupler
+                problem = self._restart_coupler()
+                if problem is None:
+                    continue
+                return self._fail(problem, culprits=[dead])
             failed = self._failed_solvers()
             if failed:
                 # The coupler may be going down at the same moment, and the solver only because of it
@@ -248,18 +271,6 @@ class Supervisor:
                         now - self._last_activity, self.plan.hang_timeout, self._last_progress_text()),
                     culprits=[self.coupler])
 
-    def _newest_checkpoint(self, role):
-        """(step, path) of the newest complete checkpoint of `role` in RUN_DIR/checkpoints, or None."""
-        folder = os.path.join(self.run_dir, "checkpoints")
-        pattern = re.compile(r"{}_([0-9]{{10}})\.h5$".format(re.escape(role)))
-        try:
-            names = os.listdir(folder)
-        except OSError:
-            return None
-        found = sorted((int(m.group(1)), os.path.join(folder, name)) for name in names for m in [pattern.match(name)]
-                       if m)
-        return found[-1] if found else None
-
     def _restart(self, process):
         """Start `process`'s role again from its newest checkpoint (restart = "auto"); None when it was restarted,
         else the reason the run stops."""
@@ -272,7 +283,8 @@ class Supervisor:
         if count >= self.plan.max_restarts:
             return "{}; it was restarted {} times already (max_restarts = {})".format(died, count,
                                                                                         self.plan.max_restarts)
-        checkpoint = self._newest_checkpoint(process.role)
+        found = run_folder.checkpoints(self.run_dir, process.role)
+        checkpoint = max(found.items()) if found else None
         if checkpoint is None:
             return "{}; no checkpoint of it to restart from yet (the first comes at [run] checkpoint_interval)".format(
                 died)
@@ -292,6 +304,47 @@ class Supervisor:
         self.display.error("sabo: {}; restarting it from its checkpoint of step {} (pid {}, restart {} of {})".format(
             died, step, replacement.pid, count + 1, self.plan.max_restarts))
         return None
+
+    def _coupler_may_restart(self):
+        """The coupler died by a signal (a crash, kill -9) in a run that restarts its processes."""
+        coupler = self.coupler
+        return (self.plan.restart == "auto" and coupler.returncode is not None and coupler.returncode < 0 and
+                not self._stopping and not self._interrupts)
+
+    def _restart_coupler(self):
+        """Every process starts again from the newest checkpoint common to all of them (docs/restart.md, "Restart
+        of the coupler"); None when the run goes on, else why it stops."""
+        coupler = self.coupler
+        self._drain_pipe(0.5)
+        died = coupler.describe()
+        if self._last_progress is not None:
+            died += " at step {}".format(self._last_progress.get("step"))
+        count = self._restarts.get("coupler", 0)
+        if count >= self.plan.max_restarts:
+            return "{}; it was restarted {} times already (max_restarts = {})".format(died, count,
+                                                                                        self.plan.max_restarts)
+        # The solvers wait for the dead coupler's reply: they stop, their checkpoints stay.
+        self._terminate(self._running(self.solvers), FAULT_GRACE_S)
+        roles = ["coupler"] + [spec.role for spec in self.plan.solvers]
+        common = run_folder.common_checkpoint(self.run_dir, roles)
+        if common is None:
+            return ("{}; no checkpoint common to {} to resume from yet (the first comes at [run] "
+                    "checkpoint_interval)".format(died, ", ".join(roles)))
+        self._close_pipe()
+        for process in self.processes:
+            process.handled = True
+            process.sweep()
+        self.processes = []
+        self._remove_socket()
+        self._resume = common
+        self._resume_reason = died
+        self._solvers_started = False
+        self._registered = set()
+        self._restarts["coupler"] = count + 1
+        self._last_activity = time.monotonic()
+        self.display.error("sabo: {}; resuming every process from their checkpoints of step {} (restart {} of {})"
+                           .format(died, common[0], count + 1, self.plan.max_restarts))
+        return self._start_coupler()
 
     def _last_progress_text(self):
         if self._last_progress is None:
@@ -584,6 +637,10 @@ class Supervisor:
             self.display.info("sabo: {} (pid {}) rejoined at step {}, catching up {} steps".format(
                 event.get("process", "?"), event.get("pid", "?"), event.get("from_step", "?"),
                 event.get("catch_up_steps", "?")))
+        elif kind == "resumed":
+            self._last_activity = time.monotonic()
+            self.display.info("sabo: the run resumed at step {}, t = {} s".format(event.get("from_step", "?"),
+                                                                                event.get("time", "?")))
         elif kind == "caught_up":
             self._last_activity = time.monotonic()
             self.display.info("sabo: {} caught up with the run at step {} ({:.2f} s)".format(

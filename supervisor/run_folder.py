@@ -14,11 +14,13 @@ of the run is alive.
 """
 import json
 import os
+import re
 import stat
 import subprocess
 import time
 
 PIDS_FILE = "pids.json"
+RUN_FILE = "run.json"
 SUMMARY_FILE = "summary.json"
 TRAFFIC_FILE = "traffic.h5"
 SOCKET_FILE = "coupler.sock"
@@ -173,3 +175,47 @@ def killed_summary(run_dir, failure, status="killed", processes=None, wall_secon
     if scene is not None:
         summary["scene"] = scene
     return summary
+
+
+def write_run_file(run_dir, scene):
+    """run.json: what `./sabo resume` needs to start the run's processes again (the scene file)."""
+    path = os.path.join(run_dir, RUN_FILE)
+    with open(path + ".tmp", "w", encoding="utf-8") as handle:
+        json.dump({"scene": os.path.abspath(scene), "started_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}, handle,
+                  indent=2)
+        handle.write("\n")
+    os.replace(path + ".tmp", path)
+
+
+def run_scene(run_dir):
+    """The scene file the run was started with (run.json, else summary.json), or None."""
+    for name in (RUN_FILE, SUMMARY_FILE):
+        try:
+            with open(os.path.join(run_dir, name), encoding="utf-8") as handle:
+                scene = json.load(handle).get("scene")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(scene, str) and scene:
+            return scene
+    return None
+
+
+def checkpoints(run_dir, role):
+    """{step: path} of the complete checkpoints of `role` ("coupler", "dem_solver", ...) in RUN_DIR/checkpoints."""
+    folder = os.path.join(run_dir, "checkpoints")
+    pattern = re.compile(r"{}_([0-9]{{10}})\.h5$".format(re.escape(role)))
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return {}
+    return {int(m.group(1)): os.path.join(folder, name) for name in names for m in [pattern.match(name)] if m}
+
+
+def common_checkpoint(run_dir, roles):
+    """(step, {role: path}) of the newest step every role in `roles` has a checkpoint of, or None."""
+    found = {role: checkpoints(run_dir, role) for role in roles}
+    steps = set.intersection(*(set(paths) for paths in found.values())) if found else set()
+    if not steps:
+        return None
+    step = max(steps)
+    return step, {role: paths[step] for role, paths in found.items()}

@@ -1,6 +1,11 @@
 #include "coupler/contact/contact_pair.hpp"
 
+#include <fmt/format.h>
+
 #include <cassert>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/io/checkpoint.hpp"
 
 namespace sabo::coupler {
 
@@ -46,6 +51,36 @@ std::span<const double> BoundaryChannel::slice(std::size_t slot, std::span<const
   if (returned.empty() || slot >= sent_then.count.size()) return {};
   assert(returned.size() == 3 * sent_then.total);
   return returned.subspan(3 * sent_then.offset[slot], 3 * sent_then.count[slot]);
+}
+
+void BoundaryChannel::save(io::hdf5::Group& group) const {
+  group.set_attribute("slots", static_cast<std::int64_t>(slots_));
+  for (std::size_t k = 0; k < layout_.size(); ++k) {
+    io::hdf5::Group list = group.create_group(fmt::format("list_{}", k));
+    list.set_attribute("total", static_cast<std::int64_t>(layout_[k].total));
+    io::write_array<std::uint64_t>(list, "offset", layout_[k].offset);
+    io::write_array<std::uint64_t>(list, "count", layout_[k].count);
+  }
+}
+
+void BoundaryChannel::restore(const io::hdf5::Group& group) {
+  const auto slots = static_cast<std::size_t>(group.int_attribute("slots"));
+  if (slots != slots_) {
+    throw FileError(
+        fmt::format("{}: {} pairs sent boundary particles when the checkpoint was written, {} do now. "
+                    "Fix: resume with the scene the run was started with, unchanged",
+                    group.path(), slots, slots_));
+  }
+  for (std::size_t k = 0; k < layout_.size(); ++k) {
+    const io::hdf5::Group list = group.group(fmt::format("list_{}", k));
+    Layout layout;
+    layout.total = static_cast<std::size_t>(list.int_attribute("total"));
+    layout.offset = io::read_array<std::uint64_t>(list, "offset");
+    layout.count = io::read_array<std::uint64_t>(list, "count");
+    layout_[k] = std::move(layout);
+  }
+  parts_.clear();
+  begun_ = false;
 }
 
 void Replies::begin_step(const Solvers& solvers, std::size_t surface_nodes) {

@@ -116,6 +116,10 @@ class BoundaryChannel {
   // nothing came back.
   [[nodiscard]] std::span<const double> slice(std::size_t slot, std::span<const double> returned,
                                               std::size_t steps_back) const;
+  // The layouts of the lists of the last steps, for the coupler's checkpoint: a state's boundary_force refers
+  // to them. restore() after every pair joined; FileError when the saved slots are not the pairs'.
+  void save(io::hdf5::Group& group) const;
+  void restore(const io::hdf5::Group& group);
 
  private:
   struct Layout {

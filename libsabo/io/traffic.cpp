@@ -93,7 +93,7 @@ template <hdf5::Element T>
 class Column final : public ColumnBase {
  public:
   Column(hdf5::Group& group, const std::string& name, std::uint64_t chunk, Stages& stages, Stage stage)
-      : dataset_(group.create_dataset<T>(name, chunk)) {
+      : name_(name), dataset_(group.create_dataset<T>(name, chunk)) {
     stages[stage].push_back(this);
   }
   Column(const Column&) = delete;
@@ -119,7 +119,31 @@ class Column final : public ColumnBase {
   }
   [[nodiscard]] std::size_t pending_bytes() const override { return pending_.size() * sizeof(T); }
 
+  // Takes the first `n` values of the dataset of the same name in `old` (a recording being continued);
+  // returns the payload bytes written.
+  std::uint64_t carry(const hdf5::Group& old, std::uint64_t n) {
+    if (n == 0) return 0;
+    const hdf5::Dataset source = old.dataset(name_);
+    if (source.size() < n) {
+      throw FileError(
+          fmt::format("{}: {} values where the recording's index needs {}. Fix: the file is damaged; "
+                      "start the run again",
+                      source.path(), source.size(), n));
+    }
+    constexpr std::uint64_t kBlock = std::uint64_t{1} << 20;
+    std::vector<T> block;
+    for (std::uint64_t at = 0; at < n; at += kBlock) {
+      block.resize(std::min(kBlock, n - at));
+      source.read<T>(at, std::span<T>(block));
+      dataset_.append<T>(block);
+    }
+    dataset_.flush();
+    total_ += n;
+    return n * sizeof(T);
+  }
+
  private:
+  std::string name_;
   hdf5::Dataset dataset_;
   std::vector<T> pending_;
   std::uint64_t total_ = 0;  // values recorded, flushed or not
@@ -128,15 +152,30 @@ class Column final : public ColumnBase {
 // A field with a variable number of values per message.
 template <hdf5::Element T>
 struct ArrayColumn {
-  ArrayColumn(hdf5::Group& group, const std::string& name, Stages& stages, Stage count_stage = kIndex)
-      : values(group, name, kValueChunk, stages, kValues),
-        offset(group, name + "_offset", kEntryChunk, stages, kIndex),
-        count(group, name + "_count", kEntryChunk, stages, count_stage) {}
+  ArrayColumn(hdf5::Group& group, const std::string& name_in, Stages& stages, Stage count_stage = kIndex)
+      : name(name_in),
+        values(group, name_in, kValueChunk, stages, kValues),
+        offset(group, name_in + "_offset", kEntryChunk, stages, kIndex),
+        count(group, name_in + "_count", kEntryChunk, stages, count_stage) {}
   void push(std::span<const T> data) {
     offset.push(values.total());
     count.push(data.size());
     values.push(data);
   }
+  // The first `entries` messages' slices of this field in `old`.
+  std::uint64_t carry(const hdf5::Group& old, std::uint64_t entries) {
+    std::uint64_t end = 0;
+    if (entries > 0) {
+      std::array<std::uint64_t, 2> last{};
+      old.dataset(offset_name()).template read<std::uint64_t>(entries - 1, std::span<std::uint64_t>(&last[0], 1));
+      old.dataset(count_name()).template read<std::uint64_t>(entries - 1, std::span<std::uint64_t>(&last[1], 1));
+      end = last[0] + last[1];
+    }
+    return offset.carry(old, entries) + count.carry(old, entries) + values.carry(old, end);
+  }
+  [[nodiscard]] std::string offset_name() const { return name + "_offset"; }
+  [[nodiscard]] std::string count_name() const { return name + "_count"; }
+  std::string name;
   Column<T> values;
   Column<std::uint64_t> offset;
   Column<std::uint64_t> count;
@@ -148,6 +187,19 @@ using OptionalArray = std::optional<ArrayColumn<T>>;
 template <hdf5::Element T>
 void emplace_if(bool wanted, OptionalArray<T>& column, hdf5::Group& group, const char* name, Stages& stages) {
   if (wanted) column.emplace(group, name, stages);
+}
+
+template <hdf5::Element T>
+std::uint64_t carry_if(OptionalArray<T>& column, const hdf5::Group& old, std::uint64_t entries) {
+  return column ? column->carry(old, entries) : 0;
+}
+
+// The messages of a stream in `old` of steps before `step` (the `step` dataset is written last at every
+// flush, so its length counts the complete messages).
+std::uint64_t entries_before(const hdf5::Group& old, std::uint64_t step) {
+  const auto steps = old.dataset("step").read_all<std::uint64_t>();
+  return static_cast<std::uint64_t>(
+      std::find_if(steps.begin(), steps.end(), [&](std::uint64_t s) { return s >= step; }) - steps.begin());
 }
 
 struct StateStream {
@@ -200,6 +252,20 @@ struct StateStream {
     scratch.clear();
     if (message.has_topology()) message.topology().SerializeToString(&scratch);
     topology.push(bytes_of(scratch));
+  }
+
+  // The states of steps before `before` in `old`, this stream's group of a recording being continued.
+  std::uint64_t carry(const hdf5::Group& old, std::uint64_t before) {
+    const std::uint64_t n = entries_before(old, before);
+    std::uint64_t bytes = time.carry(old, n) + stable_dt.carry(old, n) + timing.carry(old, 2 * n);
+    if (energies) bytes += energies->carry(old, 4 * n);
+    bytes += carry_if(index, old, n);
+    for (auto* column : {&position, &velocity, &angular_velocity, &node_position, &node_velocity, &boundary_force}) {
+      bytes += carry_if(*column, old, n);
+    }
+    bytes += carry_if(boundary_step, old, n);
+    bytes += particle_table.carry(old, n) + topology.carry(old, n);
+    return bytes + step.carry(old, n);
   }
 
   hdf5::Group group;
@@ -258,6 +324,17 @@ struct ForcesStream {
     interest.push(scratch);
   }
 
+  std::uint64_t carry(const hdf5::Group& old, std::uint64_t before) {
+    const std::uint64_t n = entries_before(old, before);
+    std::uint64_t bytes = dt.carry(old, n) + flags.carry(old, n) + carry_if(index, old, n);
+    for (auto* column : {&force, &torque, &node_force, &boundary_position, &boundary_velocity, &boundary_normal,
+                         &boundary_acceleration, &boundary_volume}) {
+      bytes += carry_if(*column, old, n);
+    }
+    bytes += interest.carry(old, n);
+    return bytes + step.carry(old, n);
+  }
+
   hdf5::Group group;
   Column<std::uint64_t> step;
   Column<double> dt;
@@ -274,6 +351,13 @@ struct RoleRecord {
         registration(group, "registration", stages, kCommit),
         state(group.create_group("state"), selection, stages),
         forces(group.create_group("forces"), selection, stages) {}
+  // Every registration of `old` (this role's group of a recording being continued), and its messages of
+  // steps before `before`.
+  std::uint64_t carry(const hdf5::Group& old, std::uint64_t before) {
+    return registration.carry(old, old.dataset(registration.count_name()).size()) +
+           state.carry(old.group("state"), before) + forces.carry(old.group("forces"), before);
+  }
+
   hdf5::Group group;
   ArrayColumn<std::uint8_t> registration;
   StateStream state;
@@ -298,11 +382,13 @@ const std::vector<std::string>& traffic_field_names() {
 
 struct TrafficRecorder::Impl {
   Impl(const std::filesystem::path& file, const scene::Recording& settings_in, const std::string& scene_text,
-       const std::vector<std::string>& roles)
+       const std::vector<std::string>& roles, std::optional<std::uint64_t> continue_at = {})
       : path(file), settings(settings_in), selection(settings_in.fields) {
     if (settings.every == 0) {
       throw SceneError("recording.every = 0: must be at least 1. Fix: record every N-th step with N >= 1");
     }
+    hdf5::File old;
+    if (continue_at) old = open_to_continue(file, scene_text);
     // Built under a temporary name and renamed once in SWMR mode: a file
     // named `file` is always a consistent recording.
     std::filesystem::path partial = file;
@@ -324,6 +410,12 @@ struct TrafficRecorder::Impl {
     for (const auto& role : roles) {
       records.emplace(role, std::make_unique<RoleRecord>(hdf5_file.create_group(role), selection, stages));
     }
+    if (continue_at) {
+      for (const auto& [role, record] : records) {
+        if (old.exists(role)) bytes += record->carry(old.group(role), *continue_at);
+      }
+      old.close();
+    }
     hdf5_file.start_swmr_write();
     std::error_code error;
     std::filesystem::rename(partial, file, error);
@@ -332,6 +424,34 @@ struct TrafficRecorder::Impl {
                                   error.message()));
     }
     last_flush = std::chrono::steady_clock::now();
+  }
+
+  // The recording a continued run started, checked to be of this scene and format.
+  static hdf5::File open_to_continue(const std::filesystem::path& file, const std::string& scene_text) {
+    hdf5::File old;
+    try {
+      old = hdf5::File::open(file, hdf5::Access::swmr_read);
+    } catch (const LibraryError& error) {
+      throw FileError(
+          fmt::format("{}: the recording to continue does not open ({}). Fix: restore it from a copy, or "
+                      "start the run again in a new folder",
+                      file.string(), error.what()));
+    }
+    if (!old.has_attribute("format") || old.string_attribute("format") != kFormatName ||
+        old.int_attribute("format_version") != kFormatVersion) {
+      throw FileError(
+          fmt::format("{}: not a sabo traffic recording of format version {}: it cannot be continued. "
+                      "Fix: start the run again in a new folder",
+                      file.string(), kFormatVersion));
+    }
+    const auto recorded_scene = old.dataset("scene").read_all<std::uint8_t>();
+    if (std::string(recorded_scene.begin(), recorded_scene.end()) != scene_text) {
+      throw FileError(
+          fmt::format("{}: recorded with another scene text than the run's scene: it cannot be "
+                      "continued. Fix: resume with the scene the run was started with, unchanged",
+                      file.string()));
+    }
+    return old;
   }
 
   RoleRecord& record(const std::string& role) {
@@ -395,6 +515,10 @@ TrafficRecorder::TrafficRecorder(const std::filesystem::path& file, const scene:
 TrafficRecorder::TrafficRecorder(const std::filesystem::path& file, const scene::Recording& settings,
                                  const std::string& scene_text, const std::vector<std::string>& roles)
     : impl_(std::make_unique<Impl>(file, settings, scene_text, roles)) {}
+
+TrafficRecorder::TrafficRecorder(const std::filesystem::path& file, const scene::Recording& settings,
+                                 const std::string& scene_text, ContinueAt continue_at)
+    : impl_(std::make_unique<Impl>(file, settings, scene_text, all_roles(), continue_at.step)) {}
 
 TrafficRecorder::~TrafficRecorder() {
   try {

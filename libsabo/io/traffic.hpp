@@ -59,6 +59,15 @@ class TrafficRecorder {
   // The same with an explicit list of role names.
   TrafficRecorder(const std::filesystem::path& file, const scene::Recording& settings, const std::string& scene_text,
                   const std::vector<std::string>& roles);
+  // Continues the recording `file` of an interrupted run at step `continue_at.step` (a resume from the
+  // checkpoints of that step): a new file takes every registration and every message of an earlier step from
+  // it, then replaces it; what follows is recorded as usual. FileError when `file` does not open, is not a
+  // recording, or was recorded with another scene text.
+  struct ContinueAt {
+    std::uint64_t step = 0;
+  };
+  TrafficRecorder(const std::filesystem::path& file, const scene::Recording& settings, const std::string& scene_text,
+                  ContinueAt continue_at);
   TrafficRecorder(const TrafficRecorder&) = delete;
   TrafficRecorder& operator=(const TrafficRecorder&) = delete;
   ~TrafficRecorder();

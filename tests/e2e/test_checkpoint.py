@@ -35,7 +35,7 @@ class CheckpointTest(RealRunTestCase):
         """{role: [steps]} of RUN_DIR/checkpoints."""
         found = {}
         for name in sorted(os.listdir(os.path.join(self.run_dir, "checkpoints"))):
-            match = re.fullmatch(r"([a-z]+_solver)_([0-9]{10})\.h5", name)
+            match = re.fullmatch(r"([a-z]+_solver|coupler)_([0-9]{10})\.h5", name)
             self.assertIsNotNone(match, "unexpected file in checkpoints/: " + name)
             found.setdefault(match.group(1), []).append(int(match.group(2)))
         return found
@@ -46,10 +46,10 @@ class CheckpointTest(RealRunTestCase):
     def test_every_solver_resumes_from_its_checkpoint_with_the_same_bits(self):
         found = self.checkpoints()
         print("checkpoints kept:", found)
-        self.assertEqual(sorted(found), sorted(ROLES.values()))
+        self.assertEqual(sorted(found), sorted(list(ROLES.values()) + ["coupler"]))
         steps = found["dem_solver"]
         self.assertEqual(len(steps), 2, "checkpoints_kept = 2 (the default)")
-        for role in ROLES.values():
+        for role in list(ROLES.values()) + ["coupler"]:
             self.assertEqual(found[role], steps, "every process checkpoints at the same steps")
         with open(os.path.join(self.run_dir, "summary.json"), encoding="utf-8") as handle:
             summary = json.load(handle)

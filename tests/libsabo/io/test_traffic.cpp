@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <fstream>
 #include <random>
 #include <thread>
 
@@ -185,6 +186,70 @@ TEST(Traffic, RoundTripOfEveryField) {
   }();
   EXPECT_NE(missing.find("step 99 was not recorded (25 steps recorded, from 0 to 24)"), std::string::npos) << missing;
   EXPECT_THROW((void)reader.steps("nobody"), sabo::FileError);
+}
+
+// A resumed run continues traffic.h5 at its checkpoint's step: the messages before it are kept, the later ones
+// (recorded by the run that died) give way to the resumed run's, and the file reads as one uninterrupted run.
+TEST(Traffic, ContinuesARecordingAtAStep) {
+  const std::string scene_text = "format_version = 1\n[run]\nend_time = 1.0\n";
+  const sabo::scene::Recording settings = every_step_settings();
+  auto record_steps = [](TrafficRecorder& recorder, std::uint64_t from, std::uint64_t to) {
+    for (std::uint64_t step = from; step < to; ++step) {
+      const auto dem = make_state(step, 1);
+      const auto fem = make_surface_state(step);
+      recorder.record_state("dem_solver", dem);
+      recorder.record_state("fem_solver", fem);
+      recorder.record_forces("dem_solver", make_forces(step, dem));
+      recorder.record_forces("fem_solver", make_forces(step, fem));
+      recorder.end_step(step);
+    }
+  };
+  const fs::path uninterrupted = scratch("continue_reference.h5");
+  {
+    TrafficRecorder recorder(uninterrupted, settings, scene_text);
+    recorder.record_registration("dem_solver", make_registration("dem_solver 0.1.0"));
+    record_steps(recorder, 0, 40);
+  }
+  const fs::path continued = scratch("continue_resumed.h5");
+  {
+    // The run that died after step 29; the resume is at step 17, the step of a checkpoint.
+    TrafficRecorder recorder(continued, settings, scene_text);
+    recorder.record_registration("dem_solver", make_registration("dem_solver 0.1.0"));
+    record_steps(recorder, 0, 30);
+    recorder.flush();
+  }
+  {
+    TrafficRecorder recorder(continued, settings, scene_text, TrafficRecorder::ContinueAt{17});
+    record_steps(recorder, 17, 40);
+  }
+  const TrafficReader reference(uninterrupted);
+  const TrafficReader reader(continued);
+  EXPECT_EQ(reader.steps("dem_solver"), reference.steps("dem_solver"));
+  EXPECT_EQ(reader.force_steps("fem_solver"), reference.force_steps("fem_solver"));
+  expect_same(reference.registration("dem_solver"), reader.registration("dem_solver"));
+  for (std::uint64_t step : reference.steps("dem_solver")) {
+    for (const char* role : {"dem_solver", "fem_solver"}) {
+      expect_same(reference.state(role, step), reader.state(role, step));
+      expect_same(reference.forces(role, step), reader.forces(role, step));
+    }
+  }
+  // Only what is needed: the recording of another scene text, or a file that is not one, is refused.
+  auto error_of = [&](const fs::path& file, const std::string& text) {
+    try {
+      TrafficRecorder recorder(file, settings, text, TrafficRecorder::ContinueAt{5});
+    } catch (const sabo::FileError& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  };
+  const std::string other_scene = error_of(continued, scene_text + "# changed\n");
+  EXPECT_NE(other_scene.find("recorded with another scene text"), std::string::npos) << other_scene;
+  const fs::path not_hdf5 = scratch("continue_not_hdf5.h5");
+  std::ofstream(not_hdf5) << "not a recording";
+  const std::string damaged = error_of(not_hdf5, scene_text);
+  EXPECT_NE(damaged.find("the recording to continue does not open"), std::string::npos) << damaged;
+  // The refused continuation left the recording as it was.
+  EXPECT_EQ(TrafficReader(continued).steps("dem_solver"), reference.steps("dem_solver"));
 }
 
 TEST(Traffic, FieldSubsetAndStepRange) {

@@ -1,0 +1,38 @@
+#pragma once
+// One registered solver as the coupler's loop keeps it (coupler.cpp and coupler_checkpoint.cpp).
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "coupler/coupler.hpp"
+#include "coupler/restart_journal.hpp"
+#include "libsabo/protocol/socket.hpp"
+#include "sabo/v1/sabo.pb.h"
+
+namespace sabo::coupler {
+
+struct Coupler::Peer {
+  std::string identity;
+  sabo::v1::Role role = sabo::v1::ROLE_UNSPECIFIED;
+  scene::Role scene_role = scene::Role::dem;
+  std::string role_name;
+  double beta = 1.0;
+  sabo::v1::Register registration;
+  sabo::v1::StepState state;
+  sabo::v1::StepForces forces;
+  protocol::SendBuffer buffer;
+  bool has_state = false;
+  bool said_goodbye = false;
+  sabo::v1::Goodbye goodbye;
+  double compute_seconds = 0;  // reported in StepState, summed
+  // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.
+  std::unique_ptr<RestartJournal> journal;
+  std::optional<std::uint64_t> checkpoint_step;  // the step of the checkpoint it was last asked for
+  bool catching_up = false;
+  std::uint64_t resumed_at = 0;  // step of the checkpoint its replacement started from
+  std::chrono::steady_clock::time_point restarted_wall;
+  std::size_t restarts = 0;
+};
+
+}  // namespace sabo::coupler
