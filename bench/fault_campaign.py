@@ -1,16 +1,19 @@
 #!/usr/bin/env python3
-"""Fault campaign of the one-solver restart (issue 19, part 5): a scene is run once undisturbed, then once
-per trial with one process killed by SIGKILL at a seeded random step. Each trial must complete (the
-supervisor restarts the process from its newest checkpoint, the coupler catches it up from its journal and
-checks every replayed state) and write output files byte for byte those of the undisturbed run.
+"""Fault campaign of the restarts (issue 19, part 5): a scene is run once undisturbed, then once per trial
+with one process killed by SIGKILL at a seeded random step. Each trial must complete and write output files
+byte for byte those of the undisturbed run: a killed solver is restarted from its newest checkpoint and the
+coupler catches it up from its journal, checking every replayed state; a killed coupler makes the supervisor
+resume every process from their newest common checkpoint (docs/restart.md).
 
     bench/fault_campaign.py                                  # boulders_chute, 10 kills per solver
     bench/fault_campaign.py --scene configs/sph_dam_break.toml --roles sph_solver --trials 10
     bench/fault_campaign.py --trials 2 --no-recording --json /tmp/faults.json
 
-Per role it prints: trials completed, trials identical, catch-up steps and seconds (the coupler's figures),
-the restart's wall time (kill to the replacement's registration), and how much longer the other processes
-waited than in the undisturbed run (summary.json's wait_seconds). Standard library only; runs the built
+Per role it prints: trials completed, trials identical, catch-up steps and seconds (the coupler's figures;
+for the coupler itself: the steps every process computes again, from the common checkpoint to the kill),
+the restart's wall time (kill to the replacement's registration, or to the resumed coupler's first
+step), and how much longer the other processes waited than in the undisturbed run (summary.json's
+wait_seconds). Standard library only; runs the built
 binaries of build/ (or $SABO_BUILD_DIR) through ./sabo run --no-setup.
 """
 import argparse
@@ -86,7 +89,9 @@ def trial(scene, out, role, at_step, timeout):
     sabo = start(scene, out)
     events_file = os.path.join(out, "coupler.events.jsonl")
     killed_at = None
+    killed_step = None
     registered_at = None
+    rejoined = "resumed" if role == "coupler" else "restarted"
     deadline = time.monotonic() + timeout
     while sabo.poll() is None and time.monotonic() < deadline:
         if killed_at is None:
@@ -95,22 +100,24 @@ def trial(scene, out, role, at_step, timeout):
                 try:
                     os.kill(read_json(os.path.join(out, "pids.json"))[role], signal.SIGKILL)
                     killed_at = time.monotonic()
+                    killed_step = steps[-1]
                 except (OSError, ValueError, KeyError):
                     pass
-        elif registered_at is None and any(e.get("event") == "restarted" for e in events(out)):
+        elif registered_at is None and any(e.get("event") == rejoined for e in events(out)):
             registered_at = time.monotonic()
         time.sleep(0.01 if os.path.exists(events_file) else 0.05)
     if sabo.poll() is None:
         sabo.send_signal(signal.SIGINT)
     output = sabo.communicate(timeout=60)[0]
-    return {"exit": sabo.returncode, "killed": killed_at is not None, "output": output,
+    return {"exit": sabo.returncode, "killed": killed_at is not None, "killed_step": killed_step, "output": output,
             "restart_wall_s": (registered_at - killed_at) if killed_at and registered_at else None}
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", default="configs/boulders_chute.toml")
-    parser.add_argument("--roles", default="dem_solver,fem_solver", help="comma-separated processes to kill")
+    parser.add_argument("--roles", default="dem_solver,fem_solver,coupler",
+                        help="comma-separated processes to kill (solvers of the scene, coupler)")
     parser.add_argument("--trials", type=int, default=10, help="kills per process")
     parser.add_argument("--seed", type=int, default=19)
     parser.add_argument("--timeout", type=float, default=900, help="s per run")
@@ -157,6 +164,10 @@ def main():
                 s = read_json(os.path.join(out, "summary.json"))
                 row["status"] = s.get("status")
                 row["restarts"] = s.get("restarts", [])
+                if role == "coupler":
+                    row["restarts"] = [{"process": "coupler", "from_step": r["from_step"],
+                                        "catch_up_steps": result["killed_step"] - r["from_step"]}
+                                       for r in s.get("resumes", []) if result["killed_step"] is not None]
                 trial_waits = waits(s)
                 row["others_extra_wait_s"] = {p: trial_waits[p] - reference_waits.get(p, 0.0)
                                               for p in trial_waits if p != role}
@@ -184,7 +195,7 @@ def main():
     for role, rows in figures["roles"].items():
         restarts = [r["restarts"][0] for r in rows if r["restarts"]]
         catch_steps = [x["catch_up_steps"] for x in restarts]
-        catch_s = [x["catch_up_seconds"] for x in restarts]
+        catch_s = [x["catch_up_seconds"] for x in restarts if "catch_up_seconds" in x]
         restart_s = [r["restart_wall_s"] for r in rows if r["restart_wall_s"] is not None]
         extra = [max(r["others_extra_wait_s"].values()) for r in rows if r.get("others_extra_wait_s")]
 

@@ -865,6 +865,7 @@ void Coupler::write_summary(const std::string& status) {
   const double wall = wall_before_ + seconds_since(start_wall_);
   json processes = json::object();
   processes["coupler"] = {{"contact_seconds", contact_seconds_},
+                          {"checkpoint_seconds", checkpoint_seconds_},
                           {"messaging_seconds", receive_seconds_ + send_seconds_},
                           {"wait_seconds", wait_seconds_ - receive_seconds_}};
   for (const auto& peer : peers_) {
@@ -873,6 +874,7 @@ void Coupler::write_summary(const std::string& status) {
         {"pid", peer->registration.pid()},
         {"name", peer->registration.name()},
         {"compute_seconds", have_goodbye ? peer->goodbye.compute_seconds() : peer->compute_seconds},
+        {"checkpoint_seconds", have_goodbye ? peer->goodbye.checkpoint_seconds() : 0.0},
         {"wait_seconds", have_goodbye ? peer->goodbye.wait_seconds() : peer->state.wait_seconds()},
         {"steps", have_goodbye ? peer->goodbye.steps() : steps_},
         {"exit", peer->said_goodbye ? peer->goodbye.reason() : std::string("no goodbye")}};

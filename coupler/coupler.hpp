@@ -172,6 +172,7 @@ class Coupler {
   std::optional<std::uint64_t> resume_step_;  // the step the run resumes at
   bool bound_ = false;                        // the endpoint is bound: the run has started
   std::uint64_t checkpoint_failures_ = 0;     // coupler checkpoints that could not be written
+  double checkpoint_seconds_ = 0;             // wall time writing them (traffic.h5's flush included)
   double dt_previous_ = 0;                    // s, dt_{n-1}
   std::string surface_topology_;              // the FEM surface's newest topology (serialized), if it changed
   double wall_before_ = 0;                    // s of wall time of the run before it was resumed

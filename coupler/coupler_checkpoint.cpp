@@ -27,6 +27,7 @@ std::string pair_group_name(std::size_t index, const std::string& name) {
 }  // namespace
 
 void Coupler::write_checkpoint(std::uint64_t step) {
+  const auto start = std::chrono::steady_clock::now();
   if (recorder_) recorder_->flush();
   // A checkpoint is a safety net, not part of the answer: one that cannot be written (no descriptor left, a
   // full disk) is reported and the run goes on; a resume then starts from an older one.
@@ -39,6 +40,7 @@ void Coupler::write_checkpoint(std::uint64_t step) {
         "an earlier checkpoint): {}",
         step, error.what());
   }
+  checkpoint_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 void Coupler::write_checkpoint_file(std::uint64_t step) {
@@ -73,6 +75,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     stats.set_attribute("send_seconds", send_seconds_);
     stats.set_attribute("wait_seconds", wait_seconds_);
     stats.set_attribute("critical_compute_seconds", critical_compute_seconds_);
+    stats.set_attribute("checkpoint_seconds", checkpoint_seconds_);
     stats.set_attribute(
         "wall_seconds",
         wall_before_ + std::chrono::duration<double>(std::chrono::steady_clock::now() - start_wall_).count());
@@ -184,6 +187,7 @@ void Coupler::restore_state() {
   send_seconds_ = stats.double_attribute("send_seconds");
   wait_seconds_ = stats.double_attribute("wait_seconds");
   critical_compute_seconds_ = stats.double_attribute("critical_compute_seconds");
+  checkpoint_seconds_ = stats.double_attribute("checkpoint_seconds");
   wall_before_ = stats.double_attribute("wall_seconds");
   bytes_received_before_ = static_cast<std::uint64_t>(stats.int_attribute("bytes_received"));
   bytes_sent_before_ = static_cast<std::uint64_t>(stats.int_attribute("bytes_sent"));

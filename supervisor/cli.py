@@ -99,6 +99,9 @@ def build_parser():
     replay_parser.add_argument("--resume", metavar="CHECKPOINT",
                                help="start the solver from this checkpoint (RUN_DIR/checkpoints/<role>_<step>.h5) "
                                     "and replay from its step")
+    replay_parser.add_argument("--steps", metavar="A:B",
+                               help="replay the window of steps A to B: a solver starts from its newest checkpoint "
+                                    "at or before A (from step 0 when none is kept), and the replay ends at B")
     replay_parser.add_argument("--out", metavar="DIR", help="the replay's folder (default: RUN_DIR/replay/ROLE-<time>)")
     replay_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
 

@@ -111,12 +111,18 @@ def command_replay(root, build_dir, args):
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
     if scene_text.returncode != 0:
         raise SaboError(scene_text.stderr.strip() or "sabo_replay could not read {}".format(traffic), EXIT_BAD_INPUT)
-    recorded_scene = _recorded_scene_path(run_dir)
+    recorded_scene = run_folder.run_scene(run_dir)
     resume = os.path.abspath(args.resume) if args.resume else None
+    window = _parse_steps(args.steps) if args.steps else None
+    if window is not None:
+        if resume:
+            raise SaboError("--steps and --resume: --steps picks the newest checkpoint at or before its first step "
+                            "itself; give one of them", EXIT_BAD_INPUT)
+        resume = _window_checkpoint(run_dir, role, window[0], bool(args.set))
     if resume:
         # A checkpoint belongs to the scene file it was written with (its digest): replay with that file.
         if role == "coupler":
-            raise SaboError("--resume: the coupler is replayed from step 0 (its own restart is not built yet); "
+            raise SaboError("--resume: the coupler is replayed from step 0 (a replay of it does not resume); "
                             "give --resume with sph, dem or fem", EXIT_BAD_INPUT)
         if args.set:
             raise SaboError("--resume with --set: a checkpoint continues the scene it was written with, unchanged; "
@@ -156,6 +162,8 @@ def command_replay(root, build_dir, args):
                     "--json", os.path.join(folder, "replay.json")]
     for field, values in merged.items():
         tool_command += ["--tolerance", "{}={}:{}".format(field, values["rtol"], values["atol"])]
+    if window is not None and window[1] is not None:
+        tool_command += ["--until", str(window[1])]
     if role != "coupler":
         tool_command += ["--role", role]
         process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", os.path.join(folder, "out")]
@@ -202,12 +210,36 @@ def command_replay(root, build_dir, args):
     return code
 
 
-def _recorded_scene_path(run_dir):
-    """The path of the scene the run was started with (summary.json), or None."""
-    import json
+def _parse_steps(text):
+    """(first, last or None) of `--steps A:B` (A: and :B allowed); SaboError (exit 2) when malformed."""
+    first, colon, last = text.partition(":")
     try:
-        with open(os.path.join(run_dir, "summary.json"), encoding="utf-8") as handle:
-            scene = json.load(handle).get("scene")
-    except (OSError, ValueError):
+        window = (int(first) if first.strip() else 0, int(last) if last.strip() else None)
+    except ValueError:
+        window = None
+    if not colon or window is None or window[0] < 0 or (window[1] is not None and window[1] < window[0]):
+        raise SaboError("--steps {}: expected A:B with 0 <= A <= B (A: to the end, :B from the start), e.g. "
+                        "--steps 1200:1300".format(text), EXIT_BAD_INPUT)
+    return window
+
+
+def _window_checkpoint(run_dir, role, first, changed_scene):
+    """The checkpoint a window starting at step `first` replays from: `role`'s newest at or before it, or None
+    (from step 0), said on stderr."""
+    if role == "coupler":
+        print("sabo: --steps: the coupler is replayed from step 0 (a replay of it does not resume)", file=sys.stderr)
         return None
-    return scene if isinstance(scene, str) and scene else None
+    found = run_folder.checkpoints(run_dir, role)
+    usable = [step for step in found if step <= first]
+    if not usable:
+        kept = ", ".join(str(step) for step in sorted(found)) or "none"
+        print("sabo: --steps: no checkpoint of the {} at or before step {} is kept (kept: {}): the replay starts "
+              "at step 0".format(role, first, kept), file=sys.stderr)
+        return None
+    if changed_scene:
+        print("sabo: --steps with --set: a checkpoint continues the scene it was written with: the replay starts "
+              "at step 0", file=sys.stderr)
+        return None
+    step = max(usable)
+    print("sabo: --steps: the {} resumes from its checkpoint of step {}".format(role, step), file=sys.stderr)
+    return found[step]

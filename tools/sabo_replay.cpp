@@ -122,15 +122,26 @@ void finish_report(const protocol::MessageComparison& comparison, const std::str
 }
 
 // Plays the coupler for one solver.
+// The steps up to `until` (a window's last step), or all; FileError when the recording has none of them.
+std::vector<std::uint64_t> up_to(std::vector<std::uint64_t> steps, std::optional<std::uint64_t> until) {
+  if (!until) return steps;
+  if (steps.empty() || *until < steps.front()) {
+    throw FileError(fmt::format("--until {}: the recording's steps start at {}", *until,
+                                steps.empty() ? std::string("(none)") : std::to_string(steps.front())));
+  }
+  steps.erase(std::upper_bound(steps.begin(), steps.end(), *until), steps.end());
+  return steps;
+}
+
 int replay_solver(const io::TrafficReader& traffic, const std::string& role, const std::string& endpoint,
                   protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s,
-                  std::optional<std::uint64_t> resume_step) {
-  auto steps = contiguous_steps(traffic, role);
+                  std::optional<std::uint64_t> resume_step, std::optional<std::uint64_t> until) {
+  auto steps = up_to(contiguous_steps(traffic, role), until);
   if (resume_step) {
     // A solver restarted from its checkpoint of step n: the recording from step n on, as a coupler's catch-up.
     if (*resume_step > steps.back()) {
-      throw FileError(fmt::format("the checkpoint is of step {}, the recording of {} ends at step {}", *resume_step,
-                                  role, steps.back()));
+      throw FileError(fmt::format("the checkpoint is of step {}, the replay of {} ends at step {}", *resume_step, role,
+                                  steps.back()));
     }
     steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
   }
@@ -196,7 +207,7 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
       inbound.parse(state);
       comparison.compare_states(recorded_registration, traffic.state(role, step), state);
       sabo::v1::StepForces forces = traffic.forces(role, step);
-      if (step == steps.back()) forces.set_stop(true);  // a recording that ends before the run did
+      if (step == steps.back()) forces.set_stop(true);  // a recording (or a window) that ends before the run did
       socket.send(forces, peer);
     }
     wait(sabo::v1::MESSAGE_TYPE_GOODBYE, "its Goodbye");
@@ -210,7 +221,8 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
 
 // Plays every solver for a coupler.
 int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint,
-                   protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s) {
+                   protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s,
+                   std::optional<std::uint64_t> until) {
   std::vector<std::string> roles = traffic.roles();
   require_fields(traffic, io::traffic_field_names(), "the coupler computes from");
   std::vector<std::uint64_t> steps;
@@ -218,6 +230,7 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
     const auto s = contiguous_steps(traffic, role);
     steps = steps.empty() ? s : (s.size() < steps.size() ? s : steps);
   }
+  steps = up_to(std::move(steps), until);
   zmq::context_t context(1);
   struct Solver {
     std::string role;
@@ -286,6 +299,7 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
 int main(int argc, char** argv) {
   CLI::App app("sabo_replay: replay traffic.h5 against one process and compare, field by field", "sabo_replay");
   std::string traffic_file, role, endpoint, json_file;
+  std::optional<std::uint64_t> until;
   std::vector<std::string> tolerances;
   double timeout_s = 60;
   auto* scene = app.add_subcommand("scene", "print the recorded scene");
@@ -299,6 +313,7 @@ int main(int argc, char** argv) {
     sub->add_option("--tolerance", tolerances, "FIELD=RTOL[:ATOL], repeatable (default: exact)");
     sub->add_option("--json", json_file, "also write the report as JSON to this file");
     sub->add_option("--timeout", timeout_s, "seconds to wait for any one message")->capture_default_str();
+    sub->add_option("--until", until, "the last step to replay (the end of a --steps window)");
   }
   solver->add_option("--role", role, "sph_solver, dem_solver or fem_solver")->required();
   std::string resume_file;
@@ -330,8 +345,10 @@ int main(int argc, char** argv) {
         return kBadInput;
       }
     }
-    if (solver->parsed()) return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step);
-    return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s);
+    if (solver->parsed()) {
+      return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step, until);
+    }
+    return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s, until);
   } catch (const StopRequested& stop) {
     fmt::print(stderr, "sabo_replay: {}\n", stop.what());
     return 130;

@@ -413,6 +413,12 @@ bool SurfaceContact::shares_node(std::uint32_t face_a, std::uint32_t face_b) con
   return false;
 }
 
+Vec3 SurfaceContact::surface_velocity_at(const Hit& hit) const {
+  const auto& tri = surface_.triangle[hit.face];
+  const auto& w = hit.closest.weight;
+  return w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
+}
+
 SurfaceContact::FeatureKey SurfaceContact::feature_key(const Hit& hit) const {
   const auto& tri = surface_.triangle[hit.face];
   FeatureKey key;
@@ -536,13 +542,9 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     if (std::any_of(previous.begin(), previous.end(), [&](const HistoryEntry& e) { return e.key == key; })) {
       return true;
     }
-    const auto& tri = surface_.triangle[hit.face];
-    const auto& w = hit.closest.weight;
-    const Vec3 surface_velocity =
-        w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
     const Vec3& n = face_normal_[hit.face];
-    const double height = (centre - surface_.node_position[tri[0]]).dot(n);
-    return height - (velocity - surface_velocity).dot(n) * dt_previous >= 0;
+    const double height = (centre - surface_.node_position[surface_.triangle[hit.face][0]]).dot(n);
+    return height - (velocity - surface_velocity_at(hit)).dot(n) * dt_previous >= 0;
   };
 
   // Contacts: in reach, not behind a one-sided face unless it is the nearest or the particle went through
@@ -678,11 +680,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
 
     const Vec3& n = hit.gap.normal;
     const Vec3 lever = -radius * n;  // centre to the particle's contact point
-    const auto& tri = surface_.triangle[hit.face];
-    const auto& w = hit.closest.weight;
-    const Vec3 surface_velocity =
-        w[0] * node_velocity_[tri[0]] + w[1] * node_velocity_[tri[1]] + w[2] * node_velocity_[tri[2]];
-    const Vec3 relative_velocity = velocity + spin.cross(lever) - surface_velocity;
+    const Vec3 relative_velocity = velocity + spin.cross(lever) - surface_velocity_at(hit);
     physics::TangentialHistory spring{scratch.displacement[c]};
     contact.normal_offset = std::min(scratch.normal_offset[c], hit.gap.overlap);
     const double spring_overlap = hit.gap.overlap - contact.normal_offset;

@@ -322,6 +322,8 @@ class SurfaceContact {
                                               double depth, bool point, Scratch& scratch) const;
   [[nodiscard]] bool shares_node(std::uint32_t face_a, std::uint32_t face_b) const;
   [[nodiscard]] FeatureKey feature_key(const Hit& hit) const;
+  // The surface's velocity at a hit's closest point (its nodes' velocities, weighted barycentrically), m/s.
+  [[nodiscard]] Vec3 surface_velocity_at(const Hit& hit) const;
   void process_particle(std::size_t i, const ParticleView& particles, double dt_previous, Scratch& scratch,
                         ParticleResult& result, ContactOutput& out) const;
 

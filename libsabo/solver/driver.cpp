@@ -167,6 +167,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
 
   sabo::v1::Goodbye goodbye;
   double compute_seconds = 0;
+  double checkpoint_seconds = 0;
   int exit_code = 0;
   try {
     const auto& reply = link.register_solver(registration);
@@ -206,6 +207,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       time += forces.dt();
       dt_previous = forces.dt();
       if (forces.checkpoint() && solver.can_checkpoint()) {
+        const auto checkpoint_start = Clock::now();
         checkpoints.write(step + 1, time, [&](io::hdf5::File& file) {
           file.set_attribute("dt_previous", dt_previous);
           io::hdf5::Group driver = file.create_group("driver");
@@ -213,6 +215,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
           io::hdf5::Group group = file.create_group("solver");
           solver.save_checkpoint(group);
         });
+        checkpoint_seconds += seconds_since(checkpoint_start);
       }
       compute_since_last = overlapped + seconds_since(start);
       compute_seconds += compute_since_last;
@@ -236,6 +239,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   }
   goodbye.set_steps(step);
   goodbye.set_compute_seconds(compute_seconds);
+  goodbye.set_checkpoint_seconds(checkpoint_seconds);
   goodbye.set_wait_seconds(link.wait_seconds());
   if (exit_code != 1) link.send_goodbye(goodbye);
   spdlog::info("compute {:.3f} s, waiting for the coupler {:.3f} s", compute_seconds, link.wait_seconds());

@@ -49,6 +49,31 @@ class ReplayTest(RealRunTestCase):
             self.assertIn("every field matches", out)
         self.assertNoProcessLeft(run, pids_file=False)
 
+    def test_a_window_of_steps_starts_from_the_newest_checkpoint_before_it(self):
+        run = self.recorded_run()
+        kept = sorted(int(name.split("_")[-1][:-3]) for name in os.listdir(os.path.join(run, "checkpoints"))
+                      if name.startswith("dem_solver_"))
+        self.assertEqual(len(kept), 2)
+        first, last = kept[-1] + 2, kept[-1] + 6
+        for role in ("dem", "sph", "fem"):
+            code, out, err = self.replay(run, role, ["--steps", "{}:{}".format(first, last)])
+            print("replay {} --steps {}:{}: exit {}; {}".format(role, first, last, code, out.splitlines()[0]))
+            self.assertEqual(code, 0, out + err)
+            self.assertIn("resumes from its checkpoint of step {}".format(kept[-1]), err)
+            self.assertIn("every field matches over {} steps".format(last - kept[-1] + 1), out)
+        # Before every kept checkpoint: from step 0. The coupler's window always starts there.
+        code, out, err = self.replay(run, "dem", ["--steps", "3:7"])
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("no checkpoint of the dem_solver at or before step 3 is kept", err)
+        self.assertIn("every field matches over 8 steps", out)
+        code, out, err = self.replay(run, "coupler", ["--steps", ":20"])
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("every field matches over 21 steps", out)
+        code, out, err = self.replay(run, "dem", ["--steps", "9:4"])
+        self.assertEqual(code, 2)
+        self.assertIn("--steps 9:4: expected A:B with 0 <= A <= B", err)
+        self.assertNoProcessLeft(run, pids_file=False)
+
     def test_a_changed_parameter_is_reported_where_it_first_diverges(self):
         run = self.recorded_run()
         code, out, err = self.replay(run, "dem", ["--set", "materials.granite.density=2700.0"])

@@ -71,6 +71,8 @@ class SphDemHarness {
   // submerged weight when the fluid carries no hydrostatic pressure); counted with gravity's impulse.
   void set_sphere_body_force(std::size_t j, const Vec3& force) {
     body_force_.resize(3 * dem_.size(), 0.0);
+    body_index_.resize(dem_.size());
+    for (std::size_t k = 0; k < body_index_.size(); ++k) body_index_[k] = static_cast<std::uint32_t>(k);
     for (int c = 0; c < 3; ++c) body_force_.at(3 * j + c) = force[c];
   }
   // Energy of both models (kinetic, potential, elastic; the SPH's held wall work and the
@@ -113,12 +115,7 @@ class SphDemHarness {
     const auto& dem_index = dem_state_.index();
     dem_.add_external_forces({dem_index.data(), static_cast<std::size_t>(dem_index.size())},
                              replies_.particle_force(scene::Role::dem), replies_.particle_torque(scene::Role::dem));
-    if (!body_force_.empty()) {
-      if (body_index_.empty()) {
-        for (std::size_t j = 0; j < dem_.size(); ++j) body_index_.push_back(static_cast<std::uint32_t>(j));
-      }
-      dem_.add_external_forces(body_index_, body_force_, {});
-    }
+    if (!body_force_.empty()) dem_.add_external_forces(body_index_, body_force_, {});
     dem_seconds_ += since(start);
 
     // The impulses of this step act over dt_avg, as both models integrate them.
