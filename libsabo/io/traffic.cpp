@@ -608,14 +608,27 @@ class StreamReader {
                     steps_.empty() ? std::string() : fmt::format(", from {} to {}", steps_.front(), steps_.back())));
   }
 
+  // A per-message value (a scalar, an offset, a count). The per-message datasets are read whole on first use
+  // and kept: a replay reads every message in turn, and one HDF5 read per value cost more than the replayed
+  // process's step.
   template <hdf5::Element T>
   T scalar(const std::string& name, std::uint64_t entry, std::uint64_t per_entry = 1, std::uint64_t at = 0) const {
-    T value{};
-    dataset(name).read<T>(entry * per_entry + at, std::span<T>(&value, 1));
-    return value;
+    auto& cache = cache_of<T>();
+    auto found = cache.find(name);
+    if (found == cache.end()) found = cache.emplace(name, dataset(name).template read_all<T>()).first;
+    const std::uint64_t index = entry * per_entry + at;
+    if (index >= found->second.size()) {
+      throw FileError(fmt::format("{}: {} holds {} values, message {} needs value {}. Fix: the file is damaged", what_,
+                                  name, found->second.size(), entry, index));
+    }
+    return found->second[index];
   }
 
-  [[nodiscard]] bool has(const std::string& name) const { return group_.exists(name); }
+  [[nodiscard]] bool has(const std::string& name) const {
+    auto found = present_.find(name);
+    if (found == present_.end()) found = present_.emplace(name, group_.exists(name)).first;
+    return found->second;
+  }
 
   // Reads the slice of array field `name` for `entry` into `out`; leaves it
   // empty when the field was not recorded.
@@ -625,15 +638,15 @@ class StreamReader {
     const auto offset = scalar<std::uint64_t>(name + "_offset", entry);
     const auto count = scalar<std::uint64_t>(name + "_count", entry);
     out->Resize(static_cast<int>(count), T{});
-    dataset(name).read<T>(offset, std::span<T>(out->mutable_data(), count));
+    read_values<T>(name, offset, std::span<T>(out->mutable_data(), count));
   }
 
   [[nodiscard]] std::string bytes(const std::string& name, std::uint64_t entry) const {
     const auto offset = scalar<std::uint64_t>(name + "_offset", entry);
     const auto count = scalar<std::uint64_t>(name + "_count", entry);
     std::string text(count, '\0');
-    dataset(name).read<std::uint8_t>(offset,
-                                     std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(text.data()), count));
+    read_values<std::uint8_t>(name, offset,
+                              std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(text.data()), count));
     return text;
   }
 
@@ -646,11 +659,65 @@ class StreamReader {
     return found->second;
   }
 
+  // Values [offset, offset + out.size()) of a field dataset, through a window read ahead: messages are read in
+  // turn, so one HDF5 read serves many of them.
+  template <hdf5::Element T>
+  void read_values(const std::string& name, std::uint64_t offset, std::span<T> out) const {
+    if (out.empty()) return;
+    constexpr std::uint64_t kReadAhead = std::uint64_t{1} << 16;  // values
+    auto& window = windows_of<T>()[name];
+    const std::uint64_t end = offset + out.size();
+    if (offset < window.start || end > window.start + window.values.size()) {
+      const hdf5::Dataset& data = dataset(name);
+      const std::uint64_t size = data.size();
+      if (end > size) {
+        throw FileError(
+            fmt::format("{}: {} holds {} values, a message needs values {} to {}. Fix: the file is "
+                        "damaged",
+                        what_, name, size, offset, end));
+      }
+      window.start = offset;
+      window.values.resize(std::min(size, offset + std::max<std::uint64_t>(out.size(), kReadAhead)) - offset);
+      data.read<T>(offset, std::span<T>(window.values));
+    }
+    std::copy_n(window.values.begin() + static_cast<std::ptrdiff_t>(offset - window.start), out.size(), out.begin());
+  }
+
+  template <hdf5::Element T>
+  struct Window {
+    std::uint64_t start = 0;
+    std::vector<T> values;
+  };
+  template <hdf5::Element T>
+  std::map<std::string, Window<T>, std::less<>>& windows_of() const {
+    if constexpr (std::same_as<T, double>) return double_windows_;
+    if constexpr (std::same_as<T, std::uint64_t>) return count_windows_;
+    if constexpr (std::same_as<T, std::uint32_t>) return index_windows_;
+    if constexpr (std::same_as<T, std::uint8_t>) return byte_windows_;
+  }
+
+  template <hdf5::Element T>
+  std::map<std::string, std::vector<T>, std::less<>>& cache_of() const {
+    if constexpr (std::same_as<T, double>) return doubles_;
+    if constexpr (std::same_as<T, std::uint64_t>) return counts_;
+    if constexpr (std::same_as<T, std::uint32_t>) return indices_;
+    if constexpr (std::same_as<T, std::uint8_t>) return bytes_;
+  }
+
   hdf5::Group group_;
   std::string what_;
   std::vector<std::uint64_t> steps_;
   bool sorted_ = true;
   mutable std::map<std::string, hdf5::Dataset, std::less<>> datasets_;
+  mutable std::map<std::string, bool, std::less<>> present_;  // which fields were recorded
+  mutable std::map<std::string, std::vector<double>, std::less<>> doubles_;
+  mutable std::map<std::string, std::vector<std::uint64_t>, std::less<>> counts_;
+  mutable std::map<std::string, std::vector<std::uint32_t>, std::less<>> indices_;
+  mutable std::map<std::string, std::vector<std::uint8_t>, std::less<>> bytes_;
+  mutable std::map<std::string, Window<double>, std::less<>> double_windows_;
+  mutable std::map<std::string, Window<std::uint64_t>, std::less<>> count_windows_;
+  mutable std::map<std::string, Window<std::uint32_t>, std::less<>> index_windows_;
+  mutable std::map<std::string, Window<std::uint8_t>, std::less<>> byte_windows_;
 };
 
 struct RoleReader {

@@ -111,41 +111,48 @@ void MessageComparison::scalar(std::uint64_t step, double time, const std::strin
 template <class Values>
 void MessageComparison::compare_values(std::uint64_t step, double time, const std::string& field,
                                        const Values& recorded, const Values& replayed, int per_entity,
-                                       const std::vector<std::string>& entity_names) {
+                                       const EntityName& entity_name) {
   if (skipped(field)) return;
   if (recorded.size() != replayed.size()) {
     structural(step, time, field, fmt::format("{} values recorded, {} replayed", recorded.size(), replayed.size()));
     return;
   }
+  FieldSummary& summary = fields_[field];
   for (int k = 0; k < recorded.size(); ++k) {
+    const auto a = static_cast<double>(recorded[k]);
+    const auto b = static_cast<double>(replayed[k]);
+    if (a == b) {  // the usual case, counted here: the rest of scalar()'s work is for values that differ
+      ++summary.compared;
+      continue;
+    }
     const auto e = static_cast<std::size_t>(k / per_entity);
-    const std::string name = e < entity_names.size() ? entity_names[e] : fmt::format("entry {}", e);
     const std::size_t before = first_ ? 1 : 0;
-    scalar(step, time, field, name, static_cast<double>(recorded[k]), static_cast<double>(replayed[k]));
+    scalar(step, time, field, entity_name(e), a, b);
     if (before == 0 && first_ && first_->field == field && first_->step == step && per_entity == 3) {
       first_->component = k % 3;
     }
   }
 }
 
-std::vector<std::string> MessageComparison::particle_names(
-    const sabo::v1::Register& registration, const google::protobuf::RepeatedField<std::uint32_t>& index) const {
-  std::vector<std::string> names;
-  names.reserve(static_cast<std::size_t>(index.size()));
-  const auto& table = registration.particles();
-  for (const std::uint32_t i : index) {
-    names.push_back(i < static_cast<std::uint32_t>(table.id_size())
-                        ? fmt::format("particle {}", table.id(static_cast<int>(i)))
-                        : fmt::format("particle index {}", i));
-  }
-  return names;
+MessageComparison::EntityName MessageComparison::particle_names(
+    const sabo::v1::Register& registration, const google::protobuf::RepeatedField<std::uint32_t>& index) {
+  return [&registration, &index](std::size_t e) {
+    if (e >= static_cast<std::size_t>(index.size())) return fmt::format("entry {}", e);
+    const std::uint32_t i = index[static_cast<int>(e)];
+    const auto& table = registration.particles();
+    return i < static_cast<std::uint32_t>(table.id_size()) ? fmt::format("particle {}", table.id(static_cast<int>(i)))
+                                                           : fmt::format("particle index {}", i);
+  };
 }
 
-std::vector<std::string> MessageComparison::node_names() const {
-  std::vector<std::string> names;
-  names.reserve(node_ids_.size());
-  for (const std::uint64_t id : node_ids_) names.push_back(fmt::format("node {}", id));
-  return names;
+MessageComparison::EntityName MessageComparison::node_names() const {
+  return [this](std::size_t e) {
+    return e < node_ids_.size() ? fmt::format("node {}", node_ids_[e]) : fmt::format("entry {}", e);
+  };
+}
+
+MessageComparison::EntityName MessageComparison::numbered(const char* what) {
+  return [what](std::size_t e) { return fmt::format("{} {}", what, e); };
 }
 
 void MessageComparison::compare_states(const sabo::v1::Register& registration, const sabo::v1::StepState& recorded,
@@ -189,10 +196,8 @@ void MessageComparison::compare_states(const sabo::v1::Register& registration, c
   const auto nodes = node_names();
   compare_values(step, time, "node_position", recorded.node_position(), replayed.node_position(), 3, nodes);
   compare_values(step, time, "node_velocity", recorded.node_velocity(), replayed.node_velocity(), 3, nodes);
-  std::vector<std::string> boundary;
-  for (int k = 0; k < recorded.boundary_force_size() / 3; ++k)
-    boundary.push_back(fmt::format("boundary particle {}", k));
-  compare_values(step, time, "boundary_force", recorded.boundary_force(), replayed.boundary_force(), 3, boundary);
+  compare_values(step, time, "boundary_force", recorded.boundary_force(), replayed.boundary_force(), 3,
+                 numbered("boundary particle"));
   if (recorded.has_boundary_step() != replayed.has_boundary_step() ||
       recorded.boundary_step() != replayed.boundary_step()) {
     structural(step, time, "boundary_step", "the step whose wall particles the forces answer differs");
@@ -238,13 +243,10 @@ void MessageComparison::compare_forces(const sabo::v1::Register& registration, c
     for (const auto& b : list->interest())
       out.insert(out.end(), {b.min_x(), b.min_y(), b.min_z(), b.max_x(), b.max_y(), b.max_z()});
   }
-  std::vector<std::string> box_names;
-  for (std::size_t k = 0; k < boxes_recorded.size() / 6; ++k) box_names.push_back(fmt::format("box {}", k));
   google::protobuf::RepeatedField<double> rb(boxes_recorded.begin(), boxes_recorded.end()),
       pb(boxes_replayed.begin(), boxes_replayed.end());
-  compare_values(step, time, "interest", rb, pb, 6, box_names);
-  std::vector<std::string> boundary;
-  for (int k = 0; k < recorded.boundary_volume_size(); ++k) boundary.push_back(fmt::format("boundary particle {}", k));
+  compare_values(step, time, "interest", rb, pb, 6, numbered("box"));
+  const EntityName boundary = numbered("boundary particle");
   compare_values(step, time, "boundary_position", recorded.boundary_position(), replayed.boundary_position(), 3,
                  boundary);
   compare_values(step, time, "boundary_velocity", recorded.boundary_velocity(), replayed.boundary_velocity(), 3,

@@ -8,6 +8,7 @@
 // a particle by its particle-table id, a surface node by its node id, a
 // boundary particle by its place in the list, an energy by its name.
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -72,17 +73,21 @@ class MessageComparison {
   [[nodiscard]] nlohmann::json json() const;
 
  private:
+  // The name of entity e of a field ("particle 12", "node 40"), made only for a value that differs.
+  using EntityName = std::function<std::string(std::size_t)>;
   template <class Values>
   void compare_values(std::uint64_t step, double time, const std::string& field, const Values& recorded,
-                      const Values& replayed, int per_entity, const std::vector<std::string>& entity_names);
+                      const Values& replayed, int per_entity, const EntityName& entity_name);
   void structural(std::uint64_t step, double time, const std::string& field, const std::string& note);
   void scalar(std::uint64_t step, double time, const std::string& field, const std::string& entity, double recorded,
               double replayed);
   [[nodiscard]] Tolerance tolerance(const std::string& field) const;
   void count_step(std::uint64_t step);
-  [[nodiscard]] std::vector<std::string> particle_names(
-      const sabo::v1::Register& registration, const google::protobuf::RepeatedField<std::uint32_t>& index) const;
-  [[nodiscard]] std::vector<std::string> node_names() const;
+  // Both refer to `registration` and `index`, which must outlive them.
+  [[nodiscard]] static EntityName particle_names(const sabo::v1::Register& registration,
+                                                 const google::protobuf::RepeatedField<std::uint32_t>& index);
+  [[nodiscard]] EntityName node_names() const;
+  [[nodiscard]] static EntityName numbered(const char* what);
 
   [[nodiscard]] bool skipped(const std::string& field) const { return skipped_.count(field) != 0; }
 
