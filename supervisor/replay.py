@@ -114,6 +114,7 @@ def command_replay(root, build_dir, args):
     recorded_scene = run_folder.run_scene(run_dir)
     resume = os.path.abspath(args.resume) if args.resume else None
     window = _parse_steps(args.steps) if args.steps else None
+    taken = _taken_roles(args.take, role) if args.take else None
     if window is not None:
         if resume:
             raise SaboError("--steps and --resume: --steps picks the newest checkpoint at or before its first step "
@@ -168,6 +169,12 @@ def command_replay(root, build_dir, args):
         tool_command += ["--tolerance", "{}={}:{}".format(field, values["rtol"], values["atol"])]
     if window is not None and window[1] is not None:
         tool_command += ["--until", str(window[1])]
+    live = []
+    if taken is not None:
+        tool_command += ["--play"] + taken
+        live = [(spec, list(spec.command) + ["--scene", scene, "--coupler", endpoint, "--out",
+                                             os.path.join(folder, "out")])
+                for spec in plan.solvers if spec.role not in taken]
     if role != "coupler":
         tool_command += ["--role", role]
         process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", os.path.join(folder, "out")]
@@ -194,6 +201,9 @@ def command_replay(root, build_dir, args):
             time.sleep(0.3)
             tool_process = start_process("replay", tool_command, folder, replay_log, stdout_to_pipe=True)
             started.append(tool_process)
+            for spec, live_command in live:  # --take: the solvers not taken from the recording run live
+                started.append(start_process(spec.role, live_command, folder,
+                                             os.path.join(folder, "{}.log".format(spec.role)), stdout_to_pipe=False))
         report, _ = tool_process.popen.communicate()
         code = tool_process.returncode
     finally:
@@ -212,6 +222,22 @@ def command_replay(root, build_dir, args):
         except OSError:
             pass
     return code
+
+
+def _taken_roles(names, role):
+    """The solver roles of `--take NAME...` (ROLE = coupler: played from the recording, the others live)."""
+    if role != "coupler":
+        raise SaboError("--take with the {}: feeding recorded fields into a live solver is not built; with ROLE = "
+                        "coupler, --take names the solvers played from the recording while the others run "
+                        "live".format(role), EXIT_BAD_INPUT)
+    taken = []
+    for name in names:
+        solver = ROLES.get(name, name)
+        if solver not in ("sph_solver", "dem_solver", "fem_solver"):
+            raise SaboError("--take {}: expected solvers to play from the recording (sph, dem, fem)".format(name),
+                            EXIT_BAD_INPUT)
+        taken.append(solver)
+    return taken
 
 
 def _without_recording(text):

@@ -11,6 +11,7 @@
 // Exit status: 0 everything matches, 1 a divergence (the first is printed, then a table per field), 2 bad
 // input (a recording that lacks what replay needs, a command line error), 3 the process failed or went silent.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -222,8 +223,18 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
 // Plays every solver for a coupler.
 int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint,
                    protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s,
-                   std::optional<std::uint64_t> until) {
+                   std::optional<std::uint64_t> until, const std::vector<std::string>& played) {
+  // The solvers played from the recording: all, or those named (the others run live against the coupler).
   std::vector<std::string> roles = traffic.roles();
+  if (!played.empty()) {
+    for (const auto& role : played) {
+      if (std::find(roles.begin(), roles.end(), role) == roles.end()) {
+        throw FileError(
+            fmt::format("--play {}: the recording has no such role (it has {})", role, fmt::join(roles, ", ")));
+      }
+    }
+    roles = played;
+  }
   require_fields(traffic, io::traffic_field_names(), "the coupler computes from");
   std::vector<std::uint64_t> steps;
   for (const auto& role : roles) {
@@ -330,6 +341,9 @@ int main(int argc, char** argv) {
     sub->add_option("--until", until, "the last step to replay (the end of a --steps window)");
   }
   solver->add_option("--role", role, "sph_solver, dem_solver or fem_solver")->required();
+  std::vector<std::string> played;
+  coupler->add_option("--play", played,
+                      "the roles to play from the recording (default: every one; the others run live)");
   std::string resume_file;
   solver->add_option("--resume", resume_file,
                      "the checkpoint the solver was started from (--resume of the solver): replay from its step");
@@ -362,7 +376,7 @@ int main(int argc, char** argv) {
     if (solver->parsed()) {
       return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step, until);
     }
-    return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s, until);
+    return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s, until, played);
   } catch (const StopRequested& stop) {
     fmt::print(stderr, "sabo_replay: {}\n", stop.what());
     return 130;

@@ -74,6 +74,28 @@ class ReplayTest(RealRunTestCase):
         self.assertIn("--steps 9:4: expected A:B with 0 <= A <= B", err)
         self.assertNoProcessLeft(run, pids_file=False)
 
+    def test_the_coupler_with_one_solver_taken_from_the_recording_and_the_others_live(self):
+        run = self.recorded_run()
+        code, out, err = self.replay(run, "coupler", ["--take", "dem"])
+        print("replay coupler --take dem: exit {}; {}".format(code, out.splitlines()[0] if out else err))
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("every field matches over 85 steps", out)
+        folder = os.path.dirname(self.report_of(run, "coupler"))
+        self.assertTrue(os.path.isfile(os.path.join(folder, "sph_solver.log")), "the sph_solver ran live")
+        self.assertTrue(os.path.isfile(os.path.join(folder, "fem_solver.log")), "the fem_solver ran live")
+        self.assertFalse(os.path.exists(os.path.join(folder, "dem_solver.log")), "the dem_solver was played")
+        # The live solvers with a heavier boulder (the DEM's material): the coupler's answer to the played sph
+        # and fem diverges.
+        code, out, err = self.replay(run, "coupler", ["--take", "sph", "fem", "--set",
+                                                       "materials.granite.density=2700.0"])
+        print(out.splitlines()[0] if out else err)
+        self.assertEqual(code, 1, out + err)
+        self.assertIn("first divergence", out)
+        code, out, err = self.replay(run, "dem", ["--take", "position"])
+        self.assertEqual(code, 2)
+        self.assertIn("--take with the dem_solver: feeding recorded fields into a live solver is not built", err)
+        self.assertNoProcessLeft(run, pids_file=False)
+
     def test_a_changed_parameter_is_reported_where_it_first_diverges(self):
         run = self.recorded_run()
         code, out, err = self.replay(run, "dem", ["--set", "materials.granite.density=2700.0"])
