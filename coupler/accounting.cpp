@@ -42,10 +42,6 @@ void check_names(const io::hdf5::Group& group, const char* attribute, const std:
   }
 }
 
-void write_sample(io::hdf5::Group& group, const std::string& name, const std::vector<double>& values) {
-  io::write_array<double>(group, name, values);
-}
-
 }  // namespace
 
 ForceHistory::ForceHistory(const std::filesystem::path& file, std::vector<std::string> part_names,
@@ -76,11 +72,11 @@ void ForceHistory::save(io::hdf5::Group& group) const {
       run_peak.push_back(run_peak_[part][source]);
     }
   }
-  write_sample(group, "impulse", impulse);
-  write_sample(group, "last", last);
-  write_sample(group, "duration", duration);
-  write_sample(group, "peak", peak);
-  write_sample(group, "run_peak", run_peak);
+  io::write_array<double>(group, "impulse", impulse);
+  io::write_array<double>(group, "last", last);
+  io::write_array<double>(group, "duration", duration);
+  io::write_array<double>(group, "peak", peak);
+  io::write_array<double>(group, "run_peak", run_peak);
 }
 
 void ForceHistory::restore(const io::hdf5::Group& group) {
@@ -161,8 +157,8 @@ EnergySample sample_from(const std::vector<double>& v) {
 void EnergyHistory::save(io::hdf5::Group& group) const {
   group.set_attribute("observed", first_ ? 0 : 1);
   group.set_attribute("max_total", max_total_);
-  write_sample(group, "initial", sample_values(initial_));
-  write_sample(group, "last", sample_values(last_));
+  io::write_array<double>(group, "initial", sample_values(initial_));
+  io::write_array<double>(group, "last", sample_values(last_));
 }
 
 void EnergyHistory::restore(const io::hdf5::Group& group) {

@@ -880,6 +880,8 @@ void Coupler::write_summary(const std::string& status) {
         {"exit", peer->said_goodbye ? peer->goodbye.reason() : std::string("no goodbye")}};
   }
   const double per_step = steps_ > 0 ? 1.0 / static_cast<double>(steps_) : 0.0;
+  const std::uint64_t bytes_received = bytes_received_before_ + socket_.bytes_received();  // a resumed run: all of it
+  const std::uint64_t bytes_sent = bytes_sent_before_ + socket_.bytes_sent();
   const double overhead = std::max(0.0, wall - critical_compute_seconds_ - contact_seconds_);
   json energies = json::object();
   if (energy_csv_) {
@@ -968,11 +970,9 @@ void Coupler::write_summary(const std::string& status) {
         {"microseconds_per_step", 1e6 * overhead * per_step},
         {"fraction_of_wall", wall > 0 ? overhead / wall : 0.0}}},
       {"bytes_exchanged",
-       {{"received", bytes_received_before_ + socket_.bytes_received()},
-        {"sent", bytes_sent_before_ + socket_.bytes_sent()},
-        {"per_step", static_cast<double>(bytes_received_before_ + socket_.bytes_received() + bytes_sent_before_ +
-                                         socket_.bytes_sent()) *
-                         per_step}}},
+       {{"received", bytes_received},
+        {"sent", bytes_sent},
+        {"per_step", static_cast<double>(bytes_received + bytes_sent) * per_step}}},
       {"traffic", {{"file", "traffic.h5"}, {"bytes", recorder_ ? recorder_->bytes_written() : 0}}},
       {"energies", energies},
       {"newton_third_law",

@@ -282,31 +282,17 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
       if (!reply.accepted())
         throw ProtocolError(fmt::format("refused the recorded registration of {}: {}", s.role, reply.error()));
     }
-    // Pipelined: the recorded messages of the next step are read while the coupler computes this one, and
-    // each solver's next state goes out before its forces are compared, so the coupler's next step overlaps
-    // the comparison (the recorded states do not depend on the forces).
     bool stopped = false;
-    if (!steps.empty()) {
-      for (auto& s : solvers) s.socket->send(traffic.state(s.role, steps.front()));
-    }
-    std::vector<sabo::v1::StepState> next(solvers.size());
-    std::vector<sabo::v1::StepForces> recorded(solvers.size());
-    for (std::size_t k = 0; k < steps.size() && !stopped; ++k) {
-      const std::uint64_t step = steps[k];
-      const bool more = k + 1 < steps.size();
-      for (std::size_t i = 0; i < solvers.size(); ++i) {
-        if (more) next[i] = traffic.state(solvers[i].role, steps[k + 1]);
-        recorded[i] = traffic.forces(solvers[i].role, step);
-      }
-      for (std::size_t i = 0; i < solvers.size(); ++i) {
-        auto& s = solvers[i];
+    for (const std::uint64_t step : steps) {
+      for (auto& s : solvers) s.socket->send(traffic.state(s.role, step));
+      for (auto& s : solvers) {
         wait(*s.socket, sabo::v1::MESSAGE_TYPE_STEP_FORCES, fmt::format("the forces of step {} for {}", step, s.role));
         sabo::v1::StepForces forces;
         inbound.parse(forces);
-        if (more && !forces.stop()) s.socket->send(next[i]);
-        comparison.compare_forces(s.registration, recorded[i], forces);
+        comparison.compare_forces(s.registration, traffic.forces(s.role, step), forces);
         stopped = stopped || forces.stop();
       }
+      if (stopped) break;
     }
     sabo::v1::Goodbye goodbye;
     goodbye.set_reason("replay ended");

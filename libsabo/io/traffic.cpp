@@ -608,20 +608,13 @@ class StreamReader {
                     steps_.empty() ? std::string() : fmt::format(", from {} to {}", steps_.front(), steps_.back())));
   }
 
-  // A per-message value (a scalar, an offset, a count). The per-message datasets are read whole on first use
-  // and kept: a replay reads every message in turn, and one HDF5 read per value cost more than the replayed
-  // process's step.
+  // A per-message value (a scalar, an offset, a count), through the same read-ahead window as the field values:
+  // a replay reads every message in turn, and one HDF5 read per value cost more than the replayed process's step.
   template <hdf5::Element T>
   T scalar(const std::string& name, std::uint64_t entry, std::uint64_t per_entry = 1, std::uint64_t at = 0) const {
-    auto& cache = cache_of<T>();
-    auto found = cache.find(name);
-    if (found == cache.end()) found = cache.emplace(name, dataset(name).template read_all<T>()).first;
-    const std::uint64_t index = entry * per_entry + at;
-    if (index >= found->second.size()) {
-      throw FileError(fmt::format("{}: {} holds {} values, message {} needs value {}. Fix: the file is damaged", what_,
-                                  name, found->second.size(), entry, index));
-    }
-    return found->second[index];
+    T value{};
+    read_values<T>(name, entry * per_entry + at, std::span<T>(&value, 1));
+    return value;
   }
 
   [[nodiscard]] bool has(const std::string& name) const {
@@ -659,8 +652,8 @@ class StreamReader {
     return found->second;
   }
 
-  // Values [offset, offset + out.size()) of a field dataset, through a window read ahead: messages are read in
-  // turn, so one HDF5 read serves many of them.
+  // Values [offset, offset + out.size()) of a dataset, through a window read ahead: messages are read in turn,
+  // so one HDF5 read serves many of them.
   template <hdf5::Element T>
   void read_values(const std::string& name, std::uint64_t offset, std::span<T> out) const {
     if (out.empty()) return;
@@ -696,24 +689,12 @@ class StreamReader {
     if constexpr (std::same_as<T, std::uint8_t>) return byte_windows_;
   }
 
-  template <hdf5::Element T>
-  std::map<std::string, std::vector<T>, std::less<>>& cache_of() const {
-    if constexpr (std::same_as<T, double>) return doubles_;
-    if constexpr (std::same_as<T, std::uint64_t>) return counts_;
-    if constexpr (std::same_as<T, std::uint32_t>) return indices_;
-    if constexpr (std::same_as<T, std::uint8_t>) return bytes_;
-  }
-
   hdf5::Group group_;
   std::string what_;
   std::vector<std::uint64_t> steps_;
   bool sorted_ = true;
   mutable std::map<std::string, hdf5::Dataset, std::less<>> datasets_;
   mutable std::map<std::string, bool, std::less<>> present_;  // which fields were recorded
-  mutable std::map<std::string, std::vector<double>, std::less<>> doubles_;
-  mutable std::map<std::string, std::vector<std::uint64_t>, std::less<>> counts_;
-  mutable std::map<std::string, std::vector<std::uint32_t>, std::less<>> indices_;
-  mutable std::map<std::string, std::vector<std::uint8_t>, std::less<>> bytes_;
   mutable std::map<std::string, Window<double>, std::less<>> double_windows_;
   mutable std::map<std::string, Window<std::uint64_t>, std::less<>> count_windows_;
   mutable std::map<std::string, Window<std::uint32_t>, std::less<>> index_windows_;

@@ -117,6 +117,19 @@ void expect_same(const google::protobuf::Message& expected, const google::protob
   EXPECT_TRUE(differencer.Compare(expected, actual)) << differences;
 }
 
+// Steps [from, to) of a DEM role and an FEM surface role, both ways, each step ended.
+void record_steps(TrafficRecorder& recorder, std::uint64_t from, std::uint64_t to) {
+  for (std::uint64_t step = from; step < to; ++step) {
+    const auto dem = make_state(step, 1);
+    const auto fem = make_surface_state(step);
+    recorder.record_state("dem_solver", dem);
+    recorder.record_state("fem_solver", fem);
+    recorder.record_forces("dem_solver", make_forces(step, dem));
+    recorder.record_forces("fem_solver", make_forces(step, fem));
+    recorder.end_step(step);
+  }
+}
+
 sabo::scene::Recording every_step_settings() {
   sabo::scene::Recording settings;
   settings.flush_interval = 0;
@@ -135,15 +148,7 @@ TEST(Traffic, RoundTripOfEveryField) {
     TrafficRecorder recorder(path, settings, scene_text);
     recorder.record_registration("dem_solver", make_registration("dem_solver 0.1.0"));
     recorder.record_registration("dem_solver", make_registration("dem_solver 0.1.0 restarted"));
-    for (std::uint64_t step = 0; step < 25; ++step) {
-      const auto dem = make_state(step, 1);
-      const auto fem = make_surface_state(step);
-      recorder.record_state("dem_solver", dem);
-      recorder.record_state("fem_solver", fem);
-      recorder.record_forces("dem_solver", make_forces(step, dem));
-      recorder.record_forces("fem_solver", make_forces(step, fem));
-      recorder.end_step(step);
-    }
+    record_steps(recorder, 0, 25);
     recorder.close();
     recorder.close();  // idempotent
     bytes = recorder.bytes_written();
@@ -193,17 +198,6 @@ TEST(Traffic, RoundTripOfEveryField) {
 TEST(Traffic, ContinuesARecordingAtAStep) {
   const std::string scene_text = "format_version = 1\n[run]\nend_time = 1.0\n";
   const sabo::scene::Recording settings = every_step_settings();
-  auto record_steps = [](TrafficRecorder& recorder, std::uint64_t from, std::uint64_t to) {
-    for (std::uint64_t step = from; step < to; ++step) {
-      const auto dem = make_state(step, 1);
-      const auto fem = make_surface_state(step);
-      recorder.record_state("dem_solver", dem);
-      recorder.record_state("fem_solver", fem);
-      recorder.record_forces("dem_solver", make_forces(step, dem));
-      recorder.record_forces("fem_solver", make_forces(step, fem));
-      recorder.end_step(step);
-    }
-  };
   const fs::path uninterrupted = scratch("continue_reference.h5");
   {
     TrafficRecorder recorder(uninterrupted, settings, scene_text);
