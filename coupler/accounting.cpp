@@ -58,6 +58,13 @@ ForceHistory::ForceHistory(std::FILE* file, std::vector<std::string> part_names,
   if (header) std::fputs("time,part,source,Fx,Fy,Fz,F,F_peak\n", file_);
 }
 
+ForceHistory::ForceHistory(std::FILE* file, std::vector<std::string> sensor_names, std::vector<SensorRow> sensors,
+                           std::vector<std::string> sources, bool header)
+    : ForceHistory(file, std::move(sensor_names), std::move(sources), false) {
+  sensors_ = std::move(sensors);
+  if (header) std::fputs("time,sensor,part,source,Fx,Fy,Fz,F,F_peak,area,pressure\n", file_);
+}
+
 void ForceHistory::save(io::hdf5::Group& group) const {
   group.set_attribute("parts", joined(part_names_));
   group.set_attribute("sources", joined(sources_));
@@ -121,8 +128,16 @@ void ForceHistory::write(double time) {
     for (std::size_t source = 0; source < sources_.size(); ++source) {
       auto& acc = accumulators_[part][source];
       const Vec3 mean = acc.duration > 0 ? Vec3(acc.impulse / acc.duration) : acc.last;
-      fmt::print(file_, "{:.9g},{},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", time, part_names_[part], sources_[source],
-                 mean.x(), mean.y(), mean.z(), mean.norm(), acc.peak);
+      if (sensors_.empty()) {
+        fmt::print(file_, "{:.9g},{},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", time, part_names_[part],
+                   sources_[source], mean.x(), mean.y(), mean.z(), mean.norm(), acc.peak);
+      } else {
+        const SensorRow& sensor = sensors_[part];
+        const double pressure = -mean.dot(sensor.normal) / sensor.area;
+        fmt::print(file_, "{:.9g},{},{},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", time, part_names_[part],
+                   sensor.part, sources_[source], mean.x(), mean.y(), mean.z(), mean.norm(), acc.peak, sensor.area,
+                   pressure);
+      }
       acc = Accumulator{};
     }
   }

@@ -31,6 +31,16 @@ class ForceHistory {
   // a file (open_for_appending) whose state restore() then reads.
   ForceHistory(std::FILE* file, std::vector<std::string> part_names, std::vector<std::string> sources,
                bool header = true);
+  // sensors.csv: the same accounting over the scene's sensors instead of parts,
+  //   time, sensor, part, source, Fx, Fy, Fz, F, F_peak, area, pressure
+  // with each sensor's part, area (m^2) and the mean normal pressure -F.n / area (Pa).
+  struct SensorRow {
+    std::string part;
+    double area = 0;             // m^2, > 0
+    Vec3 normal = Vec3::Zero();  // unit, outward (zero: no pressure, written 0)
+  };
+  ForceHistory(std::FILE* file, std::vector<std::string> sensor_names, std::vector<SensorRow> sensors,
+               std::vector<std::string> sources, bool header = true);
   ~ForceHistory();
   ForceHistory(const ForceHistory&) = delete;
   ForceHistory& operator=(const ForceHistory&) = delete;
@@ -58,6 +68,7 @@ class ForceHistory {
   std::FILE* file_ = nullptr;
   std::vector<std::string> part_names_;
   std::vector<std::string> sources_;
+  std::vector<SensorRow> sensors_;                      // [part]: sensors.csv's columns; empty for forces.csv
   std::vector<std::vector<Accumulator>> accumulators_;  // [part][source]
   std::vector<std::vector<double>> run_peak_;
 };

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cassert>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -14,6 +15,7 @@
 #include "coupler/effects.hpp"
 #include "coupler/message_checks.hpp"
 #include "coupler/restart_journal.hpp"
+#include "coupler/sensors.hpp"
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/protocol/wire.hpp"
@@ -750,9 +752,11 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
       if (!slot.source) continue;
       const auto loads = slot.pair->loads();  // [part] -> force from this pair's source, N
       for (std::size_t part = 0; part < loads.size(); ++part) forces_csv_->add(part, *slot.source, loads[part], dt);
+      if (sensors_) sensors_->add(*slot.pair, *slot.source, dt);
     }
   }
   if (forces_csv_ && output) forces_csv_->write(time);
+  if (sensors_ && output) sensors_->write(time);
 
   // A solver's energies in the state of step n describe step n - 1 (its kinetic
   // energy needs v_{n-1/2}), so they are paired with the contact energy of step n - 1.
@@ -1045,6 +1049,8 @@ int Coupler::run() {
                                                                  close_file);
     std::unique_ptr<std::FILE, decltype(close_file)> energy_file(open_history(options_.out_dir / "energy.csv"),
                                                                  close_file);
+    std::unique_ptr<std::FILE, decltype(close_file)> sensors_file(
+        scene_.sensors.empty() ? nullptr : open_history(options_.out_dir / "sensors.csv"), close_file);
     // The restart journals are opened before binding, as the run's other files: idle connections may take
     // every free descriptor later.
     if (scene_.run.restart) {
@@ -1064,6 +1070,17 @@ int Coupler::run() {
     for (const auto& s : scene_.structures) parts.push_back(s.name);
     forces_csv_ = std::make_unique<ForceHistory>(forces_file.release(), parts, force_sources_, !resuming);
     energy_csv_ = std::make_unique<EnergyHistory>(energy_file.release(), !resuming);
+    if (sensors_file) {
+      const auto fem =
+          std::find_if(peers_.begin(), peers_.end(), [](const auto& p) { return p->registration.exposes_surface(); });
+      assert(fem != peers_.end() && "sensors sit on structures, whose surface the fem_solver registers");
+      sensors_ = std::make_unique<Sensors>(sensors_file.release(), scene_,
+                                           protocol::surface_from_message((*fem)->registration.surface(), "fem_solver"),
+                                           force_sources_, !resuming);
+      if (sensors_->needs_point_loads()) {
+        for (auto& slot : pairs_) slot.pair->want_point_loads();
+      }
+    }
 
     const double end_tolerance = 1e-12 * scene_.run.end_time;
     next_checkpoint_time_ = scene_.run.checkpoint_period();
@@ -1157,6 +1174,7 @@ int Coupler::run() {
     if (recorder_) recorder_->close();
     if (forces_csv_) forces_csv_->close();
     if (energy_csv_) energy_csv_->close();
+    if (sensors_) sensors_->close();
     // A resume refused before it started leaves the run folder's summary as it was.
     if (bound_ || options_.resume.empty()) write_summary(status);
   } catch (const std::exception& error) {

@@ -19,6 +19,7 @@
 #include "coupler/contact/contact_pair.hpp"
 #include "coupler/eta.hpp"
 #include "coupler/events.hpp"
+#include "coupler/sensors.hpp"
 #include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/socket.hpp"
@@ -138,7 +139,8 @@ class Coupler {
   std::unique_ptr<io::TrafficRecorder> recorder_;
   std::unique_ptr<ForceHistory> forces_csv_;
   std::unique_ptr<EnergyHistory> energy_csv_;
-  PartEnergyHistory part_energies_;  // deformable FEM parts, for summary.json
+  std::unique_ptr<Sensors> sensors_;  // only with [[sensors]]
+  PartEnergyHistory part_energies_;   // deformable FEM parts, for summary.json
 
   // Run statistics for summary.json.
   std::uint64_t steps_ = 0;

@@ -19,6 +19,7 @@ namespace {
 
 constexpr const char* kForcesFile = "forces.csv";
 constexpr const char* kEnergyFile = "energy.csv";
+constexpr const char* kSensorsFile = "sensors.csv";
 
 std::string pair_group_name(std::size_t index, const std::string& name) {
   return fmt::format("{:02}_{}", index, name);
@@ -62,6 +63,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
                                       surface_topology_.size()));
     io::write_file_size(group, kForcesFile, options_.out_dir / kForcesFile);
     io::write_file_size(group, kEnergyFile, options_.out_dir / kEnergyFile);
+    if (sensors_) io::write_file_size(group, kSensorsFile, options_.out_dir / kSensorsFile);
 
     // Statistics for summary.json: a resumed run reports the whole run.
     io::hdf5::Group stats = group.create_group("statistics");
@@ -92,6 +94,10 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     if (energy_csv_) {
       io::hdf5::Group energy = group.create_group("energy");
       energy_csv_->save(energy);
+    }
+    if (sensors_) {
+      io::hdf5::Group sensors = group.create_group("sensors");
+      sensors_->save(sensors);
     }
     io::hdf5::Group parts = group.create_group("part_energies");
     part_energies_.save(parts);
@@ -127,7 +133,9 @@ void Coupler::open_resume() {
 
 void Coupler::cut_histories() {
   const io::hdf5::Group group = resume_file_.group("coupler");
-  for (const char* name : {kForcesFile, kEnergyFile}) {
+  std::vector<const char*> histories{kForcesFile, kEnergyFile};
+  if (!scene_.sensors.empty()) histories.push_back(kSensorsFile);
+  for (const char* name : histories) {
     const auto file = options_.out_dir / name;
     if (!io::truncate_to_saved_size(group, name, file)) {
       throw FileError(
@@ -201,6 +209,10 @@ void Coupler::restore_state() {
 
   if (forces_csv_) forces_csv_->restore(group.group("forces"));
   if (energy_csv_) energy_csv_->restore(group.group("energy"));
+  if (sensors_) {
+    if (!group.exists("sensors")) fail_file("it holds no state of the sensors, while the scene has some");
+    sensors_->restore(group.group("sensors"));
+  }
   part_energies_.restore(group.group("part_energies"));
   replies_.boundary().restore(group.group("boundary_channel"));
   const io::hdf5::Group pairs = group.group("pairs");

@@ -17,6 +17,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/energy_audit.hpp"
+#include "sph_solver/gauges.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "sph_solver/sph_output.hpp"
 
@@ -43,6 +44,7 @@ class SphSolver final : public solver::CoupledSolver {
       : model_(scene),
         audit_(model_),
         output_(options.out_dir, model_),
+        gauges_(options.out_dir, scene),
         boundary_walls_(scene.sph_receives_boundary_particles()) {
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
@@ -109,6 +111,7 @@ class SphSolver final : public solver::CoupledSolver {
     const std::span<const double> force{forces.force().data(), static_cast<std::size_t>(forces.force_size())};
     model_.add_external_forces(index, force);
     audit_.before_integrate(model_, index, force);
+    gauges_.sample(model_, model_.time());
   }
 
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
@@ -129,12 +132,14 @@ class SphSolver final : public solver::CoupledSolver {
     model_.save_state(model);
     audit_.save(group);
     output_.save(group);
+    gauges_.save(group);
     group.set_attribute("have_boundary_forces", have_boundary_forces_ ? 1 : 0);
   }
   void load_checkpoint(const io::hdf5::Group& group) override {
     model_.load_state(group.group("model"));
     audit_.load(group);
     output_.load(group);
+    gauges_.load(group);
     have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
   }
   void finish() override {}
@@ -143,6 +148,7 @@ class SphSolver final : public solver::CoupledSolver {
   SphModel model_;
   EnergyAudit audit_;
   SphOutput output_;
+  GaugeRecorder gauges_;
   bool boundary_walls_;
   bool have_boundary_forces_ = false;
   double dt_previous_ = 0;

@@ -113,6 +113,19 @@ struct FluidFill {
 [[nodiscard]] FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
                                     const std::vector<std::uint32_t>& body_material);
 
+// The fluid at one point, interpolated from the particles within the kernel support (sph_sample.cpp,
+// docs/scene.md [[gauges]]).
+struct FluidSample {
+  double kernel_sum = 0;         // sum V_j W(x - x_j): about 1 inside the fluid, 1/2 at its surface, 0 in the air
+  double pressure = 0;           // Pa; 0 when dry
+  Vec3 velocity = Vec3::Zero();  // m/s, v_{n-1/2}; 0 when dry
+  bool linear_fit = false;       // the first-order fit (else the Shepard mean, or dry)
+};
+// Below this kernel sum a point is dry: it reads 0 (a lone particle at the point gives about 0.15).
+inline constexpr double kDryKernelSum = 0.1;
+// The free surface is where the kernel sum falls through this value.
+inline constexpr double kSurfaceKernelSum = 0.5;
+
 class SphModel {
  public:
   // Builds the particles of every fluid body. Throws SceneError when a body
@@ -179,6 +192,12 @@ class SphModel {
   [[nodiscard]] std::span<const float> wall_work_held() const { return wall_work_held_; }
   // s, the simulated time t_n: the sum of the steps integrated.
   [[nodiscard]] double time() const { return time_; }
+  // The fluid at `point` (m) at t_n: the moving-least-squares fit of first order of the particles within
+  // 2h, weighted by V_j W; the Shepard mean where their moment matrix is singular (they do not span 3-D);
+  // zero below kDryKernelSum. Uses the neighbour grid of the last compute_internal_forces(): call it
+  // after that and before integrate(). kernel_sum() is the same sum alone.
+  [[nodiscard]] FluidSample sample(const Vec3& point) const;
+  [[nodiscard]] double kernel_sum(const Vec3& point) const;
   // Mean number of neighbours (fluid and wall, inside the support, self excluded) in the last compute.
   [[nodiscard]] double mean_neighbours() const { return mean_neighbours_; }
   // Box around all active particles; empty when there are none.
@@ -203,6 +222,10 @@ class SphModel {
     return settings_.wall_model == scene::SphSettings::WallModel::boundary_particles &&
            settings_.wall_work != scene::SphSettings::WallWork::unstored;
   }
+  // Calls visit(id, position) for every fluid particle within the support of `point` (images: their
+  // source's id, their own position), from the grid of the last compute.
+  template <class Visit>
+  void for_fluid_within_support(const Vec3& point, Visit&& visit) const;
   void wrap_positions();
   // settle_factor_ for the step from time_ to time_ + dt.
   void update_settle_factors(double dt);

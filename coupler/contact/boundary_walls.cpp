@@ -66,10 +66,12 @@ void BoundaryWalls::update_nodes(std::span<const double> position, std::span<con
 }
 
 void BoundaryWalls::spread(std::span<const double> boundary_force, std::size_t steps_back,
-                           std::vector<double>& node_force, std::vector<Vec3>& part_force) const {
+                           std::vector<double>& node_force, std::vector<Vec3>& part_force,
+                           std::vector<PointLoad>* point_loads) const {
   const auto& sent = selection(steps_back);
   node_force.assign(3 * surface_.node_count(), 0.0);
   part_force.assign(surface_.part_name.size(), Vec3::Zero());
+  if (point_loads != nullptr) point_loads->clear();
   if (boundary_force.empty()) return;
   if (boundary_force.size() != 3 * sent.size()) {
     throw ProtocolError(
@@ -78,13 +80,21 @@ void BoundaryWalls::spread(std::span<const double> boundary_force, std::size_t s
                     boundary_force.size(), sent.size(), steps_back));
   }
   geometry::spread_boundary_forces(surface_, sampling_, sent, boundary_force, node_force);
+  const auto add = [&](std::uint32_t face, const std::array<double, 3>& weight, const Vec3& share) {
+    part_force[surface_.face_part[face]] += share;
+    if (point_loads == nullptr) return;
+    const auto& t = surface_.triangle[face];
+    const Vec3 point = weight[0] * surface_.node_position[t[0]] + weight[1] * surface_.node_position[t[1]] +
+                       weight[2] * surface_.node_position[t[2]];
+    point_loads->push_back(PointLoad{surface_.face_part[face], point, share});
+  };
   for (std::size_t s = 0; s < sent.size(); ++s) {
     const std::uint32_t k = sent[s];
     const auto shares = geometry::split_boundary_force(
         surface_, sampling_, k, Vec3(boundary_force[3 * s], boundary_force[3 * s + 1], boundary_force[3 * s + 2]));
-    part_force[surface_.face_part[sampling_.face[k]]] += shares[0];
+    add(sampling_.face[k], sampling_.weight[k], shares[0]);
     if (sampling_.partner_face[k] != geometry::kNoFace) {
-      part_force[surface_.face_part[sampling_.partner_face[k]]] += shares[1];
+      add(sampling_.partner_face[k], sampling_.partner_weight[k], shares[1]);
     }
   }
 }

@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "coupler/contact/point_load.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/geometry/surface_mesh.hpp"
 #include "libsabo/geometry/surface_sampling.hpp"
@@ -41,10 +42,13 @@ class BoundaryWalls {
   // Spreads the forces the fluid put on the particles of a past selection
   // (3 doubles each, in its order; steps_back 1: the last selection, 2: the
   // one before) onto the nodes: node_force gets 3 doubles per node
-  // (overwritten), part_force the sum per structure part (N). Throws
+  // (overwritten), part_force the sum per structure part (N), and
+  // point_loads, when given, the same forces one share at a time at the
+  // point of the face the particle is anchored to (a corner fill's partner
+  // share: its nearest point on the partner face), overwritten. Throws
   // ProtocolError when the count does not match that selection.
   void spread(std::span<const double> boundary_force, std::size_t steps_back, std::vector<double>& node_force,
-              std::vector<Vec3>& part_force) const;
+              std::vector<Vec3>& part_force, std::vector<PointLoad>* point_loads = nullptr) const;
   // Selects the particles within the kernel support of any fluid particle
   // (positions: 3 doubles each) and places them; becomes the last selection.
   void select_near(std::span<const double> fluid_position);

@@ -20,7 +20,8 @@
 //   stable_dt()                its term of paper eq. 7 for dt_n, beta included
 //   newton_balance()           the forces it put on both sides this step
 //   energy(), loads()          its springs and dissipation, its force on the
-//                              structure parts (forces.csv)
+//                              structure parts (forces.csv); point_loads() the
+//                              same force by point of contact (sensors.csv)
 //   scatter(solvers, dt, out)  once dt_n is known: adds its forces (and
 //                              torques) to BOTH sides' replies, its boundary
 //                              particles to the sph_solver's
@@ -43,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "coupler/contact/point_load.hpp"
 #include "libsabo/core/types.hpp"
 #include "libsabo/io/hdf5.hpp"
 #include "libsabo/physics/boundary_particles.hpp"
@@ -197,6 +199,12 @@ class ContactPair {
   // none if it loads no structure; loads(): the force on each part (scene structure order) this step, N.
   [[nodiscard]] virtual std::optional<std::string> load_source() const { return std::nullopt; }
   [[nodiscard]] virtual std::span<const Vec3> loads() const { return {}; }
+  // The loads of loads() one by one, appended to `out` with their points (and their part's index in the
+  // surface): per part they sum to loads() to rounding. For sensors that cover a box of a part; only a
+  // pair with a load_source() has any, and only after want_point_loads() (called once, before the first
+  // compute(), when the scene has such sensors).
+  virtual void want_point_loads() {}
+  virtual void point_loads(std::vector<PointLoad>& /*out*/) const {}
   // Active contacts after compute().
   [[nodiscard]] virtual std::size_t contact_count() const { return 0; }
   // summary.json's active_effects entry ("effect", "process" and what the pair wants to report); the

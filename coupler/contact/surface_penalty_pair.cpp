@@ -70,6 +70,13 @@ void SurfacePenaltyPair::scatter(const Solvers& solvers, double /*dt*/, Replies&
   if (out_.contact_count > 0) replies.add_node_forces(out_.node_force);
 }
 
+void SurfacePenaltyPair::point_loads(std::vector<PointLoad>& out) const {
+  const auto& face_part = contact_->surface().face_part;
+  for (const contact::ContactRecord& record : contact_->contacts()) {
+    out.push_back(PointLoad{face_part[record.face], record.point, -record.force});
+  }
+}
+
 InterestRequest SurfacePenaltyPair::interest(scene::Role role) const {
   if (role == scene::Role::fem) return {.all = true, .boxes = {}};
   return {.all = false, .boxes = contact_->interest_regions()};

@@ -28,6 +28,7 @@ class SurfacePenaltyPair final : public ContactPair {
   [[nodiscard]] Energy energy() const override { return {out_.elastic_energy, out_.dissipated_power}; }
   [[nodiscard]] std::optional<std::string> load_source() const override { return source_; }
   [[nodiscard]] std::span<const Vec3> loads() const override { return out_.part_force; }
+  void point_loads(std::vector<PointLoad>& out) const override;
   [[nodiscard]] std::size_t contact_count() const override { return out_.contact_count; }
   [[nodiscard]] nlohmann::json effect() const override;
   void save_history(io::hdf5::Group& group) const override;

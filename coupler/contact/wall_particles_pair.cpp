@@ -62,7 +62,7 @@ void WallParticlesPair::compute(const Solvers& solvers, const StepClock& clock) 
   const sabo::v1::StepState& fluid = *solvers.at(scene::Role::sph).state;
   const std::size_t back = steps_back(fluid);
   returned_ = channel_->slice(slot_, span_of(fluid.boundary_force()), back);
-  walls_.spread(returned_, back, node_force_, part_force_);
+  walls_.spread(returned_, back, node_force_, part_force_, want_point_loads_ ? &point_loads_ : nullptr);
   walls_.select_near(span_of(fluid.position()));
   max_sent_ = std::max(max_sent_, walls_.selection().size());
 }

@@ -22,6 +22,10 @@ class WallParticlesPair final : public ContactPair {
   [[nodiscard]] NewtonBalance newton_balance() const override;
   [[nodiscard]] std::optional<std::string> load_source() const override { return "fluid"; }
   [[nodiscard]] std::span<const Vec3> loads() const override { return part_force_; }
+  void want_point_loads() override { want_point_loads_ = true; }
+  void point_loads(std::vector<PointLoad>& out) const override {
+    out.insert(out.end(), point_loads_.begin(), point_loads_.end());
+  }
   [[nodiscard]] nlohmann::json effect() const override;
   void save_history(io::hdf5::Group& group) const override;
   void restore_history(const io::hdf5::Group& group) override;
@@ -34,9 +38,11 @@ class WallParticlesPair final : public ContactPair {
   const BoundaryChannel* channel_ = nullptr;
   std::size_t slot_ = 0;
   std::span<const double> returned_;  // this step: the fluid's force on the walls of an earlier step
-  std::vector<double> node_force_;    // N, 3 per node, from returned_
-  std::vector<Vec3> part_force_;      // N per part
-  std::size_t max_sent_ = 0;          // most wall particles sent in one step
+  bool want_point_loads_ = false;
+  std::vector<PointLoad> point_loads_;  // of returned_, when wanted
+  std::vector<double> node_force_;      // N, 3 per node, from returned_
+  std::vector<Vec3> part_force_;        // N per part
+  std::size_t max_sent_ = 0;            // most wall particles sent in one step
 };
 
 }  // namespace sabo::coupler

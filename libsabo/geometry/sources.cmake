@@ -7,5 +7,6 @@ target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/sphere_fill.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sphere_sampling.cpp
   ${CMAKE_CURRENT_LIST_DIR}/surface_mesh.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/surface_patch.cpp
   ${CMAKE_CURRENT_LIST_DIR}/surface_sampling.cpp
 )

@@ -28,7 +28,9 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/hexahedron.hpp"
 #include "libsabo/geometry/polygon.hpp"
+#include "libsabo/geometry/primitives.hpp"
 #include "libsabo/geometry/sphere_fill.hpp"
+#include "libsabo/geometry/surface_patch.hpp"
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/stl.hpp"
@@ -657,6 +659,8 @@ class Builder {
     read_interactions(root);
     check_sph_dem();
     read_recording(root);
+    read_gauges(root);
+    read_sensors(root);
     check_overlaps();
     if (diag_.count() == 0) check_costs();
     if (diag_.count() == 0) check_fills();
@@ -2318,6 +2322,147 @@ class Builder {
                 "give last_step >= first_step, or swap the two");
     }
     if (auto v = r.number("flush_interval")) recording.flush_interval = *v;
+  }
+
+  // A gauge or sensor name: valid and unique among its kind (`names`).
+  void register_instrument(Reader& r, const std::string& name, std::map<std::string, int>& names, const char* kind) {
+    const int line = r.line("name");
+    if (!valid_name(name)) {
+      diag_.add(line, r.key_path("name"), quote_text(name), "a name must be made of letters, digits, '_' and '-'",
+                fmt::format("rename it, e.g. \"{}_1\"", kind));
+      return;
+    }
+    auto [it, inserted] = names.try_emplace(name, line);
+    if (!inserted) {
+      diag_.add(line, r.key_path("name"), quote_text(name),
+                fmt::format("another {} has that name (line {})", kind, it->second),
+                fmt::format("give each {} its own name", kind));
+    }
+  }
+
+  void read_gauges(Reader& root) {
+    const toml::array* gauges = root.table_list("gauges");
+    if (gauges == nullptr || gauges->empty()) return;
+    if (!has_fluids_) {
+      diag_.add(root.line("gauges"), "gauges", std::nullopt,
+                "gauges measure the fluid, but the scene has no [[fluids]]", "remove the [[gauges]] or add a fluid");
+      return;
+    }
+    std::map<std::string, int> names;
+    for (std::size_t k = 0; k < gauges->size(); ++k) {
+      const std::string path = fmt::format("gauges[{}]", k);
+      Reader r(diag_, spec("gauges"), *gauges->get(k)->as_table(), path);
+      Gauge gauge;
+      gauge.origin = origin(r.line(), path);
+      if (auto v = r.string("name")) {
+        gauge.name = *v;
+        register_instrument(r, gauge.name, names, "gauge");
+      }
+      if (auto v = r.number("interval")) gauge.interval = *v;
+      const auto kind = r.string("kind");
+      if (!kind) continue;
+      r.select(*kind);
+      std::vector<std::string> point_keys;
+      if (*kind == "point") {
+        if (auto v = r.vec3("position")) gauge.start = gauge.end = *v;
+        point_keys = {"position"};
+      } else {
+        const auto start = r.vec3("start"), end = r.vec3("end");
+        if (auto v = r.integer("points")) gauge.points = static_cast<std::size_t>(*v);
+        if (start) gauge.start = *start;
+        if (end) gauge.end = *end;
+        if (start && end && *start == *end) {
+          diag_.add(r.line("end"), r.key_path("end"), value_text(*r.node("end")),
+                    "a line ends where it starts, so it has no direction", "give an end point other than start");
+        }
+        point_keys = {"start", "end"};
+      }
+      if (scene_.sph.domain) {
+        for (const std::string& key : point_keys) {
+          const toml::node* node = r.node(key);
+          if (node == nullptr) continue;
+          const Vec3 point = key == "end" ? gauge.end : gauge.start;
+          if (!scene_.sph.domain->contains(point)) {
+            diag_.add(r.line(key), r.key_path(key), value_text(*node),
+                      fmt::format("outside the SPH domain [{}, {}] (sph.domain_min/domain_max, line {}): no fluid "
+                                  "can ever reach it",
+                                  vec_text(scene_.sph.domain->min), vec_text(scene_.sph.domain->max), domain_line_),
+                      "move the gauge into the domain or enlarge the domain");
+          }
+        }
+      }
+      scene_.gauges.push_back(std::move(gauge));
+    }
+  }
+
+  void read_sensors(Reader& root) {
+    const toml::array* sensors = root.table_list("sensors");
+    if (sensors == nullptr || sensors->empty()) return;
+    std::vector<std::string> structure_names;
+    for (const Structure& structure : scene_.structures) structure_names.push_back(structure.name);
+    std::map<std::string, int> names;
+    for (std::size_t k = 0; k < sensors->size(); ++k) {
+      const std::string path = fmt::format("sensors[{}]", k);
+      Reader r(diag_, spec("sensors"), *sensors->get(k)->as_table(), path);
+      Sensor sensor;
+      sensor.origin = origin(r.line(), path);
+      if (auto v = r.string("name")) {
+        sensor.name = *v;
+        register_instrument(r, sensor.name, names, "sensor");
+      }
+      if (auto v = r.string("part")) {
+        sensor.part = *v;
+        if (std::find(structure_names.begin(), structure_names.end(), *v) == structure_names.end()) {
+          const auto suggestion = closest_match(*v, structure_names);
+          std::string problem = "no structure of that name";
+          if (suggestion) problem += fmt::format(". Did you mean '{}'?", *suggestion);
+          diag_.add(r.line("part"), r.key_path("part"), quote_text(*v), problem,
+                    structure_names.empty() ? std::string("add the [[structures]] the sensor sits on")
+                                            : fmt::format("use one of: {}", join(structure_names)));
+        }
+      }
+      const auto min = r.vec3("min"), max = r.vec3("max");
+      if (min.has_value() != max.has_value()) {
+        const char* given = min ? "min" : "max";
+        diag_.add(r.line(given), r.key_path(given), value_text(*r.node(given)),
+                  fmt::format("a sensor box needs both min and max; {} is missing", min ? "max" : "min"),
+                  "give both corners, or neither for a sensor of the whole part");
+      } else if (min && max) {
+        if (((*max - *min).array() <= 0).any()) {
+          diag_.add(r.line("max"), r.key_path("max"), value_text(*r.node("max")),
+                    fmt::format("the box must exceed min = {} on every axis", value_text(*r.node("min"))),
+                    "give max > min on x, y and z (a box around the patch, a few mm thick across a flat face)");
+        } else {
+          sensor.box = Aabb{*min, *max};
+          check_sensor_box(r, sensor);
+        }
+      }
+      scene_.sensors.push_back(std::move(sensor));
+    }
+  }
+
+  // The box must meet the part's surface. Checked here where the surface follows from the scene (rigid
+  // shapes, generated deformable boxes and panels); a .msh part's surface is checked by the coupler when
+  // the fem_solver has registered it.
+  void check_sensor_box(Reader& r, const Sensor& sensor) {
+    const auto structure = std::find_if(scene_.structures.begin(), scene_.structures.end(),
+                                        [&](const Structure& s) { return s.name == sensor.part; });
+    if (structure == scene_.structures.end() || (structure->shape.type == Shape::Type::mesh && !structure->rigid)) {
+      return;
+    }
+    geometry::SurfacePatch patch;
+    try {
+      patch = geometry::surface_patch(geometry::triangulate(structure->shape, structure->name, structure->origin), 0,
+                                      sensor.box);
+    } catch (const Error&) {
+      return;  // the shape's own problem is reported with the structure
+    }
+    if (patch.area > 0) return;
+    diag_.add(r.line("min"), r.key_path("min"), value_text(*r.node("min")),
+              fmt::format("the box [{}, {}] meets none of the surface of '{}', which spans {} to {}",
+                          vec_text(sensor.box->min), vec_text(sensor.box->max), sensor.part,
+                          vec_text(patch.part_bounds.min), vec_text(patch.part_bounds.max)),
+              "move the box onto the part's face (a box a few mm thick across the face)");
   }
 
   // Listed spheres must not overlap: sweep along x over spheres sorted by

@@ -445,6 +445,31 @@ struct FluidBody {
 // grows linearly to kSettleDampingGrowth h / c at the phase's end.
 inline constexpr double kSettleDampingGrowth = 20.0;
 
+// A pressure gauge of the sph_solver (gauges.csv, docs/scene.md [[gauges]]): one point, or `points`
+// equally spaced points from `start` to `end` (a line; its free-surface depth is measured along it).
+struct Gauge {
+  std::string name;
+  Origin origin;
+  Vec3 start = Vec3::Zero();  // m; the point of a point gauge
+  Vec3 end = Vec3::Zero();    // m; = start for a point gauge
+  std::size_t points = 1;     // 1: a point gauge, >= 2: a line
+  double interval = 0;        // s between two samples; 0: the run's output_interval
+  [[nodiscard]] bool line() const { return points > 1; }
+  // Point k of the gauge, m.
+  [[nodiscard]] Vec3 point(std::size_t k) const {
+    return points > 1 ? start + (end - start) * (static_cast<double>(k) / static_cast<double>(points - 1)) : start;
+  }
+};
+
+// A force sensor of the coupler (sensors.csv, docs/scene.md [[sensors]]): the part of structure `part`'s
+// surface inside `box` (the whole part when absent), with the force each source puts on it.
+struct Sensor {
+  std::string name;
+  Origin origin;
+  std::string part;         // a structure name (checked)
+  std::optional<Aabb> box;  // m
+};
+
 // What the coupler records into traffic.h5.
 struct Recording {
   bool enabled = true;
@@ -480,6 +505,8 @@ struct Scene {
     return contact;
   }();
   std::vector<FemFemInteraction> fem_fem_interactions;  // per pair of structures
+  std::vector<Gauge> gauges;                            // the sph_solver's, in file order
+  std::vector<Sensor> sensors;                          // the coupler's, in file order
   Recording recording;
 
   [[nodiscard]] bool needs(Role role) const;

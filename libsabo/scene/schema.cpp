@@ -83,7 +83,7 @@ class K {
 class Schema {
  public:
   Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, constraint, constraint_box,
-      sph, fluid, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording;
+      sph, fluid, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording, gauge, sensor;
 
   Schema(const Schema&) = delete;
   Schema& operator=(const Schema&) = delete;
@@ -102,12 +102,15 @@ class Schema {
     build_fem_fem();
     build_interactions();
     build_recording();
+    build_gauges();
+    build_sensors();
   }
 
   [[nodiscard]] std::vector<const Table*> ordered() const {
-    return {&root,     &run,       &solvers,    &solver,         &materials, &material,    &particles, &sphere,
-            &fill,     &structure, &constraint, &constraint_box, &sph,       &fluid,       &contact,   &dem_dem,
-            &dem_pair, &dem_fem,   &sph_fem,    &sph_dem,        &fem_fem,   &interaction, &recording};
+    return {&root,        &run,       &solvers,   &solver,     &materials,      &material, &particles,
+            &sphere,      &fill,      &structure, &constraint, &constraint_box, &sph,      &fluid,
+            &contact,     &dem_dem,   &dem_pair,  &dem_fem,    &sph_fem,        &sph_dem,  &fem_fem,
+            &interaction, &recording, &gauge,     &sensor};
   }
 
  private:
@@ -142,6 +145,14 @@ class Schema {
                 "every pair uses `[contact.dem_fem]`, `[contact.sph_fem]`, `[contact.sph_dem]` or `[contact.fem_fem]`")
             .doc("Per-pair contact overrides."),
         K("recording", Type::table).inside(recording).absent("defaults").doc("What the coupler records."),
+        K("gauges", Type::table_list)
+            .inside(gauge)
+            .absent("no gauges")
+            .doc("Points and lines where the sph_solver measures pressure, velocity and flow depth (`gauges.csv`)."),
+        K("sensors", Type::table_list)
+            .inside(sensor)
+            .absent("no sensors")
+            .doc("Patches of structures whose force and mean pressure the coupler writes (`sensors.csv`)."),
     };
   }
 
@@ -1274,6 +1285,79 @@ class Schema {
             .doc("Wall time between flushes to disk (the file stays readable after a crash)."),
     };
   }
+
+  void build_gauges() {
+    gauge.title = "[[gauges]]";
+    gauge.anchor = "gauges";
+    gauge.selector = "kind";
+    gauge.description =
+        "A pressure gauge in the fluid, read by the sph_solver into `gauges.csv` (time, gauge, point, x, y, z, "
+        "kernel_sum, pressure, velocity_x, velocity_y, velocity_z, depth), one row per point and sample. Needs "
+        "`[[fluids]]`.\n\n"
+        "* `point`: one point, `position`.\n"
+        "* `line`: `points` equally spaced points from `start` to `end`; `depth` is the distance from `start` along "
+        "the line to the free surface (a vertical line from the bed: the flow depth).\n\n"
+        "A value at a point x is the first-order (moving least squares) fit of the particles within the kernel "
+        "support 2h of x, weighted by V_j W(x - x_j) (V_j = m_j / rho_j): exact for a linear field, and the "
+        "Shepard-normalised mean sum V_j W f_j / sum V_j W where the neighbours do not span three dimensions. "
+        "`kernel_sum` is sum V_j W(x - x_j): about 1 inside the fluid, 1/2 at a free surface or a wall, 0 in the "
+        "air. A point with `kernel_sum` below 0.1 is dry and reads 0 (pressure and velocity). The free surface "
+        "along a line is where `kernel_sum` falls through 1/2, found on a sub-sampling of spacing dx / 4. "
+        "Samples are taken at t_n of the step at which the gauge's sample time is reached (positions and "
+        "pressures at t_n, velocities at t_{n-1/2}).";
+    gauge.keys = {
+        K("name", Type::string)
+            .required("\"wall_gauge\"")
+            .allowed("letters, digits, `_`, `-`")
+            .doc("Name of the gauge, unique among the gauges."),
+        K("kind", Type::string).required("\"point\"").choices({"point", "line"}).doc("One point or a line of points."),
+        K("position", Type::vec3).required("[1.0, 0.0, 0.2]").unit("m").only_for({"point"}).doc("The point."),
+        K("start", Type::vec3).required("[1.0, 0.0, 0.0]").unit("m").only_for({"line"}).doc("First point of the line."),
+        K("end", Type::vec3)
+            .required("[1.0, 0.0, 1.0]")
+            .unit("m")
+            .only_for({"line"})
+            .doc("Last point of the line, not `start`."),
+        K("points", Type::integer).def("20").ge(2).le(10000).only_for({"line"}).doc("Points along the line."),
+        K("interval", Type::number)
+            .absent("`run.output_interval`")
+            .example("0.001")
+            .unit("s")
+            .gt(0)
+            .doc("Simulated time between two samples."),
+    };
+  }
+
+  void build_sensors() {
+    sensor.title = "[[sensors]]";
+    sensor.anchor = "sensors";
+    sensor.description =
+        "A force sensor on a structure, written by the coupler into `sensors.csv` (time, sensor, part, source, "
+        "Fx, Fy, Fz, F, F_peak, area, pressure) at every output time, like `forces.csv`: the mean force over the "
+        "output interval from each source (`fluid`, `particles`, ...), its magnitude and the largest instantaneous "
+        "magnitude, the sensor's surface area and the mean normal pressure -F.n / area (n the area-weighted mean "
+        "outward normal of the patch, N/m^2 = Pa). The sensor takes the contact forces whose point of contact on the "
+        "surface lies in the box (for boundary-particle walls: the wall particles sampled there), so that a "
+        "sensor smaller than the mesh's faces (a 10 mm transducer) works; its area is the part's surface clipped "
+        "to the box. A sensor without a box is the whole part: its force is the part's row of `forces.csv`.";
+    sensor.keys = {
+        K("name", Type::string)
+            .required("\"transducer_1\"")
+            .allowed("letters, digits, `_`, `-`")
+            .doc("Name of the sensor, unique among the sensors."),
+        K("part", Type::string).required("\"dam\"").allowed("a `[[structures]]` name").doc("The structure."),
+        K("min", Type::vec3)
+            .absent("the whole part")
+            .example("[4.99, -0.005, 0.095]")
+            .unit("m")
+            .doc("Lower corner of the box; give `min` and `max` together."),
+        K("max", Type::vec3)
+            .absent("the whole part")
+            .example("[5.01, 0.005, 0.105]")
+            .unit("m")
+            .doc("Upper corner of the box, above `min` on every axis."),
+    };
+  }
 };
 
 const Schema& schema() {
@@ -1449,6 +1533,12 @@ const std::vector<std::string>& cross_checks() {
       "Two structures in `[[interactions]]`: not the same structure twice, not both rigid; the keys are those of "
       "`[contact.fem_fem]` (`model` only `\"penalty\"`; no `restitution`, no rolling resistance).",
       "`[recording]`: `first_step` <= `last_step`.",
+      "`[[gauges]]` need `[[fluids]]`; gauge names are unique; a line's `end` differs from its `start`; every "
+      "point of a gauge lies inside `sph.domain_min`/`domain_max` when a domain is given (without one the fluid "
+      "may go anywhere, and a gauge anywhere reads 0 until fluid comes). `[[sensors]]`: names are unique, `part` "
+      "names a structure, `min` and `max` come together with min < max on every axis, and the box meets the "
+      "part's surface (an empty sensor is refused when the coupler starts, naming the sensor, its box and the "
+      "part's extent).",
       "Every number is finite (no `nan`, no `inf`).",
       "The file is UTF-8 text: a NUL byte or a UTF-16 file is refused with its byte offset.",
       "What the scene costs (`libsabo/scene/estimate.hpp`, also in the launch plan's `estimate`): the "

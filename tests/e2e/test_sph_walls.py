@@ -10,6 +10,7 @@ from e2e_support import RealRunTestCase, load_scene, read_json
 
 PENALTY = "configs/tests/sph_tank_penalty.toml"
 BOUNDARY = "configs/tests/sph_tank_boundary.toml"
+GAUGED = "configs/tests/sph_tank_gauges.toml"
 WALLS = ["wall_x0", "wall_x1", "wall_y0", "wall_y1"]
 
 
@@ -90,6 +91,74 @@ class TankTest(RealRunTestCase):
         self.assertEqual(len(effects), 1)
         print("boundary particles sampled: {} in {} layers".format(effects[0]["boundary_particles"],
                                                                    effects[0]["layers"]))
+
+    def test_gauges_and_sensors_read_the_hydrostatic_tank(self):
+        """gauges.csv and sensors.csv of a tank at rest against rho g (H - z) and rho g H^2 w / 2, averaged
+        over 0.1-0.3 s (the start-up transient before)."""
+        out = os.path.join(self.tmp, "gauged")
+        sabo = self.run_sabo(self.scene_path(GAUGED), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        scene = load_scene(self.scene_path(GAUGED))
+        fluid = scene["fluids"][0]
+        depth, width = fluid["max"][2], fluid["max"][1] - fluid["min"][1]
+        rho = scene["materials"]["water"]["density"]
+        g = -scene["run"]["gravity"][2]
+        dx = scene["sph"]["particle_spacing"]
+        after = 0.1 - 1e-9
+        with open(os.path.join(out, "gauges.csv"), newline="") as handle:
+            gauges = [row for row in csv.DictReader(handle) if float(row["time"]) >= after]
+        for name in ("deep", "middle", "shallow"):
+            rows = [row for row in gauges if row["gauge"] == name]
+            z = float(rows[0]["z"])
+            measured = sum(float(row["pressure"]) for row in rows) / len(rows)
+            expected = rho * g * (depth - z)
+            print("gauge {} at z = {} m: pressure measured {:.1f} Pa, expected {:.1f} Pa ({:+.2%} of rho g H; "
+                  "tolerance 2 %)".format(name, z, measured, expected, (measured - expected) / (rho * g * depth)))
+            self.assertLess(abs(measured - expected), 0.02 * rho * g * depth)
+        air = [float(row["pressure"]) for row in gauges if row["gauge"] == "air"]
+        print("gauge air: largest |pressure| {} Pa over {} samples (expected 0)".format(max(map(abs, air)), len(air)))
+        self.assertEqual(max(map(abs, air)), 0.0)
+        column = [float(row["depth"]) for row in gauges if row["gauge"] == "column" and row["point"] == "0"]
+        mean_depth = sum(column) / len(column)
+        print("gauge column: depth measured {:.5f} m, expected {} m (tolerance dx/4 = {} m)".format(
+            mean_depth, depth, dx / 4))
+        self.assertLess(abs(mean_depth - depth), dx / 4)
+
+        with open(os.path.join(out, "sensors.csv"), newline="") as handle:
+            sensor_rows = list(csv.DictReader(handle))
+        with open(os.path.join(out, "forces.csv"), newline="") as handle:
+            force_rows = {(row["time"], row["part"], row["source"]): row for row in csv.DictReader(handle)}
+        by_sensor = {}
+        for row in sensor_rows:
+            by_sensor.setdefault(row["sensor"], []).append(row)
+        # A sensor of a whole part is that part's row of forces.csv, digit for digit.
+        for row in by_sensor["wall_x0"]:
+            part_row = force_rows[(row["time"], "wall_x0", row["source"])]
+            self.assertEqual([row[k] for k in ("Fx", "Fy", "Fz", "F_peak")],
+                             [part_row[k] for k in ("Fx", "Fy", "Fz", "F_peak")])
+        # Two box sensors that split the wall sum to it (to the 9 digits written).
+        worst = 0.0
+        for whole, lower, upper in zip(by_sensor["wall_x0"], by_sensor["wall_x0_lower"], by_sensor["wall_x0_upper"]):
+            for k in ("Fx", "Fy", "Fz"):
+                gap = abs(float(lower[k]) + float(upper[k]) - float(whole[k]))
+                worst = max(worst, gap)
+                self.assertLessEqual(gap, 1e-8 * max(1.0, abs(float(whole[k]))))
+        print("wall_x0: lower + upper box sensors - whole wall: largest difference {:.2e} N (expected 0 to "
+              "rounding)".format(worst))
+        thrust = 0.5 * rho * g * depth ** 2 * width
+        rows = [row for row in by_sensor["wall_x0"] if float(row["time"]) >= after]
+        wall = sum(float(row["F"]) for row in rows) / len(rows)
+        print("sensor wall_x0: force measured {:.4f} N, expected rho g H^2 w / 2 = {:.4f} N ({:+.2%}; tolerance "
+              "2 %)".format(wall, thrust, wall / thrust - 1))
+        self.assertLess(abs(wall / thrust - 1), 0.02)
+        rows = [row for row in by_sensor["transducer"] if float(row["time"]) >= after]
+        pressure = sum(float(row["pressure"]) for row in rows) / len(rows)
+        expected = rho * g * (depth - 0.02)
+        print("sensor transducer (10 mm, area {} m^2): mean pressure measured {:.1f} Pa, expected {:.1f} Pa "
+              "({:+.2%} of rho g H; tolerance 2 %)".format(rows[0]["area"], pressure, expected,
+                                                           (pressure - expected) / (rho * g * depth)))
+        self.assertAlmostEqual(float(rows[0]["area"]), 1e-4, places=12)
+        self.assertLess(abs(pressure - expected), 0.02 * rho * g * depth)
 
     def test_boundary_particle_walls_are_recorded(self):
         """traffic.h5 holds the walls sent to the sph_solver and its forces on them (docs/traffic.md): every

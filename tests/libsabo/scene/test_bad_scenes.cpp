@@ -30,7 +30,7 @@ const std::vector<BadScene>& bad_scenes() {
   static const std::vector<BadScene> scenes{
       {"syntax_error.toml", 5, "end_time", "2.0.0", {":5:15:", "TOML syntax error", "expected decimal digit"}},
       {"unknown_key.toml", 7, "run.hang_timout", "5.0", {"unknown key. Did you mean 'hang_timeout'?"}},
-      {"unknown_table.toml", 18, "gases", "[{ name = \"slurry\" }]", {"unknown key", "keys allowed at the top level"}},
+      {"unknown_table.toml", 18, "lava_flows", "[{ name = \"slurry\" }]", {"unknown key", "keys allowed at the top level"}},
       {"wrong_type.toml", 9, "materials.granite.density", "\"3000\"", {"must be a number (kg/m^3), not a string"}},
       {"negative_radius.toml", 18, "particles[0].spheres[1].radius", "-0.5", {"must be > 0 (m)", "positive radius"}},
       {"friction_out_of_range.toml", 32, "contact.dem_fem.friction", "-0.3", {"must be >= 0"}},
@@ -404,6 +404,18 @@ const std::vector<BadScene>& bad_scenes() {
        "0.0",
        {":9: key 'materials.granite.density' = -3000.0: must be > 0 (kg/m^3)",
         ":16: key 'particles[0].spheres[0].colour' = \"red\": unknown key"}},
+      {"gauge_outside_domain.toml",
+       44,
+       "gauges[0].end",
+       "[0.05, 0.05, 0.5]",
+       {"outside the SPH domain", "(sph.domain_min/domain_max, line 21)", "move the gauge into the domain"}},
+      {"sensor_empty_box.toml",
+       43,
+       "sensors[0].min",
+       "[0.02, 0.02, 0.01]",
+       {"meets none of the surface of 'floor', which spans [0.0, 0.0, 0.0] to [0.1, 0.1, 0.0]",
+        "move the box onto the part's face"}},
+      {"sensor_unknown_part.toml", 42, "sensors[0].part", "\"flor\"", {"Did you mean 'floor'?"}},
   };
   return scenes;
 }

@@ -1,0 +1,43 @@
+#pragma once
+// The scene's [[gauges]] (docs/scene.md), read from the fluid into RUN/gauges.csv:
+//   time, gauge, point, x, y, z, kernel_sum, pressure, velocity_x, velocity_y, velocity_z, depth
+// one row per gauge point and sample; depth (line gauges) is the distance from the line's start to the
+// free surface along it, empty for point gauges.
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "libsabo/io/hdf5.hpp"
+#include "libsabo/scene/scene.hpp"
+#include "sph_solver/sph_model.hpp"
+
+namespace sabo::sph {
+
+// The free surface along the line from `start` to `end` (m): the distance from `start` to the last
+// point where the kernel sum falls through kSurfaceKernelSum, on a sub-sampling of at most `spacing`
+// (m); 0 when the line is dry, its length when it ends in the fluid.
+[[nodiscard]] double surface_distance(const SphModel& model, const Vec3& start, const Vec3& end, double spacing);
+
+class GaugeRecorder {
+ public:
+  // No file is written for a scene without gauges.
+  GaugeRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene);
+
+  // At t_n (s), with the model between compute_internal_forces() and integrate(): samples every gauge
+  // whose sample time has come and appends its rows.
+  void sample(const SphModel& model, double time);
+
+  // Each gauge's next sample and the file's length, for checkpoints; load() cuts the file back to it.
+  void save(io::hdf5::Group& group) const;
+  void load(const io::hdf5::Group& group);
+
+ private:
+  std::filesystem::path file_;
+  std::vector<scene::Gauge> gauges_;
+  std::vector<double> interval_;     // s, per gauge
+  std::vector<std::uint64_t> next_;  // per gauge: the index k of its next sample time k * interval
+  double depth_spacing_ = 0;         // m, the sub-sampling of the depth (dx / 4)
+  bool started_ = false;             // the header is written
+};
+
+}  // namespace sabo::sph
