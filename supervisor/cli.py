@@ -1,13 +1,13 @@
-"""The command line of `./sabo`: setup, run, resume, replay, test, status."""
+"""The command line of `./sabo`: setup, run, resume, replay, plot, test, status."""
 import argparse
 import json
 import os
 import sys
 import time
 
-from . import run_folder
+from . import plot, run_folder
 from .display import Display, format_progress, list_run_folder, wrap_items
-from .errors import SaboError, EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from .errors import SaboError, EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 from .plan import check_scene
 from .replay import command_replay
 from .run import PIDS_FILE, Supervisor
@@ -22,6 +22,7 @@ Sabo: co-simulation of debris flows striking protective structures.
   ./sabo run SCENE         run a scene (does setup first); output goes to a run folder
   ./sabo resume RUN_DIR    continue a run that was killed, from its newest checkpoint common to every process
   ./sabo replay RUN ROLE   replay a run's recorded traffic against one process (sph, dem, fem, coupler)
+  ./sabo plot RUN_DIR      figures of a run (forces, energy, gauges, sensors, time steps) in RUN_DIR/plots/
   ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
   ./sabo status RUN_DIR    what a run folder holds; repairs what a killed run left behind
 """
@@ -31,6 +32,7 @@ environment:
   SABO_BUILD_DIR       build folder (default: build/ in the repository)
   SABO_PLAN_OVERRIDE   JSON launch plan to use instead of the scene check (debugging)
   SABO_WATCHDOG_MIN_S  lower bound of the no-progress watchdog, seconds (default 30)
+  SABO_PLOT_PYTHON     the python3 with numpy and matplotlib that draws the plots (default /usr/bin/python3)
   OMP_NUM_THREADS      threads per process (OpenMP); OMP_WAIT_POLICY defaults to passive
 """
 
@@ -57,6 +59,7 @@ def build_parser():
                             help="run folder; must not exist or be empty (default: runs/<scene>-<date>-<time>)")
     run_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
     run_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+    run_parser.add_argument("--no-plots", action="store_true", help="no figures in RUN_DIR/plots/ at the end")
 
     resume_parser = commands.add_parser(
         "resume", help="continue a killed run from its checkpoints",
@@ -66,6 +69,24 @@ def build_parser():
     resume_parser.add_argument("run_dir", metavar="RUN_DIR", help="the run folder, e.g. runs/boulders_chute-20260101-120000")
     resume_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
     resume_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+    resume_parser.add_argument("--no-plots", action="store_true", help="no figures in RUN_DIR/plots/ at the end")
+
+    plot_parser = commands.add_parser(
+        "plot", help="figures of a run folder, or of two overlaid",
+        description="Draw the figures of a run folder into RUN_DIR/plots/ (PNG): forces.png (forces.csv), "
+                    "energy.png (energy.csv, with the balance's residual), fem_energy.png (fem_energy.csv), "
+                    "gauges.png (gauges.csv), sensors.png (sensors.csv), steps.png (the time step and the step "
+                    "rate, from coupler.events.jsonl), each when its data are there. With RUN_DIR_B the same "
+                    "figures with both runs overlaid (RUN_DIR solid, RUN_DIR_B dashed) into "
+                    "RUN_DIR/plots/compare_<name of RUN_DIR_B>/. `./sabo run` and `./sabo resume` make them at "
+                    "the end (unless --no-plots). Needs Debian's python3 with matplotlib (python3-matplotlib). "
+                    "Exit status: 0, 1 when they cannot be drawn (no matplotlib), 2 for bad input (not a run "
+                    "folder, none of the files, a malformed file).")
+    plot_parser.add_argument("run_dir", metavar="RUN_DIR", help="a run folder, e.g. runs/sphere_drop-20260101-120000")
+    plot_parser.add_argument("compare_dir", metavar="RUN_DIR_B", nargs="?",
+                             help="a second run folder, overlaid on the first (dashed)")
+    plot_parser.add_argument("--out", metavar="DIR",
+                             help="folder of the figures (default: RUN_DIR/plots, or RUN_DIR/plots/compare_<B>)")
 
     status_parser = commands.add_parser(
         "status", help="show a run folder; repair what a killed run left behind",
@@ -191,7 +212,8 @@ def command_run(root, build_dir, args):
     plan = set_up_and_check(root, build_dir, args, scene)
     run_dir = create_run_dir(args.out, scene)
     display = Display(quiet=args.quiet)
-    return Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin")).run()
+    code = Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin")).run()
+    return plot_after_run(root, run_dir, args, display, code)
 
 
 def command_resume(root, build_dir, args):
@@ -233,7 +255,33 @@ def command_resume(root, build_dir, args):
         pass
     display = Display(quiet=args.quiet)
     display.info("sabo: resuming {} at step {} (checkpoints of {})".format(run_dir, common[0], ", ".join(roles)))
-    return Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin"), resume=common).run()
+    code = Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin"), resume=common).run()
+    return plot_after_run(root, run_dir, args, display, code)
+
+
+def plot_after_run(root, run_dir, args, display, code):
+    """The figures of a run that completed or failed (not of one stopped by Ctrl-C or refused), unless
+    --no-plots; whatever becomes of them, the run's exit status stays `code`."""
+    if not args.no_plots and code in (EXIT_OK, EXIT_FAILED):
+        plot.after_run(root, run_dir, display)
+    return code
+
+
+def command_plot(root, args):
+    run_dirs = [args.run_dir] + ([args.compare_dir] if args.compare_dir else [])
+    for run_dir in run_dirs:
+        if not os.path.isdir(run_dir):
+            raise SaboError("{}: not a folder (give a run folder, e.g. runs/<scene>-<date>-<time>)".format(run_dir),
+                            EXIT_BAD_INPUT)
+    result = plot.draw(root, run_dirs, args.out)
+    for line in result.output:
+        print(line)
+    for problem in result.problems:
+        print("sabo: {}: {}".format("error" if result.code == EXIT_BAD_INPUT else "cannot plot", problem),
+              file=sys.stderr)
+    if result.code in (EXIT_OK, EXIT_BAD_INPUT):
+        return result.code
+    return EXIT_FAILED
 
 
 def command_status(build_dir, args):
@@ -303,6 +351,8 @@ def main(root, argv=None):
             return command_resume(root, build_dir, args)
         if args.command == "status":
             return command_status(build_dir, args)
+        if args.command == "plot":
+            return command_plot(root, args)
         if args.command == "replay":
             if not args.no_setup:
                 setup(root, build_dir, quiet=True)

@@ -189,7 +189,7 @@ class E2eTestCase(unittest.TestCase):
 
 
 class FakeRunTestCase(E2eTestCase):
-    """Runs `./sabo run` against the fake coupler and solvers of fakes/: a temporary build folder
+    """Runs `./sabo run --no-plots` against the fake coupler and solvers of fakes/: a temporary build folder
     whose bin/sabo_scene is fakes/sabo_scene.py, and fake scenes that say how the fakes behave."""
 
     def setUp(self):
@@ -210,7 +210,7 @@ class FakeRunTestCase(E2eTestCase):
         return path
 
     def run_sabo(self, scene, out=None, env=None, extra=(), cwd=None):
-        args = ["run", scene, "--no-setup"] + list(extra)
+        args = ["run", scene, "--no-setup", "--no-plots"] + list(extra)
         if out is not None:
             args += ["--out", out]
         full_env = {"SABO_BUILD_DIR": self.build_dir, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
@@ -222,11 +222,13 @@ class FakeRunTestCase(E2eTestCase):
 
 
 class RealRunTestCase(E2eTestCase):
-    """Runs `./sabo run --no-setup` with the built executables of BUILD_DIR (ctest builds them first)."""
+    """Runs `./sabo run --no-setup` with the built executables of BUILD_DIR (ctest builds them first);
+    `plots`: draw the figures at the end (a second or two more per run; test_plot.py's concern)."""
 
-    def run_sabo(self, scene, out, extra=()):
+    def run_sabo(self, scene, out, extra=(), plots=False):
         env = {"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
-        return self.sabo(["run", scene, "--out", out, "--no-setup"] + list(extra), env=env)
+        args = ["run", scene, "--out", out, "--no-setup"] + ([] if plots else ["--no-plots"]) + list(extra)
+        return self.sabo(args, env=env)
 
     def scene_path(self, relative):
         path = os.path.join(ROOT, relative)

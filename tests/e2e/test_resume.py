@@ -33,7 +33,7 @@ class ResumeTestCase(RealRunTestCase):
 
     def resume(self, run_dir):
         env = {"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
-        return self.sabo(["resume", run_dir, "--no-setup"], env=env)
+        return self.sabo(["resume", run_dir, "--no-setup", "--no-plots"], env=env)
 
     def kill_at(self, scene, out, roles, at_step):
         """Runs `scene`; once the coupler reports step `at_step`, SIGKILL to `roles` (of pids.json; "all": the
