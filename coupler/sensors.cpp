@@ -21,19 +21,25 @@ std::vector<std::string> sensor_names(const scene::Scene& scene) {
   return names;
 }
 
+// The index of a sensor's part in the registered surface; SceneError when the surface has none.
+std::uint32_t surface_part_of(const scene::Scene& scene, const scene::Sensor& sensor,
+                              const geometry::SurfaceMesh& surface) {
+  const auto part = std::find(surface.part_name.begin(), surface.part_name.end(), sensor.part);
+  if (part == surface.part_name.end()) {
+    throw SceneError(
+        fmt::format("{}:{}: sensor '{}': the fem_solver's surface has no part '{}'. Fix: name a "
+                    "structure with a contact surface",
+                    scene.file.string(), sensor.origin.line, sensor.name, sensor.part));
+  }
+  return static_cast<std::uint32_t>(part - surface.part_name.begin());
+}
+
 // Each sensor's part, area and normal on the registered surface.
 std::vector<ForceHistory::SensorRow> sensor_rows(const scene::Scene& scene, const geometry::SurfaceMesh& surface) {
   std::vector<ForceHistory::SensorRow> rows;
   for (const scene::Sensor& sensor : scene.sensors) {
-    const auto part = std::find(surface.part_name.begin(), surface.part_name.end(), sensor.part);
-    if (part == surface.part_name.end()) {
-      throw SceneError(
-          fmt::format("{}:{}: sensor '{}': the fem_solver's surface has no part '{}'. Fix: name a "
-                      "structure with a contact surface",
-                      scene.file.string(), sensor.origin.line, sensor.name, sensor.part));
-    }
     const geometry::SurfacePatch patch =
-        geometry::surface_patch(surface, static_cast<std::uint32_t>(part - surface.part_name.begin()), sensor.box);
+        geometry::surface_patch(surface, surface_part_of(scene, sensor, surface), sensor.box);
     if (!(patch.area > 0)) {
       throw SceneError(fmt::format(
           "{}:{}: sensor '{}': the box [{}, {}] meets none of the surface of '{}', which spans {} to {}. Fix: move "
@@ -55,9 +61,8 @@ std::vector<Sensors::Slot> Sensors::slots_of(const scene::Scene& scene, const ge
     const auto part = std::find_if(scene.structures.begin(), scene.structures.end(),
                                    [&](const scene::Structure& s) { return s.name == sensor.part; });
     assert(part != scene.structures.end() && "the loader checks that a sensor's part is a structure");
-    const auto surface_part = std::find(surface.part_name.begin(), surface.part_name.end(), sensor.part);
-    slots.push_back({static_cast<std::size_t>(part - scene.structures.begin()),
-                     static_cast<std::uint32_t>(surface_part - surface.part_name.begin()), sensor.box});
+    slots.push_back({static_cast<std::size_t>(part - scene.structures.begin()), surface_part_of(scene, sensor, surface),
+                     sensor.box});
   }
   return slots;
 }

@@ -24,8 +24,7 @@ double surface_distance(const SphModel& model, const Vec3& start, const Vec3& en
   const double length = (end - start).norm();
   const auto intervals = static_cast<std::size_t>(std::clamp(std::ceil(length / spacing), 1.0, kMaxDepthSamples));
   double previous = model.kernel_sum(start);
-  double distance = previous >= kSurfaceKernelSum ? length : 0.0;
-  bool wet_at_end = previous >= kSurfaceKernelSum;
+  double distance = 0;
   for (std::size_t k = 1; k <= intervals; ++k) {
     const double s = length * static_cast<double>(k) / static_cast<double>(intervals);
     const double sum = model.kernel_sum(start + (end - start) * (s / length));
@@ -33,10 +32,9 @@ double surface_distance(const SphModel& model, const Vec3& start, const Vec3& en
       const double s_previous = length * static_cast<double>(k - 1) / static_cast<double>(intervals);
       distance = s_previous + (s - s_previous) * (previous - kSurfaceKernelSum) / (previous - sum);
     }
-    wet_at_end = sum >= kSurfaceKernelSum;
     previous = sum;
   }
-  return wet_at_end ? length : distance;
+  return previous >= kSurfaceKernelSum ? length : distance;
 }
 
 GaugeRecorder::GaugeRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene)

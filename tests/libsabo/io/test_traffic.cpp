@@ -449,13 +449,7 @@ TEST(Traffic, SurvivesSigkillAtAnyMoment) {
         recorder.record_registration("dem_solver", make_registration("dem"));
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
         for (std::uint64_t step = 0; std::chrono::steady_clock::now() < deadline; ++step) {
-          const auto dem = make_state(step, 1);
-          const auto fem = make_surface_state(step);
-          recorder.record_state("dem_solver", dem);
-          recorder.record_state("fem_solver", fem);
-          recorder.record_forces("dem_solver", make_forces(step, dem));
-          recorder.record_forces("fem_solver", make_forces(step, fem));
-          recorder.end_step(step);
+          record_steps(recorder, step, step + 1);
           progress->last_flushed.store(static_cast<std::int64_t>(step));
         }
       } catch (...) {
