@@ -16,8 +16,10 @@
 namespace sabo::sph {
 namespace {
 
+// Layers of spacing dx in `extent`, to a relative 1e-6: a spacing written to 9 digits (h / 6 as
+// 0.00666666667) must still give its 6 layers, not 5.
 std::size_t lattice_count(double extent, double dx) {
-  return static_cast<std::size_t>(std::floor(extent / dx + 1e-9));
+  return static_cast<std::size_t>(std::floor(extent / dx * (1 + 1e-6)));
 }
 
 // Pressure at `depth` (m) below the free surface of a fluid at rest: dp/d(depth) = rho(p) g

@@ -128,9 +128,10 @@ Surface structure_surface(const Structure& structure) {
   return s;
 }
 
-// Lattice sites of spacing dx along a length (centres dx/2 inside), to round-off: estimate and bound.
+// Lattice sites of spacing dx along a length (centres dx/2 inside), to a relative 1e-6 as the
+// sph_solver's fill: estimate and bound.
 double sites(double length, double dx) {
-  return std::floor(length / dx * (1 + 1e-9));
+  return std::floor(length / dx * (1 + 1e-6));
 }
 double lattice(const Vec3& e, double dx) {
   return sites(e.x(), dx) * sites(e.y(), dx) * sites(e.z(), dx);

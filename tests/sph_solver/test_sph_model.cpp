@@ -113,6 +113,15 @@ TEST(SphFill, BoxAndExtrudedPolygonWithHydrostaticPressure) {
   std::cout << "bottom-row pressure: expected " << expected << " Pa (rho0 g d = " << 1000 * 9.81 * depth << " Pa)\n";
 }
 
+TEST(SphFill, SpacingWrittenToNineDigitsKeepsItsLayers) {
+  // h = 0.04 m at dx = h / 6 written as 0.00666666667: 6 layers deep (the fill once gave 5, a sixth of the water).
+  scene::Scene s = water_scene(0.00666666667, 20.0);
+  s.fluids.push_back(box_body("layer", Vec3(0, 0, 0), Vec3(0.04, 0.04, 0.04)));
+  const SphModel model(s);
+  std::cout << "particles: measured " << model.size() << ", expected 6^3 = 216\n";
+  EXPECT_EQ(model.size(), 216u);
+}
+
 // Density diffusion at rest, measured through one step of dt = 2e-10 s (the continuity term of
 // the velocities a_n dt / 2 is then 1e-5 of the diffusion): a hydrostatic column 0.2 m deep at
 // c = 3 sqrt(gH), compressed 8 % at the bottom so that Tait is far from linear, no walls.
