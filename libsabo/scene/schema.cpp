@@ -1339,7 +1339,10 @@ class Schema {
         "outward normal of the patch, N/m^2 = Pa). The sensor takes the contact forces whose point of contact on the "
         "surface lies in the box (for boundary-particle walls: the wall particles sampled there), so that a "
         "sensor smaller than the mesh's faces (a 10 mm transducer) works; its area is the part's surface clipped "
-        "to the box. A sensor without a box is the whole part: its force is the part's row of `forces.csv`.";
+        "to the box. It should be at least one particle spacing `sph.particle_spacing` wide along the face (the scene "
+        "check warns otherwise): a narrower one holds at most a row of wall particles and its reading jumps as the "
+        "fluid particles pass. A sensor without a box is the whole part: its force is the part's row of "
+        "`forces.csv`.";
     sensor.keys = {
         K("name", Type::string)
             .required("\"transducer_1\"")

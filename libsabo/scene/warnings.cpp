@@ -4,6 +4,11 @@
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <array>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/geometry/primitives.hpp"
+#include "libsabo/geometry/surface_patch.hpp"
 
 namespace sabo::scene {
 namespace {
@@ -17,6 +22,47 @@ bool fluid_touches(const Scene& scene, const FluidBody& fluid, const Structure& 
   // Boundary-particle walls sample every structure surface; the penalty walls follow the pair's settings.
   return scene.sph.wall_model == SphSettings::WallModel::boundary_particles ||
          scene.surface_contact(fluid.name, structure.name).enabled;
+}
+
+// A sensor box on a fluid-loaded face that is narrower along the face than the particle spacing dx: the
+// patch holds at most a row of wall particles (or a few fluid contacts), so its reading jumps as the fluid
+// particles pass and its mean pressure is not the local one. The patch's width along the face is taken as
+// the middle extent of the box clipped to the part's bounds (exact for a face normal to an axis).
+void warn_narrow_sensors(const Scene& scene, std::vector<std::string>& warnings) {
+  if (scene.fluids.empty()) return;
+  const double dx = scene.sph.particle_spacing;
+  for (const Sensor& sensor : scene.sensors) {
+    if (!sensor.box) continue;
+    const auto structure = std::find_if(scene.structures.begin(), scene.structures.end(),
+                                        [&](const Structure& s) { return s.name == sensor.part; });
+    if (structure == scene.structures.end() || (structure->shape.type == Shape::Type::mesh && !structure->rigid)) {
+      continue;
+    }
+    geometry::SurfacePatch patch;
+    try {
+      patch = geometry::surface_patch(geometry::triangulate(structure->shape, structure->name, structure->origin), 0,
+                                      sensor.box);
+    } catch (const Error&) {
+      continue;  // the loader reported it
+    }
+    if (patch.area <= 0) continue;
+    const Vec3 lo = sensor.box->min.cwiseMax(patch.part_bounds.min);
+    const Vec3 hi = sensor.box->max.cwiseMin(patch.part_bounds.max);
+    std::array<double, 3> extent{hi.x() - lo.x(), hi.y() - lo.y(), hi.z() - lo.z()};
+    std::sort(extent.begin(), extent.end());
+    const double width = extent[1];
+    if (width >= dx && patch.area >= dx * dx) continue;
+    warnings.push_back(located(
+        sensor.origin,
+        fmt::format("sensor \"{}\" covers {:.3g} m^2 of \"{}\", {:.3g} m wide along the face, narrower than the "
+                    "particle spacing sph.particle_spacing = {:g} m: it holds at most a row of wall particles, so "
+                    "its force jumps as fluid particles pass and its mean pressure is smeared over the kernel's "
+                    "2h",
+                    sensor.name, patch.area, sensor.part, width, dx),
+        fmt::format("make the box at least {:g} m wide along the face (a few spacings for a steady pressure), or "
+                    "refine sph.particle_spacing below the sensor's width",
+                    dx)));
+  }
 }
 
 }  // namespace
@@ -50,6 +96,7 @@ std::vector<std::string> scene_warnings(const Scene& scene) {
                                "(or remove the one that switches it off), [contact.fem_fem] `enabled = true` for "
                                "the other structures; or remove the structure"));
   }
+  warn_narrow_sensors(scene, warnings);
   return warnings;
 }
 

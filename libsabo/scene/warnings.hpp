@@ -12,7 +12,9 @@ namespace sabo::scene {
 // "FILE:LINE: key 'K': warning: PROBLEM. Fix: FIX." per finding, in file order:
 // - a structure that nothing can touch: no particle set, fluid or other structure has contact with it
 //   enabled (a rigid one, or one in a scene with other bodies: a lone deformable structure under its own
-//   loads is a valid FEM scene).
+//   loads is a valid FEM scene);
+// - a sensor box of a scene with fluids that is narrower along the face than sph.particle_spacing (or
+//   covers less than its square): its reading jumps as the fluid particles pass.
 [[nodiscard]] std::vector<std::string> scene_warnings(const Scene& scene);
 
 }  // namespace sabo::scene

@@ -89,6 +89,56 @@ max = [1.0, 1.0, Z1]
   EXPECT_TRUE(warnings_of(scene + "\n[contact.fem_fem]\nenabled = true\n").empty());
 }
 
+TEST(SceneWarnings, SensorNarrowerThanTheParticleSpacingIsNamed) {
+  // Water on the ground (dx = 10 mm) and sensors on the ground's face: 5 mm x 100 mm is narrower than dx, 20 mm
+  // x 20 mm is not, and a whole-part sensor never warns.
+  const std::string fluid = std::string(kSceneHead) + kGround + R"(
+[materials.water]
+density = 1000.0
+youngs_modulus = 2.2e9
+poisson_ratio = 0.0
+
+[sph]
+particle_spacing = 0.01
+sound_speed = 10.0
+
+[[fluids]]
+name = "water"
+material = "water"
+shape = "box"
+min = [0.0, 0.0, 0.0]
+max = [0.2, 0.2, 0.1]
+
+[[sensors]]
+name = "whole"
+part = "ground"
+)";
+  const std::string strip = R"(
+[[sensors]]
+name = "strip"
+part = "ground"
+min = [0.05, 0.0, -0.001]
+max = [0.055, 0.1, 0.001]
+)";
+  const std::string square = R"(
+[[sensors]]
+name = "square"
+part = "ground"
+min = [0.05, 0.05, -0.001]
+max = [0.07, 0.07, 0.001]
+)";
+  EXPECT_TRUE(warnings_of(fluid + square).empty());
+  const auto warnings = warnings_of(fluid + strip + square);
+  for (const auto& w : warnings) std::cout << w << "\n";
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("key 'sensors[1]': warning: sensor \"strip\" covers 0.0005 m^2 of \"ground\", 0.005 m "
+                             "wide along the face, narrower than the particle spacing sph.particle_spacing = 0.01 m"),
+            std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[0].find("Fix: make the box at least 0.01 m wide along the face"), std::string::npos)
+      << warnings[0];
+}
+
 TEST(SceneWarnings, NoSceneOfTheConfigsWarns) {
   std::size_t scenes = 0;
   for (const char* folder : {"configs", "configs/tests"}) {
