@@ -1,6 +1,6 @@
 """Resuming a run (issue 19, part 3): the coupler's own checkpoint, `./sabo resume RUN_DIR` after the supervisor
 and every process were killed, and the restart of a killed coupler. Each continued run's outputs (forces.csv,
-energy.csv, the .pvd series, every .vtp frame) are byte for byte those of an uninterrupted run, and its
+energy.csv, gauges.csv and sensors.csv where the scene has them, the .pvd series, every .vtp frame) are byte for byte those of an uninterrupted run, and its
 traffic.h5 holds the same messages (the processes' timings and registrations, which name their pids, aside).
 
 The boulder tank (water, two boulders as boundary particles, the tank's walls; 751 steps, a checkpoint every
@@ -18,14 +18,40 @@ from e2e_support import BUILD_DIR, RealRunTestCase, read_json
 
 TANK = "configs/tests/sph_boulders_tank.toml"
 BLOCK = "configs/tests/sphere_breaks_block.toml"
+# Gauges (sph_solver: gauges.csv) and sensors (coupler: sensors.csv) in the tank: their files are checkpointed
+# with their writers and cut back on a resume, so they too come out byte for byte.
+INSTRUMENTS = """
+[[gauges]]
+name = "column"
+kind = "line"
+start = [0.15, 0.05, 0.0]
+end = [0.15, 0.05, 0.15]
+points = 6
+interval = 0.005
+
+[[gauges]]
+name = "corner"
+kind = "point"
+position = [0.05, 0.25, 0.03]
+
+[[sensors]]
+name = "wall_x0"
+part = "wall_x0"
+
+[[sensors]]
+name = "floor_pad"
+part = "floor"
+min = [0.1, 0.1, -0.001]
+max = [0.2, 0.2, 0.001]
+"""
 
 
 class ResumeTestCase(RealRunTestCase):
-    def write_scene(self, relative, name, extra_run_lines=""):
+    def write_scene(self, relative, name, extra_run_lines="", extra_tables=""):
         with open(self.scene_path(relative), encoding="utf-8") as handle:
             text = handle.read()
         self.assertIn("[run]\n", text)
-        text = text.replace("[run]\n", "[run]\n" + extra_run_lines + "\n", 1)
+        text = text.replace("[run]\n", "[run]\n" + extra_run_lines + "\n", 1) + extra_tables
         scene = os.path.join(self.tmp, name + ".toml")
         with open(scene, "w", encoding="utf-8") as handle:
             handle.write(text)
@@ -55,9 +81,10 @@ class ResumeTestCase(RealRunTestCase):
             time.sleep(0.01)
         self.fail("the run ended before step {}".format(at_step))
 
-    def assertSameOutputs(self, reference, run):
+    def assertSameOutputs(self, reference, run, expected=("forces.csv",)):
         names = [n for n in os.listdir(reference) if n.endswith((".csv", ".pvd"))]
-        self.assertIn("forces.csv", names)
+        for name in expected:
+            self.assertIn(name, names)
         for name in names:
             self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
                             "{} differs from the uninterrupted run's".format(name))
@@ -103,7 +130,7 @@ class ResumeTestCase(RealRunTestCase):
 
 class ResumeAfterAKillTest(ResumeTestCase):
     def test_a_run_killed_with_its_supervisor_resumes_with_the_same_bits(self):
-        scene = self.write_scene(TANK, "tank", "checkpoint_interval = 0.03")
+        scene = self.write_scene(TANK, "tank", "checkpoint_interval = 0.03", INSTRUMENTS)
         reference, steps = self.reference_run(scene)
         randomness = random.Random(1919)
         for trial in range(2):
@@ -123,7 +150,7 @@ class ResumeAfterAKillTest(ResumeTestCase):
             from_step = summary["resumes"][0]["from_step"]
             self.assertLessEqual(from_step, at_step)
             self.assertIn("resuming {} at step {}".format(out, from_step), resumed.output())
-            self.assertSameOutputs(reference, out)
+            self.assertSameOutputs(reference, out, ("forces.csv", "gauges.csv", "sensors.csv"))
             self.assertSameTraffic(reference, out)
             self.assertNoProcessLeft(out)
 
@@ -188,7 +215,7 @@ class ResumeAfterAKillTest(ResumeTestCase):
 
 class CouplerRestartTest(ResumeTestCase):
     def test_a_killed_coupler_is_restarted_and_the_run_is_unchanged(self):
-        scene = self.write_scene(TANK, "tank", "checkpoint_interval = 0.03")
+        scene = self.write_scene(TANK, "tank", "checkpoint_interval = 0.03", INSTRUMENTS)
         reference, steps = self.reference_run(scene)
         randomness = random.Random(2019)
         for trial in range(3):
@@ -205,7 +232,7 @@ class CouplerRestartTest(ResumeTestCase):
             self.assertIn("killed by SIGKILL", resume["reason"])
             self.assertIn("resuming every process from their checkpoints of step {}".format(resume["from_step"]),
                           sabo.output())
-            self.assertSameOutputs(reference, out)
+            self.assertSameOutputs(reference, out, ("forces.csv", "gauges.csv", "sensors.csv"))
             self.assertSameTraffic(reference, out)
             self.assertNoProcessLeft(out)
 
