@@ -3,6 +3,7 @@ a hydrostatic tank whose walls are penalty contact or boundary particles. At res
 the weight of the water and each wall the hydrostatic thrust; Newton's third law holds every step.
 Each check prints measured beside expected."""
 import csv
+import math
 import os
 import unittest
 
@@ -208,6 +209,86 @@ class TankTest(RealRunTestCase):
             self.assertGreater(answered, 0)
             fem = traffic["fem_solver/forces"]
             self.assertEqual(fem["boundary_volume_count"][:len(fem["step"][()])].sum(), 0)
+
+# Martin & Moyce 1952, n^2 = 2: the front Z = z / a at T = t sqrt(2 g / a) (benchmarks.md S1).
+S1_T = [0.41, 0.84, 1.19, 1.43, 1.63, 1.83, 1.98, 2.20, 2.32, 2.51, 2.65, 2.83, 2.98, 3.11, 3.33]
+S1_Z = [1.11, 1.22, 1.44, 1.67, 1.89, 2.11, 2.33, 2.56, 2.78, 3.00, 3.22, 3.44, 3.67, 3.89, 4.11]
+
+
+def interpolate(x, xs, ys):
+    for k in range(1, len(xs)):
+        if x <= xs[k]:
+            return ys[k - 1] + (ys[k] - ys[k - 1]) * (x - xs[k - 1]) / (xs[k] - xs[k - 1])
+    return ys[-1] + (ys[-1] - ys[-2]) * (x - xs[-1]) / (xs[-1] - xs[-2])
+
+
+class DamBreakGaugesTest(RealRunTestCase):
+    SCENE = "configs/tests/sph_dam_break_gauges.toml"
+
+    def test_gauges_time_the_front_and_read_the_far_wall(self):
+        """S1 through the coupler read by gauges (issue 20): the front's arrival at floor gauges Z = 1.5 ... 4
+        against Martin & Moyce (RMS relative error in Z at most 8 % with a fitted shift |s| <= 0.3 in T, the
+        S1 criterion), then the surge on the far wall (Z = 6): its arrival, and the pressure at its foot read
+        two independent ways, by the gauge in the fluid one spacing in front of it and by the pressure pad of
+        the wall's force over its area, over the 0.1 s after the impact."""
+        out = os.path.join(self.tmp, "dam_break")
+        sabo = self.run_sabo(self.scene_path(self.SCENE), out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        scene = load_scene(self.scene_path(self.SCENE))
+        a = scene["fluids"][0]["max"][0]
+        g = -scene["run"].get("gravity", [0.0, 0.0, -9.81])[2]
+        time_unit = math.sqrt(a / (2 * g))  # t = T time_unit
+        with open(os.path.join(out, "gauges.csv"), newline="") as handle:
+            rows = list(csv.DictReader(handle))
+
+        def arrival(name):
+            # The first sample at which the gauge is wet (kernel sum >= 0.1: a particle within about 0.3 h).
+            for row in rows:
+                if row["gauge"] == name and float(row["kernel_sum"]) >= 0.1:
+                    return float(row["time"]) / time_unit
+            self.fail("gauge {} never wet".format(name))
+
+        stations = [(gauge["position"][0] / a, arrival(gauge["name"])) for gauge in scene["gauges"]
+                    if gauge["name"].startswith("front_")]
+        self.assertEqual(len(stations), 6)
+
+        def rms(shift):
+            return math.sqrt(sum(((interpolate(t + shift, S1_T, S1_Z) - z) / z) ** 2 for z, t in stations)
+                             / len(stations))
+        shift = min((k / 100.0 for k in range(-30, 31)), key=rms)
+        for z, t in stations:
+            print("front at Z = {:.2f}: arrives at T = {:.3f}; Martin & Moyce at T = {:.3f} (at T + shift: Z = {:.3f})".format(
+                z, t, interpolate(z, S1_Z, S1_T), interpolate(t + shift, S1_T, S1_Z)))
+        print("front arrivals: RMS relative error in Z {:.2%} with the simulated front {:.2f} T ahead ({:.2%} without); "
+              "tolerance 8 %, shift at most 0.3 T".format(rms(shift), shift, rms(0.0)))
+        self.assertLess(rms(shift), 0.08)
+
+        wall_arrival = arrival("wall_foot")
+        speed = (6.0 - 4.0) / (wall_arrival - stations[-1][1])
+        print("far wall (Z = 6): the front arrives at T = {:.3f} (t = {:.3f} s), after Z = 4 at T = {:.3f}: mean "
+              "front speed {:.2f} a per T (Martin & Moyce over their last 0.5 T: {:.2f})".format(
+                  wall_arrival, wall_arrival * time_unit, stations[-1][1], speed,
+                  (S1_Z[-1] - S1_Z[-4]) / (S1_T[-1] - S1_T[-4])))
+        self.assertGreater(wall_arrival, stations[-1][1])
+
+        impact = wall_arrival * time_unit
+        foot = [float(row["pressure"]) for row in rows
+                if row["gauge"] == "wall_foot" and impact <= float(row["time"]) <= impact + 0.1]
+        with open(os.path.join(out, "sensors.csv"), newline="") as handle:
+            sensors = list(csv.DictReader(handle))
+        pad = [row for row in sensors if row["sensor"] == "pad_0_20mm" and row["source"] == "fluid"
+               and impact < float(row["time"]) <= impact + 0.1 + 1e-9]
+        pad_mean = sum(float(row["pressure"]) for row in pad) / len(pad)
+        foot_mean = sum(foot) / len(foot)
+        peak = max(float(row["F_peak"]) / float(row["area"]) for row in pad)
+        rho = scene["materials"]["water"]["density"]
+        print("far wall foot over {:.3f}-{:.3f} s: gauge 1 dx in front {:.0f} Pa, pressure pad (0-20 mm) {:.0f} "
+              "Pa ({:+.1%}); pad's peak {:.0f} Pa = {:.2f} rho g 2a; tolerance 15 %".format(
+                  impact, impact + 0.1, foot_mean, pad_mean, pad_mean / foot_mean - 1, peak,
+                  peak / (rho * g * 2 * a)))
+        self.assertLess(abs(pad_mean / foot_mean - 1), 0.15)
+        self.assertGreater(pad_mean, 0.0)
+
 
 class PeriodicChannelTest(RealRunTestCase):
     def test_periodic_channel_ending_in_a_wall_runs(self):
