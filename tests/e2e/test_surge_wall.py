@@ -1,0 +1,42 @@
+"""B1, a Newtonian surge stopped by a rigid wall, through the real processes (`./sabo run`: coupler,
+sph_solver, fem_solver), reduced: Fr = 1 at h = 8 dx with a plateau of 4 T after the impact (T = h / sqrt(g h))
+instead of 8 T.
+The wall's force plateau per unit width against alpha rho v^2 h (Armanini & Scotton's bore, alpha = 2.35;
+tolerance 10 %) and the bore's height behind the wall, read by a line gauge, against r h. The full cases
+(Fr = 1, 2, 4 with the longer plateau, the plot of alpha(Fr)) are bench/surge_wall.py's, figures in bench/RESULTS.md."""
+import os
+import sys
+import unittest
+
+from e2e_support import ROOT, RealRunTestCase
+
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+from surge_wall import Surge, measure, TOLERANCE  # noqa: E402
+
+
+class SurgeWallTest(RealRunTestCase):
+    def test_surge_at_froude_1_loads_the_wall_as_the_bore_theory_says(self):
+        surge = Surge(1.0, spacings=8, window=4.0)
+        scene = os.path.join(self.tmp, "surge.toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(surge.scene_text())
+        out = os.path.join(self.tmp, "surge")
+        sabo = self.run_sabo(scene, out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        figures = measure(out, surge)
+        off = figures["alpha"] / surge.alpha - 1
+        print("B1 Fr = 1, h = 8 dx, block {:g} h: wall force plateau {:.2f} N/m over {:.2f}-{:.2f} s, expected "
+              "alpha rho v^2 h = {:.2f} N/m: alpha {:.3f} against {:.3f} ({:+.1%}; tolerance {:.0%})".format(
+                  surge.length / surge.depth, figures["plateau"], surge.settled, surge.plateau_end,
+                  surge.expected_force(), figures["alpha"], surge.alpha, off, TOLERANCE))
+        self.assertLess(abs(off), TOLERANCE)
+        bore = figures["bore_depth"] / (surge.ratio * surge.depth) - 1
+        print("B1 Fr = 1: bore height {:.4f} m 3 h upstream of the wall, expected r h = {:.4f} m ({:+.1%}; "
+              "tolerance 10 %)".format(figures["bore_depth"], surge.ratio * surge.depth, bore))
+        self.assertLess(abs(bore), 0.10)
+        print("B1 Fr = 1: impact peak {:.1f} N/m = {:.1f} x the plateau".format(
+            figures["peak"], figures["peak"] / figures["plateau"]))
+
+
+if __name__ == "__main__":
+    unittest.main()
