@@ -1,0 +1,248 @@
+#!/usr/bin/env python3
+"""C1, a water column on a clamped elastic plate (Fourey et al. 2017), through a scene (`./sabo run`: coupler,
+sph_solver, fem_solver): an aluminium plate 1 m long and 0.05 m thick (E 67.5 GPa, nu 0.34, rho 2700),
+clamped at both ends, under 2 m of water at rest, gravity 9.81 with the plate's own weight. Benchmarks.md's
+midspan deflection is -6.86e-5 m (tolerance 3 %): Euler-Bernoulli's q L^4 / (384 D) in plane strain,
+D = E t^3 / (12 (1 - nu^2)), q = rho_w g H + rho_p g t. A Mindlin plate adds the shear deflection
+q L^2 / (8 kappa G t) (kappa = 5/6): -7.11e-5 m, 3.6 % more; both are printed beside the measurement.
+
+The plate is a deformable shell panel (`plane` with a `thickness`), clamped on its two short edges
+(`fixed = ["x-", "x+"]`) and held in cylindrical bending (every node: no y displacement, no rotation about
+x), the water periodic across the width (`sph.periodic_y`, 8 spacings), between two rigid walls; the
+plate's surface is sampled as boundary particles (`sph.wall_model = "boundary_particles"`) or met by the
+penalty law (`--wall-models penalty`). The plate is loaded at once at t = 0: it rings about its static
+deflection, and the column, short of its weight on the plate at first (the plate's acceleration of
+about 150 m/s^2 enters the walls' pressure, Adami's g - a_w), bounces on it at its acoustic period
+4 H / c. The water's `settle_time` (`--settle`) damps that bounce; the measured deflection is the mean of
+the midspan nodes' vertical displacement over [--from, end_time]. For every shell formulation and wall model asked for, prints
+a markdown table (bench/RESULTS.md). Python 3.8+, standard library only; it builds nothing (run ./sabo setup
+first; $SABO_BUILD_DIR picks the build folder).
+
+    bench/plate_under_water.py                                        # both shells, boundary particles
+    bench/plate_under_water.py --formulations one_point --spacing 0.1 --keep /tmp/plate
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+from taylor_bar import read_vtu  # noqa: E402
+
+GRAVITY = 9.81
+WATER_DENSITY = 1000.0
+DEPTH = 2.0
+SPAN = 1.0
+THICKNESS = 0.05
+YOUNGS = 67.5e9
+POISSON = 0.34
+PLATE_DENSITY = 2700.0
+REFERENCE = -6.86e-5  # m, benchmarks.md C1
+TOLERANCE = 0.03
+FORMULATIONS = ("fully_integrated", "one_point")
+
+
+def load_per_area():
+    return WATER_DENSITY * GRAVITY * DEPTH + PLATE_DENSITY * GRAVITY * THICKNESS
+
+
+def bending_deflection():
+    rigidity = YOUNGS * THICKNESS ** 3 / (12.0 * (1.0 - POISSON ** 2))
+    return -load_per_area() * SPAN ** 4 / (384.0 * rigidity)
+
+
+def shear_deflection():
+    shear_modulus = YOUNGS / (2.0 * (1.0 + POISSON))
+    return -load_per_area() * SPAN ** 2 / (8.0 * 5.0 / 6.0 * shear_modulus * THICKNESS)
+
+
+class Plate:
+    def __init__(self, spacing=0.1, element_size=0.1, formulation="fully_integrated", wall_model="boundary_particles",
+                 end_time=0.45, measure_from=0.2, settle_time=0.15):
+        self.spacing = spacing
+        self.element_size = element_size
+        self.formulation = formulation
+        self.wall_model = wall_model
+        self.end_time = end_time
+        self.measure_from = measure_from
+        self.settle_time = settle_time
+        self.width = 8 * spacing
+        self.sound_speed = 10.0 * math.sqrt(GRAVITY * DEPTH)
+        self.output_interval = 0.0025
+
+    def scene_text(self):
+        W, dx = self.width, self.spacing
+        # The walls end at the plate's upper face: reaching below it, they would take the plate's wall
+        # particles near them (those in front of a wall closer than their depth are dropped).
+        wall_bottom, wall_top = 0.0, DEPTH + 0.2
+        wall_height = wall_top - wall_bottom
+        lines = [
+            "# C1 water column on a clamped aluminium plate: {} m of water on a plate {} m long, {} m thick; "
+            "dx = {} m, shells of {} m ({}), {} walls".format(DEPTH, SPAN, THICKNESS, dx, self.element_size,
+                                                             self.formulation, self.wall_model),
+            "format_version = 1",
+            "",
+            "[run]",
+            "end_time = {!r}".format(self.end_time),
+            "output_interval = {!r}".format(self.output_interval),
+            "gravity = [0.0, 0.0, {}]".format(-GRAVITY),
+            "checkpoint_interval = 0",
+            "",
+            "[materials.water]",
+            "density = {}".format(WATER_DENSITY),
+            "youngs_modulus = 2.2e9",
+            "poisson_ratio = 0.0",
+            'eos = "tait"',
+            "",
+            "[materials.aluminium]",
+            "density = {}".format(PLATE_DENSITY),
+            "youngs_modulus = {}".format(YOUNGS),
+            "poisson_ratio = {}".format(POISSON),
+            "",
+            "[materials.concrete]",
+            "density = 2400.0",
+            "youngs_modulus = 30e9",
+            "poisson_ratio = 0.2",
+            "",
+            "[sph]",
+            "particle_spacing = {!r}".format(dx),
+            "sound_speed = {!r}".format(self.sound_speed),
+            'wall_model = "{}"'.format(self.wall_model),
+            "periodic_y = [0.0, {!r}]".format(W),
+            "",
+            "[[fluids]]",
+            'name = "water"',
+            'material = "water"',
+            'shape = "box"',
+            "min = [0.0, 0.0, 0.0]",
+            "max = [{!r}, {!r}, {!r}]".format(SPAN, W, DEPTH),
+            "settle_time = {!r}".format(self.settle_time),
+            "",
+            "[[structures]]",
+            'name = "plate"',
+            'material = "aluminium"',
+            "rigid = false",
+            'shape = "plane"',
+            "origin = [{!r}, {!r}, {!r}]".format(SPAN / 2, W / 2, -THICKNESS / 2),
+            "normal = [0.0, 0.0, 1.0]",
+            "direction = [1.0, 0.0, 0.0]",
+            "length = {!r}".format(SPAN),
+            "width = {!r}".format(W),
+            "thickness = {!r}".format(THICKNESS),
+            "element_size = {!r}".format(self.element_size),
+            'element_formulation = "{}"'.format(self.formulation),
+            'fixed = ["x-", "x+"]',
+            "constraints = [ {{ box = {{ min = [-1.0, -1.0, -1.0], max = [{!r}, {!r}, 1.0] }}, "
+            'dofs = ["y", "rx"] }} ]'.format(SPAN + 1.0, W + 1.0),
+        ]
+        for name, x, normal in (("wall_x0", 0.0, 1.0), ("wall_x1", SPAN, -1.0)):
+            lines += [
+                "",
+                "[[structures]]",
+                'name = "{}"'.format(name),
+                'material = "concrete"',
+                'shape = "plane"',
+                "origin = [{!r}, {!r}, {!r}]".format(x, W / 2, wall_bottom + wall_height / 2),
+                "normal = [{!r}, 0.0, 0.0]".format(normal),
+                "direction = [0.0, 0.0, 1.0]",
+                "length = {!r}".format(wall_height),
+                "width = {!r}".format(W),
+                "element_size = {!r}".format(max(W, 0.25)),
+            ]
+        lines += ["", "[recording]", "enabled = false", ""]
+        return "\n".join(lines)
+
+
+def midspan_history(run_dir):
+    """(time, vertical displacement) of the plate's midspan: the mean over the nodes nearest to x = L / 2
+    across the width, from the plate's own series (fem_plate.pvd: its .vtu frames carry the displacement)."""
+    import re
+    with open(os.path.join(run_dir, "fem_plate.pvd"), encoding="utf-8") as handle:
+        frames = re.findall(r'timestep="([^"]+)"[^>]*file="([^"]+)"', handle.read())
+    history = []
+    for time_text, name in frames:
+        arrays = read_vtu(os.path.join(run_dir, name))
+        points, displacement = arrays["Points"], arrays["displacement"]
+        nearest = min(abs(p[0] - SPAN / 2) for p in points)
+        middle = [k for k, p in enumerate(points) if abs(abs(p[0] - SPAN / 2) - nearest) < 1e-9]
+        history.append((float(time_text), sum(displacement[k][2] for k in middle) / len(middle)))
+    return history
+
+
+def measure(run_dir, plate):
+    history = midspan_history(run_dir)
+    window = [w for t, w in history if t >= plate.measure_from - 1e-12]
+    if not window:
+        raise RuntimeError("{}: no frame after t = {} s".format(run_dir, plate.measure_from))
+    mean = sum(window) / len(window)
+    return {"history": history, "deflection": mean, "min": min(window), "max": max(window)}
+
+
+def run_case(plate, work, name):
+    scene = os.path.join(work, name + ".toml")
+    with open(scene, "w", encoding="utf-8") as handle:
+        handle.write(plate.scene_text())
+    out = os.path.join(work, name)
+    start = time.time()
+    run = subprocess.run([os.path.join(ROOT, "sabo"), "run", scene, "--out", out, "--quiet", "--no-setup",
+                          "--no-plots"], capture_output=True, text=True)
+    wall = time.time() - start
+    if run.returncode != 0:
+        raise RuntimeError("{}: ./sabo run failed ({}):\n{}{}".format(name, run.returncode, run.stdout, run.stderr))
+    figures = measure(out, plate)
+    with open(os.path.join(out, "summary.json"), encoding="utf-8") as handle:
+        figures["steps"] = json.load(handle).get("steps")
+    figures.update({"wall_s": wall, "run_dir": out})
+    return figures
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--formulations", nargs="+", default=list(FORMULATIONS), choices=FORMULATIONS)
+    parser.add_argument("--wall-models", nargs="+", default=["boundary_particles"],
+                        choices=["boundary_particles", "penalty"])
+    parser.add_argument("--spacing", type=float, default=0.05, help="SPH particle spacing dx (m)")
+    parser.add_argument("--element-size", type=float, default=0.1, help="shell element size (m)")
+    parser.add_argument("--end-time", type=float, default=0.45)
+    parser.add_argument("--from", dest="measure_from", type=float, default=0.2, help="start of the mean (s)")
+    parser.add_argument("--settle", type=float, default=0.15, help="the water's settle_time (s)")
+    parser.add_argument("--keep", help="folder for the scenes and run folders (default: a temporary one)")
+    parser.add_argument("--json", help="also write the figures here")
+    args = parser.parse_args()
+    work = args.keep or tempfile.mkdtemp(prefix="sabo_plate_")
+    os.makedirs(work, exist_ok=True)
+    results = []
+    for wall_model in args.wall_models:
+        for formulation in args.formulations:
+            plate = Plate(args.spacing, args.element_size, formulation, wall_model, args.end_time, args.measure_from,
+                          args.settle)
+            name = "{}_{}_dx{:g}_e{:g}".format(wall_model, formulation, args.spacing, args.element_size)
+            figures = run_case(plate, work, name)
+            figures.update({"formulation": formulation, "wall_model": wall_model})
+            results.append(figures)
+            print("{}: midspan {:.4e} m ({:+.1%} of {:.3g}), range {:.3e}..{:.3e}, {} steps, {:.0f} s".format(
+                name, figures["deflection"], figures["deflection"] / REFERENCE - 1, REFERENCE, figures["min"],
+                figures["max"], figures["steps"], figures["wall_s"]), file=sys.stderr)
+    bending, shear = bending_deflection(), shear_deflection()
+    print("Euler-Bernoulli (plane strain) {:.4e} m, Mindlin {:.4e} m".format(bending, bending + shear))
+    print("| wall model | shells | dx | element | midspan deflection (m) | against -6.86e-5 | within 3 % | against "
+          "Mindlin {:.3e} | oscillation min..max (m) | steps | wall time |".format(bending + shear))
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in results:
+        off = r["deflection"] / REFERENCE - 1
+        print("| {} | {} | {:g} | {:g} | {:.4e} | {:+.1%} | {} | {:+.1%} | {:.2e}..{:.2e} | {} | {:.0f} s |".format(
+            r["wall_model"], r["formulation"], args.spacing, args.element_size, r["deflection"], off,
+            "yes" if abs(off) <= TOLERANCE else "no", r["deflection"] / (bending + shear) - 1, r["min"], r["max"],
+            r["steps"], r["wall_s"]))
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as handle:
+            json.dump(results, handle, indent=1)
+
+
+if __name__ == "__main__":
+    main()
