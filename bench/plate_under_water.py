@@ -25,13 +25,11 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
-import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "bench"))
+sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
+from scene_runs import run_scene  # noqa: E402
 from taylor_bar import read_vtu  # noqa: E402
 
 GRAVITY = 9.81
@@ -184,20 +182,9 @@ def measure(run_dir, plate):
 
 
 def run_case(plate, work, name):
-    scene = os.path.join(work, name + ".toml")
-    with open(scene, "w", encoding="utf-8") as handle:
-        handle.write(plate.scene_text())
-    out = os.path.join(work, name)
-    start = time.time()
-    run = subprocess.run([os.path.join(ROOT, "sabo"), "run", scene, "--out", out, "--quiet", "--no-setup",
-                          "--no-plots"], capture_output=True, text=True)
-    wall = time.time() - start
-    if run.returncode != 0:
-        raise RuntimeError("{}: ./sabo run failed ({}):\n{}{}".format(name, run.returncode, run.stdout, run.stderr))
+    out, wall, summary = run_scene(plate.scene_text(), work, name)
     figures = measure(out, plate)
-    with open(os.path.join(out, "summary.json"), encoding="utf-8") as handle:
-        figures["steps"] = json.load(handle).get("steps")
-    figures.update({"wall_s": wall, "run_dir": out})
+    figures.update({"wall_s": wall, "steps": summary.get("steps"), "run_dir": out})
     return figures
 
 

@@ -24,12 +24,12 @@ import csv
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
-import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
+from scene_runs import run_scene  # noqa: E402
+
 GRAVITY = 9.81
 DENSITY = 1000.0
 # benchmarks.md's table of alpha (F = alpha rho v^2 h per unit width) for a surge of Froude number Fr.
@@ -205,19 +205,8 @@ def measure(run_dir, surge):
 
 
 def run_case(surge, work, name):
-    scene = os.path.join(work, name + ".toml")
-    with open(scene, "w", encoding="utf-8") as handle:
-        handle.write(surge.scene_text())
-    out = os.path.join(work, name)
-    start = time.time()
-    run = subprocess.run([os.path.join(ROOT, "sabo"), "run", scene, "--out", out, "--quiet", "--no-setup",
-                          "--no-plots"], capture_output=True, text=True)
-    wall = time.time() - start
-    if run.returncode != 0:
-        raise RuntimeError("{}: ./sabo run failed ({}):\n{}{}".format(name, run.returncode, run.stdout, run.stderr))
+    out, wall, summary = run_scene(surge.scene_text(), work, name)
     figures = measure(out, surge)
-    with open(os.path.join(out, "summary.json"), encoding="utf-8") as handle:
-        summary = json.load(handle)
     figures.update({"wall_s": wall, "steps": summary.get("steps"), "run_dir": out})
     return figures
 

@@ -30,12 +30,12 @@
 #include "libsabo/geometry/polygon.hpp"
 #include "libsabo/geometry/primitives.hpp"
 #include "libsabo/geometry/sphere_fill.hpp"
-#include "libsabo/geometry/surface_patch.hpp"
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/stl.hpp"
 #include "libsabo/scene/estimate.hpp"
 #include "libsabo/scene/schema.hpp"
+#include "libsabo/scene/sensor_patch.hpp"
 #include "libsabo/scene/suggest.hpp"
 
 namespace sabo::scene {
@@ -2445,23 +2445,12 @@ class Builder {
   // shapes, generated deformable boxes and panels); a .msh part's surface is checked by the coupler when
   // the fem_solver has registered it.
   void check_sensor_box(Reader& r, const Sensor& sensor) {
-    const auto structure = std::find_if(scene_.structures.begin(), scene_.structures.end(),
-                                        [&](const Structure& s) { return s.name == sensor.part; });
-    if (structure == scene_.structures.end() || (structure->shape.type == Shape::Type::mesh && !structure->rigid)) {
-      return;
-    }
-    geometry::SurfacePatch patch;
-    try {
-      patch = geometry::surface_patch(geometry::triangulate(structure->shape, structure->name, structure->origin), 0,
-                                      sensor.box);
-    } catch (const Error&) {
-      return;  // the shape's own problem is reported with the structure
-    }
-    if (patch.area > 0) return;
+    const auto patch = sensor_patch(scene_.structures, sensor);
+    if (!patch || patch->area > 0) return;
     diag_.add(r.line("min"), r.key_path("min"), value_text(*r.node("min")),
               fmt::format("the box [{}, {}] meets none of the surface of '{}', which spans {} to {}",
                           vec_text(sensor.box->min), vec_text(sensor.box->max), sensor.part,
-                          vec_text(patch.part_bounds.min), vec_text(patch.part_bounds.max)),
+                          vec_text(patch->part_bounds.min), vec_text(patch->part_bounds.max)),
               "move the box onto the part's face (a box a few mm thick across the face)");
   }
 

@@ -6,9 +6,7 @@
 #include <algorithm>
 #include <array>
 
-#include "libsabo/core/error.hpp"
-#include "libsabo/geometry/primitives.hpp"
-#include "libsabo/geometry/surface_patch.hpp"
+#include "libsabo/scene/sensor_patch.hpp"
 
 namespace sabo::scene {
 namespace {
@@ -32,33 +30,21 @@ void warn_narrow_sensors(const Scene& scene, std::vector<std::string>& warnings)
   if (scene.fluids.empty()) return;
   const double dx = scene.sph.particle_spacing;
   for (const Sensor& sensor : scene.sensors) {
-    if (!sensor.box) continue;
-    const auto structure = std::find_if(scene.structures.begin(), scene.structures.end(),
-                                        [&](const Structure& s) { return s.name == sensor.part; });
-    if (structure == scene.structures.end() || (structure->shape.type == Shape::Type::mesh && !structure->rigid)) {
-      continue;
-    }
-    geometry::SurfacePatch patch;
-    try {
-      patch = geometry::surface_patch(geometry::triangulate(structure->shape, structure->name, structure->origin), 0,
-                                      sensor.box);
-    } catch (const Error&) {
-      continue;  // the loader reported it
-    }
-    if (patch.area <= 0) continue;
-    const Vec3 lo = sensor.box->min.cwiseMax(patch.part_bounds.min);
-    const Vec3 hi = sensor.box->max.cwiseMin(patch.part_bounds.max);
+    const auto patch = sensor_patch(scene.structures, sensor);
+    if (!patch || patch->area <= 0) continue;
+    const Vec3 lo = sensor.box->min.cwiseMax(patch->part_bounds.min);
+    const Vec3 hi = sensor.box->max.cwiseMin(patch->part_bounds.max);
     std::array<double, 3> extent{hi.x() - lo.x(), hi.y() - lo.y(), hi.z() - lo.z()};
     std::sort(extent.begin(), extent.end());
     const double width = extent[1];
-    if (width >= dx && patch.area >= dx * dx) continue;
+    if (width >= dx && patch->area >= dx * dx) continue;
     warnings.push_back(located(
         sensor.origin,
         fmt::format("sensor \"{}\" covers {:.3g} m^2 of \"{}\", {:.3g} m wide along the face, narrower than the "
                     "particle spacing sph.particle_spacing = {:g} m: it holds at most a row of wall particles, so "
                     "its force jumps as fluid particles pass and its mean pressure is smeared over the kernel's "
                     "2h",
-                    sensor.name, patch.area, sensor.part, width, dx),
+                    sensor.name, patch->area, sensor.part, width, dx),
         fmt::format("make the box at least {:g} m wide along the face (a few spacings for a steady pressure), or "
                     "refine sph.particle_spacing below the sensor's width",
                     dx)));
