@@ -165,6 +165,16 @@ class Surge:
             "points = 2",
             "interval = {:.6g}".format(self.output_interval),
             "",
+            "# The pressure one spacing in front of the wall, integrated over the height: the wall's load as the",
+            "# fluid carries it, beside the force the wall particles pass to the wall.",
+            "[[gauges]]",
+            'name = "wall_profile"',
+            'kind = "line"',
+            "start = [{!r}, {!r}, 0.0]".format(-dx, W / 2),
+            "end = [{!r}, {!r}, {!r}]".format(-dx, W / 2, self.wall_height),
+            "points = {}".format(int(round(self.wall_height / (0.5 * dx))) + 1),
+            "interval = {:.6g}".format(self.output_interval),
+            "",
             "[recording]",
             "enabled = false",
             "",
@@ -194,6 +204,15 @@ def measure(run_dir, surge):
               if row["gauge"] == "bore" and row["point"] == "0"
               and surge.settled <= float(row["time"]) <= surge.plateau_end]
     bore = sum(depths) / len(depths) if depths else float("nan")
+    profiles = {}
+    for row in read_csv(os.path.join(run_dir, "gauges.csv")):
+        if row["gauge"] == "wall_profile" and surge.settled <= float(row["time"]) <= surge.plateau_end:
+            profiles.setdefault(row["time"], []).append((float(row["z"]), float(row["pressure"])))
+    integrals = []
+    for points in profiles.values():
+        points.sort()
+        integrals.append(sum(0.5 * (p0 + p1) * (z1 - z0) for (z0, p0), (z1, p1) in zip(points, points[1:])))
+    profile_force = sum(integrals) / len(integrals) if integrals else float("nan")
     return {
         "history": history,
         "plateau": plateau,
@@ -201,6 +220,7 @@ def measure(run_dir, surge):
         "spread": spread,
         "peak": max(f for _, f in history),
         "bore_depth": bore,
+        "profile_force": profile_force,
     }
 
 
@@ -259,20 +279,23 @@ def main():
                             "expected": surge.expected_force(), "alpha_theory": surge.alpha,
                             "bore_expected": surge.ratio * surge.depth, "window": [surge.settled, surge.plateau_end]})
             results.append(figures)
-            print("{}: alpha {:.3f} (theory {:.3f}, {:+.1%}), bore {:.4f} m (theory {:.4f} m), {:.0f} s".format(
-                name, figures["alpha"], surge.alpha, figures["alpha"] / surge.alpha - 1, figures["bore_depth"],
-                surge.ratio * surge.depth, figures["wall_s"]), file=sys.stderr)
+            print("{}: alpha {:.3f} (theory {:.3f}, {:+.1%}), bore {:.4f} m (theory {:.4f} m), the pressure 1 dx in "
+                  "front of the wall integrated {:.2f} N/m against the wall's {:.2f} N/m, {:.0f} s".format(
+                      name, figures["alpha"], surge.alpha, figures["alpha"] / surge.alpha - 1, figures["bore_depth"],
+                      surge.ratio * surge.depth, figures["profile_force"], figures["plateau"], figures["wall_s"]),
+                  file=sys.stderr)
     print("| Fr | h / dx | block (h) | plateau window (T) | F plateau (N/m) | alpha rho v^2 h (N/m) | alpha "
-          "measured / theory | within 10 % | bore r h measured / theory (m) | peak / plateau | steps | wall time |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "measured / theory | within 10 % | bore r h measured / theory (m) | pressure 1 dx in front, integrated "
+          "(N/m) | peak / plateau | steps | wall time |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     time_unit = math.sqrt(args.depth / GRAVITY)
     for r in results:
         off = r["alpha"] / r["alpha_theory"] - 1
         print("| {:g} | {} | {:g} | {:.1f}-{:.1f} | {:.2f} | {:.2f} | {:.3f} / {:.3f} ({:+.1%}) | {} | {:.4f} / "
-              "{:.4f} | {:.2f} | {} | {:.0f} s |".format(
+              "{:.4f} | {:.2f} | {:.2f} | {} | {:.0f} s |".format(
                   r["froude"], r["spacings"], r["length"] / args.depth, r["window"][0] / time_unit,
                   r["window"][1] / time_unit, r["plateau"], r["expected"], r["alpha"], r["alpha_theory"], off,
-                  "yes" if abs(off) <= TOLERANCE else "no", r["bore_depth"], r["bore_expected"],
+                  "yes" if abs(off) <= TOLERANCE else "no", r["bore_depth"], r["bore_expected"], r["profile_force"],
                   r["peak"] / r["plateau"], r["steps"], r["wall_s"]))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as handle:

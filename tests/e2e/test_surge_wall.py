@@ -2,7 +2,8 @@
 sph_solver, fem_solver), reduced: Fr = 1 at h = 8 dx with a plateau of 4 T after the impact (T = h / sqrt(g h))
 instead of 8 T.
 The wall's force plateau per unit width against alpha rho v^2 h (Armanini & Scotton's bore, alpha = 2.35;
-tolerance 10 %) and the bore's height behind the wall, read by a line gauge, against r h. The full cases
+tolerance 10 %), the bore's height behind the wall, read by a line gauge, against r h, and the wall's force
+against the pressure a line gauge reads one spacing in front of it. The full cases
 (Fr = 1, 2, 4 with the longer plateau, the plot of alpha(Fr)) are bench/surge_wall.py's, figures in bench/RESULTS.md."""
 import os
 import sys
@@ -34,6 +35,13 @@ class SurgeWallTest(RealRunTestCase):
         print("B1 Fr = 1: bore height {:.4f} m 3 h upstream of the wall, expected r h = {:.4f} m ({:+.1%}; "
               "tolerance 10 %)".format(figures["bore_depth"], surge.ratio * surge.depth, bore))
         self.assertLess(abs(bore), 0.10)
+        # The wall particles pass on what the fluid carries: the pressure one spacing in front of the wall,
+        # integrated over the height, against the wall's force.
+        profile = figures["profile_force"] / figures["plateau"] - 1
+        print("B1 Fr = 1: the pressure 1 dx in front of the wall integrated over the height {:.2f} N/m, the wall's "
+              "force {:.2f} N/m ({:+.1%}; tolerance 10 %)".format(figures["profile_force"], figures["plateau"],
+                                                                  profile))
+        self.assertLess(abs(profile), 0.10)
         print("B1 Fr = 1: impact peak {:.1f} N/m = {:.1f} x the plateau".format(
             figures["peak"], figures["peak"] / figures["plateau"]))
 
