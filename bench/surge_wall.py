@@ -189,8 +189,8 @@ def read_csv(path):
 
 def measure(run_dir, surge):
     """The wall's force history per unit width (forces.csv: the fluid on `wall`, each row the mean over one
-    output interval), its plateau over [settled, plateau_end], the peak, and the bore's depth at the gauge
-    over the same window."""
+    output interval), its plateau over [settled, plateau_end], the peak, the bore's depth at the gauge and the
+    wall profile's pressure integrated over the height (N/m), over the same window."""
     history = []
     for row in read_csv(os.path.join(run_dir, "forces.csv")):
         if row["part"] == "wall" and row["source"] == "fluid":
@@ -199,15 +199,16 @@ def measure(run_dir, surge):
     if not window:
         raise RuntimeError("{}: no forces.csv row of the wall inside the plateau window".format(run_dir))
     plateau = sum(window) / len(window)
-    spread = (max(window) - min(window)) / plateau if plateau else float("inf")
-    depths = [float(row["depth"]) for row in read_csv(os.path.join(run_dir, "gauges.csv"))
-              if row["gauge"] == "bore" and row["point"] == "0"
-              and surge.settled <= float(row["time"]) <= surge.plateau_end]
-    bore = sum(depths) / len(depths) if depths else float("nan")
-    profiles = {}
+    # gauges.csv once: the bore line's depth and the wall profile's pressures, inside the window.
+    depths, profiles = [], {}
     for row in read_csv(os.path.join(run_dir, "gauges.csv")):
-        if row["gauge"] == "wall_profile" and surge.settled <= float(row["time"]) <= surge.plateau_end:
+        if not surge.settled <= float(row["time"]) <= surge.plateau_end:
+            continue
+        if row["gauge"] == "bore" and row["point"] == "0":
+            depths.append(float(row["depth"]))
+        elif row["gauge"] == "wall_profile":
             profiles.setdefault(row["time"], []).append((float(row["z"]), float(row["pressure"])))
+    bore = sum(depths) / len(depths) if depths else float("nan")
     integrals = []
     for points in profiles.values():
         points.sort()
@@ -217,7 +218,6 @@ def measure(run_dir, surge):
         "history": history,
         "plateau": plateau,
         "alpha": plateau / (DENSITY * surge.speed ** 2 * surge.depth),
-        "spread": spread,
         "peak": max(f for _, f in history),
         "bore_depth": bore,
         "profile_force": profile_force,

@@ -752,7 +752,7 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
       if (!slot.source) continue;
       const auto loads = slot.pair->loads();  // [part] -> force from this pair's source, N
       for (std::size_t part = 0; part < loads.size(); ++part) forces_csv_->add(part, *slot.source, loads[part], dt);
-      if (sensors_) sensors_->add(*slot.pair, *slot.source, dt);
+      if (sensors_) sensors_->add(*slot.pair, loads, *slot.source, dt);
     }
   }
   if (forces_csv_ && output) forces_csv_->write(time);

@@ -73,8 +73,7 @@ Sensors::Sensors(std::FILE* file, const scene::Scene& scene, const geometry::Sur
       any_box_(std::any_of(slots_.begin(), slots_.end(), [](const Slot& s) { return s.box.has_value(); })),
       history_(file, sensor_names(scene), sensor_rows(scene, surface), std::move(sources), header) {}
 
-void Sensors::add(const ContactPair& pair, std::size_t source, double dt) {
-  const auto loads = pair.loads();
+void Sensors::add(const ContactPair& pair, std::span<const Vec3> loads, std::size_t source, double dt) {
   if (any_box_) {
     point_loads_.clear();
     pair.point_loads(point_loads_);

@@ -4,6 +4,7 @@
 // box sums the pair's point_loads() whose point lies in the box, in the pair's order.
 #include <cstdio>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -24,8 +25,9 @@ class Sensors {
 
   // Whether pairs must keep their point loads (ContactPair::want_point_loads): a sensor has a box.
   [[nodiscard]] bool needs_point_loads() const { return any_box_; }
-  // Every step: the loads of `pair` (forces.csv column `source`) over the step dt (s).
-  void add(const ContactPair& pair, std::size_t source, double dt);
+  // Every step: the loads of `pair` (forces.csv column `source`) over the step dt (s); `loads` is
+  // pair.loads(), as forces.csv took it.
+  void add(const ContactPair& pair, std::span<const Vec3> loads, std::size_t source, double dt);
   void write(double time) { history_.write(time); }
   void close() { history_.close(); }
   void save(io::hdf5::Group& group) const { history_.save(group); }
