@@ -10,7 +10,7 @@
 // lateral ones open and close as the unconfined stack relaxes. The JSON line
 // reports the contacts per sphere measured (a settled pile has about 4-6, a
 // flowing one fewer); a sphere-step costs more the more contacts it has.
-// Material and contact law are the paper's (refs/MODEL.md): granite rho 3000,
+// Material and contact law are the paper's (docs/model.md): granite rho 3000,
 // E 30 GPa, nu 0.3; damping ratios 0.7 / 0.4, friction 1.0, rolling friction
 // 0.1, normal stiffness scale 0.01. dt = beta * DemModel::stable_dt(), beta 0.25.
 //
@@ -48,7 +48,7 @@ scene::Scene pile_scene(const PileSize& size, double diameter_m, double speed_m_
   granite.youngs_modulus = 30e9;
   granite.poisson_ratio = 0.3;
   scene.materials.push_back(granite);
-  // MODEL.md "DEM-DEM" (also the defaults; stated so that the bench does not depend on them).
+  // docs/model.md "DEM-DEM" (also the defaults; stated so that the bench does not depend on them).
   scene.dem_contact.normal_damping_ratio = 0.7;
   scene.dem_contact.tangential_damping_ratio = 0.4;
   scene.dem_contact.friction = 1.0;

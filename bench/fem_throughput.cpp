@@ -1,7 +1,7 @@
 // FEM throughput: element-steps per second of the deformable kernels alone
 // (no protocol, no output). Prints one JSON line.
 //
-// hex: a cube of the paper's dam material (MODEL.md: rho 2300, E 8 GPa, nu
+// hex: a cube of the paper's dam material (docs/model.md: rho 2300, E 8 GPa, nu
 //   0.23, yield 8 MPa, plastic kinematic with tangent modulus 0.8 GPa) meshed
 //   n x n x n with one-point hexahedra (--formulation fully_integrated or
 //   enhanced_strain: 2 x 2 x 2 points), its base fixed, moving at 5 m/s against it: elements yield
@@ -79,8 +79,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (kind == "shell" && formulation == "enhanced_strain") {
-    fmt::print(stderr, "--formulation enhanced_strain is for hexahedra: use --kind hex, or one_point or "
-                       "fully_integrated for shells\n");
+    fmt::print(stderr,
+               "--formulation enhanced_strain is for hexahedra: use --kind hex, or one_point or "
+               "fully_integrated for shells\n");
     return 2;
   }
 

@@ -40,7 +40,7 @@ THICKNESS = 0.05
 YOUNGS = 67.5e9
 POISSON = 0.34
 PLATE_DENSITY = 2700.0
-REFERENCE = -6.86e-5  # m, benchmarks.md C1
+REFERENCE = -6.86e-5  # m, docs/benchmarks.md C1
 TOLERANCE = 0.03
 FORMULATIONS = ("fully_integrated", "one_point")
 

@@ -32,7 +32,7 @@ from scene_runs import run_scene  # noqa: E402
 
 GRAVITY = 9.81
 DENSITY = 1000.0
-# benchmarks.md's table of alpha (F = alpha rho v^2 h per unit width) for a surge of Froude number Fr.
+# docs/benchmarks.md's table of alpha (F = alpha rho v^2 h per unit width) for a surge of Froude number Fr.
 ALPHA_TABLE = {1.0: 2.35, 2.0: 1.53, 4.0: 1.22}
 TOLERANCE = 0.10
 
@@ -238,7 +238,7 @@ def plot_alpha(results, path):
     froudes = [0.8 + 0.02 * k for k in range(200)]
     fig, ax = plt.subplots(figsize=(6, 4.5))
     ax.plot(froudes, [alpha_theory(fr) for fr in froudes], "k-", label="bore theory: alpha = r² / (2 Fr²)")
-    ax.plot(list(ALPHA_TABLE), list(ALPHA_TABLE.values()), "ks", mfc="none", label="benchmarks.md table")
+    ax.plot(list(ALPHA_TABLE), list(ALPHA_TABLE.values()), "ks", mfc="none", label="docs/benchmarks.md table")
     ax.fill_between(froudes, [(1 - TOLERANCE) * alpha_theory(fr) for fr in froudes],
                     [(1 + TOLERANCE) * alpha_theory(fr) for fr in froudes], color="0.85", label="±10 %")
     for spacings in sorted({r["spacings"] for r in results}):

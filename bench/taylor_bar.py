@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """F2, the Taylor bar through a scene (configs/tests/taylor_bar.toml, `./sabo run`): a copper cylinder at
 227 m/s against a rigid wall, met through the fem_solver's contact between structures. For every
-hexahedron formulation and mesh asked for, prints the final length (benchmarks.md: 21.42-21.66 mm), the
+hexahedron formulation and mesh asked for, prints the final length (docs/benchmarks.md: 21.42-21.66 mm), the
 final radius of the impact face, the energy balance error (the largest |total + dissipated - initial| over
 the initial energy in energy.csv) and the wall time, as a markdown table (bench/RESULTS.md).
 

@@ -1,5 +1,5 @@
 #pragma once
-// The coupler process: the lock-step loop of DESIGN.md §2. It registers the
+// The coupler process: the lock-step loop of docs/design.md, "An explicit, lock-step step". It registers the
 // solvers the scene needs, then per step gathers every StepState, sets
 // dt_n = min_i(beta_i * stable_dt_i) (paper eq. 7, with the contact's own
 // limit), computes the contact forces of the enabled pairs, checks Newton's

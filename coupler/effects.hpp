@@ -1,7 +1,7 @@
 #pragma once
 // What the run summary lists as the active effects of the solvers (the
-// contact pairs describe their own): DESIGN.md §6, the scene decides what is
-// simulated, and the summary says what each effect cost.
+// contact pairs describe their own): the scene decides what is simulated (docs/design.md), and the
+// summary says what each effect cost.
 #include <nlohmann/json.hpp>
 
 #include "libsabo/scene/scene.hpp"

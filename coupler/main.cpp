@@ -1,4 +1,4 @@
-// coupler: the central process of a Sabo run (DESIGN.md §1-2).
+// coupler: the central process of a Sabo run (docs/design.md).
 //   coupler --scene FILE --endpoint ENDPOINT --out DIR [--resume RUN_DIR/checkpoints/coupler_<step>.h5]
 // stdout carries the JSON event stream for the supervisor; logs go to stderr.
 #include <fmt/format.h>

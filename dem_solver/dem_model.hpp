@@ -1,8 +1,8 @@
 #pragma once
-// The physics of dem_solver: DEM spheres with DEM-DEM contacts (MODEL.md
+// The physics of dem_solver: DEM spheres with DEM-DEM contacts (docs/model.md
 // "DEM-DEM"), gravity and forces received from the coupler. No protocol here.
 //
-// Step contract (central difference, DESIGN.md §2). The state at step n is
+// Step contract (central difference, docs/design.md, "An explicit, lock-step step"). The state at step n is
 // positions x_n and half-step velocities v_{n-1/2}, w_{n-1/2} (at step 0 the
 // initial v_0, w_0). One step, in this order:
 //   compute_internal_forces(dt_{n-1})   contact forces and torques at x_n, using

@@ -1,5 +1,5 @@
 #pragma once
-// Restart of deformable state (DESIGN.md §5): every value of a body that
+// Restart of deformable state (docs/design.md, "The traffic log"): every value of a body that
 // evolves from step to step, as flat arrays a checkpoint stores and a body
 // built from the same scene restores. What the next compute_internal_forces()
 // recomputes (internal forces, element steps) is not in it.

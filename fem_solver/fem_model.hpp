@@ -2,7 +2,7 @@
 // The structures of a scene as the FEM solver simulates them: the physics of
 // fem_solver, without the protocol.
 //
-// Step contract (explicit central difference, DESIGN.md §2). At the start of
+// Step contract (explicit central difference, docs/design.md, "An explicit, lock-step step"). At the start of
 // step n the model holds, for every part, node positions x_n and half-step
 // velocities v_{n-1/2} (rigid parts: fixed in space, x_n = x_0, v = 0).
 //   1. The solver sends StepState{n, t_n, stable_dt(), energies()} with the

@@ -4,7 +4,7 @@
 // element erosion (docs/physics.md "FEM solids"); one-point, fully integrated
 // or enhanced-strain hexahedra (HexFormulation).
 //
-// Step n (the CoupledSolver contract, DESIGN.md §2): the body holds x_n and
+// Step n (the CoupledSolver contract, docs/design.md, "An explicit, lock-step step"): the body holds x_n and
 // v_{n-1/2}.
 //   compute_internal_forces(dt_{n-1}): stresses advanced with v_{n-1/2} over
 //     dt_{n-1} at the mid-step geometry, then f_int(x_n); failed elements are

@@ -2,7 +2,7 @@
 // The physics of sph_solver: weakly compressible SPH of the debris slurry
 // (docs/physics.md, "SPH"). No protocol here.
 //
-// Step contract (central difference, DESIGN.md §2). The state at step n is
+// Step contract (central difference, docs/design.md, "An explicit, lock-step step"). The state at step n is
 // positions x_n, densities rho_n, deviatoric stresses S_n and half-step
 // velocities v_{n-1/2} (at step 0 the initial v_0). One step, in this order:
 //   set_boundary(...)                  wall particles at x_n (boundary-particle walls);

@@ -1,5 +1,5 @@
 #pragma once
-// Constitutive update of the structures' materials (MODEL.md "Materials"):
+// Constitutive update of the structures' materials (docs/model.md, "Materials of the Wenjia model"):
 // isotropic linear elasticity, and LS-DYNA's MAT_PLASTIC_KINEMATIC (MAT_003):
 // bilinear J2 plasticity with yield stress sigma_0, tangent modulus E_t,
 // hardening mixed between kinematic (beta = 0) and isotropic (beta = 1), an

@@ -1,5 +1,5 @@
 #pragma once
-// Point-triangle geometry of the particle-surface penalty contact (MODEL.md
+// Point-triangle geometry of the particle-surface penalty contact (docs/model.md
 // "SPH-FEM", "DEM-FEM", paper eqs. 3-5): the closest point of a triangle with
 // the feature it lies on, and the overlap and normal of a sphere against it.
 #include <array>

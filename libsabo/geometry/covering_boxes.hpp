@@ -1,6 +1,6 @@
 #pragma once
 // A few boxes that together cover many small ones: the interest regions of
-// DESIGN.md §3. One bounding box of a sloping floor or of dams far apart holds
+// docs/design.md, "Only the interface travels". One bounding box of a sloping floor or of dams far apart holds
 // far more of the scene than the surfaces themselves; a handful of tiles hugs
 // them, so the particles sent grow with the interface, not the scene's volume.
 #include <cstddef>

@@ -1,5 +1,5 @@
 #pragma once
-// Recording of the coupler's interface traffic into traffic.h5 (DESIGN.md §5)
+// Recording of the coupler's interface traffic into traffic.h5 (docs/design.md, "The traffic log")
 // and reading it back. The layout is documented in docs/traffic.md:
 //
 //   /                       attrs: format = "sabo-traffic", format_version = 1,

@@ -1,7 +1,7 @@
 #pragma once
 // Contact laws shared by dem_solver (DEM-DEM) and the coupler (DEM-FEM):
 // linear spring-dashpot with a tangential spring and a Coulomb limit, and a
-// constant-torque rolling resistance (MODEL.md "DEM-DEM", paper eqs. 1-5).
+// constant-torque rolling resistance (docs/model.md "DEM-DEM", paper eqs. 1-5).
 #include "libsabo/core/types.hpp"
 
 namespace sabo::physics {
@@ -47,7 +47,7 @@ struct ContactForce {
 // clamped at zero (the D2 restitution formula is the unclamped oscillator's). On sliding
 // (|trial tangential force| > Coulomb force) the force is capped at the Coulomb force along the
 // trial force, and a spring longer than the limit is reset so that k_t * |displacement| equals
-// the Coulomb force (MODEL.md "slip resets the spring"); a shorter spring (the dashpot pushed the
+// the Coulomb force (docs/model.md, SPH–FEM: "slipping shortens the spring"); a shorter spring (the dashpot pushed the
 // contact over the limit) is kept as it is: the reset never stores energy.
 // The Coulomb limit is mu * max(normal_force, 0): a contact that its dashpot pulls together
 // (normal_force < 0, at the end of an unclamped damped impact) carries no friction.

@@ -1,5 +1,5 @@
 #pragma once
-// The lock-step loop every solver process runs (DESIGN.md §2), written once.
+// The lock-step loop every solver process runs (docs/design.md, "An explicit, lock-step step"), written once.
 // A solver implements CoupledSolver; run_solver() does the protocol, timing,
 // signals and error reporting.
 #include <cstdint>

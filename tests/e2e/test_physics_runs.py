@@ -1,5 +1,5 @@
 """Physics through the real processes and sockets (`./sabo run`): a sphere bouncing on a rigid
-plane (DEM-FEM penalty contact, benchmarks.md D2) and boulders down a chute (every boulder kept, none
+plane (DEM-FEM penalty contact, docs/benchmarks.md D2) and boulders down a chute (every boulder kept, none
 through a wall, the energy never above its initial value). Each check prints measured beside expected."""
 import csv
 import math

@@ -210,7 +210,7 @@ class TankTest(RealRunTestCase):
             fem = traffic["fem_solver/forces"]
             self.assertEqual(fem["boundary_volume_count"][:len(fem["step"][()])].sum(), 0)
 
-# Martin & Moyce 1952, n^2 = 2: the front Z = z / a at T = t sqrt(2 g / a) (benchmarks.md S1).
+# Martin & Moyce 1952, n^2 = 2: the front Z = z / a at T = t sqrt(2 g / a) (docs/benchmarks.md S1).
 S1_T = [0.41, 0.84, 1.19, 1.43, 1.63, 1.83, 1.98, 2.20, 2.32, 2.51, 2.65, 2.83, 2.98, 3.11, 3.33]
 S1_Z = [1.11, 1.22, 1.44, 1.67, 1.89, 2.11, 2.33, 2.56, 2.78, 3.00, 3.22, 3.44, 3.67, 3.89, 4.11]
 

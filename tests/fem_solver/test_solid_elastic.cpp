@@ -1,4 +1,4 @@
-// F1 elastic checks (refs/benchmarks.md): cantilever tip deflection and first
+// F1 elastic checks (docs/benchmarks.md): cantilever tip deflection and first
 // two bending frequencies, bar wave speed and stress, a simply supported beam
 // under a step load; hourglass energy stays below 10% of the internal energy
 // in each; the same bits on 1 and 2 threads.
@@ -306,7 +306,7 @@ TEST(HexMesh, ExteriorFacesOfABoxAndAfterRemovingAnElement) {
 
 // Simply supported beam L = 2 m (50 x 50 mm steel) under a suddenly applied
 // 10 kN/m: static midspan deflection 5 w L^4 / (384 E I) = 19.05 mm, dynamic
-// peak 2.00 +- 0.05 times the static one (benchmarks.md F1).
+// peak 2.00 +- 0.05 times the static one (docs/benchmarks.md F1).
 TEST(SolidElastic, SimplySupportedBeamUnderAStepLoad) {
   const double length = 2.0, load_per_metre = 1e4;
   const std::size_t along = 20;

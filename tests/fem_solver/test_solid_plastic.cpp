@@ -1,4 +1,4 @@
-// F2 Taylor bar (refs/benchmarks.md) with the plastic kinematic material:
+// F2 Taylor bar (docs/benchmarks.md) with the plastic kinematic material:
 // final length and energy balance; the return mapping on its own.
 #include <gtest/gtest.h>
 

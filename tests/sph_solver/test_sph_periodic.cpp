@@ -176,7 +176,7 @@ TEST(SphPeriodic, RunsAreDeterministicOnOneAndTwoThreads) {
   EXPECT_LT((fluid + wall).norm(), 1e-5 * weight);
 }
 
-// S5 start-up Poiseuille flow (Morris, Fox & Zhu 1997; benchmarks.md): plates 1 mm apart
+// S5 start-up Poiseuille flow (Morris, Fox & Zhu 1997; docs/benchmarks.md): plates 1 mm apart
 // (boundary particles), periodic along the flow (x) and across (y), nu = 1e-6 m^2/s, body
 // force F = 2e-4 m/s^2 along x, from rest. The series solution
 //   u(z, t) = F/(2 nu) z (L - z) - sum_n 4 F L^2 / (nu pi^3 (2n+1)^3) sin((2n+1) pi z / L) exp(-(2n+1)^2 pi^2 nu t /

@@ -1,6 +1,6 @@
 #pragma once
 // The fluid, the boulders and an SPH-DEM pair coupled in one process, step for
-// step as the coupler and the two solvers do it (DESIGN.md §2): states at x_n,
+// step as the coupler and the two solvers do it (docs/design.md, "An explicit, lock-step step"): states at x_n,
 // the pair's compute and scatter, the boulders' boundary particles after the
 // tank's own walls, the SPH and DEM forces, central-difference integration.
 // No sockets, no FEM: the tank is a fixed set of wall particles for the fluid

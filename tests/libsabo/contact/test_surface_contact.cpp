@@ -811,7 +811,8 @@ TEST(SurfaceContact, StableStepOverPotentialContacts) {
 
 TEST(SurfaceContact, InterestRegionsHugASlopingFloor) {
   // A 30 degree ramp, 40 m by 4 m, under a lattice of particles that fills its bounding box: only those
-  // within reach of the ramp need to travel (DESIGN.md §3), and none of those may be left out.
+  // within reach of the ramp need to travel (docs/design.md, "Only the interface travels"), and none of those may be
+  // left out.
   const double radius = 0.1, slope = std::numbers::pi / 6;
   SurfaceContact contact({"slurry"}, uniform(explicit_stiffness(1e6)));
   MeshBuilder b;

@@ -1,4 +1,4 @@
-// geometry::covering_boxes: the interest regions of DESIGN.md §3.
+// geometry::covering_boxes: the interest regions of docs/design.md, "Only the interface travels".
 #include <gtest/gtest.h>
 
 #include <cmath>

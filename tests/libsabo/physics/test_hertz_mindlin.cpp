@@ -16,7 +16,7 @@ namespace sabo::physics {
 namespace {
 
 constexpr double kTight = 1e-12;
-constexpr double kBenchmarkTolerance = 0.01;  // benchmarks.md D1: 1%
+constexpr double kBenchmarkTolerance = 0.01;  // docs/benchmarks.md D1: 1%
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 void expect_relative(const char* what, double measured, double expected, double tolerance) {
