@@ -609,49 +609,71 @@ class Supervisor:
             return
         self._events.write(text + "\n")
         self._events.flush()
-        kind = event["event"]
-        if kind == "listening":
-            self._last_activity = time.monotonic()
-            if not self._solvers_started:
-                endpoint = event.get("endpoint")
-                if not isinstance(endpoint, str) or "://" not in endpoint or "*" in endpoint:
-                    endpoint = self.endpoint
-                self.display.info("sabo: coupler (pid {}) listening on {}".format(self.coupler.pid, endpoint))
-                self._start_solvers(endpoint)
-        elif kind == "registered":
-            self._last_activity = time.monotonic()
-            self._registered.add(event.get("role"))
-            self.display.info("sabo: {} registered (pid {}{})".format(
-                event.get("role", "?"), event.get("pid", "?"),
-                ", " + str(event["name"]) if event.get("name") else ""))
-        elif kind == "progress":
-            self._last_activity = time.monotonic()
-            self._last_progress = event
-            self.display.progress(event, self.plan.end_time)
-        elif kind == "error":
-            self._errors.append(event)
-            self.display.error("sabo: the coupler reports: {}: {}".format(event.get("process", "?"),
-                                                                           event.get("message", "?")))
-        elif kind == "restarted":
-            self._last_activity = time.monotonic()
-            self.display.info("sabo: {} (pid {}) rejoined at step {}, catching up {} steps".format(
-                event.get("process", "?"), event.get("pid", "?"), event.get("from_step", "?"),
-                event.get("catch_up_steps", "?")))
-        elif kind == "resumed":
-            self._last_activity = time.monotonic()
-            self.display.info("sabo: the run resumed at step {}, t = {} s".format(event.get("from_step", "?"),
-                                                                                event.get("time", "?")))
-        elif kind == "caught_up":
-            self._last_activity = time.monotonic()
-            self.display.info("sabo: {} caught up with the run at step {} ({:.2f} s)".format(
-                event.get("process", "?"), event.get("at_step", "?"), float(event.get("seconds", 0))))
-        elif kind == "stopping":
-            self._last_activity = time.monotonic()
-            self._stopping = True
-        elif kind == "done":
-            self._last_activity = time.monotonic()
-            self._stopping = True
-            self._done = event
+        handler = self._EVENT_HANDLERS.get(event["event"])
+        if handler is not None:
+            handler(self, event)
+
+    # The coupler's events (docs/protocol.md, "Events"), one handler each; an unknown event is only logged.
+
+    def _on_listening(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        if not self._solvers_started:
+            endpoint = event.get("endpoint")
+            if not isinstance(endpoint, str) or "://" not in endpoint or "*" in endpoint:
+                endpoint = self.endpoint
+            self.display.info(f"sabo: coupler (pid {self.coupler.pid}) listening on {endpoint}")
+            self._start_solvers(endpoint)
+
+    def _on_registered(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self._registered.add(event.get("role"))
+        name = f", {event['name']}" if event.get("name") else ""
+        self.display.info(f"sabo: {event.get('role', '?')} registered (pid {event.get('pid', '?')}{name})")
+
+    def _on_progress(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self._last_progress = event
+        self.display.progress(event, self.plan.end_time)
+
+    def _on_error(self, event: dict) -> None:
+        self._errors.append(event)
+        self.display.error(f"sabo: the coupler reports: {event.get('process', '?')}: {event.get('message', '?')}")
+
+    def _on_restarted(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self.display.info(f"sabo: {event.get('process', '?')} (pid {event.get('pid', '?')}) rejoined at step "
+                          f"{event.get('from_step', '?')}, catching up {event.get('catch_up_steps', '?')} steps")
+
+    def _on_resumed(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self.display.info(f"sabo: the run resumed at step {event.get('from_step', '?')}, "
+                          f"t = {event.get('time', '?')} s")
+
+    def _on_caught_up(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self.display.info(f"sabo: {event.get('process', '?')} caught up with the run at step "
+                          f"{event.get('at_step', '?')} ({float(event.get('seconds', 0)):.2f} s)")
+
+    def _on_stopping(self, _event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self._stopping = True
+
+    def _on_done(self, event: dict) -> None:
+        self._last_activity = time.monotonic()
+        self._stopping = True
+        self._done = event
+
+    _EVENT_HANDLERS = {
+        "listening": _on_listening,
+        "registered": _on_registered,
+        "progress": _on_progress,
+        "error": _on_error,
+        "restarted": _on_restarted,
+        "resumed": _on_resumed,
+        "caught_up": _on_caught_up,
+        "stopping": _on_stopping,
+        "done": _on_done,
+    }
 
     def _append_to_coupler_log(self, text):
         try:
