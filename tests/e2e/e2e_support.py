@@ -86,16 +86,17 @@ def pid_alive(pid):
 
 
 class Sabo:
-    """`./sabo ARGS` started in the background, output to files (no pipe to fill up)."""
+    """`./sabo ARGS` (with `raw`, the command ARGS itself) started in the background, output to files (no pipe
+    to fill up)."""
 
-    def __init__(self, args, env=None, cwd=None, work_dir=None):
+    def __init__(self, args, env=None, cwd=None, work_dir=None, raw=False):
         self.work_dir = work_dir or tempfile.mkdtemp(prefix="sabo-e2e-")
         self.stdout_path = os.path.join(self.work_dir, "sabo.stdout")
         self.stderr_path = os.path.join(self.work_dir, "sabo.stderr")
         full_env = dict(os.environ)
         full_env.update(env or {})
         with open(self.stdout_path, "wb") as out, open(self.stderr_path, "wb") as err:
-            self.popen = subprocess.Popen([SABO] + list(args), cwd=cwd or ROOT, env=full_env,
+            self.popen = subprocess.Popen(([] if raw else [SABO]) + list(args), cwd=cwd or ROOT, env=full_env,
                                           stdin=subprocess.DEVNULL, stdout=out, stderr=err)
         self.started = time.monotonic()
         self.ended = None

@@ -5,12 +5,14 @@ naming the file and what is wrong) and a python3 without matplotlib (how to get 
 completes). Each check prints what it found."""
 import math
 import os
+import re
 import shutil
 import struct
 
-from e2e_support import BUILD_DIR, RealRunTestCase
+from e2e_support import BUILD_DIR, ROOT, RealRunTestCase, Sabo
 
 TANK = "configs/tests/sph_tank_penalty.toml"
+BOULDERS_TANK = "configs/tests/sph_boulders_tank.toml"  # fluid, two boulders and structures: a snapshot's all
 RUN_FIGURES = ("forces.png", "energy.png", "steps.png")  # the figures a run of TANK has data for
 MIN_PNG_BYTES = 20000
 WIDTH_PX = 1200  # 10 in at 120 dpi
@@ -84,6 +86,50 @@ class PlotTest(RealRunTestCase):
 
     def assertNoTraceback(self, text):
         self.assertNotIn("Traceback", text)
+
+    def test_a_snapshot_of_a_run_folder_shows_the_fluid_the_boulders_and_the_structures(self):
+        """scripts/render_snapshot.py (the README's picture) on a short run of the boulders tank: every fluid
+        particle of the last output, both boulders, the structures' section; bad input exits 2 naming it."""
+        with open(self.scene_path(BOULDERS_TANK), encoding="utf-8") as handle:
+            text = handle.read()
+        self.assertIn("end_time = 0.3", text)
+        scene = os.path.join(self.tmp, "boulders.toml")
+        write(scene, text.replace("end_time = 0.3", "end_time = 0.04"))
+        run = os.path.join(self.tmp, "boulders")
+        sabo = self.run_sabo(scene, run)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        script = os.path.join(ROOT, "scripts", "render_snapshot.py")
+        out = os.path.join(self.tmp, "snapshot.png")
+        sabo = self.sabo_python([script, run, "--out", out])
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        print(sabo.stdout.strip())
+        with open(os.path.join(run, "sph_solver.log"), encoding="utf-8") as log:
+            fluid = int(re.search(r"(\d+) SPH particles", log.read()).group(1))
+        self.assertRegex(sabo.stdout, r"t = 0\.04\d* s, {} fluid particles, 2 boulders, ".format(fluid))
+        segments = int(re.search(r"(\d+) structure segments", sabo.stdout).group(1))
+        self.assertGreater(segments, 0)
+        width, height = png_size(out)
+        print("{}: {} x {} px".format(out, width, height))
+        self.assertGreater(os.path.getsize(out), 10000)
+
+        empty = os.path.join(self.tmp, "empty")
+        os.makedirs(empty)
+        sabo = self.sabo_python([script, empty])
+        self.assertEqual(sabo.wait(60), 2)
+        self.assertIn("no ParaView series (*.pvd) here", sabo.stderr)
+        last = sorted(os.listdir(os.path.join(run, "sph")))[-1]
+        with open(os.path.join(run, "sph", last), "r+b") as handle:
+            handle.truncate(200)
+        sabo = self.sabo_python([script, run])
+        self.assertEqual(sabo.wait(60), 2)
+        print(sabo.stderr.strip())
+        self.assertIn(last, sabo.stderr)
+
+    def sabo_python(self, args):
+        """A script under Debian's python3 (matplotlib), tracked like `./sabo`."""
+        process = Sabo(["/usr/bin/python3"] + args, raw=True)
+        self.started.append(process)
+        return process
 
     def test_a_run_plots_itself_and_sabo_plot_redraws_and_overlays(self):
         first = os.path.join(self.tmp, "tank")
