@@ -13,6 +13,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/core/isa.hpp"
 #include "libsabo/geometry/sphere_fill.hpp"
+#include "libsabo/physics/stable_step.hpp"
 
 namespace sabo::dem {
 namespace {
@@ -823,7 +824,7 @@ void DemModel::compute_internal_forces(double dt_previous) {
 void DemModel::add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force,
                                    std::span<const double> torque) {
   if (force.size() != 3 * index.size() || (!torque.empty() && torque.size() != 3 * index.size())) {
-    throw ProtocolError(
+    throw ModelInputError(
         fmt::format("DEM forces: {} sphere ids but {} force and {} torque values (expected {} each, "
                     "torques optional)",
                     index.size(), force.size(), torque.size(), 3 * index.size()));
@@ -831,7 +832,7 @@ void DemModel::add_external_forces(std::span<const std::uint32_t> index, std::sp
   for (std::size_t k = 0; k < index.size(); ++k) {
     const std::uint32_t id = index[k];
     if (id >= size()) {
-      throw ProtocolError(
+      throw ModelInputError(
           fmt::format("DEM forces: sphere id {} at position {} does not exist (there are {} spheres)", id, k, size()));
     }
     force_[id] += Vec3(force[3 * k], force[3 * k + 1], force[3 * k + 2]);
@@ -941,7 +942,7 @@ double DemModel::compute_stable_dt() const {
     }
     // Tangentially the contact point of a sphere moves with inverse mass 1/m + r^2/I = 3.5/m.
     stiffest *= std::max({1.0, 3.5 * settings_.tangential_stiffness_ratio, rolling_factor});
-    dt = 0.2 * std::numbers::pi * std::sqrt(lightest / stiffest);
+    dt = physics::spring_stable_dt(lightest, stiffest);
   }
   if (any_hertz) {
     // A fifth of the Rayleigh time of the smallest sphere, pi r sqrt(rho / G) / (0.1631 nu + 0.8766), the

@@ -147,7 +147,7 @@ class DemModel {
   // See the step contract above.
   void compute_internal_forces(double dt_previous);
   // force and torque: 3 doubles (x, y, z) per listed id; torque may be empty (no torques).
-  // Forces on fixed spheres are ignored. Throws ProtocolError on a size mismatch or an unknown id.
+  // Forces on fixed spheres are ignored. Throws ModelInputError on a size mismatch or an unknown id.
   void add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force,
                            std::span<const double> torque);
   void integrate(double dt_previous, double dt);

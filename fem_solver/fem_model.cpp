@@ -614,7 +614,7 @@ bool FemModel::moved() const {
 void FemModel::apply_node_forces(std::span<const double> node_force) {
   const std::size_t nodes = surface_.node_count();
   if (!node_force.empty() && node_force.size() != 3 * nodes) {
-    throw ProtocolError(
+    throw ModelInputError(
         fmt::format("fem_solver: StepForces.node_force has {} values but the surface has {} nodes "
                     "({} values expected, or none for zero force)",
                     node_force.size(), nodes, 3 * nodes));
@@ -626,8 +626,8 @@ void FemModel::apply_node_forces(std::span<const double> node_force) {
     }
     node_force_[i] = Vec3(node_force[3 * i], node_force[3 * i + 1], node_force[3 * i + 2]);
     if (!node_force_[i].allFinite()) {
-      throw ProtocolError(fmt::format("fem_solver: StepForces.node_force of node {} is ({}, {}, {}): not finite", i,
-                                      node_force_[i].x(), node_force_[i].y(), node_force_[i].z()));
+      throw ModelInputError(fmt::format("fem_solver: StepForces.node_force of node {} is ({}, {}, {}): not finite", i,
+                                        node_force_[i].x(), node_force_[i].y(), node_force_[i].z()));
     }
   }
   // Serial sums in node order: the same bits on every run.

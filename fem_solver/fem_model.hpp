@@ -186,7 +186,7 @@ class FemModel {
   [[nodiscard]] double time() const { return time_; }  // s
 
   // node_force: 3 per surface node (N, x0 y0 z0 x1 ...); empty means zero.
-  // Throws ProtocolError for a wrong size or a non-finite value.
+  // Throws ModelInputError for a wrong size or a non-finite value.
   void apply_node_forces(std::span<const double> node_force);
   [[nodiscard]] std::span<const Vec3> node_forces() const { return node_force_; }  // last applied, N
 

@@ -513,7 +513,7 @@ void SphModel::set_boundary(physics::BoundaryParticles boundary) {
   const std::size_t n = boundary.size();
   if (boundary.velocity.size() != n || boundary.normal.size() != n || boundary.acceleration.size() != n ||
       boundary.volume.size() != n || (!boundary.free_slip.empty() && boundary.free_slip.size() != n)) {
-    throw ProtocolError(fmt::format(
+    throw ModelInputError(fmt::format(
         "boundary particles: {} positions but {} velocities, {} normals, {} "
         "accelerations, {} volumes, {} free-slip flags; every array needs one entry per particle (the flags "
         "may be empty)",
@@ -1670,7 +1670,7 @@ void SphModel::compute_internal_forces(double dt_previous) {
 
 void SphModel::add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force) {
   if (force.size() != 3 * index.size()) {
-    throw ProtocolError(
+    throw ModelInputError(
         fmt::format("sph_solver: {} particle indices but {} force values; 3 values per particle expected", index.size(),
                     force.size()));
   }
@@ -1678,7 +1678,7 @@ void SphModel::add_external_forces(std::span<const std::uint32_t> index, std::sp
   for (std::size_t k = 0; k < index.size(); ++k) {
     const std::uint32_t i = index[k];
     if (i >= size()) {
-      throw ProtocolError(fmt::format("sph_solver: force for particle {} but there are only {}", i, size()));
+      throw ModelInputError(fmt::format("sph_solver: force for particle {} but there are only {}", i, size()));
     }
     external_force_[i] += Vec3(force[3 * k], force[3 * k + 1], force[3 * k + 2]);
   }
@@ -1733,7 +1733,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     // The deviatoric stress is position-like too: its rate from L(x_n, v_{n+1/2}) (the fluid's
     // new velocities; the walls' no-slip velocities of compute_boundary_state()). With
     // L(v_{n-1/2}) the elastic modes grew: a column at rest reached 1.3 sqrt(gH) by
-    // t = 4 sqrt(H/g) (docs/physics.md, "Elastic-plastic stress update"). Only their gradients:
+    // t = 4 sqrt(H/g) (docs/notes/sph.md, "Elastic-plastic stress update"). Only their gradients:
     // the others' were read by this step's forces and are not needed again.
     compute_velocity_gradients(true);
     stress_rates();

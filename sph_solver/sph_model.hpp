@@ -77,7 +77,7 @@ struct Energies {
 };
 
 // Epsilon of Monaghan's artificial stress for elastic-plastic materials without the key: off.
-// Measured (docs/physics.md, "Artificial stress"): with the stress updated from the new
+// Measured (docs/notes/sph.md, "Artificial stress"): with the stress updated from the new
 // velocities, columns at rest come out the same with epsilon 0.3 as without.
 inline constexpr double kDefaultArtificialStress = 0.0;
 
@@ -174,7 +174,7 @@ class SphModel {
   [[nodiscard]] std::span<const double> boundary_stresses() const { return boundary_stress_; }
 
   void compute_internal_forces(double dt_previous);
-  // force: 3 doubles per listed id, N. Throws ProtocolError on a size mismatch or an unknown id.
+  // force: 3 doubles per listed id, N. Throws ModelInputError on a size mismatch or an unknown id.
   void add_external_forces(std::span<const std::uint32_t> index, std::span<const double> force);
   // Advances to t_{n+1} = t_n + dt: v_{n+1/2} from the accelerations of the last compute
   // (and the external forces added since), x_{n+1}, rho_{n+1} and S_{n+1} from v_{n+1/2}.

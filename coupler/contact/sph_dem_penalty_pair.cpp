@@ -10,6 +10,7 @@
 #include "coupler/contact/history_io.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/covering_boxes.hpp"
+#include "libsabo/physics/stable_step.hpp"
 
 namespace sabo::coupler {
 
@@ -101,7 +102,7 @@ void SphDemPenaltyPair::compute(const Solvers& solvers, const StepClock& clock) 
       const double reach = r_i + r_j;
       if (d >= reach + r_i) return;
       const double reduced_mass = m_i * m_j / (m_i + m_j);
-      result.stable_dt = std::min(result.stable_dt, 0.2 * std::numbers::pi * std::sqrt(reduced_mass / pair.stiffness));
+      result.stable_dt = std::min(result.stable_dt, physics::spring_stable_dt(reduced_mass, pair.stiffness));
       if (d >= reach) return;
       const Vec3 n = d > 0 ? Vec3(offset / d) : Vec3::UnitZ();
       const Vec3 lever = r_j * n;

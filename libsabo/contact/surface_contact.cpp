@@ -13,6 +13,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/covering_boxes.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
+#include "libsabo/physics/stable_step.hpp"
 
 namespace sabo::contact {
 
@@ -22,8 +23,6 @@ constexpr std::uint64_t kNoNode = std::numeric_limits<std::uint64_t>::max();
 // A face whose area is below this fraction of its longest edge squared has no
 // usable normal: it takes no part in the contact.
 constexpr double kDegenerateAreaRatio = 1e-12;
-// Paper eq. 7's DEM factor: dt = 0.2 pi sqrt(m / k).
-constexpr double kStableStepFactor = 0.2 * std::numbers::pi;
 // Below this many particles a parallel region costs more than it saves.
 constexpr std::int64_t kParallelThreshold = 64;
 // Relative slack when comparing distances of the same point computed from different triangles.
@@ -514,14 +513,14 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
             std::min(result.stable_dt, 0.2 * std::numbers::pi * radius * std::sqrt(density) * settings.rayleigh_factor);
         if (hit.gap.overlap > 0) {
           const double stiffness = 2.0 * settings.effective_modulus * std::sqrt(radius * hit.gap.overlap);
-          result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(pair_mass / stiffness));
+          result.stable_dt = std::min(result.stable_dt, physics::spring_stable_dt(pair_mass, stiffness));
         }
       } else {
         // The rolling spring's k_r / I is 5.625 mu_r^2 times k_n / m (dem_model.hpp, stable_dt()).
         const double rolling =
             settings.rolling == 1 ? std::max(1.0, 5.625 * std::pow(settings.rolling_friction, 2)) : 1.0;
         const double k = rolling * face_stiffness(face, source);
-        result.stable_dt = std::min(result.stable_dt, kStableStepFactor * std::sqrt(pair_mass / k));
+        result.stable_dt = std::min(result.stable_dt, physics::spring_stable_dt(pair_mass, k));
       }
     }
     scratch.hits.push_back(hit);

@@ -53,6 +53,14 @@ class ProtocolError : public Error {
   using Error::Error;
 };
 
+// A physics model (DemModel, SphModel, FemModel) was handed input that does not fit it: forces for an entity it
+// does not have, arrays of the wrong length, values that are not finite. The process around the model
+// reports it as its failure; the model itself knows nothing of where the input came from.
+class ModelInputError : public Error {
+ public:
+  using Error::Error;
+};
+
 // A library call (ZeroMQ, HDF5) failed; what() carries the library's own text.
 class LibraryError : public Error {
  public:

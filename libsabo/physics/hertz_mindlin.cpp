@@ -7,6 +7,7 @@
 #include <string>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/physics/stable_step.hpp"
 
 namespace sabo::physics {
 namespace {
@@ -113,7 +114,7 @@ double mindlin_tangential_stiffness(const HertzMindlin& law, double overlap) {
 
 double hertz_contact_stable_dt(const HertzMindlin& law, double overlap) {
   if (!(overlap > 0)) return std::numeric_limits<double>::infinity();
-  return 0.2 * std::numbers::pi * std::sqrt(law.effective_mass / hertz_normal_stiffness(law, overlap));
+  return spring_stable_dt(law.effective_mass, hertz_normal_stiffness(law, overlap));
 }
 
 ContactForce hertz_mindlin_force(const HertzMindlin& law, double overlap, const Vec3& n, const Vec3& relative_velocity,

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "libsabo/geometry/polygon.hpp"
+#include "libsabo/physics/stable_step.hpp"
 
 namespace sabo::scene {
 namespace {
@@ -249,7 +250,7 @@ SceneEstimate estimate_scene(const Scene& scene) {
       const double stiffness = scene.dem_contact.normal_stiffness
                                    ? *scene.dem_contact.normal_stiffness
                                    : scene.dem_contact.normal_stiffness_scale * material->bulk_modulus() * smallest / 2;
-      dt = 0.2 * std::numbers::pi * std::sqrt(mass / stiffness);
+      dt = physics::spring_stable_dt(mass, stiffness);
       what = fmt::format("the dem_solver's contact step 0.2 pi sqrt(m / k_n) of a sphere of radius {:g} m", smallest);
     }
     step.offer(beta_of(scene, Role::dem) * dt, what,

@@ -33,6 +33,7 @@
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/stl.hpp"
+#include "libsabo/physics/stable_step.hpp"
 #include "libsabo/scene/estimate.hpp"
 #include "libsabo/scene/schema.hpp"
 #include "libsabo/scene/sensor_patch.hpp"
@@ -2535,10 +2536,10 @@ class Builder {
             material_names_.end() != std::find(material_names_.begin(), material_names_.end(), fluid.material)) {
           // The materials are not sorted yet: the pair step from the fluid's own density.
           const double rho0 = material_of(fluid.material).density;
-          const double pair_dt = 0.2 * std::numbers::pi * std::sqrt(rho0 * dx * dx * dx / *contact.normal_stiffness);
+          const double pair_dt = physics::spring_stable_dt(rho0 * dx * dx * dx, *contact.normal_stiffness);
           const double sph_dt = scene_.sph.cfl * scene_.sph.smoothing_length() / scene_.sph.sound_speed;
           if (pair_dt < sph_dt) {
-            const double largest = rho0 * dx * dx * dx * std::pow(0.2 * std::numbers::pi / sph_dt, 2);
+            const double largest = physics::stiffness_for_stable_dt(rho0 * dx * dx * dx, sph_dt);
             const Where where = sph_dem_where(fluid.name, set.name);
             diag_.add(
                 where.line, where.key, number_literal(*contact.normal_stiffness),

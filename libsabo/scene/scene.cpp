@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "libsabo/geometry/polygon.hpp"
+#include "libsabo/physics/stable_step.hpp"
 
 namespace sabo::scene {
 
@@ -197,7 +198,7 @@ double Scene::sph_acoustic_dt() const {
 double Scene::sph_dem_pair_dt(const FluidBody& fluid, double stiffness) const {
   const double dx = sph.particle_spacing;
   const double mass = materials[material_index(fluid.material)].density * dx * dx * dx;
-  return 0.2 * std::numbers::pi * std::sqrt(mass / stiffness);
+  return physics::spring_stable_dt(mass, stiffness);
 }
 
 double Scene::sph_dem_derived_stiffness(const FluidBody& fluid) const {
@@ -206,7 +207,7 @@ double Scene::sph_dem_derived_stiffness(const FluidBody& fluid) const {
   const double own = rho0 * sph.sound_speed * sph.sound_speed * dx;
   // K such that 0.2 pi sqrt(rho0 dx^3 / K) equals the acoustic step.
   const double step = sph_acoustic_dt();
-  const double cap = rho0 * dx * dx * dx * std::pow(0.2 * std::numbers::pi / step, 2);
+  const double cap = physics::stiffness_for_stable_dt(rho0 * dx * dx * dx, step);
   return std::min(own, cap);
 }
 

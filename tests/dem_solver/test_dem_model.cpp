@@ -444,8 +444,8 @@ TEST(DemModelIo, ExternalForcesAndCheckpointedHistories) {
             << model.angular_velocities()[0].z() << " expected 0.005\n";
   EXPECT_NEAR(model.velocities()[0].x(), 0.005, 1e-15);
   EXPECT_NEAR(model.angular_velocities()[0].z(), 0.005, 1e-15);
-  EXPECT_THROW(model.add_external_forces(ids, std::vector<double>{1, 2}, {}), ProtocolError);
-  EXPECT_THROW(model.add_external_forces(std::vector<std::uint32_t>{7}, force, {}), ProtocolError);
+  EXPECT_THROW(model.add_external_forces(ids, std::vector<double>{1, 2}, {}), ModelInputError);
+  EXPECT_THROW(model.add_external_forces(std::vector<std::uint32_t>{7}, force, {}), ModelInputError);
 
   // Histories survive a checkpoint: a model restored from them continues with the same bits.
   scene::Scene pile = bowl_scene(false, 30);

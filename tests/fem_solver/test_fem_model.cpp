@@ -256,9 +256,9 @@ TEST(FemModel, ResultantForceAndMomentPerPart) {
   EXPECT_EQ(model.part(1).force, Vec3::Zero());
   EXPECT_EQ(model.node_forces()[0], Vec3::Zero());
   std::vector<double> wrong(5, 0.0);
-  EXPECT_THROW(model.apply_node_forces(wrong), sabo::ProtocolError);
+  EXPECT_THROW(model.apply_node_forces(wrong), sabo::ModelInputError);
   force[7] = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_THROW(model.apply_node_forces(force), sabo::ProtocolError);
+  EXPECT_THROW(model.apply_node_forces(force), sabo::ModelInputError);
 
   model.step(1e-3);
   model.step(2e-3);
