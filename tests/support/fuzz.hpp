@@ -16,17 +16,9 @@
 
 namespace sabo::testing::fuzz {
 
-inline std::string read_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return std::move(text).str();
-}
+std::string read_file(const std::filesystem::path& path);
 
-inline void write_file(const std::filesystem::path& path, std::string_view data) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(data.data(), static_cast<std::streamsize>(data.size()));
-}
+void write_file(const std::filesystem::path& path, std::string_view data);
 
 class Mutator {
  public:

@@ -14,6 +14,7 @@
 #include "contact_fixtures.hpp"
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/covering_boxes.hpp"
+#include "tests/support/measure.hpp"
 
 namespace sabo::contact {
 namespace {
@@ -24,9 +25,9 @@ using test::MeshBuilder;
 using test::uniform;
 using test::vec_at;
 
+// The figures first, as in every test: expect_vec_near(measured, expected, tolerance, what).
 void expect_vec_near(const Vec3& measured, const Vec3& expected, double tolerance, const std::string& what) {
-  std::cout << what << ": measured (" << measured.transpose() << ") expected (" << expected.transpose() << ")\n";
-  EXPECT_LE((measured - expected).norm(), tolerance) << what;
+  sabo::testing::expect_vec_absolute(what, measured, expected, tolerance);
 }
 
 // ------------------------------------------------------------ geometry ------

@@ -11,6 +11,7 @@
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/physics/hertz_mindlin.hpp"
+#include "tests/support/measure.hpp"
 
 namespace sabo::physics {
 namespace {
@@ -19,10 +20,7 @@ constexpr double kTight = 1e-12;
 constexpr double kBenchmarkTolerance = 0.01;  // docs/benchmarks.md D1: 1%
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-void expect_relative(const char* what, double measured, double expected, double tolerance) {
-  std::cout << what << ": measured " << measured << " expected " << expected << "\n";
-  EXPECT_LE(std::abs(measured - expected), tolerance * std::abs(expected)) << what;
-}
+using sabo::testing::expect_relative;
 
 double sphere_mass(double density, double radius) {
   return density * 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
