@@ -1,5 +1,5 @@
 """B1, a Newtonian surge stopped by a rigid wall, through the real processes (`./sabo run`: coupler,
-sph_solver, fem_solver), reduced: Fr = 1 at h = 8 dx with a plateau of 4 T after the impact (T = h / sqrt(g h))
+sph_solver, fem_solver), reduced: Fr = 1 at h = 6 dx with a plateau of 4 T after the impact (T = h / sqrt(g h))
 instead of 8 T.
 The wall's force plateau per unit width against alpha rho v^2 h (Armanini & Scotton's bore, alpha = 2.35;
 tolerance 10 %), the bore's height behind the wall, read by a line gauge, against r h, and the wall's force
@@ -17,7 +17,7 @@ from surge_wall import Surge, measure, TOLERANCE  # noqa: E402
 
 class SurgeWallTest(RealRunTestCase):
     def test_surge_at_froude_1_loads_the_wall_as_the_bore_theory_says(self):
-        surge = Surge(1.0, spacings=8, window=4.0)
+        surge = Surge(1.0, spacings=6, window=4.0)
         scene = os.path.join(self.tmp, "surge.toml")
         with open(scene, "w", encoding="utf-8") as handle:
             handle.write(surge.scene_text())
@@ -26,7 +26,7 @@ class SurgeWallTest(RealRunTestCase):
         self.assertEqual(sabo.wait(300), 0, sabo.output())
         figures = measure(out, surge)
         off = figures["alpha"] / surge.alpha - 1
-        print("B1 Fr = 1, h = 8 dx, block {:g} h: wall force plateau {:.2f} N/m over {:.2f}-{:.2f} s, expected "
+        print("B1 Fr = 1, h = 6 dx, block {:g} h: wall force plateau {:.2f} N/m over {:.2f}-{:.2f} s, expected "
               "alpha rho v^2 h = {:.2f} N/m: alpha {:.3f} against {:.3f} ({:+.1%}; tolerance {:.0%})".format(
                   surge.length / surge.depth, figures["plateau"], surge.settled, surge.plateau_end,
                   surge.expected_force(), figures["alpha"], surge.alpha, off, TOLERANCE))
