@@ -1,9 +1,12 @@
 """The command line of `./sabo`: setup, run, resume, replay, plot, test, status."""
+from __future__ import annotations
+
 import argparse
 import json
 import os
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from . import plot, run_folder
 from .display import Display, format_progress, list_run_folder, wrap_items
@@ -12,6 +15,9 @@ from .plan import check_scene
 from .replay import command_replay
 from .run import PIDS_FILE, Supervisor
 from .setup_env import setup
+
+if TYPE_CHECKING:
+    from .plan import LaunchPlan
 
 BUILD_DIR_VARIABLE = "SABO_BUILD_DIR"
 
@@ -37,7 +43,7 @@ environment:
 """
 
 
-def build_parser():
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="sabo", description=DESCRIPTION, epilog=EPILOG,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -138,23 +144,23 @@ def build_parser():
     return parser
 
 
-def default_run_dir_base(scene):
+def default_run_dir_base(scene: str) -> str:
     stem = os.path.splitext(os.path.basename(scene))[0] or "run"
-    return os.path.join("runs", "{}-{}".format(stem, time.strftime("%Y%m%d-%H%M%S")))
+    return os.path.join("runs", f'{stem}-{time.strftime("%Y%m%d-%H%M%S")}')
 
 
-def refuse_used_run_dir(path):
+def refuse_used_run_dir(path: str) -> None:
     """SaboError unless `path` is absent or an empty folder: a run never overwrites another."""
     if not os.path.exists(path):
         return
     if not os.path.isdir(path):
-        raise SaboError("--out {}: exists and is not a folder; choose another --out".format(path), EXIT_BAD_INPUT)
+        raise SaboError(f"--out {path}: exists and is not a folder; choose another --out", EXIT_BAD_INPUT)
     if os.listdir(path):
-        raise SaboError("--out {}: the folder already exists and is not empty; nothing was overwritten. "
-                        "Choose another --out, or delete it first (rm -r {})".format(path, path), EXIT_BAD_INPUT)
+        raise SaboError(f"--out {path}: the folder already exists and is not empty; nothing was overwritten. "
+                        f"Choose another --out, or delete it first (rm -r {path})", EXIT_BAD_INPUT)
 
 
-def claim_run_dir(path):
+def claim_run_dir(path: str) -> bool:
     """Create `path` (or take it if empty) and mark it as taken, atomically: False if another run has it."""
     try:
         os.makedirs(path, exist_ok=True)
@@ -164,33 +170,33 @@ def claim_run_dir(path):
     except FileExistsError:
         return False
     except OSError as error:
-        raise SaboError("cannot create the run folder {}: {}".format(path, error.strerror), EXIT_BAD_INPUT)
+        raise SaboError(f"cannot create the run folder {path}: {error.strerror}", EXIT_BAD_INPUT)
     return True
 
 
-def create_run_dir(out, scene):
+def create_run_dir(out: str | None, scene: str) -> str:
     """The run folder, created and claimed: `out`, or runs/<scene stem>-<date>-<time>[-N]."""
     if out is not None:
         refuse_used_run_dir(out)
         if not claim_run_dir(out):
             refuse_used_run_dir(out)
-            raise SaboError("--out {}: taken by another run; choose another --out".format(out), EXIT_BAD_INPUT)
+            raise SaboError(f"--out {out}: taken by another run; choose another --out", EXIT_BAD_INPUT)
         return out
     base = default_run_dir_base(scene)
     candidate, suffix = base, 2
     while not claim_run_dir(candidate):
-        candidate = "{}-{}".format(base, suffix)
+        candidate = f"{base}-{suffix}"
         suffix += 1
     return candidate
 
 
-def command_setup(root, build_dir, args):
+def command_setup(root: str, build_dir: str, args: argparse.Namespace) -> int:
     setup(root, build_dir, quiet=args.quiet)
-    print("sabo: packages installed, build up to date in {}".format(build_dir))
+    print(f"sabo: packages installed, build up to date in {build_dir}")
     return 0
 
 
-def set_up_and_check(root, build_dir, args, scene):
+def set_up_and_check(root: str, build_dir: str, args: argparse.Namespace, scene: str) -> LaunchPlan:
     """The setup (unless --no-setup), then the scene check: the launch plan, or SaboError (bad input)."""
     if not args.no_setup:
         setup(root, build_dir, quiet=args.quiet)
@@ -199,14 +205,14 @@ def set_up_and_check(root, build_dir, args, scene):
     except SaboError as error:
         if error.exit_code == EXIT_BAD_INPUT:
             print(error, file=sys.stderr)
-            raise SaboError("{}: the scene has errors (above); nothing was started".format(scene), EXIT_BAD_INPUT)
+            raise SaboError(f"{scene}: the scene has errors (above); nothing was started", EXIT_BAD_INPUT)
         raise
 
 
-def command_run(root, build_dir, args):
+def command_run(root: str, build_dir: str, args: argparse.Namespace) -> int:
     scene = args.scene
     if not os.path.isfile(scene):
-        raise SaboError("scene file not found: {}".format(scene), EXIT_BAD_INPUT)
+        raise SaboError(f"scene file not found: {scene}", EXIT_BAD_INPUT)
     if args.out is not None:
         refuse_used_run_dir(args.out)
     plan = set_up_and_check(root, build_dir, args, scene)
@@ -216,37 +222,37 @@ def command_run(root, build_dir, args):
     return plot_after_run(root, run_dir, args, display, code)
 
 
-def command_resume(root, build_dir, args):
+def command_resume(root: str, build_dir: str, args: argparse.Namespace) -> int:
     run_dir = args.run_dir
     if not os.path.isdir(run_dir) or not os.path.exists(os.path.join(run_dir, PIDS_FILE)):
-        raise SaboError("{}: not a run folder (it has no {})".format(run_dir, PIDS_FILE), EXIT_BAD_INPUT)
+        raise SaboError(f"{run_dir}: not a run folder (it has no {PIDS_FILE})", EXIT_BAD_INPUT)
     alive = run_folder.live_processes(run_dir)
     if alive:
-        raise SaboError("{}: the run is still running ({}): nothing to resume. Stop it first (Ctrl-C in its "
-                        "terminal, or kill {})".format(run_dir, ", ".join("{} pid {}".format(r, p) for r, p in alive),
-                                                       " ".join(str(p) for _, p in alive)), EXIT_BAD_INPUT)
+        raise SaboError(f'{run_dir}: the run is still running ({", ".join(f"{r} pid {p}" for r, p in alive)}): '
+                        "nothing to resume. Stop it first (Ctrl-C in its "
+                        f'terminal, or kill {" ".join(str(p) for _, p in alive)})', EXIT_BAD_INPUT)
     try:
         with open(os.path.join(run_dir, run_folder.SUMMARY_FILE), encoding="utf-8") as handle:
             status = json.load(handle).get("status")
     except (OSError, ValueError, AttributeError):
         status = None
     if status == "completed":
-        raise SaboError("{}: the run completed: nothing to resume".format(run_dir), EXIT_BAD_INPUT)
+        raise SaboError(f"{run_dir}: the run completed: nothing to resume", EXIT_BAD_INPUT)
     scene = run_folder.run_scene(run_dir)
     if scene is None:
-        raise SaboError("{}: names no scene ({} is missing): the run cannot be resumed. Fix: start it again with "
-                        "./sabo run SCENE".format(run_dir, run_folder.RUN_FILE), EXIT_BAD_INPUT)
+        raise SaboError(f"{run_dir}: names no scene ({run_folder.RUN_FILE} is missing): the run cannot be resumed. "
+                        "Fix: start it again with ./sabo run SCENE", EXIT_BAD_INPUT)
     if not os.path.isfile(scene):
-        raise SaboError("{}: the run's scene {} is not there any more. Fix: put the scene back, unchanged, and "
-                        "resume again".format(run_dir, scene), EXIT_BAD_INPUT)
+        raise SaboError(f"{run_dir}: the run's scene {scene} is not there any more. Fix: put the scene back, "
+                        "unchanged, and resume again", EXIT_BAD_INPUT)
     plan = set_up_and_check(root, build_dir, args, scene)
     roles = ["coupler"] + [spec.role for spec in plan.solvers]
     common = run_folder.common_checkpoint(run_dir, roles)
     if common is None:
-        raise SaboError("{}: no step that every process ({}) has a checkpoint of in {}: the run died before its "
+        raise SaboError(f'{run_dir}: no step that every process ({", ".join(roles)}) has a checkpoint of in '
+                        f'{os.path.join(run_dir, "checkpoints")}: the run died before its '
                         "first checkpoint ([run] checkpoint_interval), or it never wrote any. Fix: start it again "
-                        "with ./sabo run {}".format(run_dir, ", ".join(roles),
-                                                    os.path.join(run_dir, "checkpoints"), scene), EXIT_BAD_INPUT)
+                        f"with ./sabo run {scene}", EXIT_BAD_INPUT)
     # What the killed run left behind (its socket, an unfinished summary) goes; the rest continues.
     run_folder.remove_socket(run_dir)
     try:
@@ -254,12 +260,12 @@ def command_resume(root, build_dir, args):
     except OSError:
         pass
     display = Display(quiet=args.quiet)
-    display.info("sabo: resuming {} at step {} (checkpoints of {})".format(run_dir, common[0], ", ".join(roles)))
+    display.info(f'sabo: resuming {run_dir} at step {common[0]} (checkpoints of {", ".join(roles)})')
     code = Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin"), resume=common).run()
     return plot_after_run(root, run_dir, args, display, code)
 
 
-def plot_after_run(root, run_dir, args, display, code):
+def plot_after_run(root: str, run_dir: str, args: argparse.Namespace, display: Display, code: int) -> int:
     """The figures of a run that completed or failed (not of one stopped by Ctrl-C or refused), unless
     --no-plots; whatever becomes of them, the run's exit status stays `code`."""
     if not args.no_plots and code in (EXIT_OK, EXIT_FAILED):
@@ -267,31 +273,31 @@ def plot_after_run(root, run_dir, args, display, code):
     return code
 
 
-def command_plot(root, args):
+def command_plot(root: str, args: argparse.Namespace) -> int:
     run_dirs = [args.run_dir] + ([args.compare_dir] if args.compare_dir else [])
     for run_dir in run_dirs:
         if not os.path.isdir(run_dir):
-            raise SaboError("{}: not a folder (give a run folder, e.g. runs/<scene>-<date>-<time>)".format(run_dir),
+            raise SaboError(f"{run_dir}: not a folder (give a run folder, e.g. runs/<scene>-<date>-<time>)",
                             EXIT_BAD_INPUT)
     result = plot.draw(root, run_dirs, args.out)
     for line in result.output:
         print(line)
     for problem in result.problems:
-        print("sabo: {}: {}".format("error" if result.code == EXIT_BAD_INPUT else "cannot plot", problem),
+        print(f'sabo: {"error" if result.code == EXIT_BAD_INPUT else "cannot plot"}: {problem}',
               file=sys.stderr)
     if result.code in (EXIT_OK, EXIT_BAD_INPUT):
         return result.code
     return EXIT_FAILED
 
 
-def command_status(build_dir, args):
+def command_status(build_dir: str, args: argparse.Namespace) -> int:
     run_dir = args.run_dir
     if not os.path.isdir(run_dir) or not os.path.exists(os.path.join(run_dir, PIDS_FILE)):
-        raise SaboError("{}: not a run folder (it has no {})".format(run_dir, PIDS_FILE), EXIT_BAD_INPUT)
+        raise SaboError(f"{run_dir}: not a run folder (it has no {PIDS_FILE})", EXIT_BAD_INPUT)
     alive = run_folder.live_processes(run_dir)
     if alive:
         progress = run_folder.last_progress(run_dir)
-        print("sabo: {}: running: {}".format(run_dir, ", ".join("{} (pid {})".format(r, p) for r, p in alive)))
+        print(f'sabo: {run_dir}: running: {", ".join(f"{r} (pid {p})" for r, p in alive)}')
         if progress is not None:
             print("  last step:   " + format_progress(progress, progress.get("end_time") or 0.0))
         return 0
@@ -299,17 +305,17 @@ def command_status(build_dir, args):
                                   summary=run_folder.killed_summary(
                                       run_dir, "the run was killed: no process of it is alive and the coupler wrote "
                                                "no summary", written_by="./sabo status")):
-        print("sabo: {}: {}".format(run_dir, line))
+        print(f"sabo: {run_dir}: {line}")
     try:
         with open(os.path.join(run_dir, run_folder.SUMMARY_FILE), encoding="utf-8") as handle:
             summary = json.load(handle)
     except (OSError, ValueError) as error:
-        print("sabo: {}: no readable {} ({})".format(run_dir, run_folder.SUMMARY_FILE, error))
+        print(f"sabo: {run_dir}: no readable {run_folder.SUMMARY_FILE} ({error})")
         return 0
-    print("sabo: {}: {}{}".format(run_dir, summary.get("status", "?"),
-                                  ": " + summary["failure"] if summary.get("failure") else ""))
-    print("  steps:       {}, t = {} of {} s".format(summary.get("steps", "?"), summary.get("simulated_time", "?"),
-                                                   summary.get("end_time", "?")))
+    print(f'sabo: {run_dir}: {summary.get("status", "?")}'
+          f'{": " + summary["failure"] if summary.get("failure") else ""}')
+    print(f'  steps:       {summary.get("steps", "?")}, t = {summary.get("simulated_time", "?")} '
+          f'of {summary.get("end_time", "?")} s')
     files = list_run_folder(run_dir)
     if files:
         for line in wrap_items(files, "  files:       ", " " * 15):
@@ -317,7 +323,7 @@ def command_status(build_dir, args):
     return 0
 
 
-def command_test(root, build_dir, no_setup, ctest_args):
+def command_test(root: str, build_dir: str, no_setup: bool, ctest_args: list[str]) -> None:
     if not no_setup:
         setup(root, build_dir)
     command = ["ctest", "--test-dir", build_dir, "--output-on-failure"] + list(ctest_args)
@@ -326,10 +332,10 @@ def command_test(root, build_dir, no_setup, ctest_args):
     try:
         os.execvp(command[0], command)
     except OSError as error:
-        raise SaboError("cannot run ctest: {}".format(error.strerror))
+        raise SaboError(f"cannot run ctest: {error.strerror}")
 
 
-def main(root, argv=None):
+def main(root: str, argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     build_dir = os.path.abspath(os.environ.get(BUILD_DIR_VARIABLE) or os.path.join(root, "build"))
     parser = build_parser()
@@ -359,7 +365,7 @@ def main(root, argv=None):
             return command_replay(root, build_dir, args)
         return command_run(root, build_dir, args)
     except SaboError as error:
-        print("sabo: error: {}".format(error), file=sys.stderr)
+        print(f"sabo: error: {error}", file=sys.stderr)
         return error.exit_code
     except KeyboardInterrupt:
         print("\nsabo: interrupted", file=sys.stderr)

@@ -1,55 +1,58 @@
 """What the supervisor shows: one progress line, messages, the final summary."""
+from __future__ import annotations
+
 import math
 import os
 import sys
 import time
+from typing import Any, TextIO
 
 NON_TTY_PROGRESS_INTERVAL_S = 5.0
 
 
-def format_duration(seconds):
+def format_duration(seconds: float) -> str:
     """H:MM:SS."""
     seconds = max(0, int(round(seconds)))
-    return "{}:{:02d}:{:02d}".format(seconds // 3600, seconds // 60 % 60, seconds % 60)
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
-def _is_number(value):
+def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def _time_decimals(end_time):
+def _time_decimals(end_time: Any) -> int:
     """Enough decimals to see simulated time advance: 2 for end times of 1 s and more."""
     if not _is_number(end_time) or end_time <= 0:
         return 3
     return max(2, 2 - int(math.floor(math.log10(end_time))))
 
 
-def format_progress(event, end_time=None):
+def format_progress(event: dict, end_time: float | None = None) -> str:
     """`step 1200  t = 3.21 / 20.00 s  dt = 6.1e-04 s  1850 steps/s  ETA 0:00:12` from a progress event."""
     end = event.get("end_time", end_time)
     decimals = _time_decimals(end)
-    parts = ["step {}".format(event.get("step", "?"))]
+    parts = [f'step {event.get("step", "?")}']
     t = event.get("time")
     if _is_number(t):
         if _is_number(end):
-            parts.append("t = {:.{d}f} / {:.{d}f} s".format(t, end, d=decimals))
+            parts.append(f"t = {t:.{decimals}f} / {end:.{decimals}f} s")
         else:
-            parts.append("t = {:.{d}f} s".format(t, d=decimals))
+            parts.append(f"t = {t:.{decimals}f} s")
     dt = event.get("dt")
     if _is_number(dt):
-        parts.append("dt = {:.1e} s".format(dt))
+        parts.append(f"dt = {dt:.1e} s")
     rate = event.get("steps_per_second")
     if _is_number(rate):
-        parts.append("{:.0f} steps/s".format(rate) if rate >= 10 else "{:.1f} steps/s".format(rate))
+        parts.append(f"{rate:.0f} steps/s" if rate >= 10 else f"{rate:.1f} steps/s")
     eta = event.get("eta_seconds")
     parts.append("ETA " + (format_duration(eta) if _is_number(eta) and eta >= 0 else "--"))
     return "  ".join(parts)
 
 
-def human_size(size):
+def human_size(size: float) -> str:
     for unit in ("B", "kB", "MB", "GB"):
         if size < 1000 or unit == "GB":
-            return "{:.0f} {}".format(size, unit) if unit == "B" else "{:.1f} {}".format(size, unit)
+            return f"{size:.0f} {unit}" if unit == "B" else f"{size:.1f} {unit}"
         size /= 1000.0
     return ""
 
@@ -58,7 +61,7 @@ class Display:
     """The terminal side of a run. On a TTY the progress line is redrawn in place;
     otherwise a progress line is printed every few seconds. Quiet: no progress."""
 
-    def __init__(self, quiet=False, out=None, err=None):
+    def __init__(self, quiet: bool = False, out: TextIO | None = None, err: TextIO | None = None) -> None:
         self.out = out or sys.stdout
         self.err = err or sys.stderr
         self.quiet = quiet
@@ -69,22 +72,22 @@ class Display:
         self._line = ""          # progress line currently shown (TTY)
         self._last_print = None  # monotonic time of the last non-TTY progress print
 
-    def _write(self, stream, text):
+    def _write(self, stream: TextIO, text: str) -> None:
         try:
             stream.write(text)
             stream.flush()
         except (OSError, ValueError):  # closed or broken pipe: the run goes on regardless
             pass
 
-    def _clear_line(self):
+    def _clear_line(self) -> None:
         if self.tty and self._line:
             self._write(self.out, "\r\x1b[K")
 
-    def _redraw_line(self):
+    def _redraw_line(self) -> None:
         if self.tty and self._line:
             self._write(self.out, self._line)
 
-    def progress(self, event, end_time=None, force=False):
+    def progress(self, event: dict, end_time: float | None = None, force: bool = False) -> None:
         if self.quiet:
             return
         line = format_progress(event, end_time)
@@ -97,7 +100,7 @@ class Display:
             self._last_print = now
             self._write(self.out, line + "\n")
 
-    def info(self, text):
+    def info(self, text: str) -> None:
         """A line of information (hidden when quiet)."""
         if self.quiet:
             return
@@ -105,23 +108,23 @@ class Display:
         self._write(self.out, text + "\n")
         self._redraw_line()
 
-    def error(self, text):
+    def error(self, text: str) -> None:
         """A message on stderr, shown even when quiet. The progress line stays above it, as it was."""
         self.end_progress()
         self._write(self.err, text + "\n")
 
-    def end_progress(self):
+    def end_progress(self) -> None:
         """Leave the progress line as it is and move below it."""
         if self.tty and self._line:
             self._write(self.out, "\n")
         self._line = ""
 
-    def summary(self, lines):
+    def summary(self, lines: list[str]) -> None:
         self.end_progress()
         self._write(self.out, "".join(line + "\n" for line in lines))
 
 
-def list_run_folder(run_dir):
+def list_run_folder(run_dir: str) -> list[str]:
     """'name (size)' for each entry of the run folder, sorted; folders as 'name/ (N files)'."""
     entries = []
     try:
@@ -133,15 +136,15 @@ def list_run_folder(run_dir):
         try:
             if os.path.isdir(path):
                 count = sum(len(files) for _, _, files in os.walk(path))
-                entries.append("{}/ ({} files)".format(name, count))
+                entries.append(f"{name}/ ({count} files)")
             elif os.path.isfile(path):
-                entries.append("{} ({})".format(name, human_size(os.path.getsize(path))))
+                entries.append(f"{name} ({human_size(os.path.getsize(path))})")
         except OSError:
             continue
     return entries
 
 
-def wrap_items(items, first_prefix, next_prefix, width=100):
+def wrap_items(items: list[str], first_prefix: str, next_prefix: str, width: int = 100) -> list[str]:
     """Lines of comma-separated `items`, never breaking an item."""
     lines, current = [], first_prefix
     for index, item in enumerate(items):

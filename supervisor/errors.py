@@ -1,10 +1,11 @@
 """Errors that end a `sabo` command with a message and an exit code."""
+from __future__ import annotations
 
 
 class SaboError(Exception):
     """A failure to report to the user as one message, then exit with `exit_code`."""
 
-    def __init__(self, message, exit_code=1):
+    def __init__(self, message: str, exit_code: int = 1) -> None:
         super().__init__(message)
         self.exit_code = exit_code
 

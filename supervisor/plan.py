@@ -13,6 +13,8 @@ For debugging, the environment variable SABO_PLAN_OVERRIDE may name a JSON
 file holding a plan; it replaces the scene check (e.g. to run a solver under
 gdb or valgrind by editing its command).
 """
+from __future__ import annotations
+
 import json
 import os
 import subprocess
@@ -26,14 +28,14 @@ PLAN_OVERRIDE_VARIABLE = "SABO_PLAN_OVERRIDE"
 
 
 class ProcessSpec:
-    def __init__(self, role, command):
+    def __init__(self, role: str, command: list[str]) -> None:
         self.role = role
         self.command = list(command)
 
 
 class LaunchPlan:
-    def __init__(self, scene, end_time, output_interval, hang_timeout, endpoint, processes, restart="off",
-                 max_restarts=0):
+    def __init__(self, scene: str | None, end_time: float, output_interval: float, hang_timeout: float,
+                 endpoint: str, processes: list[ProcessSpec], restart: str = "off", max_restarts: int = 0) -> None:
         self.scene = scene
         self.restart = restart            # "auto": restart a solver that dies from its newest checkpoint
         self.max_restarts = max_restarts  # per solver
@@ -44,58 +46,58 @@ class LaunchPlan:
         self.processes = processes  # the coupler first, then the solvers in plan order
 
     @property
-    def coupler(self):
+    def coupler(self) -> ProcessSpec:
         return self.processes[0]
 
     @property
-    def solvers(self):
+    def solvers(self) -> list[ProcessSpec]:
         return self.processes[1:]
 
 
-def _number(plan, key, source, positive=True):
+def _number(plan: dict, key: str, source: str, positive: bool = True) -> float:
     value = plan.get(key)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (positive and not value > 0):
-        raise SaboError("{}: launch plan key \"{}\" must be a positive number, got {!r}".format(source, key, value),
+        raise SaboError(f"{source}: launch plan key \"{key}\" must be a positive number, got {value!r}",
                         EXIT_FAILED)
     return float(value)
 
 
-def parse_plan(text, source):
+def parse_plan(text: str, source: str) -> LaunchPlan:
     """The LaunchPlan in JSON `text`; `source` names where it came from, for errors."""
     try:
         plan = json.loads(text)
     except ValueError as error:
-        raise SaboError("{}: the launch plan is not valid JSON: {}".format(source, error), EXIT_FAILED)
+        raise SaboError(f"{source}: the launch plan is not valid JSON: {error}", EXIT_FAILED)
     if not isinstance(plan, dict):
-        raise SaboError("{}: the launch plan must be a JSON object".format(source), EXIT_FAILED)
+        raise SaboError(f"{source}: the launch plan must be a JSON object", EXIT_FAILED)
 
     endpoint = plan.get("endpoint", "ipc")
     if not isinstance(endpoint, str) or not (endpoint == "ipc" or endpoint.startswith("tcp://")):
-        raise SaboError("{}: launch plan key \"endpoint\" must be \"ipc\" or \"tcp://HOST:PORT\", got {!r}".format(
-            source, endpoint), EXIT_FAILED)
+        raise SaboError(f"{source}: launch plan key \"endpoint\" must be \"ipc\" or \"tcp://HOST:PORT\", "
+                        f"got {endpoint!r}", EXIT_FAILED)
 
     entries = plan.get("processes")
     if not isinstance(entries, list) or not entries:
-        raise SaboError("{}: launch plan key \"processes\" must be a non-empty list".format(source), EXIT_FAILED)
+        raise SaboError(f"{source}: launch plan key \"processes\" must be a non-empty list", EXIT_FAILED)
     processes = []
     for index, entry in enumerate(entries):
-        where = "{}: processes[{}]".format(source, index)
+        where = f"{source}: processes[{index}]"
         if not isinstance(entry, dict):
-            raise SaboError("{} must be an object with \"role\" and \"command\"".format(where), EXIT_FAILED)
+            raise SaboError(f"{where} must be an object with \"role\" and \"command\"", EXIT_FAILED)
         role, command = entry.get("role"), entry.get("command")
         if not isinstance(role, str) or not role or "/" in role:
-            raise SaboError("{}: \"role\" must be a name such as \"dem_solver\", got {!r}".format(where, role),
+            raise SaboError(f"{where}: \"role\" must be a name such as \"dem_solver\", got {role!r}",
                             EXIT_FAILED)
         if (not isinstance(command, list) or not command or
                 not all(isinstance(part, str) and part for part in command)):
-            raise SaboError("{} ({}): \"command\" must be a non-empty list of strings, got {!r}".format(
-                where, role, command), EXIT_FAILED)
+            raise SaboError(f"{where} ({role}): \"command\" must be a non-empty list of strings, got {command!r}",
+                            EXIT_FAILED)
         if any(spec.role == role for spec in processes):
-            raise SaboError("{}: role \"{}\" appears twice".format(where, role), EXIT_FAILED)
+            raise SaboError(f"{where}: role \"{role}\" appears twice", EXIT_FAILED)
         processes.append(ProcessSpec(role, command))
     couplers = [spec for spec in processes if spec.role == COUPLER_ROLE]
     if len(couplers) != 1:
-        raise SaboError("{}: the launch plan must have exactly one process with role \"coupler\"".format(source),
+        raise SaboError(f"{source}: the launch plan must have exactly one process with role \"coupler\"",
                         EXIT_FAILED)
     processes = couplers + [spec for spec in processes if spec.role != COUPLER_ROLE]
 
@@ -109,7 +111,7 @@ def parse_plan(text, source):
                       max_restarts=int(plan.get("max_restarts", 0)))
 
 
-def check_scene(scene, bin_dir):
+def check_scene(scene: str, bin_dir: str) -> LaunchPlan:
     """Validate `scene` with sabo_scene and return its LaunchPlan; SaboError(exit 2) on scene errors."""
     override = os.environ.get(PLAN_OVERRIDE_VARIABLE)
     if override:
@@ -117,22 +119,22 @@ def check_scene(scene, bin_dir):
             with open(override, encoding="utf-8") as handle:
                 text = handle.read()
         except OSError as error:
-            raise SaboError("{}={}: {}".format(PLAN_OVERRIDE_VARIABLE, override, error.strerror), EXIT_BAD_INPUT)
-        return parse_plan(text, "{}={}".format(PLAN_OVERRIDE_VARIABLE, override))
+            raise SaboError(f"{PLAN_OVERRIDE_VARIABLE}={override}: {error.strerror}", EXIT_BAD_INPUT)
+        return parse_plan(text, f"{PLAN_OVERRIDE_VARIABLE}={override}")
 
     checker = os.path.join(bin_dir, "sabo_scene")
     if not os.access(checker, os.X_OK):
-        raise SaboError("{} is missing: build the project with `./sabo setup`".format(checker), EXIT_FAILED)
+        raise SaboError(f"{checker} is missing: build the project with `./sabo setup`", EXIT_FAILED)
     result = subprocess.run([checker, "check", scene, "--bin-dir", bin_dir], stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True,
                             errors="replace")
     errors = result.stderr.rstrip("\n")
     if result.returncode == 2:
-        raise SaboError(errors or "{}: the scene has errors (sabo_scene gave no details)".format(scene),
+        raise SaboError(errors or f"{scene}: the scene has errors (sabo_scene gave no details)",
                         EXIT_BAD_INPUT)
     if result.returncode != 0:
-        raise SaboError("sabo_scene {} while checking {}{}".format(
-            describe_exit(result.returncode), scene, ":\n" + errors if errors else ""), EXIT_FAILED)
+        raise SaboError(f"sabo_scene {describe_exit(result.returncode)} while checking {scene}"
+                        + (":\n" + errors if errors else ""), EXIT_FAILED)
     if errors:  # warnings
         print(errors, file=sys.stderr)
-    return parse_plan(result.stdout, "sabo_scene check {}".format(scene))
+    return parse_plan(result.stdout, f"sabo_scene check {scene}")

@@ -12,34 +12,42 @@ the check that a restart continues with the same bits. Everything runs in RUN_DI
 Exit status: 0 every field matches, 1 a divergence (the first is printed, then a table per field), 2 bad input,
 3 the process failed.
 """
+from __future__ import annotations
+
 import os
 import re
 import shlex
 import subprocess
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from . import run_folder
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
 from .plan import check_scene
 from .processes import start_process
 
+if TYPE_CHECKING:
+    import argparse
+
+    from .processes import ManagedProcess
+
 ROLES = {"sph": "sph_solver", "dem": "dem_solver", "fem": "fem_solver", "coupler": "coupler"}
 EXIT_PROCESS_FAILED = 3
 
 
-def _absolute_file_keys(text, scene_folder):
+def _absolute_file_keys(text: str, scene_folder: str) -> str:
     """The scene's relative `file = "..."` paths made absolute against the recorded scene's folder (the
     replayed scene lives elsewhere)."""
-    def absolute(match):
+    def absolute(match: re.Match) -> str:
         path = match.group(2)
         if os.path.isabs(path):
             return match.group(0)
-        return '{}"{}"'.format(match.group(1), os.path.normpath(os.path.join(scene_folder, path)))
+        return f'{match.group(1)}"{os.path.normpath(os.path.join(scene_folder, path))}"'
     return re.sub(r'(^\s*file\s*=\s*)"([^"]*)"', absolute, text, flags=re.MULTILINE)
 
 
-def apply_overrides(text, overrides):
+def apply_overrides(text: str, overrides: list[str]) -> str:
     """`text` with each KEY=VALUE of `overrides` set: KEY is TABLE.KEY (e.g. materials.granite.density or
     run.end_time), VALUE a TOML value. The key's line in the table is replaced, or added under the table's
     header. SaboError (exit 2) for a malformed override or a table the scene does not have."""
@@ -48,32 +56,32 @@ def apply_overrides(text, overrides):
         key, equals, value = override.partition("=")
         key, value = key.strip(), value.strip()
         if not equals or "." not in key or not value:
-            raise SaboError("--set {}: expected TABLE.KEY=VALUE, e.g. --set materials.granite.density=3100".format(
-                override), EXIT_BAD_INPUT)
+            raise SaboError(f"--set {override}: expected TABLE.KEY=VALUE, e.g. --set materials.granite.density=3100",
+                            EXIT_BAD_INPUT)
         table, name = key.rsplit(".", 1)
-        header = re.compile(r"^\s*\[\s*{}\s*\]\s*(#.*)?$".format(re.escape(table)))
+        header = re.compile(rf"^\s*\[\s*{re.escape(table)}\s*\]\s*(#.*)?$")
         start = next((k for k, line in enumerate(lines) if header.match(line)), None)
         if start is None:
-            raise SaboError("--set {}: the scene has no table [{}] (the table must be written as a header; "
-                            "arrays of tables are not overridden)".format(override, table), EXIT_BAD_INPUT)
+            raise SaboError(f"--set {override}: the scene has no table [{table}] (the table must be written as a "
+                            "header; arrays of tables are not overridden)", EXIT_BAD_INPUT)
         end = next((k for k in range(start + 1, len(lines)) if lines[k].lstrip().startswith("[")), len(lines))
-        line_of_key = re.compile(r"^\s*{}\s*=".format(re.escape(name)))
+        line_of_key = re.compile(rf"^\s*{re.escape(name)}\s*=")
         at = next((k for k in range(start + 1, end) if line_of_key.match(lines[k])), None)
         if at is None:
-            lines.insert(start + 1, "{} = {}".format(name, value))
+            lines.insert(start + 1, f"{name} = {value}")
         else:
-            lines[at] = "{} = {}".format(name, value)
+            lines[at] = f"{name} = {value}"
     return "\n".join(lines) + "\n"
 
 
-def _wait(process, timeout_s):
+def _wait(process: ManagedProcess, timeout_s: float) -> bool:
     deadline = time.monotonic() + timeout_s
     while process.running and time.monotonic() < deadline:
         time.sleep(0.05)
     return not process.running
 
 
-def _stop(process):
+def _stop(process: ManagedProcess) -> None:
     if process.running:
         process.send(15)
         if not _wait(process, 3):
@@ -82,13 +90,13 @@ def _stop(process):
     process.sweep()
 
 
-def command_replay(root, build_dir, args):
+def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     run_dir = os.path.abspath(args.run_dir)
     traffic = os.path.join(run_dir, "traffic.h5")
     if args.role not in ROLES:
-        raise SaboError("role {!r}: choose one of {}".format(args.role, ", ".join(ROLES)), EXIT_BAD_INPUT)
+        raise SaboError(f'role {args.role!r}: choose one of {", ".join(ROLES)}', EXIT_BAD_INPUT)
     if not os.path.isfile(traffic):
-        raise SaboError("{}: no traffic.h5 (was the run recorded? [recording] enabled = true)".format(run_dir),
+        raise SaboError(f"{run_dir}: no traffic.h5 (was the run recorded? [recording] enabled = true)",
                         EXIT_BAD_INPUT)
     role = ROLES[args.role]
     bin_dir = os.path.join(build_dir, "bin")
@@ -99,18 +107,18 @@ def command_replay(root, build_dir, args):
                 os.path.join(run_dir, run_folder.SUMMARY_FILE)) else run_folder.killed_summary(
                     run_dir, "the run was killed: no process of it is alive and the coupler wrote no summary",
                     written_by="./sabo replay")):
-            print("sabo: {}: {}".format(run_dir, line), file=sys.stderr)
+            print(f"sabo: {run_dir}: {line}", file=sys.stderr)
     tool = os.path.join(bin_dir, "sabo_replay")
     if not os.access(tool, os.X_OK):
-        raise SaboError("{} is missing: build the project with `./sabo setup`".format(tool), EXIT_FAILED)
+        raise SaboError(f"{tool} is missing: build the project with `./sabo setup`", EXIT_FAILED)
 
     stamp = time.strftime("%Y%m%d-%H%M%S")
-    folder = os.path.abspath(args.out) if args.out else os.path.join(run_dir, "replay", "{}-{}".format(args.role, stamp))
+    folder = os.path.abspath(args.out) if args.out else os.path.join(run_dir, "replay", f"{args.role}-{stamp}")
     os.makedirs(folder, exist_ok=True)
     scene_text = subprocess.run([tool, "scene", "--traffic", traffic], stdin=subprocess.DEVNULL,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, universal_newlines=True)
     if scene_text.returncode != 0:
-        raise SaboError(scene_text.stderr.strip() or "sabo_replay could not read {}".format(traffic), EXIT_BAD_INPUT)
+        raise SaboError(scene_text.stderr.strip() or f"sabo_replay could not read {traffic}", EXIT_BAD_INPUT)
     recorded_scene = run_folder.run_scene(run_dir)
     resume = os.path.abspath(args.resume) if args.resume else None
     window = _parse_steps(args.steps) if args.steps else None
@@ -129,11 +137,11 @@ def command_replay(root, build_dir, args):
             raise SaboError("--resume with --set: a checkpoint continues the scene it was written with, unchanged; "
                             "replay from step 0 to try a changed scene", EXIT_BAD_INPUT)
         if not os.path.isfile(resume):
-            raise SaboError("--resume {}: no such file (checkpoints are in RUN_DIR/checkpoints)".format(resume),
+            raise SaboError(f"--resume {resume}: no such file (checkpoints are in RUN_DIR/checkpoints)",
                             EXIT_BAD_INPUT)
         if not recorded_scene or not os.path.isfile(recorded_scene):
-            raise SaboError("--resume: the run's scene file {} is gone; a checkpoint needs the scene it was written "
-                            "with".format(recorded_scene or "(unknown: no summary.json)"), EXIT_BAD_INPUT)
+            raise SaboError(f'--resume: the run\'s scene file {recorded_scene or "(unknown: no summary.json)"} is gone; '
+                            "a checkpoint needs the scene it was written with", EXIT_BAD_INPUT)
         scene = recorded_scene
     else:
         text = _absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
@@ -148,7 +156,7 @@ def command_replay(root, build_dir, args):
     plan = check_scene(scene, bin_dir)
     spec = next((p for p in plan.processes if p.role == role), None)
     if spec is None:
-        raise SaboError("the recorded scene has no {}".format(role), EXIT_BAD_INPUT)
+        raise SaboError(f"the recorded scene has no {role}", EXIT_BAD_INPUT)
     command = shlex.split(args.program) if args.program else list(spec.command)
 
     endpoint = "ipc://" + os.path.join(folder, "replay.sock")
@@ -157,7 +165,7 @@ def command_replay(root, build_dir, args):
         for value in values:
             field, equals, number = value.partition("=")
             if not equals:
-                raise SaboError("--{} {}: expected FIELD=VALUE, e.g. --{} position=1e-12".format(option, value, option,),
+                raise SaboError(f"--{option} {value}: expected FIELD=VALUE, e.g. --{option} position=1e-12",
                                 EXIT_BAD_INPUT)
             tolerances.append((field, option, number))
     merged = {}
@@ -166,7 +174,7 @@ def command_replay(root, build_dir, args):
     tool_command = [tool, "solver" if role != "coupler" else "coupler", "--traffic", traffic, "--endpoint", endpoint,
                     "--json", os.path.join(folder, "replay.json")]
     for field, values in merged.items():
-        tool_command += ["--tolerance", "{}={}:{}".format(field, values["rtol"], values["atol"])]
+        tool_command += ["--tolerance", f'{field}={values["rtol"]}:{values["atol"]}']
     if window is not None and window[1] is not None:
         tool_command += ["--until", str(window[1])]
     live = []
@@ -185,9 +193,9 @@ def command_replay(root, build_dir, args):
         process_command = command + ["--scene", scene, "--endpoint", endpoint, "--out", os.path.join(folder, "out")]
     os.makedirs(os.path.join(folder, "out"), exist_ok=True)
 
-    print("sabo: replaying the {} of {} ({})".format(role, run_dir, folder), file=sys.stderr)
+    print(f"sabo: replaying the {role} of {run_dir} ({folder})", file=sys.stderr)
     replay_log = os.path.join(folder, "replay.log")
-    process_log = os.path.join(folder, "{}.log".format(role))
+    process_log = os.path.join(folder, f"{role}.log")
     started = []
     try:
         # The side that binds the endpoint starts first: the replay for a solver, the coupler for ROLE coupler.
@@ -203,7 +211,7 @@ def command_replay(root, build_dir, args):
             started.append(tool_process)
             for spec, live_command in live:  # --take: the solvers not taken from the recording run live
                 started.append(start_process(spec.role, live_command, folder,
-                                             os.path.join(folder, "{}.log".format(spec.role)), stdout_to_pipe=False))
+                                             os.path.join(folder, f"{spec.role}.log"), stdout_to_pipe=False))
         report, _ = tool_process.popen.communicate()
         code = tool_process.returncode
     finally:
@@ -213,9 +221,9 @@ def command_replay(root, build_dir, args):
             process.sweep()
     sys.stdout.write(report.decode("utf-8", "replace") if isinstance(report, bytes) else (report or ""))
     if code == EXIT_PROCESS_FAILED:
-        print("sabo: the {} failed; its log: {}".format(role, process_log), file=sys.stderr)
+        print(f"sabo: the {role} failed; its log: {process_log}", file=sys.stderr)
     elif code == EXIT_BAD_INPUT:
-        print("sabo: replay could not run; see {}".format(replay_log), file=sys.stderr)
+        print(f"sabo: replay could not run; see {replay_log}", file=sys.stderr)
         try:
             with open(replay_log, encoding="utf-8", errors="replace") as handle:
                 sys.stderr.write(handle.read()[-2000:])
@@ -224,30 +232,30 @@ def command_replay(root, build_dir, args):
     return code
 
 
-def _taken_roles(names, role):
+def _taken_roles(names: list[str], role: str) -> list[str]:
     """The solver roles of `--take NAME...` (ROLE = coupler: played from the recording, the others live)."""
     if role != "coupler":
-        raise SaboError("--take with the {}: feeding recorded fields into a live solver is not built; with ROLE = "
+        raise SaboError(f"--take with the {role}: feeding recorded fields into a live solver is not built; with ROLE = "
                         "coupler, --take names the solvers played from the recording while the others run "
-                        "live".format(role), EXIT_BAD_INPUT)
+                        "live", EXIT_BAD_INPUT)
     taken = []
     for name in names:
         solver = ROLES.get(name, name)
         if solver not in ("sph_solver", "dem_solver", "fem_solver"):
-            raise SaboError("--take {}: expected solvers to play from the recording (sph, dem, fem)".format(name),
+            raise SaboError(f"--take {name}: expected solvers to play from the recording (sph, dem, fem)",
                             EXIT_BAD_INPUT)
         taken.append(solver)
     return taken
 
 
-def _without_recording(text):
+def _without_recording(text: str) -> str:
     """The scene text with [recording] enabled = false (the table added when the scene has none)."""
     if re.search(r"^\s*\[\s*recording\s*\]\s*(#.*)?$", text, flags=re.MULTILINE):
         return apply_overrides(text, ["recording.enabled=false"])
     return text.rstrip("\n") + "\n\n[recording]\nenabled = false\n"
 
 
-def _parse_steps(text):
+def _parse_steps(text: str) -> tuple[int, int | None]:
     """(first, last or None) of `--steps A:B` (A: and :B allowed); SaboError (exit 2) when malformed."""
     first, colon, last = text.partition(":")
     try:
@@ -255,12 +263,12 @@ def _parse_steps(text):
     except ValueError:
         window = None
     if not colon or window is None or window[0] < 0 or (window[1] is not None and window[1] < window[0]):
-        raise SaboError("--steps {}: expected A:B with 0 <= A <= B (A: to the end, :B from the start), e.g. "
-                        "--steps 1200:1300".format(text), EXIT_BAD_INPUT)
+        raise SaboError(f"--steps {text}: expected A:B with 0 <= A <= B (A: to the end, :B from the start), e.g. "
+                        "--steps 1200:1300", EXIT_BAD_INPUT)
     return window
 
 
-def _window_checkpoint(run_dir, role, first, changed_scene):
+def _window_checkpoint(run_dir: str, role: str, first: int, changed_scene: bool) -> str | None:
     """The checkpoint a window starting at step `first` replays from: `role`'s newest at or before it, or None
     (from step 0), said on stderr."""
     if role == "coupler":
@@ -270,13 +278,13 @@ def _window_checkpoint(run_dir, role, first, changed_scene):
     usable = [step for step in found if step <= first]
     if not usable:
         kept = ", ".join(str(step) for step in sorted(found)) or "none"
-        print("sabo: --steps: no checkpoint of the {} at or before step {} is kept (kept: {}): the replay starts "
-              "at step 0".format(role, first, kept), file=sys.stderr)
+        print(f"sabo: --steps: no checkpoint of the {role} at or before step {first} is kept (kept: {kept}): "
+              "the replay starts at step 0", file=sys.stderr)
         return None
     if changed_scene:
         print("sabo: --steps with --set: a checkpoint continues the scene it was written with: the replay starts "
               "at step 0", file=sys.stderr)
         return None
     step = max(usable)
-    print("sabo: --steps: the {} resumes from its checkpoint of step {}".format(role, step), file=sys.stderr)
+    print(f"sabo: --steps: the {role} resumes from its checkpoint of step {step}", file=sys.stderr)
     return found[step]

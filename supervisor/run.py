@@ -7,6 +7,8 @@ polls every process; whatever goes wrong (a process dies, a solver exits too
 early, the coupler reports a failure, nothing progresses, the user presses
 Ctrl-C) ends with every process stopped and a report naming the culprit.
 """
+from __future__ import annotations
+
 import json
 import os
 import selectors
@@ -16,11 +18,19 @@ import stat
 import subprocess
 import tempfile
 import time
+from typing import TYPE_CHECKING, Iterable
 
 from .display import format_duration, format_progress, list_run_folder, wrap_items
 from .errors import EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 from . import run_folder
 from .processes import describe_exit, signal_name, start_process
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+    from .display import Display
+    from .plan import LaunchPlan, ProcessSpec
+    from .processes import ManagedProcess
 
 POLL_INTERVAL_S = 0.1
 # SIGTERM -> SIGKILL when stopping after a fault. The coupler needs some of it to give up waiting for
@@ -46,13 +56,13 @@ PIDS_FILE = "pids.json"
 
 
 class Outcome:
-    def __init__(self, status, exit_code, reason=None):
+    def __init__(self, status: str, exit_code: int, reason: str | None = None) -> None:
         self.status = status        # "completed", "failed", "stopped", "bad input"
         self.exit_code = exit_code
         self.reason = reason
 
 
-def resolve_endpoint(plan_endpoint, run_dir):
+def resolve_endpoint(plan_endpoint: str, run_dir: str) -> tuple[str, str | None]:
     """(endpoint for the coupler and solvers, temporary folder to remove at the end or None)."""
     if plan_endpoint != "ipc":
         return plan_endpoint, None
@@ -63,7 +73,7 @@ def resolve_endpoint(plan_endpoint, run_dir):
     return "ipc://" + os.path.join(folder, "coupler.sock"), folder
 
 
-def watchdog_seconds(hang_timeout):
+def watchdog_seconds(hang_timeout: float) -> float:
     minimum = DEFAULT_WATCHDOG_MIN_S
     text = os.environ.get(WATCHDOG_MIN_VARIABLE)
     if text:
@@ -75,7 +85,8 @@ def watchdog_seconds(hang_timeout):
 
 
 class Supervisor:
-    def __init__(self, plan, scene, run_dir, display, bin_dir=None, resume=None):
+    def __init__(self, plan: LaunchPlan, scene: str, run_dir: str, display: Display, bin_dir: str | None = None,
+                 resume: tuple[int, dict[str, str]] | None = None) -> None:
         """`resume`: (step, {role: checkpoint path}) to continue the run in `run_dir` from (`./sabo resume`), with
         the coupler's checkpoint under "coupler"; None: a new run."""
         self.plan = plan
@@ -112,7 +123,7 @@ class Supervisor:
 
     # ----------------------------------------------------------------------------- public
 
-    def run(self):
+    def run(self) -> int:
         """Run to the end; returns the exit code of `./sabo run`."""
         self._started_at = time.monotonic()
         self._last_activity = self._started_at
@@ -137,38 +148,38 @@ class Supervisor:
 
     # ------------------------------------------------------------------------ signals
 
-    def _install_signal_handlers(self):
+    def _install_signal_handlers(self) -> None:
         for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             self._previous_handlers[number] = signal.signal(number, self._on_signal)
 
-    def _restore_signal_handlers(self):
+    def _restore_signal_handlers(self) -> None:
         for number, handler in self._previous_handlers.items():
             signal.signal(number, handler if handler is not None else signal.SIG_DFL)
 
-    def _on_signal(self, number, _frame):
+    def _on_signal(self, number: int, _frame: FrameType | None) -> None:
         self._interrupts.append(number)
 
     # ---------------------------------------------------------------------- processes
 
     @property
-    def coupler(self):
+    def coupler(self) -> ManagedProcess | None:
         return self.processes[0] if self.processes else None
 
     @property
-    def solvers(self):
+    def solvers(self) -> list[ManagedProcess]:
         return self.processes[1:]
 
-    def _running(self, processes=None):
+    def _running(self, processes: Iterable[ManagedProcess] | None = None) -> list[ManagedProcess]:
         return [p for p in (self.processes if processes is None else processes) if p.running]
 
-    def _start(self, spec, arguments, pipe):
+    def _start(self, spec: ProcessSpec, arguments: list[str], pipe: bool) -> ManagedProcess:
         process = start_process(spec.role, spec.command + arguments, self.run_dir,
                                 os.path.join(self.run_dir, spec.role + ".log"), stdout_to_pipe=pipe)
         self.processes.append(process)
         self._write_pids()
         return process
 
-    def _write_pids(self):
+    def _write_pids(self) -> None:
         pids = {"supervisor": os.getpid()}
         for process in self.processes:
             pids[process.role] = process.pid
@@ -178,13 +189,13 @@ class Supervisor:
             handle.write("\n")
         os.replace(path + ".tmp", path)
 
-    def _start_and_supervise(self):
+    def _start_and_supervise(self) -> Outcome:
         problem = self._start_coupler()
         if problem is not None:
             return self._outcome_failed(problem)
         return self._supervise()
 
-    def _start_coupler(self):
+    def _start_coupler(self) -> str | None:
         """Starts the coupler (from its checkpoint when resuming); None, or why it could not be started."""
         spec = self.plan.coupler
         arguments = ["--scene", self.scene, "--endpoint", self.endpoint, "--out", self.run_dir]
@@ -193,14 +204,14 @@ class Supervisor:
         try:
             coupler = self._start(spec, arguments, pipe=True)
         except OSError as error:
-            return "could not start the coupler: {}: {}".format(spec.command[0], error.strerror)
+            return f"could not start the coupler: {spec.command[0]}: {error.strerror}"
         self._pipe = coupler.popen.stdout
         os.set_blocking(self._pipe.fileno(), False)
         self._selector = selectors.DefaultSelector()
         self._selector.register(self._pipe, selectors.EVENT_READ)
         return None
 
-    def _start_solvers(self, endpoint):
+    def _start_solvers(self, endpoint: str) -> str | None:
         self._solvers_started = True
         self._solver_endpoint = endpoint
         for spec in self.plan.solvers:
@@ -212,12 +223,12 @@ class Supervisor:
             try:
                 self._start(spec, arguments, pipe=False)
             except OSError as error:
-                self._start_failure = "could not start {}: {}: {}".format(spec.role, spec.command[0], error.strerror)
+                self._start_failure = f"could not start {spec.role}: {spec.command[0]}: {error.strerror}"
                 return
 
     # ------------------------------------------------------------------ the main loop
 
-    def _supervise(self):
+    def _supervise(self) -> Outcome:
         while True:
             self._pump(POLL_INTERVAL_S)
             now = time.monotonic()
@@ -254,24 +265,23 @@ class Supervisor:
                 elif solver.role not in self._registered and now - solver.exited_at >= SETTLE_S:
                     # It never registered, so the coupler will only notice it at its registration timeout.
                     solver.handled = True
-                    return self._fail("{} (pid {}) exited with code 0 {:.1f} s after it started, before registering "
+                    return self._fail(f"{solver.role} (pid {solver.pid}) exited with code 0 "
+                                      f"{solver.exited_at - solver.started_at:.1f} s after it started, before registering "
                                       "with the coupler: the program ended without taking part in the run (its "
-                                      "command: {})".format(solver.role, solver.pid,
-                                                           solver.exited_at - solver.started_at,
-                                                           " ".join(solver.command)),
+                                      f'command: {" ".join(solver.command)})',
                                       culprits=[solver])
                 elif now - solver.exited_at > self.early_exit_grace_s:
                     solver.handled = True
-                    return self._fail("{} (pid {}) exited with code 0 before the coupler reported the end of the run"
-                                      .format(solver.role, solver.pid), culprits=[solver])
+                    return self._fail(f"{solver.role} (pid {solver.pid}) exited with code 0 before the coupler reported "
+                                      "the end of the run", culprits=[solver])
             if now - self._last_activity > self.watchdog_s:
                 return self._fail(
-                    "no progress reported by the coupler for {:.0f} s while every process is alive: the run looks "
-                    "hung (the scene's hang_timeout is {:g} s){}".format(
-                        now - self._last_activity, self.plan.hang_timeout, self._last_progress_text()),
+                    f"no progress reported by the coupler for {now - self._last_activity:.0f} s while every process is "
+                    "alive: the run looks "
+                    f"hung (the scene's hang_timeout is {self.plan.hang_timeout:g} s){self._last_progress_text()}",
                     culprits=[self.coupler])
 
-    def _restart(self, process):
+    def _restart(self, process: ManagedProcess) -> str | None:
         """Start `process`'s role again from its newest checkpoint (restart = "auto"); None when it was restarted,
         else the reason the run stops."""
         died = process.describe()
@@ -281,13 +291,11 @@ class Supervisor:
             return died
         count = self._restarts.get(process.role, 0)
         if count >= self.plan.max_restarts:
-            return "{}; it was restarted {} times already (max_restarts = {})".format(died, count,
-                                                                                        self.plan.max_restarts)
+            return f"{died}; it was restarted {count} times already (max_restarts = {self.plan.max_restarts})"
         found = run_folder.checkpoints(self.run_dir, process.role)
         checkpoint = max(found.items()) if found else None
         if checkpoint is None:
-            return "{}; no checkpoint of it to restart from yet (the first comes at [run] checkpoint_interval)".format(
-                died)
+            return f"{died}; no checkpoint of it to restart from yet (the first comes at [run] checkpoint_interval)"
         step, path = checkpoint
         spec = next(p for p in self.plan.solvers if p.role == process.role)
         arguments = ["--scene", self.scene, "--coupler", self._solver_endpoint, "--out", self.run_dir, "--resume", path]
@@ -295,41 +303,40 @@ class Supervisor:
             replacement = start_process(spec.role, spec.command + arguments, self.run_dir,
                                         os.path.join(self.run_dir, spec.role + ".log"), stdout_to_pipe=False)
         except OSError as error:
-            return "{}; could not start it again: {}".format(died, error.strerror)
+            return f"{died}; could not start it again: {error.strerror}"
         process.sweep()
         self.processes[self.processes.index(process)] = replacement
         self._write_pids()
         self._restarts[process.role] = count + 1
         self._last_activity = time.monotonic()
-        self.display.error("sabo: {}; restarting it from its checkpoint of step {} (pid {}, restart {} of {})".format(
-            died, step, replacement.pid, count + 1, self.plan.max_restarts))
+        self.display.error(f"sabo: {died}; restarting it from its checkpoint of step {step} (pid {replacement.pid}, "
+                           f"restart {count + 1} of {self.plan.max_restarts})")
         return None
 
-    def _coupler_may_restart(self):
+    def _coupler_may_restart(self) -> bool:
         """The coupler died by a signal (a crash, kill -9) in a run that restarts its processes."""
         coupler = self.coupler
         return (self.plan.restart == "auto" and coupler.returncode is not None and coupler.returncode < 0 and
                 not self._stopping and not self._interrupts)
 
-    def _restart_coupler(self):
+    def _restart_coupler(self) -> str | None:
         """Every process starts again from the newest checkpoint common to all of them (docs/restart.md, "Restart
         of the coupler"); None when the run goes on, else why it stops."""
         coupler = self.coupler
         self._drain_pipe(0.5)
         died = coupler.describe()
         if self._last_progress is not None:
-            died += " at step {}".format(self._last_progress.get("step"))
+            died += f' at step {self._last_progress.get("step")}'
         count = self._restarts.get("coupler", 0)
         if count >= self.plan.max_restarts:
-            return "{}; it was restarted {} times already (max_restarts = {})".format(died, count,
-                                                                                        self.plan.max_restarts)
+            return f"{died}; it was restarted {count} times already (max_restarts = {self.plan.max_restarts})"
         # The solvers wait for the dead coupler's reply: they stop, their checkpoints stay.
         self._terminate(self._running(self.solvers), FAULT_GRACE_S)
         roles = ["coupler"] + [spec.role for spec in self.plan.solvers]
         common = run_folder.common_checkpoint(self.run_dir, roles)
         if common is None:
-            return ("{}; no checkpoint common to {} to resume from yet (the first comes at [run] "
-                    "checkpoint_interval)".format(died, ", ".join(roles)))
+            return (f'{died}; no checkpoint common to {", ".join(roles)} to resume from yet (the first comes at [run] '
+                    "checkpoint_interval)")
         self._close_pipe()
         for process in self.processes:
             process.handled = True
@@ -342,32 +349,31 @@ class Supervisor:
         self._registered = set()
         self._restarts["coupler"] = count + 1
         self._last_activity = time.monotonic()
-        self.display.error("sabo: {}; resuming every process from their checkpoints of step {} (restart {} of {})"
-                           .format(died, common[0], count + 1, self.plan.max_restarts))
+        self.display.error(f"sabo: {died}; resuming every process from their checkpoints of step {common[0]} "
+                           f"(restart {count + 1} of {self.plan.max_restarts})")
         return self._start_coupler()
 
-    def _last_progress_text(self):
+    def _last_progress_text(self) -> str:
         if self._last_progress is None:
             return "; no progress event at all"
-        return "; last progress: step {}, t = {}".format(self._last_progress.get("step"),
-                                                         self._last_progress.get("time"))
+        return f'; last progress: step {self._last_progress.get("step")}, t = {self._last_progress.get("time")}'
 
     # ---------------------------------------------------------------------- endings
 
-    def _outcome_failed(self, reason):
+    def _outcome_failed(self, reason: str) -> Outcome:
         self.display.error("sabo: " + reason)
         return Outcome("failed", EXIT_FAILED, reason)
 
-    def _show_log_tail(self, process):
+    def _show_log_tail(self, process: ManagedProcess) -> None:
         lines = process.log_tail(LOG_TAIL_LINES)
         if not lines:
-            self.display.error("sabo: {} is empty".format(self._relative(process.log_path)))
+            self.display.error(f"sabo: {self._relative(process.log_path)} is empty")
             return
-        self.display.error("sabo: last lines of {}:".format(self._relative(process.log_path)))
+        self.display.error(f"sabo: last lines of {self._relative(process.log_path)}:")
         for line in lines:
             self.display.error("    " + line)
 
-    def _fail(self, reason, culprits=()):
+    def _fail(self, reason: str, culprits: Iterable[ManagedProcess] = ()) -> Outcome:
         """Report `reason` (and the culprits' log tails), stop every process, return a failed outcome."""
         outcome = self._outcome_failed(reason)
         shown = set()
@@ -378,14 +384,14 @@ class Supervisor:
         self._terminate(self._running(), FAULT_GRACE_S)
         return outcome
 
-    def _failed_solvers(self):
+    def _failed_solvers(self) -> list[ManagedProcess]:
         """Solvers that ended with a non-zero code or a signal, not yet reported; killed by a signal first."""
         failed = [p for p in self.solvers if not p.handled and p.poll() is not None and p.returncode != 0]
         for process in failed:
             process.handled = True
         return sorted(failed, key=lambda p: p.returncode > 0)
 
-    def _terminate(self, processes, grace_s):
+    def _terminate(self, processes: list[ManagedProcess], grace_s: float) -> None:
         """SIGTERM `processes`, SIGKILL those still alive after `grace_s` (at once on a new Ctrl-C)."""
         processes = [p for p in processes if p.running]
         if not processes:
@@ -394,7 +400,7 @@ class Supervisor:
         for process in processes:
             process.send(signal.SIGTERM)
         deadline = time.monotonic() + grace_s
-        why = "{:g} s after SIGTERM".format(grace_s)
+        why = f"{grace_s:g} s after SIGTERM"
         while self._running(processes) and time.monotonic() < deadline:
             if len(self._interrupts) > interrupts_before:
                 why = "at the interrupt"
@@ -402,33 +408,32 @@ class Supervisor:
             self._pump(POLL_INTERVAL_S)
         self._kill(self._running(processes), why)
 
-    def _kill(self, processes, why):
+    def _kill(self, processes: list[ManagedProcess], why: str) -> None:
         for process in processes:
-            self.display.error("sabo: {} (pid {}) still running {}: killing it (SIGKILL)".format(
-                process.role, process.pid, why))
+            self.display.error(f"sabo: {process.role} (pid {process.pid}) still running {why}: killing it (SIGKILL)")
             process.send(signal.SIGKILL)
         for process in processes:
             try:
                 process.popen.wait(timeout=5)
             except subprocess.TimeoutExpired:  # unkillable (e.g. stuck in the kernel): nothing more to do
-                self.display.error("sabo: {} (pid {}) does not die even with SIGKILL".format(process.role, process.pid))
+                self.display.error(f"sabo: {process.role} (pid {process.pid}) does not die even with SIGKILL")
 
-    def _error_text(self):
-        return "; ".join("{}: {}".format(event.get("process", "?"), event.get("message", "?"))
+    def _error_text(self) -> str:
+        return "; ".join(f'{event.get("process", "?")}: {event.get("message", "?")}'
                          for event in self._errors)
 
-    def _process_by_role(self, role):
+    def _process_by_role(self, role: str) -> ManagedProcess | None:
         for process in self.processes:
             if process.role == role:
                 return process
         return None
 
-    def _wait_for_exit(self, process, timeout_s):
+    def _wait_for_exit(self, process: ManagedProcess, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
         while process.running and time.monotonic() < deadline:
             self._pump(0.05)
 
-    def _on_coupler_exit(self, failed_before=()):
+    def _on_coupler_exit(self, failed_before: Iterable[ManagedProcess] = ()) -> Outcome:
         coupler = self.coupler
         coupler.handled = True
         self._drain_pipe(1.0)
@@ -445,7 +450,7 @@ class Supervisor:
         named = [self._process_by_role(event.get("process")) for event in self._errors]
         failed.sort(key=lambda p: (p not in named, p.returncode > 0))
         if code == COUPLER_EXIT_BAD_INPUT:
-            reason = "the coupler rejected the input (exit code 2){}".format("; " + reported if errors else "")
+            reason = f'the coupler rejected the input (exit code 2){"; " + reported if errors else ""}'
             self.display.error("sabo: " + reason)
             if not errors:
                 self._show_log_tail(coupler)
@@ -467,7 +472,7 @@ class Supervisor:
         return self._fail(self._failure_headline(first, ended, code),
                           culprits=[first] + [p for p in ended if p is not first])
 
-    def _failure_headline(self, first, failed, coupler_code):
+    def _failure_headline(self, first: ManagedProcess | None, failed: list[ManagedProcess], coupler_code: int | None) -> str:
         """The first process that failed and what is known of it, then the peers that ended because of it:
         'sph_solver (pid 12) ...; the coupler reports: sph_solver: ...; stopped because of it: fem_solver (pid
         13) exited with code 130'."""
@@ -477,18 +482,17 @@ class Supervisor:
         first_errors = [e for e in self._errors if first is not None and e.get("process") == first.role]
         other_errors = [e for e in self._errors if e not in first_errors]
         for event in first_errors[:1] + other_errors:
-            parts.append("the coupler reports: {}: {}".format(event.get("process", "?"), event.get("message", "?")))
+            parts.append(f'the coupler reports: {event.get("process", "?")}: {event.get("message", "?")}')
         for event in first_errors[1:]:
-            parts.append("the coupler also reports: {}: {}".format(event.get("process", "?"),
-                                                                    event.get("message", "?")))
+            parts.append(f'the coupler also reports: {event.get("process", "?")}: {event.get("message", "?")}')
         if not parts:
-            parts.append("the coupler exited with code {} without an error event".format(coupler_code))
+            parts.append(f"the coupler exited with code {coupler_code} without an error event")
         stopped = [p for p in failed if p is not first and p is not None]
         if stopped:
             parts.append("stopped because of it: " + ", ".join(p.describe() for p in stopped))
         return "; ".join(parts)
 
-    def _finish_completed(self):
+    def _finish_completed(self) -> Outcome:
         """The coupler completed: the solvers have been told to stop and must now exit cleanly."""
         deadline = time.monotonic() + FINISH_GRACE_S
         while self._running(self.solvers) and time.monotonic() < deadline and not self._interrupts:
@@ -496,12 +500,12 @@ class Supervisor:
         late = self._running(self.solvers)
         if late and self._interrupts:
             what = "Ctrl-C" if self._interrupts[0] == signal.SIGINT else signal_name(self._interrupts[0])
-            self.display.error("sabo: {}: stopping the solvers that are still finishing".format(what))
+            self.display.error(f"sabo: {what}: stopping the solvers that are still finishing")
             self._terminate(late, INTERRUPT_GRACE_S)
-            return Outcome("stopped", EXIT_INTERRUPTED, "stopped by {} after the coupler completed".format(what))
+            return Outcome("stopped", EXIT_INTERRUPTED, f"stopped by {what} after the coupler completed")
         if late:
-            reason = "{} did not exit within {:g} s after the coupler completed the run".format(
-                ", ".join("{} (pid {})".format(p.role, p.pid) for p in late), FINISH_GRACE_S)
+            reason = (f'{", ".join(f"{p.role} (pid {p.pid})" for p in late)} did not exit within {FINISH_GRACE_S:g} s '
+                      "after the coupler completed the run")
             self.display.error("sabo: " + reason)
             self._terminate(late, FAULT_GRACE_S)
             return Outcome("failed", EXIT_FAILED, reason)
@@ -514,10 +518,10 @@ class Supervisor:
             return Outcome("failed", EXIT_FAILED, reason)
         return Outcome("completed", EXIT_OK)
 
-    def _stop_on_interrupt(self):
+    def _stop_on_interrupt(self) -> Outcome:
         first = self._interrupts[0]
         what = "Ctrl-C" if first == signal.SIGINT else signal_name(first)
-        self.display.error("sabo: {}: stopping the run (press Ctrl-C again to kill everything at once)".format(what))
+        self.display.error(f"sabo: {what}: stopping the run (press Ctrl-C again to kill everything at once)")
         interrupts_seen = len(self._interrupts)
         coupler = self.coupler
         if coupler.running:
@@ -535,7 +539,7 @@ class Supervisor:
                 self._kill(self._running(), "at the second interrupt")
                 break
             if now >= deadline:
-                self._kill(self._running(), "{:g} s after the stop request".format(INTERRUPT_GRACE_S))
+                self._kill(self._running(), f"{INTERRUPT_GRACE_S:g} s after the stop request")
                 break
             if (not solvers_signalled and not coupler.running and
                     now - coupler.exited_at > SOLVER_TERM_DELAY_S):
@@ -544,9 +548,9 @@ class Supervisor:
                 solvers_signalled = True
             self._pump(POLL_INTERVAL_S)
         self._drain_pipe(0.5)
-        return Outcome("stopped", EXIT_INTERRUPTED, "stopped by {}".format(what))
+        return Outcome("stopped", EXIT_INTERRUPTED, f"stopped by {what}")
 
-    def _kill_leftovers(self):
+    def _kill_leftovers(self) -> None:
         """Last line of defence (also on an internal error): nothing outlives the supervisor."""
         running = self._running()
         if running:
@@ -556,7 +560,7 @@ class Supervisor:
 
     # ------------------------------------------------------------------------- events
 
-    def _pump(self, timeout):
+    def _pump(self, timeout: float) -> None:
         """Wait up to `timeout` for coupler output and handle the complete lines."""
         if self._pipe is None:
             time.sleep(timeout)
@@ -564,7 +568,7 @@ class Supervisor:
         if self._selector.select(timeout):
             self._read_pipe()
 
-    def _read_pipe(self):
+    def _read_pipe(self) -> None:
         for _ in range(64):  # bounded, so that a flood of output cannot starve the polling
             try:
                 data = os.read(self._pipe.fileno(), 65536)
@@ -581,12 +585,12 @@ class Supervisor:
             for line in lines:
                 self._handle_line(line)
 
-    def _drain_pipe(self, timeout_s):
+    def _drain_pipe(self, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
         while self._pipe is not None and time.monotonic() < deadline:
             self._pump(0.05)
 
-    def _close_pipe(self):
+    def _close_pipe(self) -> None:
         if self._pipe is None:
             return
         if self._selector is not None:
@@ -596,7 +600,7 @@ class Supervisor:
         self._pipe.close()
         self._pipe = None
 
-    def _handle_line(self, raw):
+    def _handle_line(self, raw: bytes) -> None:
         text = raw.decode("utf-8", "replace").rstrip("\r")
         if not text.strip():
             return
@@ -675,7 +679,7 @@ class Supervisor:
         "done": _on_done,
     }
 
-    def _append_to_coupler_log(self, text):
+    def _append_to_coupler_log(self, text: str) -> None:
         try:
             with open(os.path.join(self.run_dir, "coupler.log"), "a", encoding="utf-8") as log:
                 log.write("[stdout] " + text + "\n")
@@ -684,7 +688,7 @@ class Supervisor:
 
     # ------------------------------------------------------------------------ the end
 
-    def _remove_socket(self):
+    def _remove_socket(self) -> None:
         if self._socket_folder is not None:
             shutil.rmtree(self._socket_folder, ignore_errors=True)
             return
@@ -696,7 +700,7 @@ class Supervisor:
             except OSError:
                 pass
 
-    def _after_a_crash(self, outcome):
+    def _after_a_crash(self, outcome: Outcome) -> None:
         """The coupler died without closing its files (a signal, a crash): traffic.h5 made readable by
         ordinary tools, and a summary.json that says so (the coupler wrote none)."""
         coupler = self.coupler
@@ -718,24 +722,24 @@ class Supervisor:
             wall_seconds=time.monotonic() - self._started_at, scene=self.scene)
         try:
             run_folder.write_summary(self.run_dir, summary)
-            self.display.error("sabo: the coupler wrote no summary: wrote {} with status \"{}\"".format(
-                run_folder.SUMMARY_FILE, summary["status"]))
+            self.display.error(f"sabo: the coupler wrote no summary: wrote {run_folder.SUMMARY_FILE} "
+                               f'with status "{summary["status"]}"')
         except OSError as error:
-            self.display.error("sabo: could not write {}: {}".format(run_folder.SUMMARY_FILE, error.strerror))
+            self.display.error(f"sabo: could not write {run_folder.SUMMARY_FILE}: {error.strerror}")
 
-    def _relative(self, path):
+    def _relative(self, path: str) -> str:
         relative = os.path.relpath(path)
         return path if relative.startswith("..") else relative
 
-    def _report(self, outcome):
+    def _report(self, outcome: Outcome) -> None:
         wall = time.monotonic() - self._started_at
         headline = {"completed": "completed", "failed": "FAILED", "stopped": "stopped",
                     "bad input": "FAILED (bad input)"}[outcome.status]
-        lines = ["sabo: run {}{}".format(headline, ": " + outcome.reason if outcome.reason else "")]
+        lines = [f'sabo: run {headline}{": " + outcome.reason if outcome.reason else ""}']
         if self._last_progress is not None:
             lines.append("  last step:   " + format_progress(self._last_progress, self.plan.end_time))
-        lines.append("  wall time:   {}".format(format_duration(wall)))
-        lines.append("  run folder:  {}".format(self._relative(self.run_dir)))
+        lines.append(f"  wall time:   {format_duration(wall)}")
+        lines.append(f"  run folder:  {self._relative(self.run_dir)}")
         files = list_run_folder(self.run_dir)
         if files:
             lines.extend(wrap_items(files, "  files:       ", " " * 15))

@@ -12,6 +12,8 @@ The supervisor repairs its own run when the coupler dies; `./sabo status RUN_DIR
 reads a run folder) repairs a folder whose supervisor was killed too. Nothing is touched while a process
 of the run is alive.
 """
+from __future__ import annotations
+
 import json
 import os
 import re
@@ -26,23 +28,23 @@ TRAFFIC_FILE = "traffic.h5"
 SOCKET_FILE = "coupler.sock"
 
 
-def _command_line(pid):
+def _command_line(pid: int) -> str | None:
     try:
-        with open("/proc/{}/cmdline".format(pid), "rb") as handle:
+        with open(f"/proc/{pid}/cmdline", "rb") as handle:
             return handle.read().replace(b"\0", b" ").decode("utf-8", "replace")
     except OSError:
         return None
 
 
-def _state(pid):
+def _state(pid: int) -> str | None:
     try:
-        with open("/proc/{}/stat".format(pid), encoding="utf-8", errors="replace") as handle:
+        with open(f"/proc/{pid}/stat", encoding="utf-8", errors="replace") as handle:
             return handle.read().rsplit(")", 1)[1].split()[0]
     except (OSError, IndexError):
         return None
 
 
-def read_pids(run_dir):
+def read_pids(run_dir: str) -> dict[str, int]:
     """{role: pid} of pids.json ({} when absent or unreadable)."""
     try:
         with open(os.path.join(run_dir, PIDS_FILE), encoding="utf-8") as handle:
@@ -54,7 +56,7 @@ def read_pids(run_dir):
     return {role: pid for role, pid in pids.items() if isinstance(pid, int) and not isinstance(pid, bool)}
 
 
-def live_processes(run_dir):
+def live_processes(run_dir: str) -> list[tuple[str, int]]:
     """[(role, pid)] of the run's processes (pids.json) that are alive and are still the run's: the
     supervisor is `sabo` or python, the others name the run folder on their command line (a reused pid
     is not the run's)."""
@@ -73,20 +75,20 @@ def live_processes(run_dir):
     return alive
 
 
-def repair_traffic(path, bin_dir):
+def repair_traffic(path: str, bin_dir: str) -> str | None:
     """Clear the flags a killed writer left in traffic.h5 with sabo_traffic; the line it printed, or why not."""
     tool = os.path.join(bin_dir, "sabo_traffic")
     if not os.access(tool, os.X_OK):
-        return "{} was not checked: {} is missing (./sabo setup builds it)".format(TRAFFIC_FILE, tool)
+        return f"{TRAFFIC_FILE} was not checked: {tool} is missing (./sabo setup builds it)"
     result = subprocess.run([tool, "repair", path], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, universal_newlines=True, errors="replace")
     text = (result.stdout.strip() or result.stderr.strip()).replace(path, TRAFFIC_FILE)
     if result.returncode != 0:
-        return "{} could not be repaired: {}".format(TRAFFIC_FILE, text)
+        return f"{TRAFFIC_FILE} could not be repaired: {text}"
     return text if "repaired" in text else None
 
 
-def remove_socket(run_dir):
+def remove_socket(run_dir: str) -> bool:
     """Remove a leftover coupler.sock; True when there was one."""
     path = os.path.join(run_dir, SOCKET_FILE)
     try:
@@ -98,7 +100,7 @@ def remove_socket(run_dir):
     return False
 
 
-def write_summary(run_dir, summary):
+def write_summary(run_dir: str, summary: dict) -> None:
     """summary.json, written whole then renamed (as the coupler writes its own)."""
     path = os.path.join(run_dir, SUMMARY_FILE)
     with open(path + ".tmp", "w", encoding="utf-8") as handle:
@@ -107,7 +109,7 @@ def write_summary(run_dir, summary):
     os.replace(path + ".tmp", path)
 
 
-def repair(run_dir, bin_dir, summary=None):
+def repair(run_dir: str, bin_dir: str, summary: dict | None = None) -> list[str]:
     """Repair a run folder none of whose processes lives; returns what was done, one line each.
 
     `summary`: the summary.json to write when there is none (default: status "killed", written by
@@ -122,10 +124,10 @@ def repair(run_dir, bin_dir, summary=None):
         if line:
             done.append(line)
     if remove_socket(run_dir):
-        done.append("removed the leftover {}".format(SOCKET_FILE))
+        done.append(f"removed the leftover {SOCKET_FILE}")
     try:
         os.unlink(os.path.join(run_dir, SUMMARY_FILE + ".tmp"))
-        done.append("removed the coupler's unfinished {}.tmp".format(SUMMARY_FILE))
+        done.append(f"removed the coupler's unfinished {SUMMARY_FILE}.tmp")
     except OSError:
         pass
     if not os.path.exists(os.path.join(run_dir, SUMMARY_FILE)) and os.path.exists(os.path.join(run_dir, PIDS_FILE)):
@@ -133,11 +135,11 @@ def repair(run_dir, bin_dir, summary=None):
             summary = killed_summary(run_dir, "the run was killed: no process of it is alive and the coupler "
                                               "wrote no summary", written_by="./sabo status")
         write_summary(run_dir, summary)
-        done.append("wrote {} with status \"{}\"".format(SUMMARY_FILE, summary["status"]))
+        done.append(f'wrote {SUMMARY_FILE} with status "{summary["status"]}"')
     return done
 
 
-def last_progress(run_dir):
+def last_progress(run_dir: str) -> dict | None:
     """The last progress event of coupler.events.jsonl, or None."""
     last = None
     try:
@@ -154,15 +156,16 @@ def last_progress(run_dir):
     return last
 
 
-def killed_summary(run_dir, failure, status="killed", processes=None, wall_seconds=None, scene=None,
-                   written_by="supervisor"):
+def killed_summary(run_dir: str, failure: str, status: str = "killed", processes: dict | None = None,
+                   wall_seconds: float | None = None, scene: str | None = None,
+                   written_by: str = "supervisor") -> dict:
     """A summary.json for a run whose coupler could not write its own: what the supervisor (or `./sabo status`)
     knows."""
     progress = last_progress(run_dir) or {}
     summary = {
         "status": status,
         "failure": failure,
-        "written_by": "{} (the coupler wrote no summary)".format(written_by),
+        "written_by": f"{written_by} (the coupler wrote no summary)",
         "written_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "steps": progress.get("step", 0),
         "simulated_time": progress.get("time", 0.0),
@@ -177,7 +180,7 @@ def killed_summary(run_dir, failure, status="killed", processes=None, wall_secon
     return summary
 
 
-def write_run_file(run_dir, scene):
+def write_run_file(run_dir: str, scene: str) -> None:
     """run.json: what `./sabo resume` needs to start the run's processes again (the scene file)."""
     path = os.path.join(run_dir, RUN_FILE)
     with open(path + ".tmp", "w", encoding="utf-8") as handle:
@@ -187,7 +190,7 @@ def write_run_file(run_dir, scene):
     os.replace(path + ".tmp", path)
 
 
-def run_scene(run_dir):
+def run_scene(run_dir: str) -> str | None:
     """The scene file the run was started with (run.json, else summary.json), or None."""
     for name in (RUN_FILE, SUMMARY_FILE):
         try:
@@ -200,10 +203,10 @@ def run_scene(run_dir):
     return None
 
 
-def checkpoints(run_dir, role):
+def checkpoints(run_dir: str, role: str) -> dict[int, str]:
     """{step: path} of the complete checkpoints of `role` ("coupler", "dem_solver", ...) in RUN_DIR/checkpoints."""
     folder = os.path.join(run_dir, "checkpoints")
-    pattern = re.compile(r"{}_([0-9]{{10}})\.h5$".format(re.escape(role)))
+    pattern = re.compile(rf"{re.escape(role)}_([0-9]{{10}})\.h5$")
     try:
         names = os.listdir(folder)
     except OSError:
@@ -211,7 +214,7 @@ def checkpoints(run_dir, role):
     return {int(m.group(1)): os.path.join(folder, name) for name in names for m in [pattern.match(name)] if m}
 
 
-def common_checkpoint(run_dir, roles):
+def common_checkpoint(run_dir: str, roles: list[str]) -> tuple[int, dict[str, str]] | None:
     """(step, {role: path}) of the newest step every role in `roles` has a checkpoint of, or None."""
     found = {role: checkpoints(run_dir, role) for role in roles}
     steps = set.intersection(*(set(paths) for paths in found.values())) if found else set()

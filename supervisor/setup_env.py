@@ -3,10 +3,13 @@
 Idempotent and fast when there is nothing to do: dpkg-query decides whether
 apt-get runs at all, ninja decides what to rebuild.
 """
+from __future__ import annotations
+
 import os
 import shutil
 import subprocess
 import sys
+from typing import TextIO
 
 from .errors import SaboError, EXIT_FAILED
 
@@ -14,13 +17,13 @@ PACKAGE_LIST = "packages.txt"
 NINJA_NOTHING_TO_DO = "ninja: no work to do."
 
 
-def read_package_list(path):
+def read_package_list(path: str) -> list[str]:
     """The package names in `path`: one per line, `#` starts a comment."""
     try:
         with open(path, encoding="utf-8") as handle:
             lines = handle.read().splitlines()
     except OSError as error:
-        raise SaboError("cannot read the package list {}: {}".format(path, error.strerror))
+        raise SaboError(f"cannot read the package list {path}: {error.strerror}")
     packages = []
     for line in lines:
         name = line.split("#", 1)[0].strip()
@@ -29,7 +32,7 @@ def read_package_list(path):
     return packages
 
 
-def missing_packages(packages):
+def missing_packages(packages: list[str]) -> list[str] | None:
     """The packages of `packages` that dpkg does not report as installed, in list order.
 
     Returns None when dpkg-query is not available (not a Debian system).
@@ -48,7 +51,7 @@ def missing_packages(packages):
     return [name for name in packages if name not in installed]
 
 
-def _privileged(command):
+def _privileged(command: list[str]) -> list[str]:
     """`command` run as root: directly when we are root, else through sudo."""
     if os.geteuid() == 0:
         return command
@@ -57,37 +60,37 @@ def _privileged(command):
     return ["sudo"] + command
 
 
-def install_packages(packages, out=sys.stdout):
+def install_packages(packages: list[str], out: TextIO = sys.stdout) -> None:
     """apt-get update, then install `packages` without recommends, non-interactively."""
     if shutil.which("apt-get") is None:
-        raise SaboError("apt-get is not available to install: {}".format(" ".join(packages)))
+        raise SaboError(f'apt-get is not available to install: {" ".join(packages)}')
     apt = ["env", "DEBIAN_FRONTEND=noninteractive", "apt-get"]
     steps = [apt + ["update"], apt + ["install", "-y", "--no-install-recommends"] + list(packages)]
-    print("sabo: installing {}".format(" ".join(packages)), file=out, flush=True)
+    print(f'sabo: installing {" ".join(packages)}', file=out, flush=True)
     for command in steps:
         command = _privileged(command)
         result = subprocess.run(command, stdin=subprocess.DEVNULL)
         if result.returncode != 0:
-            raise SaboError("`{}` failed with exit code {}".format(" ".join(command), result.returncode))
+            raise SaboError(f'`{" ".join(command)}` failed with exit code {result.returncode}')
 
 
-def ensure_packages(root, out=sys.stdout):
+def ensure_packages(root: str, out: TextIO = sys.stdout) -> None:
     """Install what is missing from the package list; does nothing when all is installed."""
     packages = read_package_list(os.path.join(root, PACKAGE_LIST))
     missing = missing_packages(packages)
     if missing is None:
         print("sabo: dpkg-query not found (not a Debian system): not checking packages; "
-              "install the equivalents of {} yourself".format(PACKAGE_LIST), file=out, flush=True)
+              f"install the equivalents of {PACKAGE_LIST} yourself", file=out, flush=True)
         return
     if not missing:
         return
     install_packages(missing, out)
     still_missing = missing_packages(packages)
     if still_missing:
-        raise SaboError("still not installed after apt-get: {}".format(" ".join(still_missing)))
+        raise SaboError(f'still not installed after apt-get: {" ".join(still_missing)}')
 
 
-def _run_streamed(command, quiet, out):
+def _run_streamed(command: list[str], quiet: bool, out: TextIO) -> int:
     """Run `command`; stream its output (quiet: only when it fails). Returns the exit code."""
     process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, universal_newlines=True, errors="replace")
@@ -107,20 +110,20 @@ def _run_streamed(command, quiet, out):
     return code
 
 
-def ensure_build(root, build_dir, quiet=False, out=sys.stdout):
+def ensure_build(root: str, build_dir: str, quiet: bool = False, out: TextIO = sys.stdout) -> None:
     """Configure (Release, Ninja) when `build_dir` has no CMake cache yet, then build."""
     for tool in ("cmake", "ninja"):
         if shutil.which(tool) is None:
-            raise SaboError("{} is not installed: run `./sabo setup`".format(tool))
+            raise SaboError(f"{tool} is not installed: run `./sabo setup`")
     if not os.path.exists(os.path.join(build_dir, "CMakeCache.txt")):
         command = ["cmake", "-S", root, "-B", build_dir, "-G", "Ninja", "-DCMAKE_BUILD_TYPE=Release"]
         if _run_streamed(command, quiet, out) != 0:
-            raise SaboError("configuring with CMake failed (see above): {}".format(" ".join(command)), EXIT_FAILED)
+            raise SaboError(f'configuring with CMake failed (see above): {" ".join(command)}', EXIT_FAILED)
     command = ["cmake", "--build", build_dir]
     if _run_streamed(command, quiet, out) != 0:
-        raise SaboError("the build failed (see above): {}".format(" ".join(command)), EXIT_FAILED)
+        raise SaboError(f'the build failed (see above): {" ".join(command)}', EXIT_FAILED)
 
 
-def setup(root, build_dir, quiet=False, out=sys.stdout):
+def setup(root: str, build_dir: str, quiet: bool = False, out: TextIO = sys.stdout) -> None:
     ensure_packages(root, out)
     ensure_build(root, build_dir, quiet, out)
