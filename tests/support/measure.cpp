@@ -25,21 +25,23 @@ void check(std::string_view what, const std::string& measured, const std::string
   EXPECT_LE(difference, allowed) << line;
 }
 
+void check_number(std::string_view what, double measured, double expected, double allowed) {
+  check(what, fmt::format("{:.6g}", measured), fmt::format("{:.6g}", expected), std::abs(measured - expected),
+        std::abs(expected), allowed);
+}
+
 }  // namespace
 
 void expect_relative(std::string_view what, double measured, double expected, double tolerance) {
-  check(what, fmt::format("{:.6g}", measured), fmt::format("{:.6g}", expected), std::abs(measured - expected),
-        std::abs(expected), tolerance * std::abs(expected));
+  check_number(what, measured, expected, tolerance * std::abs(expected));
 }
 
 void expect_absolute(std::string_view what, double measured, double expected, double tolerance) {
-  check(what, fmt::format("{:.6g}", measured), fmt::format("{:.6g}", expected), std::abs(measured - expected),
-        std::abs(expected), tolerance);
+  check_number(what, measured, expected, tolerance);
 }
 
 void expect_scaled(std::string_view what, double measured, double expected, double tolerance) {
-  check(what, fmt::format("{:.6g}", measured), fmt::format("{:.6g}", expected), std::abs(measured - expected),
-        std::abs(expected), tolerance * std::max(1.0, std::abs(expected)));
+  check_number(what, measured, expected, tolerance * std::max(1.0, std::abs(expected)));
 }
 
 void expect_vec_absolute(std::string_view what, const Vec3& measured, const Vec3& expected, double tolerance) {

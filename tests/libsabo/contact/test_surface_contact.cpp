@@ -25,10 +25,7 @@ using test::MeshBuilder;
 using test::uniform;
 using test::vec_at;
 
-// The figures first, as in every test: expect_vec_near(measured, expected, tolerance, what).
-void expect_vec_near(const Vec3& measured, const Vec3& expected, double tolerance, const std::string& what) {
-  sabo::testing::expect_vec_absolute(what, measured, expected, tolerance);
-}
+using sabo::testing::expect_vec_absolute;
 
 // ------------------------------------------------------------ geometry ------
 
@@ -36,7 +33,7 @@ TEST(ClosestPoint, FaceEdgeVertexRegions) {
   const Vec3 a(0, 0, 0), b(4, 0, 0), c(0, 4, 0);
   auto face = closest_point_on_triangle(Vec3(1, 1, 0.7), a, b, c);
   EXPECT_EQ(face.feature, Feature::face);
-  expect_vec_near(face.point, Vec3(1, 1, 0), 1e-15, "face point");
+  expect_vec_absolute("face point", face.point, Vec3(1, 1, 0), 1e-15);
   EXPECT_NEAR(face.weight[0], 0.5, 1e-15);
   EXPECT_NEAR(face.weight[1], 0.25, 1e-15);
   EXPECT_NEAR(face.weight[2], 0.25, 1e-15);
@@ -44,7 +41,7 @@ TEST(ClosestPoint, FaceEdgeVertexRegions) {
   auto edge = closest_point_on_triangle(Vec3(2, -0.3, 0.3), a, b, c);
   EXPECT_EQ(edge.feature, Feature::edge);
   EXPECT_EQ(edge.index, 0);  // ab
-  expect_vec_near(edge.point, Vec3(2, 0, 0), 1e-15, "edge point");
+  expect_vec_absolute("edge point", edge.point, Vec3(2, 0, 0), 1e-15);
   EXPECT_NEAR(edge.weight[0], 0.5, 1e-15);
   EXPECT_NEAR(edge.weight[1], 0.5, 1e-15);
   EXPECT_EQ(edge.weight[2], 0.0);
@@ -52,7 +49,7 @@ TEST(ClosestPoint, FaceEdgeVertexRegions) {
   auto hypotenuse = closest_point_on_triangle(Vec3(3, 3, 0), a, b, c);
   EXPECT_EQ(hypotenuse.feature, Feature::edge);
   EXPECT_EQ(hypotenuse.index, 1);  // bc
-  expect_vec_near(hypotenuse.point, Vec3(2, 2, 0), 1e-14, "hypotenuse point");
+  expect_vec_absolute("hypotenuse point", hypotenuse.point, Vec3(2, 2, 0), 1e-14);
 
   auto vertex = closest_point_on_triangle(Vec3(-1, -0.5, 2), a, b, c);
   EXPECT_EQ(vertex.feature, Feature::vertex);
@@ -145,17 +142,17 @@ TEST(SurfaceContact, FaceContactSolidWithDamping) {
   const double expected = k * overlap + c_n * 2.0;
   ASSERT_EQ(out.contact_count, 1u);
   EXPECT_EQ(contact.contacts()[0].feature, Feature::face);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, expected), 1e-6 * expected, "solid face force");
-  expect_vec_near(vec_at(out.particle_torque, 0), Vec3::Zero(), 1e-6, "solid face torque");
+  expect_vec_absolute("solid face force", vec_at(out.particle_force, 0), Vec3(0, 0, expected), 1e-6 * expected);
+  expect_vec_absolute("solid face torque", vec_at(out.particle_torque, 0), Vec3::Zero(), 1e-6);
   // Reaction on the nodes by the weights (0.5, 0.25, 0.25) of (1, 1).
-  expect_vec_near(vec_at(out.node_force, 0), Vec3(0, 0, -0.5 * expected), 1e-6 * expected, "node a");
-  expect_vec_near(vec_at(out.node_force, 1), Vec3(0, 0, -0.25 * expected), 1e-6 * expected, "node b");
-  expect_vec_near(vec_at(out.node_force, 2), Vec3(0, 0, -0.25 * expected), 1e-6 * expected, "node c");
+  expect_vec_absolute("node a", vec_at(out.node_force, 0), Vec3(0, 0, -0.5 * expected), 1e-6 * expected);
+  expect_vec_absolute("node b", vec_at(out.node_force, 1), Vec3(0, 0, -0.25 * expected), 1e-6 * expected);
+  expect_vec_absolute("node c", vec_at(out.node_force, 2), Vec3(0, 0, -0.25 * expected), 1e-6 * expected);
   EXPECT_NEAR(out.elastic_energy, 0.5 * k * overlap * overlap, 1e-9 * k);
   EXPECT_EQ(out.max_contact_stiffness, k);
   EXPECT_EQ(out.min_contact_mass, mass);
-  expect_vec_near(out.part_force[0], Vec3(0, 0, -expected), 1e-6 * expected, "part force");
-  expect_vec_near(out.force_on_part(0, 0), Vec3(0, 0, -expected), 1e-6 * expected, "part force from boulders");
+  expect_vec_absolute("part force", out.part_force[0], Vec3(0, 0, -expected), 1e-6 * expected);
+  expect_vec_absolute("part force from boulders", out.force_on_part(0, 0), Vec3(0, 0, -expected), 1e-6 * expected);
 }
 
 TEST(SurfaceContact, FaceContactShellThicknessTwoSided) {
@@ -169,9 +166,9 @@ TEST(SurfaceContact, FaceContactShellThicknessTwoSided) {
   ContactOutput out;
   contact.compute(cloud.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 2u);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.15), 1e-6 * k, "shell front");
-  expect_vec_near(vec_at(out.particle_force, 1), Vec3(0, 0, -k * 0.15), 1e-6 * k, "shell back");
-  expect_vec_near(vec_at(out.particle_force, 2), Vec3::Zero(), 0, "shell out of reach");
+  expect_vec_absolute("shell front", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.15), 1e-6 * k);
+  expect_vec_absolute("shell back", vec_at(out.particle_force, 1), Vec3(0, 0, -k * 0.15), 1e-6 * k);
+  expect_vec_absolute("shell out of reach", vec_at(out.particle_force, 2), Vec3::Zero(), 0);
 }
 
 TEST(SurfaceContact, FaceContactBehindOneSidedFace) {
@@ -183,8 +180,8 @@ TEST(SurfaceContact, FaceContactBehindOneSidedFace) {
   ContactOutput out;
   contact.compute(cloud.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 1u);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, 1e6 * 0.6), 1e-6, "behind the face");
-  expect_vec_near(vec_at(out.particle_force, 1), Vec3::Zero(), 0, "too deep behind");
+  expect_vec_absolute("behind the face", vec_at(out.particle_force, 0), Vec3(0, 0, 1e6 * 0.6), 1e-6);
+  expect_vec_absolute("too deep behind", vec_at(out.particle_force, 1), Vec3::Zero(), 0);
 }
 
 TEST(SurfaceContact, EdgeAndVertexContacts) {
@@ -205,12 +202,12 @@ TEST(SurfaceContact, EdgeAndVertexContacts) {
     const Vec3 f_edge = k * (0.5 + thickness / 2 - d_edge) * Vec3(0, -0.3, 0.3) / d_edge;
     const Vec3 f_vertex = k * (0.6 + thickness / 2 - d_vertex) * Vec3(-0.3, -0.3, 0.3) / d_vertex;
     const std::string t = " (thickness " + std::to_string(thickness) + ")";
-    expect_vec_near(vec_at(out.particle_force, 0), f_edge, 1e-6 * k, "edge force" + t);
-    expect_vec_near(vec_at(out.particle_force, 1), f_vertex, 1e-6 * k, "vertex force" + t);
+    expect_vec_absolute("edge force" + t, vec_at(out.particle_force, 0), f_edge, 1e-6 * k);
+    expect_vec_absolute("vertex force" + t, vec_at(out.particle_force, 1), f_vertex, 1e-6 * k);
     // Edge reaction split half-half between a and b; the vertex's all on a.
-    expect_vec_near(vec_at(out.node_force, 0), -0.5 * f_edge - f_vertex, 1e-6 * k, "node a reaction" + t);
-    expect_vec_near(vec_at(out.node_force, 1), -0.5 * f_edge, 1e-6 * k, "node b reaction" + t);
-    expect_vec_near(vec_at(out.node_force, 2), Vec3::Zero(), 1e-6 * k, "node c reaction" + t);
+    expect_vec_absolute("node a reaction" + t, vec_at(out.node_force, 0), -0.5 * f_edge - f_vertex, 1e-6 * k);
+    expect_vec_absolute("node b reaction" + t, vec_at(out.node_force, 1), -0.5 * f_edge, 1e-6 * k);
+    expect_vec_absolute("node c reaction" + t, vec_at(out.node_force, 2), Vec3::Zero(), 1e-6 * k);
     // Torque lever -r n: a purely normal force gives no torque.
     EXPECT_LE(vec_at(out.particle_torque, 0).norm(), 1e-6 * k);
   }
@@ -233,16 +230,16 @@ TEST(SurfaceContact, TangentialStickThenSlip) {
   for (int step = 1; step <= 3; ++step) {
     contact.compute(cloud.view(), dt, out);
     const Vec3 expected(-k * speed * dt * step, 0, normal);
-    expect_vec_near(vec_at(out.particle_force, 0), expected, 1e-6, "stick, step " + std::to_string(step));
+    expect_vec_absolute("stick, step " + std::to_string(step), vec_at(out.particle_force, 0), expected, 1e-6);
     EXPECT_FALSE(contact.contacts()[0].sliding);
     // Torque on the sphere from the tangential force at the lever -r n.
     const Vec3 torque = Vec3(0, 0, -0.5).cross(expected);
-    expect_vec_near(vec_at(out.particle_torque, 0), torque, 1e-6, "stick torque");
+    expect_vec_absolute("stick torque", vec_at(out.particle_torque, 0), torque, 1e-6);
   }
   // Fast slip: the tangential force is capped at mu F_n.
   cloud.velocity[0] = 10.0;
   contact.compute(cloud.view(), dt, out);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(-0.5 * normal, 0, normal), 1e-6, "slip (Coulomb cap)");
+  expect_vec_absolute("slip (Coulomb cap)", vec_at(out.particle_force, 0), Vec3(-0.5 * normal, 0, normal), 1e-6);
   EXPECT_TRUE(contact.contacts()[0].sliding);
   EXPECT_GT(out.dissipated_power, 0.0);
   // Contact ends: the spring is dropped.
@@ -265,8 +262,8 @@ TEST(SurfaceContact, SpinGivesContactPointVelocity) {
   ContactOutput out;
   contact.compute(cloud.view(), dt, out);
   const Vec3 expected(k * r * w * dt, 0, k * 0.01);  // spring stretched by -r w dt along x, pulls back +x
-  expect_vec_near(vec_at(out.particle_force, 0), expected, 1e-6, "spin friction");
-  expect_vec_near(vec_at(out.particle_torque, 0), Vec3(0, 0, -r).cross(expected), 1e-6, "spin torque");
+  expect_vec_absolute("spin friction", vec_at(out.particle_force, 0), expected, 1e-6);
+  expect_vec_absolute("spin torque", vec_at(out.particle_torque, 0), Vec3(0, 0, -r).cross(expected), 1e-6);
 }
 
 TEST(SurfaceContact, MovingSurfaceVelocity) {
@@ -286,7 +283,7 @@ TEST(SurfaceContact, MovingSurfaceVelocity) {
   cloud.add({0.3, 0.2, 0.49}, 0.5, 10.0, {0.3, 0.0, -0.1});
   ContactOutput out;
   contact.compute(cloud.view(), 1e-3, out);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.01), 1e-9, "co-moving floor");
+  expect_vec_absolute("co-moving floor", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.01), 1e-9);
 }
 
 // ------------------------------------------ one contact per smooth surface ---
@@ -333,11 +330,13 @@ TEST(SurfaceContact, SharedVertexOfSixTriangles) {
     ContactOutput out;
     contact.compute(cloud.view(), 0.0, out);
     EXPECT_EQ(out.contact_count, 1u);
-    expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-9, "six-triangle vertex");
-    expect_vec_near(vec_at(out.node_force, centre) + vec_at(out.node_force, rim[0]) + vec_at(out.node_force, rim[1]) +
-                        vec_at(out.node_force, rim[2]) + vec_at(out.node_force, rim[3]) +
-                        vec_at(out.node_force, rim[4]) + vec_at(out.node_force, rim[5]),
-                    Vec3(0, 0, -k * 0.05), 1e-9, "six-triangle vertex reaction");
+    expect_vec_absolute("six-triangle vertex", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-9);
+    expect_vec_absolute("six-triangle vertex reaction",
+                        vec_at(out.node_force, centre) + vec_at(out.node_force, rim[0]) +
+                            vec_at(out.node_force, rim[1]) + vec_at(out.node_force, rim[2]) +
+                            vec_at(out.node_force, rim[3]) + vec_at(out.node_force, rim[4]) +
+                            vec_at(out.node_force, rim[5]),
+                        Vec3(0, 0, -k * 0.05), 1e-9);
   }
 }
 
@@ -384,7 +383,7 @@ TEST(SurfaceContact, UnweldedMeshStillOneContact) {
     ContactOutput out;
     contact.compute(cloud.view(), 0.0, out);
     EXPECT_EQ(out.contact_count, 1u);
-    expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-9, "unwelded shared edge");
+    expect_vec_absolute("unwelded shared edge", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-9);
   }
 }
 
@@ -402,12 +401,12 @@ TEST(SurfaceContact, ConvexEdgeOfABox) {
   contact.compute(cloud.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 3u);
   const Vec3 d_edge(0.3, 0, 0.2);
-  expect_vec_near(vec_at(out.particle_force, 0), k * (0.5 - d_edge.norm()) * d_edge.normalized(), 1e-6,
-                  "convex edge force along edge-to-centre");
-  expect_vec_near(vec_at(out.particle_force, 1), Vec3(0, 0, k * 0.05), 1e-6, "top face near the edge");
+  expect_vec_absolute("convex edge force along edge-to-centre", vec_at(out.particle_force, 0),
+                      k * (0.5 - d_edge.norm()) * d_edge.normalized(), 1e-6);
+  expect_vec_absolute("top face near the edge", vec_at(out.particle_force, 1), Vec3(0, 0, k * 0.05), 1e-6);
   const Vec3 d_corner(0.2, 0.2, 0.2);
-  expect_vec_near(vec_at(out.particle_force, 2), k * (0.5 - d_corner.norm()) * d_corner.normalized(), 1e-6,
-                  "convex corner force");
+  expect_vec_absolute("convex corner force", vec_at(out.particle_force, 2),
+                      k * (0.5 - d_corner.norm()) * d_corner.normalized(), 1e-6);
   EXPECT_EQ(contact.contacts()[0].feature, Feature::edge);
   EXPECT_EQ(contact.contacts()[1].feature, Feature::face);
   EXPECT_EQ(contact.contacts()[2].feature, Feature::vertex);
@@ -466,7 +465,8 @@ TEST(SurfaceContact, ConcaveCornerGivesTwoContacts) {
   ContactOutput out;
   contact.compute(cloud.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 2u);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.05, 0, k * 0.02), 1e-6, "concave corner (wall + floor)");
+  expect_vec_absolute("concave corner (wall + floor)", vec_at(out.particle_force, 0), Vec3(k * 0.05, 0, k * 0.02),
+                      1e-6);
 }
 
 // A contact born while the particle already touches starts slack (normal
@@ -491,14 +491,14 @@ TEST(SurfaceContact, ContactBornDuringAContactStartsSlack) {
   std::cout << "wall contact born with 0.05 m overlap: force x measured " << vec_at(out.particle_force, 0).x()
             << " N expected 0; elastic energy measured " << out.elastic_energy << " J expected " << elastic_floor
             << " J (" << elastic_floor + 0.5 * k * 0.05 * 0.05 << " J with a full spring)\n";
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.02), 1e-6, "slack wall at birth");
+  expect_vec_absolute("slack wall at birth", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.02), 1e-6);
   EXPECT_NEAR(out.elastic_energy, elastic_floor, 1e-9);
   step(0.43);  // 0.02 further into the wall
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.02, 0, k * 0.02), 1e-6, "wall stiffens from birth");
+  expect_vec_absolute("wall stiffens from birth", vec_at(out.particle_force, 0), Vec3(k * 0.02, 0, k * 0.02), 1e-6);
   step(0.47);  // back out past the birth overlap: the offset shrinks to 0.03
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.02), 1e-6, "slack again");
+  expect_vec_absolute("slack again", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.02), 1e-6);
   step(0.46);  // 0.01 in from the shrunken offset
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(k * 0.01, 0, k * 0.02), 1e-6, "offset followed the overlap");
+  expect_vec_absolute("offset followed the overlap", vec_at(out.particle_force, 0), Vec3(k * 0.01, 0, k * 0.02), 1e-6);
 }
 
 // A particle sunk deeper than half a small face's edge is reported (the
@@ -564,7 +564,7 @@ TEST(SurfaceContact, ThinSolidBottomFaceDoesNotPull) {
   ContactOutput out;
   contact.compute(cloud.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 1u);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-6, "thin plate");
+  expect_vec_absolute("thin plate", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.05), 1e-6);
 
   // Sunk into a block: pushed out through the nearest face.
   SurfaceContact block({"boulders"}, uniform(explicit_stiffness(k)));
@@ -575,7 +575,7 @@ TEST(SurfaceContact, ThinSolidBottomFaceDoesNotPull) {
   sunk.add({0.5, 0.5, 0.95}, 0.6);
   block.compute(sunk.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 1u);
-  expect_vec_near(vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.65), 1e-6, "sunk into a block");
+  expect_vec_absolute("sunk into a block", vec_at(out.particle_force, 0), Vec3(0, 0, k * 0.65), 1e-6);
 }
 
 TEST(SurfaceContact, SpringCarriedAcrossSharedEdge) {
@@ -778,10 +778,10 @@ TEST(SurfaceContact, PairSettingsFromScene) {
   ContactOutput out;
   contact.compute(cloud.view(), 0.0, out);
   EXPECT_EQ(out.contact_count, 3u);
-  expect_vec_near(out.force_on_part(dam, 0), Vec3(0, 0, -k_eq6 * 0.05), 1e-6 * k_eq6, "dam from boulders");
-  expect_vec_near(out.force_on_part(dam, 1), Vec3(0, 0, -5e6 * 0.05), 1e-3, "dam from gravel");
-  expect_vec_near(out.force_on_part(house, 0), Vec3::Zero(), 0, "house from boulders (disabled)");
-  expect_vec_near(out.force_on_part(house, 1), Vec3(0, 0, -k_eq6 * 0.17), 1e-6 * k_eq6, "house from gravel");
+  expect_vec_absolute("dam from boulders", out.force_on_part(dam, 0), Vec3(0, 0, -k_eq6 * 0.05), 1e-6 * k_eq6);
+  expect_vec_absolute("dam from gravel", out.force_on_part(dam, 1), Vec3(0, 0, -5e6 * 0.05), 1e-3);
+  expect_vec_absolute("house from boulders (disabled)", out.force_on_part(house, 0), Vec3::Zero(), 0);
+  expect_vec_absolute("house from gravel", out.force_on_part(house, 1), Vec3(0, 0, -k_eq6 * 0.17), 1e-6 * k_eq6);
   EXPECT_EQ(contact.source_names()[1], "gravel");
 }
 
