@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "libsabo/protocol/solver_link.hpp"
+#include "libsabo/protocol/wire.hpp"
 
 using namespace sabo;
 using Clock = std::chrono::steady_clock;
@@ -72,7 +73,7 @@ Result run_solver(const std::string& endpoint, int entities, int steps, int warm
   protocol::SolverLink link(endpoint, std::chrono::milliseconds(20000));
   sabo::v1::Register registration;
   registration.set_protocol_version(protocol::kProtocolVersion);
-  registration.set_role(sabo::v1::ROLE_DEM);
+  registration.set_role(sabo::protocol::to_wire(sabo::Role::dem));
   registration.set_exposes_particles(true);
   registration.set_exposes_angular_velocity(true);
   link.register_solver(registration);

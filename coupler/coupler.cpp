@@ -115,19 +115,19 @@ Coupler::Peer* Coupler::route(const protocol::Inbound& inbound, MessageType expe
   if (type == sabo::v1::MESSAGE_TYPE_ERROR) {
     sabo::v1::Error error;
     inbound.parse(error);
-    fail(peer->role_name, fmt::format("reported an error: {}", error.message()));
+    fail(peer->name(), fmt::format("reported an error: {}", error.message()));
   }
   if (type == sabo::v1::MESSAGE_TYPE_GOODBYE) {
     inbound.parse(peer->goodbye);
     peer->said_goodbye = true;
     if (expected != sabo::v1::MESSAGE_TYPE_GOODBYE) {
-      fail(peer->role_name, fmt::format("left the run at step {}: {}", step, peer->goodbye.reason()));
+      fail(peer->name(), fmt::format("left the run at step {}: {}", step, peer->goodbye.reason()));
     }
     return nullptr;
   }
   if (type != expected) {
-    fail(peer->role_name, fmt::format("sent {} while the coupler expected {} (step {})",
-                                      protocol::message_type_name(type), protocol::message_type_name(expected), step));
+    fail(peer->name(), fmt::format("sent {} while the coupler expected {} (step {})", protocol::message_type_name(type),
+                                   protocol::message_type_name(expected), step));
   }
   return peer;
 }
@@ -149,8 +149,7 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     refuse(error.what());
     return;
   }
-  const auto role = registration.role();
-  const std::string name = protocol::role_name(role);
+  const std::string name = protocol::role_name(registration.role());
   if (registration.protocol_version() != protocol::kProtocolVersion ||
       inbound.header.version != protocol::kProtocolVersion) {
     refuse(
@@ -159,14 +158,14 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
                     name, registration.protocol_version(), protocol::kProtocolVersion));
     return;
   }
-  if (role != sabo::v1::ROLE_SPH && role != sabo::v1::ROLE_DEM && role != sabo::v1::ROLE_FEM) {
-    refuse(fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver", static_cast<int>(role)));
+  const std::optional<Role> known_role = protocol::from_wire(registration.role());
+  if (!known_role) {
+    refuse(fmt::format("unknown role {}: expected sph_solver, dem_solver or fem_solver",
+                       static_cast<int>(registration.role())));
     return;
   }
-  const scene::SolverSettings* settings = nullptr;
-  for (const auto& s : scene_.solvers) {
-    if (protocol::role_from_scene_name(scene::role_name(s.role)) == role) settings = &s;
-  }
+  const Role role = *known_role;
+  const scene::SolverSettings* settings = scene_.solver(role);
   if (settings == nullptr) {
     refuse(fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
     return;
@@ -228,8 +227,6 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   if (auto journal = journals_.find(role); journal != journals_.end()) peer->journal = std::move(journal->second);
   peer->identity = inbound.peer;
   peer->role = role;
-  peer->scene_role = settings->role;
-  peer->role_name = name;
   peer->beta = settings->beta;
   peer->registration = std::move(registration);
   reply.set_accepted(true);
@@ -246,8 +243,8 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   // A resumed run's recording holds the registrations of its start already.
   if (recorder_ && !resume_step_) recorder_->record_registration(name, peer->registration);
   if (resume_step_) peer->checkpoint_step = *resume_step_;  // its restart journal starts at its checkpoint
-  solvers_.set({.role = peer->scene_role,
-                .name = peer->role_name,
+  solvers_.set({.role = peer->role,
+                .name = peer->name(),
                 .beta = peer->beta,
                 .registration = &peer->registration,
                 .state = &peer->state});
@@ -265,7 +262,8 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
     reply.set_error(why);
     reply_to_unregistered(reply, inbound.peer);
   };
-  auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == registration.role(); });
+  const std::optional<Role> role = protocol::from_wire(registration.role());
+  auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
   if (it == peers_.end()) {
     refuse(fmt::format("{} registered as resumed from step {}, but no {} has run yet: start it without --resume", name,
                        registration.resume_step(), name));
@@ -321,7 +319,7 @@ bool Coupler::catch_up(Peer& peer, std::uint64_t step) {
   try {
     inbound_.parse(state);
   } catch (const ProtocolError& error) {
-    fail(peer.role_name, error.what());
+    fail(peer.name(), error.what());
   }
   const std::uint64_t s = state.step();
   const bool replayed = s < step || (s == step && peer.has_state);
@@ -331,29 +329,29 @@ bool Coupler::catch_up(Peer& peer, std::uint64_t step) {
   }
   const bool known = s >= peer.journal->first_step() && (s < peer.journal->end_step() || (s == step && peer.has_state));
   if (!known) {
-    fail(peer.role_name, fmt::format("the restarted process sent the state of step {}; the coupler can check steps {} "
-                                     "to {} (it resumed at step {})",
-                                     s, peer.journal->first_step(), step, peer.resumed_at));
+    fail(peer.name(), fmt::format("the restarted process sent the state of step {}; the coupler can check steps {} "
+                                  "to {} (it resumed at step {})",
+                                  s, peer.journal->first_step(), step, peer.resumed_at));
   }
   const std::string differs = peer.journal->first_difference(state);
   if (!differs.empty()) {
-    fail(peer.role_name,
+    fail(peer.name(),
          fmt::format("restarted from its checkpoint of step {}, it sent a state of step {} that differs from the one "
                      "it sent before it died, first in field {}: the restart would change the answer, so the run "
                      "stops. Find where with ./sabo replay RUN_DIR {} --resume RUN_DIR/checkpoints/{}_{:010}.h5",
-                     peer.resumed_at, s, differs, peer.role_name.substr(0, 3), peer.role_name, peer.resumed_at));
+                     peer.resumed_at, s, differs, std::string(peer.name()).substr(0, 3), peer.name(), peer.resumed_at));
   }
   if (s < step) socket_.send(peer.journal->forces(s), peer.buffer, peer.identity);
   if (s + 1 == step || s == step) {
     peer.catching_up = false;
     const double seconds = seconds_since(peer.restarted_wall);
-    spdlog::info("{} caught up from step {} to step {} in {:.2f} s", peer.role_name, peer.resumed_at, step, seconds);
+    spdlog::info("{} caught up from step {} to step {} in {:.2f} s", peer.name(), peer.resumed_at, step, seconds);
     events_.emit({{"event", "caught_up"},
-                  {"process", peer.role_name},
+                  {"process", peer.name()},
                   {"from_step", peer.resumed_at},
                   {"at_step", step},
                   {"seconds", seconds}});
-    restarts_.push_back({{"process", peer.role_name},
+    restarts_.push_back({{"process", peer.name()},
                          {"pid", peer.registration.pid()},
                          {"from_step", peer.resumed_at},
                          {"at_step", step},
@@ -370,9 +368,8 @@ void Coupler::wait_for_registrations() {
     if (Clock::now() > deadline) {
       std::vector<std::string> missing;
       for (const auto& s : scene_.solvers) {
-        const auto role = protocol::role_from_scene_name(scene::role_name(s.role));
-        if (std::none_of(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; })) {
-          missing.emplace_back(scene::role_name(s.role));
+        if (std::none_of(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == s.role; })) {
+          missing.emplace_back(role_name(s.role));
         }
       }
       fail("coupler", fmt::format("no registration from {} within {} s", fmt::join(missing, ", "),
@@ -395,19 +392,19 @@ void Coupler::wait_for_registrations() {
 }
 
 void Coupler::accept_state(Peer& peer, std::uint64_t step) {
-  if (peer.has_state) fail(peer.role_name, fmt::format("sent two states for step {}", step));
+  if (peer.has_state) fail(peer.name(), fmt::format("sent two states for step {}", step));
   try {
     inbound_.parse(peer.state);
   } catch (const ProtocolError& error) {
-    fail(peer.role_name, error.what());
+    fail(peer.name(), error.what());
   }
   if (peer.state.step() != step) {
-    fail(peer.role_name,
+    fail(peer.name(),
          fmt::format("sent the state of step {} while the coupler is at step {}", peer.state.step(), step));
   }
   validate_state(peer);
   peer.has_state = true;
-  if (recorder_) recorder_->record_state(peer.role_name, peer.state);
+  if (recorder_) recorder_->record_state(peer.name(), peer.state);
   if (peer.journal) {
     // The state after a checkpoint proves the solver has written it: the journal starts again there.
     if (peer.checkpoint_step && *peer.checkpoint_step == step) peer.journal->begin(step);
@@ -431,11 +428,11 @@ void Coupler::collect_states(std::uint64_t step) {
         Peer* first_silent = nullptr;
         for (auto& peer : peers_) {
           if (peer->has_state) continue;
-          silent.push_back(fmt::format("{} (pid {})", peer->role_name, peer->registration.pid()));
+          silent.push_back(fmt::format("{} (pid {})", peer->name(), peer->registration.pid()));
           peer->said_goodbye = true;  // a hung process will not say goodbye: do not wait for it
           if (first_silent == nullptr) first_silent = peer.get();
         }
-        fail(first_silent->role_name,
+        fail(first_silent->name(),
              fmt::format("{} sent no state for step {} within hang_timeout = {} s: the process is hung or dead (or "
                          "it sent a frame larger than the {:.3g} MB the coupler accepts, which ZeroMQ drops)",
                          fmt::join(silent, " and "), step, scene_.run.hang_timeout,
@@ -464,7 +461,7 @@ void Coupler::validate_state(const Peer& peer) {
   const auto n = static_cast<std::size_t>(s.index_size());
   const auto table_size = static_cast<std::uint32_t>(peer.registration.particles().id_size());
   auto invalid = [&](const std::string& what) {
-    fail(peer.role_name, fmt::format("state of step {}: {}", s.step(), what));
+    fail(peer.name(), fmt::format("state of step {}: {}", s.step(), what));
   };
   if (static_cast<std::size_t>(s.position_size()) != 3 * n || static_cast<std::size_t>(s.velocity_size()) != 3 * n) {
     invalid(fmt::format("{} indices but {} position and {} velocity values (expected 3 per index)", n,
@@ -505,9 +502,9 @@ void Coupler::validate_state(const Peer& peer) {
   }
   // The pairs' own needs of this state (e.g. a surface that may not change).
   for (const auto& slot : pairs_) {
-    if (!slot.pair->joins(peer.scene_role)) continue;
+    if (!slot.pair->joins(peer.role)) continue;
     try {
-      slot.pair->check_state(*solvers_.find(peer.scene_role));
+      slot.pair->check_state(*solvers_.find(peer.role));
     } catch (const ProtocolError& error) {
       invalid(error.what());
     }
@@ -527,7 +524,7 @@ void Coupler::validate_state(const Peer& peer) {
     surface_topology_ = topology.SerializeAsString();  // what a resumed run's pairs start from
   }
   // Boundary particles go to the sph_solver only (docs/protocol.md, "SPH walls").
-  const bool receives_boundary = peer.scene_role == scene::Role::sph && replies_.boundary().active();
+  const bool receives_boundary = peer.role == Role::sph && replies_.boundary().active();
   if (s.boundary_force_size() != 0 || s.has_boundary_step() || receives_boundary) {
     const std::uint64_t steps_back = s.has_boundary_step() ? s.step() - s.boundary_step() : 1;
     if (s.has_boundary_step() && (s.boundary_step() >= s.step() || steps_back > 2)) {
@@ -665,7 +662,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
     f.set_stop(stop);
     f.set_checkpoint(checkpoint);
     if (peer->registration.exposes_particles()) {
-      const scene::Role role = peer->scene_role;
+      const Role role = peer->role;
       f.mutable_index()->CopyFrom(peer->state.index());
       const auto& force = replies_.particle_force(role);
       f.mutable_force()->Assign(force.begin(), force.end());
@@ -687,7 +684,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
       }
       if (interest.all) interest.boxes.clear();
       set_interest(f, interest);
-      if (role == scene::Role::sph && replies_.boundary().active()) {
+      if (role == Role::sph && replies_.boundary().active()) {
         const BoundaryChannel& b = replies_.boundary();
         using P = physics::BoundaryParticles;
         assign_vectors(*f.mutable_boundary_position(), b.parts(), b.size(), &P::position);
@@ -706,7 +703,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
       f.set_interest_all(true);
     }
     check_forces(*peer, f);
-    if (recorder_) recorder_->record_forces(peer->role_name, f);
+    if (recorder_) recorder_->record_forces(peer->name(), f);
     if (checkpoint && peer->registration.checkpoints()) peer->checkpoint_step = step + 1;
     if (peer->journal) {
       peer->journal->add_forces(f);
@@ -715,7 +712,7 @@ void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop,
         socket_.send(f, peer->buffer, peer->identity);
       } catch (const LibraryError& error) {
         spdlog::warn("could not send the forces of step {} to {} (it may have died; it can be restarted): {}", step,
-                     peer->role_name, error.what());
+                     peer->name(), error.what());
       }
     } else {
       socket_.send(f, peer->buffer, peer->identity);
@@ -735,14 +732,13 @@ void Coupler::check_forces(const Peer& peer, const sabo::v1::StepForces& f) {
     fail("coupler",
          fmt::format("the contact {} on particle index {} (id {}) of the {} at step {} is not finite ({}_{} = "
                      "{}): an input is extreme (a speed, a stiffness, the gravity)",
-                     what, index, peer.registration.particles().id(static_cast<int>(index)), peer.role_name, f.step(),
+                     what, index, peer.registration.particles().id(static_cast<int>(index)), peer.name(), f.step(),
                      what, kAxis[static_cast<std::size_t>(k % 3)], (*values)[k]));
   }
   if (const int k = first_non_finite(f.node_force()); k >= 0) {
-    fail("coupler",
-         fmt::format("the contact force on surface node {} of the {} at step {} is not finite (component "
-                     "{} = {}): an input is extreme (a speed, a stiffness, the gravity)",
-                     k / 3, peer.role_name, f.step(), kAxis[static_cast<std::size_t>(k % 3)], f.node_force(k)));
+    fail("coupler", fmt::format("the contact force on surface node {} of the {} at step {} is not finite (component "
+                                "{} = {}): an input is extreme (a speed, a stiffness, the gravity)",
+                                k / 3, peer.name(), f.step(), kAxis[static_cast<std::size_t>(k % 3)], f.node_force(k)));
   }
 }
 
@@ -834,7 +830,7 @@ void Coupler::stop_solvers(const std::string& reason) {
     try {
       socket_.send(stop, peer->identity);
     } catch (const LibraryError& error) {
-      spdlog::warn("could not send Stop to {}: {}", peer->role_name, error.what());
+      spdlog::warn("could not send Stop to {}: {}", peer->name(), error.what());
     }
   }
 }
@@ -874,7 +870,7 @@ void Coupler::write_summary(const std::string& status) {
                           {"wait_seconds", wait_seconds_ - receive_seconds_}};
   for (const auto& peer : peers_) {
     const bool have_goodbye = peer->said_goodbye && peer->goodbye.steps() > 0;
-    processes[peer->role_name] = {
+    processes[peer->name()] = {
         {"pid", peer->registration.pid()},
         {"name", peer->registration.name()},
         {"compute_seconds", have_goodbye ? peer->goodbye.compute_seconds() : peer->compute_seconds},
@@ -1055,9 +1051,8 @@ int Coupler::run() {
     // every free descriptor later.
     if (scene_.run.restart) {
       for (const auto& solver : scene_.solvers) {
-        const auto role = protocol::role_from_scene_name(scene::role_name(solver.role));
-        journals_[role] = std::make_unique<RestartJournal>(options_.out_dir / "checkpoints" /
-                                                           fmt::format("{}.journal", protocol::role_name(role)));
+        journals_[solver.role] = std::make_unique<RestartJournal>(options_.out_dir / "checkpoints" /
+                                                                  fmt::format("{}.journal", role_name(solver.role)));
       }
     }
     summary_out_.open(options_.out_dir / "summary.json.tmp");

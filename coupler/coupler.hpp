@@ -120,7 +120,7 @@ class Coupler {
   double expected_time_ = 0;                           // s, t_n: the sum of the dt sent
   std::uint64_t current_step_ = 0;                     // the step whose states are being collected
   nlohmann::json restarts_ = nlohmann::json::array();  // for summary.json
-  std::map<sabo::v1::Role, std::unique_ptr<RestartJournal>> journals_;  // opened before binding, until registered
+  std::map<Role, std::unique_ptr<RestartJournal>> journals_;  // opened before binding, until registered
   // summary.json's temporary file, opened before binding as the other run files: at the end of a run idle
   // connections may hold every descriptor, and one freed for it can be taken by the next accept.
   std::ofstream summary_out_;

@@ -85,7 +85,8 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     stats.set_attribute("bytes_sent", static_cast<std::int64_t>(bytes_sent_before_ + socket_.bytes_sent()));
     stats.set_attribute("restarts", restarts_.dump());
     stats.set_attribute("resumes", resumes_.dump());
-    for (const auto& peer : peers_) stats.set_attribute(peer->role_name + "_compute_seconds", peer->compute_seconds);
+    for (const auto& peer : peers_)
+      stats.set_attribute(std::string(peer->name()) + "_compute_seconds", peer->compute_seconds);
 
     if (forces_csv_) {
       io::hdf5::Group forces = group.create_group("forces");
@@ -202,7 +203,7 @@ void Coupler::restore_state() {
   restarts_ = nlohmann::json::parse(stats.string_attribute("restarts"));
   resumes_ = nlohmann::json::parse(stats.string_attribute("resumes"));
   for (auto& peer : peers_) {
-    const std::string key = peer->role_name + "_compute_seconds";
+    const std::string key = std::string(peer->name()) + "_compute_seconds";
     if (stats.has_attribute(key)) peer->compute_seconds = stats.double_attribute(key);
   }
   steps_ = *resume_step_;

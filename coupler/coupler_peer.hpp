@@ -14,9 +14,8 @@ namespace sabo::coupler {
 
 struct Coupler::Peer {
   std::string identity;
-  sabo::v1::Role role = sabo::v1::ROLE_UNSPECIFIED;
-  scene::Role scene_role = scene::Role::dem;
-  std::string role_name;
+  Role role = Role::dem;
+  [[nodiscard]] const char* name() const { return role_name(role); }
   double beta = 1.0;
   sabo::v1::Register registration;
   sabo::v1::StepState state;

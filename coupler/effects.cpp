@@ -33,7 +33,7 @@ const scene::Material& material_named(const scene::Scene& scene, const std::stri
 nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& processes) {
   using nlohmann::json;
   json effects = json::array();
-  if (scene.needs(scene::Role::dem)) {
+  if (scene.needs(Role::dem)) {
     const auto& c = scene.dem_contact;
     effects.push_back({{"effect", "dem_dem_contact"},
                        {"process", "dem_solver"},
@@ -41,7 +41,7 @@ nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& p
     if (c.friction > 0) effects.push_back({{"effect", "dem_sliding_friction"}, {"process", "dem_solver"}});
     if (c.rolling_friction > 0) effects.push_back({{"effect", "dem_rolling_friction"}, {"process", "dem_solver"}});
   }
-  if (scene.needs(scene::Role::sph)) {
+  if (scene.needs(Role::sph)) {
     std::set<std::string> rheologies;
     for (const auto& fluid : scene.fluids)
       rheologies.insert(rheology_name(material_named(scene, fluid.material).rheology));
@@ -50,7 +50,7 @@ nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& p
                        {"seconds", compute_seconds(processes, "sph_solver")},
                        {"rheologies", rheologies}});
   }
-  if (scene.needs(scene::Role::fem)) {
+  if (scene.needs(Role::fem)) {
     const bool deformable = std::any_of(scene.structures.begin(), scene.structures.end(),
                                         [](const scene::Structure& s) { return !s.rigid; });
     effects.push_back({{"effect", deformable ? "fem_deformable_structures" : "fem_rigid_structures"},

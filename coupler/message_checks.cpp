@@ -22,11 +22,11 @@ std::optional<std::size_t> first_duplicate(const google::protobuf::RepeatedField
   return std::nullopt;
 }
 
-std::size_t bodies_of(const scene::Scene& scene, scene::Role role) {
+std::size_t bodies_of(const scene::Scene& scene, Role role) {
   switch (role) {
-    case scene::Role::sph: return scene.fluids.size();
-    case scene::Role::dem: return scene.particle_sets.size();
-    case scene::Role::fem: return scene.structures.size();
+    case Role::sph: return scene.fluids.size();
+    case Role::dem: return scene.particle_sets.size();
+    case Role::fem: return scene.structures.size();
   }
   return 0;
 }
@@ -34,7 +34,7 @@ std::size_t bodies_of(const scene::Scene& scene, scene::Role role) {
 }  // namespace
 
 std::optional<std::string> particle_table_problem(const sabo::v1::ParticleTable& table, const scene::Scene& scene,
-                                                  scene::Role role) {
+                                                  Role role) {
   const int n = table.id_size();
   if (table.radius_size() != n || table.mass_size() != n || table.body_size() != n ||
       (table.material_size() != n && table.material_size() != 0)) {

@@ -15,7 +15,7 @@ namespace sabo::coupler {
 // The first problem of a particle table (registration or a state's new table) of a solver of `role`:
 // array lengths, unique ids, finite radius > 0 and mass > 0, material and body indices in range.
 [[nodiscard]] std::optional<std::string> particle_table_problem(const sabo::v1::ParticleTable& table,
-                                                                const scene::Scene& scene, scene::Role role);
+                                                                const scene::Scene& scene, Role role);
 
 // The first problem of a surface topology (registration or a state's new topology): array lengths,
 // unique node ids, finite node positions, triangle corners and parts in range, finite thickness >= 0, bulk

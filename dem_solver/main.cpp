@@ -75,7 +75,7 @@ class DemSolver final : public solver::CoupledSolver {
 }  // namespace sabo::dem
 
 int main(int argc, char** argv) {
-  return sabo::solver::solver_main(argc, argv, "dem_solver", sabo::v1::ROLE_DEM,
+  return sabo::solver::solver_main(argc, argv, sabo::Role::dem,
                                    [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
                                      return std::make_unique<sabo::dem::DemSolver>(scene, options);
                                    });

@@ -108,7 +108,7 @@ class FemSolver final : public solver::CoupledSolver {
 }  // namespace sabo::fem
 
 int main(int argc, char** argv) {
-  return sabo::solver::solver_main(argc, argv, "fem_solver", sabo::v1::ROLE_FEM,
+  return sabo::solver::solver_main(argc, argv, sabo::Role::fem,
                                    [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
                                      return std::make_unique<sabo::fem::FemSolver>(scene, options);
                                    });

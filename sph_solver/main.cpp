@@ -158,7 +158,7 @@ class SphSolver final : public solver::CoupledSolver {
 }  // namespace sabo::sph
 
 int main(int argc, char** argv) {
-  return sabo::solver::solver_main(argc, argv, "sph_solver", sabo::v1::ROLE_SPH,
+  return sabo::solver::solver_main(argc, argv, sabo::Role::sph,
                                    [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
                                      return std::make_unique<sabo::sph::SphSolver>(scene, options);
                                    });

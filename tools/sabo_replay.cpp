@@ -100,7 +100,7 @@ std::set<std::string> unrecorded_state_fields(const io::TrafficReader& traffic, 
   if (solver.exposes_particles()) sent.insert(sent.end(), {"position", "velocity"});
   if (solver.exposes_angular_velocity()) sent.push_back("angular_velocity");
   if (solver.exposes_surface()) sent.insert(sent.end(), {"node_position", "node_velocity"});
-  if (solver.role() == sabo::v1::ROLE_SPH) sent.push_back("boundary_force");
+  if (sabo::protocol::from_wire(solver.role()) == sabo::Role::sph) sent.push_back("boundary_force");
   std::set<std::string> out;
   for (const auto& name : sent) {
     if (!has(name.c_str())) out.insert(name);

@@ -9,7 +9,7 @@
 
 namespace sabo::coupler {
 
-const SolverView& Solvers::at(scene::Role role) const {
+const SolverView& Solvers::at(Role role) const {
   const SolverView* view = find(role);
   assert(view != nullptr && "a pair asked for a role the factory did not check");
   return *view;
@@ -84,7 +84,7 @@ void BoundaryChannel::restore(const io::hdf5::Group& group) {
 }
 
 void Replies::begin_step(const Solvers& solvers, std::size_t surface_nodes) {
-  for (const scene::Role role : {scene::Role::sph, scene::Role::dem, scene::Role::fem}) {
+  for (const Role role : kRoles) {
     ParticleReply& reply = particles_[static_cast<std::size_t>(role)];
     const SolverView* solver = solvers.find(role);
     const std::size_t n = solver != nullptr ? 3 * static_cast<std::size_t>(solver->state->index_size()) : 0;
@@ -97,7 +97,7 @@ void Replies::begin_step(const Solvers& solvers, std::size_t surface_nodes) {
   boundary_.begin_step();
 }
 
-void Replies::add_particle_forces(scene::Role role, std::span<const double> force, std::span<const double> torque) {
+void Replies::add_particle_forces(Role role, std::span<const double> force, std::span<const double> torque) {
   ParticleReply& reply = particles_[static_cast<std::size_t>(role)];
   assert(force.size() == reply.force.size());
   // The first pair's forces are copied, so that a single pair's forces go out with their own bits

@@ -55,7 +55,7 @@ namespace sabo::coupler {
 
 // One registered solver as the pairs see it: its registration and its state of this step.
 struct SolverView {
-  scene::Role role = scene::Role::dem;
+  Role role = Role::dem;
   std::string name;  // "dem_solver", ...
   double beta = 1;   // eq. 7 scale of its stable step
   const sabo::v1::Register* registration = nullptr;
@@ -66,13 +66,13 @@ struct SolverView {
 class Solvers {
  public:
   void set(const SolverView& view) { by_role_[index(view.role)] = view; }
-  [[nodiscard]] const SolverView* find(scene::Role role) const {
+  [[nodiscard]] const SolverView* find(Role role) const {
     return by_role_[index(role)] ? &*by_role_[index(role)] : nullptr;
   }
-  [[nodiscard]] const SolverView& at(scene::Role role) const;  // asserts that it is registered
+  [[nodiscard]] const SolverView& at(Role role) const;  // asserts that it is registered
 
  private:
-  static std::size_t index(scene::Role role) { return static_cast<std::size_t>(role); }
+  static std::size_t index(Role role) { return static_cast<std::size_t>(role); }
   std::array<std::optional<SolverView>, 3> by_role_;
 };
 
@@ -145,15 +145,15 @@ class Replies {
 
   // force: 3 doubles per particle of the role's state index (N); torque: the
   // same (N m) or empty. The first pair's forces are copied, later ones added.
-  void add_particle_forces(scene::Role role, std::span<const double> force, std::span<const double> torque);
+  void add_particle_forces(Role role, std::span<const double> force, std::span<const double> torque);
   // 3 doubles per surface node (N).
   void add_node_forces(std::span<const double> node_force);
   [[nodiscard]] BoundaryChannel& boundary() { return boundary_; }
   [[nodiscard]] const BoundaryChannel& boundary() const { return boundary_; }
 
-  [[nodiscard]] const std::vector<double>& particle_force(scene::Role role) const { return of(role).force; }
+  [[nodiscard]] const std::vector<double>& particle_force(Role role) const { return of(role).force; }
   // Empty when no pair gave torques.
-  [[nodiscard]] const std::vector<double>& particle_torque(scene::Role role) const { return of(role).torque; }
+  [[nodiscard]] const std::vector<double>& particle_torque(Role role) const { return of(role).torque; }
   [[nodiscard]] bool has_node_forces() const { return node_force_written_; }
   [[nodiscard]] const std::vector<double>& node_force() const { return node_force_; }
 
@@ -162,7 +162,7 @@ class Replies {
     std::vector<double> force, torque;
     bool force_written = false, torque_written = false;
   };
-  [[nodiscard]] const ParticleReply& of(scene::Role role) const { return particles_[static_cast<std::size_t>(role)]; }
+  [[nodiscard]] const ParticleReply& of(Role role) const { return particles_[static_cast<std::size_t>(role)]; }
   std::array<ParticleReply, 3> particles_;
   std::vector<double> node_force_;
   bool node_force_written_ = false;
@@ -176,15 +176,15 @@ class ContactPair {
   // "dem_fem", "sph_fem", "sph_dem": the scene section it comes from.
   [[nodiscard]] virtual std::string name() const = 0;
   // The two roles it joins.
-  [[nodiscard]] virtual std::array<scene::Role, 2> roles() const = 0;
-  [[nodiscard]] bool joins(scene::Role role) const { return roles()[0] == role || roles()[1] == role; }
+  [[nodiscard]] virtual std::array<Role, 2> roles() const = 0;
+  [[nodiscard]] bool joins(Role role) const { return roles()[0] == role || roles()[1] == role; }
 
   // See the step contract at the top of this file.
   virtual void start(const Solvers& solvers, Replies& replies) = 0;
   virtual void check_state(const SolverView& /*solver*/) const {}
   virtual void compute(const Solvers& solvers, const StepClock& clock) = 0;
   virtual void scatter(const Solvers& solvers, double dt, Replies& replies) = 0;
-  [[nodiscard]] virtual InterestRequest interest(scene::Role role) const = 0;
+  [[nodiscard]] virtual InterestRequest interest(Role role) const = 0;
 
   // Paper eq. 7's term of this pair after compute(), beta included, s; infinity: no limit.
   [[nodiscard]] virtual double stable_dt() const { return std::numeric_limits<double>::infinity(); }

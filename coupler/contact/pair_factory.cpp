@@ -8,7 +8,6 @@
 namespace sabo::coupler {
 
 std::vector<std::unique_ptr<ContactPair>> make_contact_pairs(const scene::Scene& scene) {
-  using scene::Role;
   std::vector<std::unique_ptr<ContactPair>> pairs;
   if (scene.needs(Role::dem) && scene.needs(Role::fem)) {
     pairs.push_back(std::make_unique<SurfacePenaltyPair>(scene, Role::dem));

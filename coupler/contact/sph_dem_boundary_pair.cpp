@@ -42,7 +42,7 @@ SphDemBoundaryPair::SphDemBoundaryPair(const scene::Scene& scene)
 void SphDemBoundaryPair::start(const Solvers& solvers, Replies& replies) {
   channel_ = &replies.boundary();
   slot_ = replies.boundary().join();
-  const auto& table = solvers.at(scene::Role::dem).registration->particles();
+  const auto& table = solvers.at(Role::dem).registration->particles();
   const auto n = static_cast<std::size_t>(table.id_size());
   sampling_.assign(n, nullptr);
   std::size_t sampled = 0, particles = 0;
@@ -70,7 +70,7 @@ void SphDemBoundaryPair::start(const Solvers& solvers, Replies& replies) {
 
 void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock) {
   // 1. The fluid's forces on the particles of an earlier StepForces, summed per boulder.
-  const sabo::v1::StepState& fluid = *solvers.at(scene::Role::sph).state;
+  const sabo::v1::StepState& fluid = *solvers.at(Role::sph).state;
   const std::size_t back = steps_back(fluid);
   const std::span<const double> returned = channel_->slice(slot_, span_of(fluid.boundary_force()), back);
   for (const std::uint32_t o : touched_) force_[o] = torque_[o] = Vec3::Zero();
@@ -97,7 +97,7 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
   boulders_touched_ = touched_.size();
 
   // 2. The particles of the boulders at x_n, those within the support of a fluid particle.
-  const SolverView& dem = solvers.at(scene::Role::dem);
+  const SolverView& dem = solvers.at(Role::dem);
   const sabo::v1::StepState& boulders = *dem.state;
   const double dt_previous = clock.dt_previous;
   candidate_position_.clear();
@@ -196,7 +196,7 @@ void SphDemBoundaryPair::scatter(const Solvers& solvers, double dt, Replies& rep
 
   // The impulse the fluid gave over its step, delivered over the boulder's.
   const double scale = force_dt_avg_ / dt_avg;
-  const SolverView& dem = solvers.at(scene::Role::dem);
+  const SolverView& dem = solvers.at(Role::dem);
   const sabo::v1::StepState& boulders = *dem.state;
   const auto n = static_cast<std::size_t>(boulders.index_size());
   std::vector<std::int64_t> slot_of(sampling_.size(), -1);
@@ -217,12 +217,12 @@ void SphDemBoundaryPair::scatter(const Solvers& solvers, double dt, Replies& rep
     }
   }
   const bool torque = dem.registration->exposes_angular_velocity();
-  replies.add_particle_forces(scene::Role::dem, reply_force_,
+  replies.add_particle_forces(Role::dem, reply_force_,
                               torque ? std::span<const double>(reply_torque_) : std::span<const double>());
 }
 
-InterestRequest SphDemBoundaryPair::interest(scene::Role role) const {
-  if (role == scene::Role::dem) return {.all = true, .boxes = {}};
+InterestRequest SphDemBoundaryPair::interest(Role role) const {
+  if (role == Role::dem) return {.all = true, .boxes = {}};
   // The fluid within the support of a boulder's particles at the next step: a support of the boulders'
   // and the fluid's motion over one step on top.
   std::vector<Aabb> boxes = geometry::covering_boxes(centre_cover_, geometry::kMaxInterestBoxes);

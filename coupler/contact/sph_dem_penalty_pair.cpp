@@ -44,8 +44,8 @@ SphDemPenaltyPair::SphDemPenaltyPair(const scene::Scene& scene) : set_count_(sce
 }
 
 void SphDemPenaltyPair::start(const Solvers& solvers, Replies& /*replies*/) {
-  const SolverView& fluid = solvers.at(scene::Role::sph);
-  const SolverView& spheres = solvers.at(scene::Role::dem);
+  const SolverView& fluid = solvers.at(Role::sph);
+  const SolverView& spheres = solvers.at(Role::dem);
   beta_ = std::min(fluid.beta, spheres.beta);
   const auto& ft = fluid.registration->particles();
   const auto& st = spheres.registration->particles();
@@ -61,8 +61,8 @@ void SphDemPenaltyPair::start(const Solvers& solvers, Replies& /*replies*/) {
 }
 
 void SphDemPenaltyPair::compute(const Solvers& solvers, const StepClock& clock) {
-  const SolverView& fluid_view = solvers.at(scene::Role::sph);
-  const SolverView& sphere_view = solvers.at(scene::Role::dem);
+  const SolverView& fluid_view = solvers.at(Role::sph);
+  const SolverView& sphere_view = solvers.at(Role::dem);
   const sabo::v1::StepState& fluid = *fluid_view.state;
   const sabo::v1::StepState& spheres = *sphere_view.state;
   const auto& ft = fluid_view.registration->particles();
@@ -179,14 +179,14 @@ void SphDemPenaltyPair::compute(const Solvers& solvers, const StepClock& clock) 
 
 void SphDemPenaltyPair::scatter(const Solvers& solvers, double /*dt*/, Replies& replies) {
   if (contacts_ == 0) return;
-  replies.add_particle_forces(scene::Role::sph, fluid_force_, {});
-  const bool torque = solvers.at(scene::Role::dem).registration->exposes_angular_velocity();
-  replies.add_particle_forces(scene::Role::dem, sphere_force_,
+  replies.add_particle_forces(Role::sph, fluid_force_, {});
+  const bool torque = solvers.at(Role::dem).registration->exposes_angular_velocity();
+  replies.add_particle_forces(Role::dem, sphere_force_,
                               torque ? std::span<const double>(sphere_torque_) : std::span<const double>());
 }
 
-InterestRequest SphDemPenaltyPair::interest(scene::Role role) const {
-  if (role == scene::Role::dem) return {.all = true, .boxes = {}};
+InterestRequest SphDemPenaltyPair::interest(Role role) const {
+  if (role == Role::dem) return {.all = true, .boxes = {}};
   // Fluid particles within reach of the stable-step search at the next step: one sphere radius of
   // motion on top.
   std::vector<Aabb> boxes = geometry::covering_boxes(sphere_centre_, geometry::kMaxInterestBoxes);

@@ -35,11 +35,11 @@ class SphDemPenaltyPair final : public ContactPair {
   explicit SphDemPenaltyPair(const scene::Scene& scene);
 
   [[nodiscard]] std::string name() const override { return "sph_dem"; }
-  [[nodiscard]] std::array<scene::Role, 2> roles() const override { return {scene::Role::sph, scene::Role::dem}; }
+  [[nodiscard]] std::array<Role, 2> roles() const override { return {Role::sph, Role::dem}; }
   void start(const Solvers& solvers, Replies& replies) override;
   void compute(const Solvers& solvers, const StepClock& clock) override;
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
-  [[nodiscard]] InterestRequest interest(scene::Role role) const override;
+  [[nodiscard]] InterestRequest interest(Role role) const override;
   [[nodiscard]] double stable_dt() const override { return stable_dt_; }
   [[nodiscard]] NewtonBalance newton_balance() const override { return balance_; }
   [[nodiscard]] Energy energy() const override { return {elastic_, dissipated_power_}; }

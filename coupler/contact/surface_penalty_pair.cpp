@@ -11,8 +11,8 @@ namespace sabo::coupler {
 
 namespace {
 
-std::unique_ptr<contact::SurfaceContact> make_contact(const scene::Scene& scene, scene::Role particles) {
-  if (particles == scene::Role::dem) return std::make_unique<contact::SurfaceContact>(scene);
+std::unique_ptr<contact::SurfaceContact> make_contact(const scene::Scene& scene, Role particles) {
+  if (particles == Role::dem) return std::make_unique<contact::SurfaceContact>(scene);
   std::vector<std::string> fluids;
   for (const auto& fluid : scene.fluids) fluids.push_back(fluid.name);
   // Keep only what the pair lookup needs, so that the scene need not outlive the pair.
@@ -32,23 +32,22 @@ std::span<const double> span_of(const google::protobuf::RepeatedField<double>& f
 
 }  // namespace
 
-SurfacePenaltyPair::SurfacePenaltyPair(const scene::Scene& scene, scene::Role particles)
+SurfacePenaltyPair::SurfacePenaltyPair(const scene::Scene& scene, Role particles)
     : particles_(particles),
-      source_(particles == scene::Role::dem ? "particles" : "fluid"),
+      source_(particles == Role::dem ? "particles" : "fluid"),
       contact_(make_contact(scene, particles)) {}
 
 std::string SurfacePenaltyPair::name() const {
-  return particles_ == scene::Role::dem ? "dem_fem" : "sph_fem";
+  return particles_ == Role::dem ? "dem_fem" : "sph_fem";
 }
 
 void SurfacePenaltyPair::start(const Solvers& solvers, Replies& /*replies*/) {
   beta_ = solvers.at(particles_).beta;
-  contact_->set_surface(
-      protocol::surface_from_message(solvers.at(scene::Role::fem).registration->surface(), "fem_solver"));
+  contact_->set_surface(protocol::surface_from_message(solvers.at(Role::fem).registration->surface(), "fem_solver"));
 }
 
 void SurfacePenaltyPair::compute(const Solvers& solvers, const StepClock& clock) {
-  const sabo::v1::StepState& surface = *solvers.at(scene::Role::fem).state;
+  const sabo::v1::StepState& surface = *solvers.at(Role::fem).state;
   if (surface.has_topology()) {
     // Faces that left (eroded elements) leave the contact; exposed faces join.
     // Tangential springs carry over where their nodes remain (keyed by node ids).
@@ -77,8 +76,8 @@ void SurfacePenaltyPair::point_loads(std::vector<PointLoad>& out) const {
   }
 }
 
-InterestRequest SurfacePenaltyPair::interest(scene::Role role) const {
-  if (role == scene::Role::fem) return {.all = true, .boxes = {}};
+InterestRequest SurfacePenaltyPair::interest(Role role) const {
+  if (role == Role::fem) return {.all = true, .boxes = {}};
   return {.all = false, .boxes = contact_->interest_regions()};
 }
 
@@ -96,8 +95,7 @@ NewtonBalance SurfacePenaltyPair::newton_balance() const {
 }
 
 nlohmann::json SurfacePenaltyPair::effect() const {
-  return {{"effect", particles_ == scene::Role::dem ? "dem_fem_contact" : "sph_fem_penalty_contact"},
-          {"process", "coupler"}};
+  return {{"effect", particles_ == Role::dem ? "dem_fem_contact" : "sph_fem_penalty_contact"}, {"process", "coupler"}};
 }
 
 void SurfacePenaltyPair::warn_deep_overlap(double time) {

@@ -13,16 +13,16 @@ namespace sabo::coupler {
 
 class SurfacePenaltyPair final : public ContactPair {
  public:
-  // particles: scene::Role::dem (settings from [contact.dem_fem] and the interactions) or
-  // scene::Role::sph ([contact.sph_fem]).
-  SurfacePenaltyPair(const scene::Scene& scene, scene::Role particles);
+  // particles: Role::dem (settings from [contact.dem_fem] and the interactions) or
+  // Role::sph ([contact.sph_fem]).
+  SurfacePenaltyPair(const scene::Scene& scene, Role particles);
 
   [[nodiscard]] std::string name() const override;
-  [[nodiscard]] std::array<scene::Role, 2> roles() const override { return {particles_, scene::Role::fem}; }
+  [[nodiscard]] std::array<Role, 2> roles() const override { return {particles_, Role::fem}; }
   void start(const Solvers& solvers, Replies& replies) override;
   void compute(const Solvers& solvers, const StepClock& clock) override;
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
-  [[nodiscard]] InterestRequest interest(scene::Role role) const override;
+  [[nodiscard]] InterestRequest interest(Role role) const override;
   [[nodiscard]] double stable_dt() const override { return beta_ * contact_->stable_dt(); }
   [[nodiscard]] NewtonBalance newton_balance() const override;
   [[nodiscard]] Energy energy() const override { return {out_.elastic_energy, out_.dissipated_power}; }
@@ -40,7 +40,7 @@ class SurfacePenaltyPair final : public ContactPair {
   // Warns (once per run) when a contact overlaps beyond half its face's edge.
   void warn_deep_overlap(double time);
 
-  scene::Role particles_;
+  Role particles_;
   std::string source_;  // forces.csv: "particles" or "fluid"
   std::unique_ptr<contact::SurfaceContact> contact_;
   double beta_ = 1;  // of the particle solver: the contact limits its particles

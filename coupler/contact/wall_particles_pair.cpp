@@ -38,8 +38,7 @@ WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
       spacing_(scene.sph.particle_spacing) {}
 
 void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {
-  walls_.set_surface(
-      protocol::surface_from_message(solvers.at(scene::Role::fem).registration->surface(), "fem_solver"));
+  walls_.set_surface(protocol::surface_from_message(solvers.at(Role::fem).registration->surface(), "fem_solver"));
   channel_ = &replies.boundary();
   slot_ = replies.boundary().join();
   spdlog::info("sampled the FEM surface into {} boundary particles ({} layers at dx = {} m)", walls_.sampling().size(),
@@ -47,7 +46,7 @@ void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {
 }
 
 void WallParticlesPair::check_state(const SolverView& solver) const {
-  if (solver.role == scene::Role::fem && solver.state->has_topology()) {
+  if (solver.role == Role::fem && solver.state->has_topology()) {
     throw ProtocolError(
         "a new surface topology (eroded elements) while the fluid's walls are boundary particles sampled "
         "at registration: not supported in this version (use [sph] wall_model = \"penalty\")");
@@ -55,11 +54,11 @@ void WallParticlesPair::check_state(const SolverView& solver) const {
 }
 
 void WallParticlesPair::compute(const Solvers& solvers, const StepClock& clock) {
-  const sabo::v1::StepState& surface = *solvers.at(scene::Role::fem).state;
+  const sabo::v1::StepState& surface = *solvers.at(Role::fem).state;
   if (surface.node_position_size() > 0) {
     walls_.update_nodes(span_of(surface.node_position()), span_of(surface.node_velocity()), clock.dt_previous);
   }
-  const sabo::v1::StepState& fluid = *solvers.at(scene::Role::sph).state;
+  const sabo::v1::StepState& fluid = *solvers.at(Role::sph).state;
   const std::size_t back = steps_back(fluid);
   returned_ = channel_->slice(slot_, span_of(fluid.boundary_force()), back);
   walls_.spread(returned_, back, node_force_, part_force_, want_point_loads_ ? &point_loads_ : nullptr);
@@ -72,8 +71,8 @@ void WallParticlesPair::scatter(const Solvers& /*solvers*/, double /*dt*/, Repli
   if (!returned_.empty()) replies.add_node_forces(node_force_);
 }
 
-InterestRequest WallParticlesPair::interest(scene::Role role) const {
-  if (role == scene::Role::fem) return {.all = true, .boxes = {}};
+InterestRequest WallParticlesPair::interest(Role role) const {
+  if (role == Role::fem) return {.all = true, .boxes = {}};
   return {.all = false, .boxes = walls_.interest_regions()};
 }
 

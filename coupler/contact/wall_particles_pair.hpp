@@ -13,12 +13,12 @@ class WallParticlesPair final : public ContactPair {
   explicit WallParticlesPair(const scene::Scene& scene);
 
   [[nodiscard]] std::string name() const override { return "sph_fem"; }
-  [[nodiscard]] std::array<scene::Role, 2> roles() const override { return {scene::Role::sph, scene::Role::fem}; }
+  [[nodiscard]] std::array<Role, 2> roles() const override { return {Role::sph, Role::fem}; }
   void start(const Solvers& solvers, Replies& replies) override;
   void check_state(const SolverView& solver) const override;
   void compute(const Solvers& solvers, const StepClock& clock) override;
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
-  [[nodiscard]] InterestRequest interest(scene::Role role) const override;
+  [[nodiscard]] InterestRequest interest(Role role) const override;
   [[nodiscard]] NewtonBalance newton_balance() const override;
   [[nodiscard]] std::optional<std::string> load_source() const override { return "fluid"; }
   [[nodiscard]] std::span<const Vec3> loads() const override { return part_force_; }

@@ -369,7 +369,9 @@ std::string join(const std::vector<std::string>& names) {
 }
 
 std::vector<std::string> all_roles() {
-  return {scene::role_name(scene::Role::sph), scene::role_name(scene::Role::dem), scene::role_name(scene::Role::fem)};
+  std::vector<std::string> names;
+  for (const Role role : kRoles) names.emplace_back(role_name(role));
+  return names;
 }
 
 }  // namespace
@@ -749,7 +751,7 @@ struct TrafficReader::Impl {
     auto found = roles.find(name);
     if (found == roles.end()) {
       std::vector<std::string> names;
-      for (const auto& [role_name, unused] : roles) names.push_back(role_name);
+      for (const auto& [recorded, unused] : roles) names.push_back(recorded);
       throw FileError(fmt::format("{}: no role '{}' in the recording (it has {})", path.string(), name, join(names)));
     }
     return *found->second;

@@ -51,7 +51,7 @@ namespace sabo::io {
 
 class TrafficRecorder {
  public:
-  // Creates `file` (replacing it) with a group for each role of scene::Role.
+  // Creates `file` (replacing it) with a group for each role of Role.
   // settings: which fields, every N-th step within [first_step, last_step],
   // flush_interval in wall seconds (0: flush at every end_step).
   // Throws SceneError for an unknown field name, LibraryError for HDF5 failures.

@@ -57,20 +57,27 @@ const char* message_type_name(MessageType type) {
   }
 }
 
-sabo::v1::Role role_from_scene_name(const std::string& name) {
-  if (name == "sph_solver") return sabo::v1::ROLE_SPH;
-  if (name == "dem_solver") return sabo::v1::ROLE_DEM;
-  if (name == "fem_solver") return sabo::v1::ROLE_FEM;
+sabo::v1::Role to_wire(Role role) {
+  switch (role) {
+    case Role::sph: return sabo::v1::ROLE_SPH;
+    case Role::dem: return sabo::v1::ROLE_DEM;
+    case Role::fem: return sabo::v1::ROLE_FEM;
+  }
   return sabo::v1::ROLE_UNSPECIFIED;
 }
 
-std::string role_name(sabo::v1::Role role) {
+std::optional<Role> from_wire(sabo::v1::Role role) {
   switch (role) {
-    case sabo::v1::ROLE_SPH: return "sph_solver";
-    case sabo::v1::ROLE_DEM: return "dem_solver";
-    case sabo::v1::ROLE_FEM: return "fem_solver";
-    default: return fmt::format("role {}", static_cast<int>(role));
+    case sabo::v1::ROLE_SPH: return Role::sph;
+    case sabo::v1::ROLE_DEM: return Role::dem;
+    case sabo::v1::ROLE_FEM: return Role::fem;
+    default: return std::nullopt;
   }
+}
+
+std::string role_name(sabo::v1::Role role) {
+  const auto known = from_wire(role);
+  return known ? sabo::role_name(*known) : fmt::format("role {}", static_cast<int>(role));
 }
 
 }  // namespace sabo::protocol

@@ -7,6 +7,7 @@
 #include <span>
 #include <string>
 
+#include "libsabo/core/role.hpp"
 #include "sabo/v1/sabo.pb.h"
 
 namespace sabo::protocol {
@@ -59,7 +60,9 @@ constexpr MessageType message_type_of<sabo::v1::Goodbye>() {
   return sabo::v1::MESSAGE_TYPE_GOODBYE;
 }
 
-[[nodiscard]] sabo::v1::Role role_from_scene_name(const std::string& name);  // "dem_solver" -> ROLE_DEM
-[[nodiscard]] std::string role_name(sabo::v1::Role role);                    // ROLE_DEM -> "dem_solver"
+// The wire's role enum against sabo::Role: the only place that knows both.
+[[nodiscard]] sabo::v1::Role to_wire(Role role);                   // Role::dem -> ROLE_DEM
+[[nodiscard]] std::optional<Role> from_wire(sabo::v1::Role role);  // nullopt: ROLE_UNSPECIFIED or an unknown value
+[[nodiscard]] std::string role_name(sabo::v1::Role role);          // ROLE_DEM -> "dem_solver"; 9 -> "role 9"
 
 }  // namespace sabo::protocol

@@ -20,7 +20,7 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
 
   nlohmann::json processes = nlohmann::json::array();
   processes.push_back({{"role", "coupler"}, {"command", {(bin / "coupler").string()}}});
-  for (const Role role : {Role::sph, Role::dem, Role::fem}) {
+  for (const Role role : kRoles) {
     const SolverSettings* solver = scene.solver(role);
     if (solver == nullptr) continue;
     nlohmann::json command = nlohmann::json::array();

@@ -10,15 +10,6 @@
 
 namespace sabo::scene {
 
-const char* role_name(Role role) {
-  switch (role) {
-    case Role::sph: return "sph_solver";
-    case Role::dem: return "dem_solver";
-    case Role::fem: return "fem_solver";
-  }
-  return "unknown";
-}
-
 bool Scene::needs(Role role) const {
   return solver(role) != nullptr;
 }

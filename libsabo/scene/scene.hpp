@@ -11,12 +11,10 @@
 #include <string_view>
 #include <vector>
 
+#include "libsabo/core/role.hpp"
 #include "libsabo/core/types.hpp"
 
 namespace sabo::scene {
-
-enum class Role { sph, dem, fem };
-[[nodiscard]] const char* role_name(Role role);  // "sph_solver", "dem_solver", "fem_solver"
 
 // Where a value came from, for error messages raised after loading.
 struct Origin {

@@ -125,19 +125,19 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
   return options;
 }
 
-int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, sabo::v1::Role role) {
+int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, Role role) {
   const auto reply_timeout =
       std::chrono::milliseconds(static_cast<long>(1000.0 * std::max(60.0, 6.0 * scene.run.hang_timeout)));
   protocol::SolverLink link(options.coupler_endpoint, reply_timeout);
 
   sabo::v1::Register registration;
   registration.set_protocol_version(protocol::kProtocolVersion);
-  registration.set_role(role);
+  registration.set_role(protocol::to_wire(role));
   registration.set_pid(static_cast<std::uint32_t>(::getpid()));
   solver.describe(registration);
   registration.set_checkpoints(solver.can_checkpoint());
 
-  const std::string role_text = protocol::role_name(role);
+  const std::string role_text = role_name(role);
   const io::CheckpointStore checkpoints(options.out_dir / "checkpoints", role_text, io::file_digest(options.scene),
                                         scene.run.checkpoints_kept);
   std::uint64_t step = 0;
@@ -228,7 +228,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
     exit_code = 130;
   } catch (const std::exception& error) {
     spdlog::error("{}", error.what());
-    link.send_error(sabo::v1::Error::CODE_SOLVER, fmt::format("{}: {}", protocol::role_name(role), error.what()));
+    link.send_error(sabo::v1::Error::CODE_SOLVER, fmt::format("{}: {}", role_name(role), error.what()));
     exit_code = 1;
   }
   try {
@@ -246,7 +246,8 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   return exit_code;
 }
 
-int solver_main(int argc, char** argv, const std::string& program, sabo::v1::Role role, const SolverFactory& make) {
+int solver_main(int argc, char** argv, Role role, const SolverFactory& make) {
+  const std::string program = role_name(role);
   std::optional<SolverOptions> options;
   try {
     options = parse_solver_command_line(argc, argv, program);

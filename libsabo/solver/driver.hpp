@@ -102,13 +102,13 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
 // Runs the coupled loop until the coupler says stop. Returns the process exit
 // code: 0 done, 130 stopped by signal or by the coupler's Stop, 1 on errors
 // (logged, and reported to the coupler when possible).
-int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, sabo::v1::Role role);
+int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, Role role);
 
-// main() of a solver: parses the command line, sets up logging, loads the
+// main() of the solver of `role` (its program is role_name(role)): parses the command line, sets up logging, loads the
 // scene, builds the solver with `make` and runs it. Every error becomes a log
 // line and an exit code (2: bad scene or command line).
 using SolverFactory =
     std::function<std::unique_ptr<CoupledSolver>(const scene::Scene& scene, const SolverOptions& options)>;
-int solver_main(int argc, char** argv, const std::string& program, sabo::v1::Role role, const SolverFactory& make);
+int solver_main(int argc, char** argv, Role role, const SolverFactory& make);
 
 }  // namespace sabo::solver

@@ -12,6 +12,7 @@
 #include "coupler/coupler.hpp"
 #include "coupler_fixture.hpp"
 #include "libsabo/protocol/solver_link.hpp"
+#include "libsabo/protocol/wire.hpp"
 #include "tests/support/one_boulder.hpp"
 
 using namespace sabo;
@@ -87,7 +88,7 @@ TEST_F(Fixture, RefusesBadRegistrationsThenRunsToTheEnd) {
   EXPECT_NE(reply.error().find("unknown role 9"), std::string::npos);
 
   auto unneeded = dem_registration();
-  unneeded.set_role(sabo::v1::ROLE_FEM);
+  unneeded.set_role(sabo::protocol::to_wire(sabo::Role::fem));
   reply = raw_register(endpoint, unneeded);
   EXPECT_FALSE(reply.accepted());
   std::cout << "role not in scene: " << reply.error() << "\n";

@@ -20,6 +20,7 @@
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/solver_link.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
+#include "libsabo/protocol/wire.hpp"
 
 using namespace sabo;
 using namespace std::chrono_literals;
@@ -71,7 +72,7 @@ struct SphFixture : sabo::testing::CouplerFixture {
     scene.sph.smoothing_ratio = 1.3;
     scene.sph_fem_default.normal_stiffness = kStiffness;
     scene.sph_fem_default.friction = kFriction;
-    for (auto role : {scene::Role::sph, scene::Role::fem}) {
+    for (auto role : {sabo::Role::sph, sabo::Role::fem}) {
       scene::SolverSettings s;
       s.role = role;
       s.beta = 1.0;
@@ -109,7 +110,7 @@ struct SphFixture : sabo::testing::CouplerFixture {
   static sabo::v1::Register sph_registration(const std::vector<Vec3>& particles) {
     sabo::v1::Register r;
     r.set_protocol_version(protocol::kProtocolVersion);
-    r.set_role(sabo::v1::ROLE_SPH);
+    r.set_role(sabo::protocol::to_wire(sabo::Role::sph));
     r.set_name("scripted sph");
     r.set_pid(static_cast<std::uint32_t>(::getpid()));
     r.set_exposes_particles(true);
@@ -123,7 +124,7 @@ struct SphFixture : sabo::testing::CouplerFixture {
   static sabo::v1::Register fem_registration() {
     sabo::v1::Register r;
     r.set_protocol_version(protocol::kProtocolVersion);
-    r.set_role(sabo::v1::ROLE_FEM);
+    r.set_role(sabo::protocol::to_wire(sabo::Role::fem));
     r.set_name("scripted fem");
     r.set_pid(static_cast<std::uint32_t>(::getpid()));
     r.set_exposes_surface(true);

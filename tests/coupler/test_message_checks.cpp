@@ -64,27 +64,27 @@ void expect_problem(const std::optional<std::string>& problem, const std::string
 
 TEST(MessageChecks, EachBadFieldIsNamedWithItsEntityAndValue) {
   const scene::Scene scene = two_material_scene();
-  EXPECT_FALSE(particle_table_problem(table_of(5), scene, scene::Role::dem));
+  EXPECT_FALSE(particle_table_problem(table_of(5), scene, sabo::Role::dem));
   EXPECT_FALSE(surface_problem(square(), scene));
 
   auto t = table_of(5);
   t.set_radius(3, std::nan(""));
-  expect_problem(particle_table_problem(t, scene, scene::Role::dem), "particle 3 (id 3) has radius nan m");
+  expect_problem(particle_table_problem(t, scene, sabo::Role::dem), "particle 3 (id 3) has radius nan m");
   t = table_of(5);
   t.set_mass(2, -1.0);
-  expect_problem(particle_table_problem(t, scene, scene::Role::dem), "particle 2 (id 2) has mass -1 kg");
+  expect_problem(particle_table_problem(t, scene, sabo::Role::dem), "particle 2 (id 2) has mass -1 kg");
   t = table_of(5);
   t.set_material(4, 7);
-  expect_problem(particle_table_problem(t, scene, scene::Role::dem), "has material 7, the scene has 2");
+  expect_problem(particle_table_problem(t, scene, sabo::Role::dem), "has material 7, the scene has 2");
   t = table_of(5);
   t.set_body(1, 2);
-  expect_problem(particle_table_problem(t, scene, scene::Role::dem), "belongs to body 2, the scene has 2 bodies");
+  expect_problem(particle_table_problem(t, scene, sabo::Role::dem), "belongs to body 2, the scene has 2 bodies");
   t = table_of(5);
   t.set_id(4, 1);
-  expect_problem(particle_table_problem(t, scene, scene::Role::dem), "has the id 1 of an earlier particle");
+  expect_problem(particle_table_problem(t, scene, sabo::Role::dem), "has the id 1 of an earlier particle");
   t = table_of(5);
   t.add_radius(1.0);
-  expect_problem(particle_table_problem(t, scene, scene::Role::dem), "arrays differ in length");
+  expect_problem(particle_table_problem(t, scene, sabo::Role::dem), "arrays differ in length");
 
   auto s = square();
   s.set_face_bulk_modulus(1, std::nan(""));
@@ -130,7 +130,7 @@ TEST(MessageChecks, BitFlippedRegistrationsAreRefusedOrValid) {
     sabo::v1::Register r;
     if (!r.ParseFromString(mutated)) continue;
     ++parsed;
-    const auto table = particle_table_problem(r.particles(), scene, scene::Role::dem);
+    const auto table = particle_table_problem(r.particles(), scene, sabo::Role::dem);
     const auto surface = surface_problem(r.surface(), scene);
     const auto dt = r.stable_dt() != 0 ? stable_dt_problem(r.stable_dt(), scene.run.end_time) : std::nullopt;
     if (table || surface || dt) {

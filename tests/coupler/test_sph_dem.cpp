@@ -52,7 +52,7 @@ scene::Scene two_body_scene(scene::SphDemContact::Model model) {
   scene.sph.particle_spacing = kDx;
   scene.sph.sound_speed = kSoundSpeed;
   scene.sph_dem_default.model = model;
-  for (auto role : {scene::Role::sph, scene::Role::dem}) scene.solvers.push_back({role, {}, 1.0, {}});
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) scene.solvers.push_back({role, {}, 1.0, {}});
   return scene;
 }
 
@@ -75,8 +75,8 @@ struct TwoSolvers {
       st->add_id(j), st->add_radius(r), st->add_mass(2650 * 4.0 / 3.0 * std::numbers::pi * r * r * r);
       st->add_material(0), st->add_body(0);
     }
-    solvers.set({scene::Role::sph, "sph_solver", fluid_beta, &fluid_registration, &fluid});
-    solvers.set({scene::Role::dem, "dem_solver", 1.0, &sphere_registration, &spheres});
+    solvers.set({sabo::Role::sph, "sph_solver", fluid_beta, &fluid_registration, &fluid});
+    solvers.set({sabo::Role::dem, "dem_solver", 1.0, &sphere_registration, &spheres});
   }
   void set_fluid(const std::vector<Vec3>& x, const std::vector<Vec3>& v, std::uint64_t step) {
     fluid.Clear();
@@ -199,21 +199,21 @@ TEST(SphDemPenalty, OverlapGivesTheSpringDashpotAndItsExactReaction) {
   const Vec3 expected = (k * overlap + c * 0.3) * n;
   replies.begin_step(s.solvers, 0);
   pair.scatter(s.solvers, 1e-4, replies);
-  const Vec3 on_fluid = vec3(replies.particle_force(scene::Role::sph), 0);
-  const Vec3 on_sphere = vec3(replies.particle_force(scene::Role::dem), 0);
+  const Vec3 on_fluid = vec3(replies.particle_force(sabo::Role::sph), 0);
+  const Vec3 on_sphere = vec3(replies.particle_force(sabo::Role::dem), 0);
   std::cout << "force on the fluid particle " << on_fluid.transpose() << " N, expected " << expected.transpose()
             << " N (K = " << k << " N/m, K delta + eta v)\n";
   EXPECT_NEAR((on_fluid - expected).norm(), 0.0, 1e-12 * expected.norm());
   EXPECT_EQ((on_fluid + on_sphere).norm(), 0.0);
-  EXPECT_LT(vec3(replies.particle_torque(scene::Role::dem), 0).norm(), 1e-15);  // normal force: no torque
+  EXPECT_LT(vec3(replies.particle_torque(sabo::Role::dem), 0).norm(), 1e-15);  // normal force: no torque
   EXPECT_EQ(pair.contact_count(), 1u);
   EXPECT_NEAR(pair.energy().elastic, 0.5 * k * overlap * overlap, 1e-15);
   EXPECT_NEAR(pair.energy().dissipated_power, c * 0.09, 1e-12);
   EXPECT_EQ(pair.newton_balance().sum.norm(), 0.0);
   EXPECT_NEAR(pair.stable_dt(), 0.8 * 0.2 * std::numbers::pi * std::sqrt(reduced / k), 1e-18);
-  EXPECT_TRUE(pair.interest(scene::Role::dem).all);
-  ASSERT_FALSE(pair.interest(scene::Role::sph).boxes.empty());
-  EXPECT_TRUE(pair.interest(scene::Role::sph).boxes[0].contains(d * n));
+  EXPECT_TRUE(pair.interest(sabo::Role::dem).all);
+  ASSERT_FALSE(pair.interest(sabo::Role::sph).boxes.empty());
+  EXPECT_TRUE(pair.interest(sabo::Role::sph).boxes[0].contains(d * n));
 
   // Apart: no force, but the step is limited one contact radius before contact.
   s.set_fluid({(d + 0.3 * kDx) * n}, {v_fluid}, 1);
@@ -243,8 +243,8 @@ TEST(SphDemPenalty, FrictionCapsTheTangentialForceAndTurnsTheSphere) {
     pair.compute(s.solvers, {step, dt * static_cast<double>(step), step == 0 ? 0.0 : dt});
     replies.begin_step(s.solvers, 0);
     pair.scatter(s.solvers, dt, replies);
-    on_fluid = vec3(replies.particle_force(scene::Role::sph), 0);
-    torque = vec3(replies.particle_torque(scene::Role::dem), 0);
+    on_fluid = vec3(replies.particle_force(sabo::Role::sph), 0);
+    torque = vec3(replies.particle_torque(sabo::Role::dem), 0);
   }
   const double normal = k * overlap;
   std::cout << "sliding: tangential " << -on_fluid.x() << " N, expected mu K delta = " << 0.4 * normal
@@ -300,11 +300,11 @@ TEST(SphDemPenalty, SameBitsOnOneAndTwoThreads) {
       pair.compute(s.solvers, {step, 1e-4 * static_cast<double>(step), step == 0 ? 0.0 : 1e-4});
       replies.begin_step(s.solvers, 0);
       pair.scatter(s.solvers, 1e-4, replies);
-      for (auto role : {scene::Role::sph, scene::Role::dem}) {
+      for (auto role : {sabo::Role::sph, sabo::Role::dem}) {
         const auto& f = replies.particle_force(role);
         out.insert(out.end(), f.begin(), f.end());
       }
-      const auto& t = replies.particle_torque(scene::Role::dem);
+      const auto& t = replies.particle_torque(sabo::Role::dem);
       out.insert(out.end(), t.begin(), t.end());
       out.push_back(pair.energy().elastic);
       out.push_back(pair.stable_dt());
@@ -347,8 +347,8 @@ TEST(SphDemBoundary, SendsTheBoulderParticlesNearTheFluidMovingRigidly) {
     // At step 0 the acceleration is unknown (zero): only the centripetal part of the spin.
     EXPECT_NEAR((b.acceleration[k] - w.cross(w.cross(r))).norm(), 0.0, 1e-9);
   }
-  EXPECT_TRUE(pair.interest(scene::Role::sph).boxes[0].contains(fluid));
-  EXPECT_TRUE(pair.interest(scene::Role::dem).all);
+  EXPECT_TRUE(pair.interest(sabo::Role::sph).boxes[0].contains(fluid));
+  EXPECT_TRUE(pair.interest(sabo::Role::dem).all);
 }
 
 TEST(SphDemBoundary, ReturnedForcesBecomeTheBouldersImpulseWithItsTorque) {
@@ -386,15 +386,15 @@ TEST(SphDemBoundary, ReturnedForcesBecomeTheBouldersImpulseWithItsTorque) {
   EXPECT_LT(pair.newton_balance().sum.norm(), 1e-15);
   replies.begin_step(s.solvers, 0);
   pair.scatter(s.solvers, dt1, replies);
-  const Vec3 force = vec3(replies.particle_force(scene::Role::dem), 0);
-  const Vec3 torque = vec3(replies.particle_torque(scene::Role::dem), 0);
+  const Vec3 force = vec3(replies.particle_force(sabo::Role::dem), 0);
+  const Vec3 torque = vec3(replies.particle_torque(sabo::Role::dem), 0);
   // The fluid felt them over dt0 / 2 (its step 0); the boulder integrates over (dt0 + dt1) / 2.
   const double scale = (0.5 * dt0) / (0.5 * (dt0 + dt1));
   std::cout << "impulse on the boulder " << (force * 0.5 * (dt0 + dt1)).transpose() << " N s, the fluid's "
             << (total * 0.5 * dt0).transpose() << " N s\n";
   EXPECT_NEAR((force - scale * total).norm(), 0.0, 1e-15);
   EXPECT_NEAR((torque - scale * moment).norm(), 0.0, 1e-15);
-  EXPECT_EQ(vec3(replies.particle_force(scene::Role::dem), 1).norm(), 0.0);
+  EXPECT_EQ(vec3(replies.particle_force(sabo::Role::dem), 1).norm(), 0.0);
   (void)dt2;
 }
 
@@ -437,8 +437,8 @@ TEST(SphDemBoundary, HistoryRestoresToTheSameNextStep) {
     second.restore_history(file.group("sph_dem"));
   }
   step(second, s2, r2, 1, returned, Vec3(0, 0, -1.1));
-  ASSERT_EQ(r1.particle_force(scene::Role::dem), r2.particle_force(scene::Role::dem));
-  ASSERT_EQ(r1.particle_torque(scene::Role::dem), r2.particle_torque(scene::Role::dem));
+  ASSERT_EQ(r1.particle_force(sabo::Role::dem), r2.particle_force(sabo::Role::dem));
+  ASSERT_EQ(r1.particle_torque(sabo::Role::dem), r2.particle_torque(sabo::Role::dem));
   ASSERT_EQ(first.selected().acceleration, second.selected().acceleration);
   std::filesystem::remove(path);
 

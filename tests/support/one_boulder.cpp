@@ -15,14 +15,14 @@ void add_one_boulder(scene::Scene& scene) {
   set.spheres.push_back({Vec3(0, 0, 1), 0.5, Vec3::Zero(), Vec3::Zero()});
   scene.particle_sets.push_back(set);
   scene::SolverSettings dem;
-  dem.role = scene::Role::dem;
+  dem.role = sabo::Role::dem;
   scene.solvers.push_back(dem);
 }
 
 sabo::v1::Register boulder_registration(const std::string& name) {
   sabo::v1::Register r;
   r.set_protocol_version(protocol::kProtocolVersion);
-  r.set_role(sabo::v1::ROLE_DEM);
+  r.set_role(sabo::protocol::to_wire(sabo::Role::dem));
   r.set_name(name);
   r.set_pid(static_cast<std::uint32_t>(::getpid()));
   r.set_exposes_particles(true);

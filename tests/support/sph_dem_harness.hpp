@@ -24,7 +24,7 @@ class SphDemHarness {
       : scene_(scene), sph_(scene_), dem_(scene_), tank_(std::move(tank)) {
     auto pairs = coupler::make_contact_pairs(scene_);
     for (auto& p : pairs) {
-      if (p->joins(scene::Role::sph) && p->joins(scene::Role::dem)) pairs_.push_back(std::move(p));
+      if (p->joins(sabo::Role::sph) && p->joins(sabo::Role::dem)) pairs_.push_back(std::move(p));
     }
     auto* ft = sph_registration_.mutable_particles();
     for (std::size_t i = 0; i < sph_.size(); ++i) {
@@ -37,8 +37,8 @@ class SphDemHarness {
       dt->add_id(j), dt->add_radius(dem_.radii()[j]), dt->add_mass(dem_.masses()[j]);
       dt->add_material(dem_.material_index()[j]), dt->add_body(dem_.body_index()[j]);
     }
-    solvers_.set({scene::Role::sph, "sph_solver", 1.0, &sph_registration_, &sph_state_});
-    solvers_.set({scene::Role::dem, "dem_solver", 1.0, &dem_registration_, &dem_state_});
+    solvers_.set({sabo::Role::sph, "sph_solver", 1.0, &sph_registration_, &sph_state_});
+    solvers_.set({sabo::Role::dem, "dem_solver", 1.0, &dem_registration_, &dem_state_});
     for (auto& p : pairs_) p->start(solvers_, replies_);
   }
 
@@ -49,7 +49,7 @@ class SphDemHarness {
   [[nodiscard]] const coupler::ContactPair& pair(std::size_t k = 0) const { return *pairs_.at(k); }
   // The fluid's force on sphere j in the last step, N (every sphere is in the state, in id order).
   [[nodiscard]] Vec3 fluid_force_on_sphere(std::size_t j) const {
-    const auto& f = replies_.particle_force(scene::Role::dem);
+    const auto& f = replies_.particle_force(sabo::Role::dem);
     return 3 * j + 2 < f.size() ? Vec3(f[3 * j], f[3 * j + 1], f[3 * j + 2]) : Vec3::Zero();
   }
 
@@ -108,13 +108,13 @@ class SphDemHarness {
     sph_.compute_internal_forces(dt_previous_);
     const auto& index = sph_state_.index();
     sph_.add_external_forces({index.data(), static_cast<std::size_t>(index.size())},
-                             replies_.particle_force(scene::Role::sph));
+                             replies_.particle_force(sabo::Role::sph));
     sph_seconds_ += since(start);
     start = Clock::now();
     dem_.compute_internal_forces(dt_previous_);
     const auto& dem_index = dem_state_.index();
     dem_.add_external_forces({dem_index.data(), static_cast<std::size_t>(dem_index.size())},
-                             replies_.particle_force(scene::Role::dem), replies_.particle_torque(scene::Role::dem));
+                             replies_.particle_force(sabo::Role::dem), replies_.particle_torque(sabo::Role::dem));
     if (!body_force_.empty()) dem_.add_external_forces(body_index_, body_force_, {});
     dem_seconds_ += since(start);
 

@@ -14,6 +14,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/hdf5.hpp"
 #include "libsabo/io/traffic.hpp"
+#include "libsabo/protocol/wire.hpp"
 #include "tests/support/scratch.hpp"
 
 namespace fs = std::filesystem;
@@ -102,7 +103,7 @@ sabo::v1::StepForces make_forces(std::uint64_t step, const sabo::v1::StepState& 
 sabo::v1::Register make_registration(const std::string& name) {
   sabo::v1::Register message;
   message.set_protocol_version(1);
-  message.set_role(sabo::v1::ROLE_DEM);
+  message.set_role(sabo::protocol::to_wire(sabo::Role::dem));
   message.set_name(name);
   message.set_exposes_particles(true);
   message.set_stable_dt(1e-4);

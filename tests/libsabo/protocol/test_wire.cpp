@@ -34,7 +34,15 @@ TEST(Wire, HeaderRejectsGarbage) {
 }
 
 TEST(Wire, RoleNames) {
-  EXPECT_EQ(role_from_scene_name("dem_solver"), sabo::v1::ROLE_DEM);
+  for (const sabo::Role role : sabo::kRoles) {
+    EXPECT_EQ(from_wire(to_wire(role)), role) << sabo::role_name(role);
+    EXPECT_EQ(role_name(to_wire(role)), sabo::role_name(role));
+    EXPECT_EQ(sabo::role_from_name(sabo::role_name(role)), role);
+  }
+  EXPECT_EQ(to_wire(sabo::Role::dem), sabo::v1::ROLE_DEM);
   EXPECT_EQ(role_name(sabo::v1::ROLE_FEM), "fem_solver");
-  EXPECT_EQ(role_from_scene_name("nonsense"), sabo::v1::ROLE_UNSPECIFIED);
+  EXPECT_EQ(from_wire(sabo::v1::ROLE_UNSPECIFIED), std::nullopt);
+  EXPECT_EQ(from_wire(static_cast<sabo::v1::Role>(9)), std::nullopt);
+  EXPECT_EQ(role_name(static_cast<sabo::v1::Role>(9)), "role 9");
+  EXPECT_EQ(sabo::role_from_name("nonsense"), std::nullopt);
 }
