@@ -58,9 +58,9 @@ struct ContactOutput {
 };
 
 // The linear law (physics::spring_dashpot_force) or Hertz-Mindlin (physics::hertz_mindlin_force), then the
-// rolling resistance (physics::rolling_spring_torque, or the viscous torque): the same formulas, with the
-// law's constants precomputed. kLaw: 0 linear, 1 hertz, 2 from law.hertz. kRolling: 0 none, 1 constant,
-// 2 viscous, 3 from law.rolling.
+// rolling resistance (physics::rolling_spring_torque, or the viscous torque): the normal part with the law's
+// constants precomputed, the tangential and the rolling springs physics' own inline functions. kLaw: 0 linear, 1 hertz,
+// 2 from law.hertz. kRolling: 0 none, 1 constant, 2 viscous, 3 from law.rolling.
 template <int kLaw, int kRolling>
 [[gnu::always_inline]] inline ContactOutput contact(const DemModel::PairLaw& law, const ContactInput& in,
                                                     double dt_previous, Vec3& tangential, Vec3& rolling_history) {
@@ -81,73 +81,40 @@ template <int kLaw, int kRolling>
   } else {
     normal_stiffness = in.linear_stiffness;
     tangential_stiffness = in.tangential_ratio * normal_stiffness;
-    normal_damping = 2.0 * law.normal_damping_ratio * std::sqrt(normal_stiffness * in.effective_mass);
-    tangential_damping = 2.0 * law.tangential_damping_ratio * std::sqrt(tangential_stiffness * in.effective_mass);
+    normal_damping = physics::damping_coefficient(normal_stiffness, in.effective_mass, law.normal_damping_ratio);
+    tangential_damping =
+        physics::damping_coefficient(tangential_stiffness, in.effective_mass, law.tangential_damping_ratio);
     elastic_normal_force = normal_stiffness * in.overlap;
     normal_elastic_energy = 0.5 * elastic_normal_force * in.overlap;
   }
   const double normal_force = elastic_normal_force - normal_damping * normal_speed;
 
-  // Carry the spring over from the previous tangent plane: drop its normal part, keep its length.
-  Vec3 displacement = tangential;
-  const double length_squared = displacement.squaredNorm();
-  if (length_squared > 0) {
-    displacement -= displacement.dot(n) * n;
-    const double projected_squared = displacement.squaredNorm();
-    displacement =
-        projected_squared > 0 ? Vec3(displacement * std::sqrt(length_squared / projected_squared)) : Vec3::Zero();
-  }
-  const double stored = 0.5 * tangential_stiffness * displacement.squaredNorm();
-  displacement += tangential_velocity * dt_previous;
-  Vec3 tangential_force = -tangential_stiffness * displacement - tangential_damping * tangential_velocity;
-  const double coulomb = law.friction * std::max(normal_force, 0.0);
-  const double trial_squared = tangential_force.squaredNorm();
+  const physics::TangentialForce tangential_part =
+      physics::tangential_spring_force(tangential_stiffness, tangential_damping, law.friction, normal_force, n,
+                                       tangential_velocity, dt_previous, tangential);
   ContactOutput out;
-  out.slip_release = 0;
-  if (trial_squared > coulomb * coulomb) {
-    tangential_force *= coulomb / std::sqrt(trial_squared);
-    const double spring_force = tangential_stiffness * displacement.norm();
-    if (spring_force > coulomb) displacement *= coulomb / spring_force;
-    out.slip_release = stored - 0.5 * tangential_stiffness * displacement.squaredNorm();
-    out.dissipative_force = -normal_damping * normal_speed * n + tangential_force;
-  } else {
-    out.dissipative_force = -normal_damping * normal_speed * n - tangential_damping * tangential_velocity;
-  }
-  tangential = displacement;
-  out.force = normal_force * n + tangential_force;
-  out.spring_energy = 0.5 * tangential_stiffness * displacement.squaredNorm();
+  out.slip_release = tangential_part.slip_spring_release;
+  out.dissipative_force = -normal_damping * normal_speed * n + tangential_part.dissipative;
+  out.force = normal_force * n + tangential_part.force;
+  out.spring_energy = 0.5 * tangential_stiffness * tangential.squaredNorm();
 
   out.rolling_torque.setZero();
   out.dissipative_torque.setZero();
   const int rolling = kRolling == 3 ? law.rolling : kRolling;
   if (rolling == 1) {
-    // Elastic-plastic rolling spring capped at the constant torque (physics::rolling_spring_torque).
-    const double cap = law.rolling_friction * in.effective_radius * std::max(normal_force, 0.0);
-    const double mu_r = law.rolling_friction;
-    const double rolling_stiffness = 2.25 * normal_stiffness * mu_r * mu_r * in.effective_radius * in.effective_radius;
-    if (rolling_stiffness > 0) {
-      const double rolling_damping =
-          2.0 * law.rolling_damping_ratio * std::sqrt(rolling_stiffness * in.effective_inertia);
-      const double rolling_stored = 0.5 * rolling_history.squaredNorm() / rolling_stiffness;
-      Vec3 spring = rolling_history - (rolling_stiffness * dt_previous) * in.relative_spin;
-      const Vec3 dashpot = -rolling_damping * in.relative_spin;
-      Vec3 torque = spring + dashpot;
-      const double magnitude = torque.norm();
-      if (magnitude > cap) {
-        torque = magnitude > 0 ? Vec3(torque * (cap / magnitude)) : Vec3::Zero();
-        const double spring_magnitude = spring.norm();
-        if (spring_magnitude > cap) spring *= cap / spring_magnitude;
-        out.dissipative_torque = torque;
-        out.slip_release += rolling_stored - 0.5 * spring.squaredNorm() / rolling_stiffness;
-      } else {
-        out.dissipative_torque = dashpot;
-      }
-      rolling_history = spring;
-      out.rolling_torque = torque;
-      out.spring_energy += 0.5 * spring.squaredNorm() / rolling_stiffness;
-    } else {
-      rolling_history.setZero();
-    }
+    const double rolling_stiffness =
+        physics::rolling_stiffness(normal_stiffness, law.rolling_friction, in.effective_radius);
+    const physics::RollingSpring rolling_law{
+        .stiffness = rolling_stiffness,
+        .damping = physics::damping_coefficient(rolling_stiffness, in.effective_inertia, law.rolling_damping_ratio),
+        .friction = law.rolling_friction,
+        .effective_radius = in.effective_radius};
+    const physics::RollingTorque rolling_part =
+        physics::rolling_spring_torque(rolling_law, normal_force, in.relative_spin, dt_previous, rolling_history);
+    out.rolling_torque = rolling_part.torque;
+    out.dissipative_torque = rolling_part.dissipative_torque;
+    out.slip_release += rolling_part.slip_spring_release;
+    out.spring_energy += rolling_part.elastic_energy;
   } else if (rolling == 2) {
     out.rolling_torque =
         (-law.rolling_viscosity * in.effective_radius * in.effective_radius * std::max(normal_force, 0.0)) *

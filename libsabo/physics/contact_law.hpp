@@ -2,6 +2,13 @@
 // Contact laws shared by dem_solver (DEM-DEM) and the coupler (DEM-FEM):
 // linear spring-dashpot with a tangential spring and a Coulomb limit, and a
 // constant-torque rolling resistance (docs/model.md "DEM-DEM", paper eqs. 1-5).
+// The parts a solver evaluates per contact per step (the tangential and the rolling
+// spring, the dashpot coefficient) are inline: the DEM kernel calls them in its
+// innermost loop.
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
 #include "libsabo/core/types.hpp"
 
 namespace sabo::physics {
@@ -16,7 +23,10 @@ struct SpringDashpot {
 };
 
 // c = 2 zeta sqrt(k m_eff): critical-damping fraction zeta -> dashpot coefficient, N s/m.
-double damping_coefficient(double stiffness, double effective_mass, double damping_ratio);
+[[nodiscard]] inline double damping_coefficient(double stiffness, double effective_mass, double damping_ratio) {
+  assert(stiffness >= 0 && effective_mass >= 0 && damping_ratio >= 0);
+  return 2.0 * damping_ratio * std::sqrt(stiffness * effective_mass);
+}
 
 // Accumulated tangential spring elongation of one contact, m.
 struct TangentialHistory {
@@ -54,20 +64,56 @@ struct ContactForce {
 ContactForce spring_dashpot_force(const SpringDashpot& law, double overlap, const Vec3& n,
                                   const Vec3& relative_velocity, double dt_previous, TangentialHistory& history);
 
-// The tangential part of a contact law, shared by spring_dashpot_force and hertz_mindlin_force:
-// the history is rotated onto the tangent plane of n (length kept) and extended by
-// tangential_velocity * dt_previous; the trial force -stiffness d - damping v_t is capped at
-// friction * max(normal_force, 0) as spring_dashpot_force describes (the spring is shortened to
-// the limit, never lengthened). history is updated.
+// The tangential part of a contact law, shared by spring_dashpot_force, hertz_mindlin_force and the
+// DEM kernel: the spring displacement `history` is rotated onto the tangent plane of n (length kept)
+// and extended by tangential_velocity * dt_previous; the trial force -stiffness d - damping v_t is
+// capped at friction * max(normal_force, 0) as spring_dashpot_force describes (the spring is
+// shortened to the limit, never lengthened). `history` is updated.
 struct TangentialForce {
   Vec3 force = Vec3::Zero();        // on A, N
   Vec3 dissipative = Vec3::Zero();  // N: -damping v_t, or the capped force when sliding
   bool sliding = false;
   double slip_spring_release = 0;  // J, as in ContactForce
 };
-TangentialForce tangential_spring_force(double stiffness, double damping, double friction, double normal_force,
-                                        const Vec3& n, const Vec3& tangential_velocity, double dt_previous,
-                                        TangentialHistory& history);
+inline TangentialForce tangential_spring_force(double stiffness, double damping, double friction, double normal_force,
+                                               const Vec3& n, const Vec3& tangential_velocity, double dt_previous,
+                                               Vec3& history) {
+  TangentialForce result;
+  Vec3 displacement = history;
+  // Carry the spring over from the previous tangent plane: drop its normal part, keep its length.
+  const double length_squared = displacement.squaredNorm();
+  if (length_squared > 0) {
+    displacement -= displacement.dot(n) * n;
+    const double projected_squared = displacement.squaredNorm();
+    displacement =
+        projected_squared > 0 ? Vec3(displacement * std::sqrt(length_squared / projected_squared)) : Vec3::Zero();
+  }
+  const double stored_energy = 0.5 * stiffness * displacement.squaredNorm();
+  displacement += tangential_velocity * dt_previous;
+  result.force = -stiffness * displacement - damping * tangential_velocity;
+  const double coulomb_force = friction * std::max(normal_force, 0.0);
+  const double trial_squared = result.force.squaredNorm();
+  if (trial_squared > coulomb_force * coulomb_force) {
+    result.sliding = true;
+    result.force *= coulomb_force / std::sqrt(trial_squared);
+    // Shorten the spring to the Coulomb force; never lengthen it (when the dashpot alone pushes
+    // the contact over the limit, stretching the spring would store energy that no work paid for).
+    const double spring_force = stiffness * displacement.norm();
+    if (spring_force > coulomb_force) displacement *= coulomb_force / spring_force;
+    result.slip_spring_release = stored_energy - 0.5 * stiffness * displacement.squaredNorm();
+    result.dissipative = result.force;
+  } else {
+    result.dissipative = -damping * tangential_velocity;
+  }
+  history = displacement;
+  return result;
+}
+inline TangentialForce tangential_spring_force(double stiffness, double damping, double friction, double normal_force,
+                                               const Vec3& n, const Vec3& tangential_velocity, double dt_previous,
+                                               TangentialHistory& history) {
+  return tangential_spring_force(stiffness, damping, friction, normal_force, n, tangential_velocity, dt_previous,
+                                 history.displacement);
+}
 
 // Constant-torque rolling resistance: torque on A = -mu_r * r_eff * |F_n| * w_rel/|w_rel|
 // (zero if w_rel ~ 0). relative_angular_velocity = w_A - w_B, rad/s; B receives -torque.
@@ -93,7 +139,10 @@ struct RollingSpring {
 
 // k_r = 2.25 k_n mu_r^2 r_eff^2 (Iwashita & Oda 1998, as used by Ai et al. 2011): the spring
 // reaches the cap after a relative rotation of overlap / (2.25 mu_r r_eff) rad.
-double rolling_stiffness(double normal_stiffness, double rolling_friction, double effective_radius);
+[[nodiscard]] inline double rolling_stiffness(double normal_stiffness, double rolling_friction,
+                                              double effective_radius) {
+  return 2.25 * normal_stiffness * rolling_friction * rolling_friction * effective_radius * effective_radius;
+}
 
 // Accumulated rolling spring torque of one contact, on A, N m.
 struct RollingHistory {
@@ -110,10 +159,42 @@ struct RollingTorque {
   double slip_spring_release = 0;
 };
 
-// The spring is incremented by -k_r * w_rel * dt_previous, the dashpot adds -c_r * w_rel;
-// when the sum exceeds the cap it is scaled to the cap and a spring beyond the cap is shortened
-// to it (never lengthened).
-RollingTorque rolling_spring_torque(const RollingSpring& law, double normal_force,
-                                    const Vec3& relative_angular_velocity, double dt_previous, RollingHistory& history);
+// The spring `spring_torque` is incremented by -k_r * w_rel * dt_previous, the dashpot adds
+// -c_r * w_rel; when the sum exceeds the cap it is scaled to the cap and a spring beyond the cap is
+// shortened to it (never lengthened). k_r = 0 (no rolling friction) clears the spring.
+inline RollingTorque rolling_spring_torque(const RollingSpring& law, double normal_force,
+                                           const Vec3& relative_angular_velocity, double dt_previous,
+                                           Vec3& spring_torque) {
+  RollingTorque result;
+  if (!(law.stiffness > 0)) {
+    spring_torque.setZero();
+    return result;
+  }
+  const double cap = law.friction * law.effective_radius * std::max(normal_force, 0.0);
+  const double stored_energy = 0.5 * spring_torque.squaredNorm() / law.stiffness;
+  Vec3 spring = spring_torque - (law.stiffness * dt_previous) * relative_angular_velocity;
+  const Vec3 dashpot = -law.damping * relative_angular_velocity;
+  Vec3 torque = spring + dashpot;
+  const double magnitude = torque.norm();
+  if (magnitude > cap) {
+    result.rolling = true;
+    torque = magnitude > 0 ? Vec3(torque * (cap / magnitude)) : Vec3::Zero();
+    const double spring_magnitude = spring.norm();
+    if (spring_magnitude > cap) spring *= cap / spring_magnitude;
+    result.dissipative_torque = torque;
+    result.slip_spring_release = stored_energy - 0.5 * spring.squaredNorm() / law.stiffness;
+  } else {
+    result.dissipative_torque = dashpot;
+  }
+  spring_torque = spring;
+  result.torque = torque;
+  result.elastic_energy = 0.5 * spring.squaredNorm() / law.stiffness;
+  return result;
+}
+inline RollingTorque rolling_spring_torque(const RollingSpring& law, double normal_force,
+                                           const Vec3& relative_angular_velocity, double dt_previous,
+                                           RollingHistory& history) {
+  return rolling_spring_torque(law, normal_force, relative_angular_velocity, dt_previous, history.torque);
+}
 
 }  // namespace sabo::physics
