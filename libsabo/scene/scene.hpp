@@ -2,7 +2,7 @@
 // The scene model: what a validated scene file says. Every process builds its
 // part of the simulation from this, and nothing else. The loader
 // (scene/loader.hpp) guarantees every invariant documented here; values are SI.
-// The TOML reference is docs/scene.md, generated from scene/schema.cpp.
+// The TOML reference is docs/scene.md, generated from the schema (scene/schema.hpp).
 #include <array>
 #include <cstdint>
 #include <filesystem>

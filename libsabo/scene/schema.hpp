@@ -1,8 +1,9 @@
 #pragma once
 // The scene file schema as data: every table and key a scene file may hold,
-// with its type, default, unit, allowed values and meaning. The loader
-// (loader.cpp) validates against it and takes defaults from it; markdown()
-// renders docs/scene.md from it, so the reference cannot drift from the code.
+// with its type, default, unit, allowed values and meaning. Each section's
+// table is built beside the code that reads it (scene/sections/*.cpp); the
+// loader validates against it and takes defaults from it; markdown() renders
+// docs/scene.md from it, so the reference cannot drift from the code.
 #include <optional>
 #include <string>
 #include <string_view>

@@ -1,0 +1,219 @@
+// [[gauges]] and [[sensors]]: the schema of the section and its reader.
+
+#include "libsabo/scene/detail/builder.hpp"
+#include "libsabo/scene/detail/schema_tables.hpp"
+
+namespace sabo::scene::schema::detail {
+
+void Schema::build_gauges() {
+  gauge.title = "[[gauges]]";
+  gauge.anchor = "gauges";
+  gauge.selector = "kind";
+  gauge.description =
+      "A pressure gauge in the fluid, read by the sph_solver into `gauges.csv` (time, gauge, point, x, y, z, "
+      "kernel_sum, pressure, velocity_x, velocity_y, velocity_z, depth), one row per point and sample. Needs "
+      "`[[fluids]]`.\n\n"
+      "* `point`: one point, `position`.\n"
+      "* `line`: `points` equally spaced points from `start` to `end`; `depth` is the distance from `start` along "
+      "the line to the free surface (a vertical line from the bed: the flow depth).\n\n"
+      "A value at a point x is the first-order (moving least squares) fit of the particles within the kernel "
+      "support 2h of x, weighted by V_j W(x - x_j) (V_j = m_j / rho_j): exact for a linear field, and the "
+      "Shepard-normalised mean sum V_j W f_j / sum V_j W where the neighbours do not span three dimensions. "
+      "`kernel_sum` is sum V_j W(x - x_j): about 1 inside the fluid, 1/2 at a free surface or a wall, 0 in the "
+      "air. A point with `kernel_sum` below 0.1 is dry and reads 0 (pressure and velocity). The free surface "
+      "along a line is where `kernel_sum` falls through 1/2, found on a sub-sampling of spacing dx / 4. "
+      "Samples are taken at t_n of the step at which the gauge's sample time is reached (positions and "
+      "pressures at t_n, velocities at t_{n-1/2}).";
+  gauge.keys = {
+      K("name", Type::string)
+          .required("\"wall_gauge\"")
+          .allowed("letters, digits, `_`, `-`")
+          .doc("Name of the gauge, unique among the gauges."),
+      K("kind", Type::string).required("\"point\"").choices({"point", "line"}).doc("One point or a line of points."),
+      K("position", Type::vec3).required("[1.0, 0.0, 0.2]").unit("m").only_for({"point"}).doc("The point."),
+      K("start", Type::vec3).required("[1.0, 0.0, 0.0]").unit("m").only_for({"line"}).doc("First point of the line."),
+      K("end", Type::vec3)
+          .required("[1.0, 0.0, 1.0]")
+          .unit("m")
+          .only_for({"line"})
+          .doc("Last point of the line, not `start`."),
+      K("points", Type::integer).def("20").ge(2).le(10000).only_for({"line"}).doc("Points along the line."),
+      K("interval", Type::number)
+          .absent("`run.output_interval`")
+          .example("0.001")
+          .unit("s")
+          .gt(0)
+          .doc("Simulated time between two samples."),
+  };
+}
+
+void Schema::build_sensors() {
+  sensor.title = "[[sensors]]";
+  sensor.anchor = "sensors";
+  sensor.description =
+      "A force sensor on a structure, written by the coupler into `sensors.csv` (time, sensor, part, source, "
+      "Fx, Fy, Fz, F, F_peak, area, pressure) at every output time, like `forces.csv`: the mean force over the "
+      "output interval from each source (`fluid`, `particles`, ...), its magnitude and the largest instantaneous "
+      "magnitude, the sensor's surface area and the mean normal pressure -F.n / area (n the area-weighted mean "
+      "outward normal of the patch, N/m^2 = Pa). The sensor takes the contact forces whose point of contact on the "
+      "surface lies in the box (for boundary-particle walls: the wall particles sampled there), so that a "
+      "sensor smaller than the mesh's faces (a 10 mm transducer) works; its area is the part's surface clipped "
+      "to the box. It should be at least one particle spacing `sph.particle_spacing` wide along the face (the scene "
+      "check warns otherwise): a narrower one holds at most a row of wall particles and its reading jumps as the "
+      "fluid particles pass. A sensor without a box is the whole part: its force is the part's row of "
+      "`forces.csv`.";
+  sensor.keys = {
+      K("name", Type::string)
+          .required("\"transducer_1\"")
+          .allowed("letters, digits, `_`, `-`")
+          .doc("Name of the sensor, unique among the sensors."),
+      K("part", Type::string).required("\"dam\"").allowed("a `[[structures]]` name").doc("The structure."),
+      K("min", Type::vec3)
+          .absent("the whole part")
+          .example("[4.99, -0.005, 0.095]")
+          .unit("m")
+          .doc("Lower corner of the box; give `min` and `max` together."),
+      K("max", Type::vec3)
+          .absent("the whole part")
+          .example("[5.01, 0.005, 0.105]")
+          .unit("m")
+          .doc("Upper corner of the box, above `min` on every axis."),
+  };
+}
+
+}  // namespace sabo::scene::schema::detail
+
+namespace sabo::scene::detail {
+
+// A gauge or sensor name: valid and unique among its kind (`names`).
+void Builder::register_instrument(Reader& r, const std::string& name, std::map<std::string, int>& names,
+                                  const char* kind) {
+  const int line = r.line("name");
+  if (!valid_name(name)) {
+    diag_.add(line, r.key_path("name"), quote_text(name), "a name must be made of letters, digits, '_' and '-'",
+              fmt::format("rename it, e.g. \"{}_1\"", kind));
+    return;
+  }
+  auto [it, inserted] = names.try_emplace(name, line);
+  if (!inserted) {
+    diag_.add(line, r.key_path("name"), quote_text(name),
+              fmt::format("another {} has that name (line {})", kind, it->second),
+              fmt::format("give each {} its own name", kind));
+  }
+}
+
+void Builder::read_gauges(Reader& root) {
+  const toml::array* gauges = root.table_list("gauges");
+  if (gauges == nullptr || gauges->empty()) return;
+  if (!has_fluids_) {
+    diag_.add(root.line("gauges"), "gauges", std::nullopt, "gauges measure the fluid, but the scene has no [[fluids]]",
+              "remove the [[gauges]] or add a fluid");
+    return;
+  }
+  std::map<std::string, int> names;
+  for (std::size_t k = 0; k < gauges->size(); ++k) {
+    const std::string path = fmt::format("gauges[{}]", k);
+    Reader r(diag_, spec("gauges"), *gauges->get(k)->as_table(), path);
+    Gauge gauge;
+    gauge.origin = origin(r.line(), path);
+    if (auto v = r.string("name")) {
+      gauge.name = *v;
+      register_instrument(r, gauge.name, names, "gauge");
+    }
+    if (auto v = r.number("interval")) gauge.interval = *v;
+    const auto kind = r.string("kind");
+    if (!kind) continue;
+    r.select(*kind);
+    std::vector<std::string> point_keys;
+    if (*kind == "point") {
+      if (auto v = r.vec3("position")) gauge.start = gauge.end = *v;
+      point_keys = {"position"};
+    } else {
+      const auto start = r.vec3("start"), end = r.vec3("end");
+      if (auto v = r.integer("points")) gauge.points = static_cast<std::size_t>(*v);
+      if (start) gauge.start = *start;
+      if (end) gauge.end = *end;
+      if (start && end && *start == *end) {
+        diag_.add(r.line("end"), r.key_path("end"), value_text(*r.node("end")),
+                  "a line ends where it starts, so it has no direction", "give an end point other than start");
+      }
+      point_keys = {"start", "end"};
+    }
+    if (scene_.sph.domain) {
+      for (const std::string& key : point_keys) {
+        const toml::node* node = r.node(key);
+        if (node == nullptr) continue;
+        const Vec3 point = key == "end" ? gauge.end : gauge.start;
+        if (!scene_.sph.domain->contains(point)) {
+          diag_.add(r.line(key), r.key_path(key), value_text(*node),
+                    fmt::format("outside the SPH domain [{}, {}] (sph.domain_min/domain_max, line {}): no fluid "
+                                "can ever reach it",
+                                vec_text(scene_.sph.domain->min), vec_text(scene_.sph.domain->max), domain_line_),
+                    "move the gauge into the domain or enlarge the domain");
+        }
+      }
+    }
+    scene_.gauges.push_back(std::move(gauge));
+  }
+}
+
+void Builder::read_sensors(Reader& root) {
+  const toml::array* sensors = root.table_list("sensors");
+  if (sensors == nullptr || sensors->empty()) return;
+  std::vector<std::string> structure_names;
+  for (const Structure& structure : scene_.structures) structure_names.push_back(structure.name);
+  std::map<std::string, int> names;
+  for (std::size_t k = 0; k < sensors->size(); ++k) {
+    const std::string path = fmt::format("sensors[{}]", k);
+    Reader r(diag_, spec("sensors"), *sensors->get(k)->as_table(), path);
+    Sensor sensor;
+    sensor.origin = origin(r.line(), path);
+    if (auto v = r.string("name")) {
+      sensor.name = *v;
+      register_instrument(r, sensor.name, names, "sensor");
+    }
+    if (auto v = r.string("part")) {
+      sensor.part = *v;
+      if (std::find(structure_names.begin(), structure_names.end(), *v) == structure_names.end()) {
+        const auto suggestion = closest_match(*v, structure_names);
+        std::string problem = "no structure of that name";
+        if (suggestion) problem += fmt::format(". Did you mean '{}'?", *suggestion);
+        diag_.add(r.line("part"), r.key_path("part"), quote_text(*v), problem,
+                  structure_names.empty() ? std::string("add the [[structures]] the sensor sits on")
+                                          : fmt::format("use one of: {}", join(structure_names)));
+      }
+    }
+    const auto min = r.vec3("min"), max = r.vec3("max");
+    if (min.has_value() != max.has_value()) {
+      const char* given = min ? "min" : "max";
+      diag_.add(r.line(given), r.key_path(given), value_text(*r.node(given)),
+                fmt::format("a sensor box needs both min and max; {} is missing", min ? "max" : "min"),
+                "give both corners, or neither for a sensor of the whole part");
+    } else if (min && max) {
+      if (((*max - *min).array() <= 0).any()) {
+        diag_.add(r.line("max"), r.key_path("max"), value_text(*r.node("max")),
+                  fmt::format("the box must exceed min = {} on every axis", value_text(*r.node("min"))),
+                  "give max > min on x, y and z (a box around the patch, a few mm thick across a flat face)");
+      } else {
+        sensor.box = Aabb{*min, *max};
+        check_sensor_box(r, sensor);
+      }
+    }
+    scene_.sensors.push_back(std::move(sensor));
+  }
+}
+
+// The box must meet the part's surface. Checked here where the surface follows from the scene (rigid
+// shapes, generated deformable boxes and panels); a .msh part's surface is checked by the coupler when
+// the fem_solver has registered it.
+void Builder::check_sensor_box(Reader& r, const Sensor& sensor) {
+  const auto patch = sensor_patch(scene_.structures, sensor);
+  if (!patch || patch->area > 0) return;
+  diag_.add(r.line("min"), r.key_path("min"), value_text(*r.node("min")),
+            fmt::format("the box [{}, {}] meets none of the surface of '{}', which spans {} to {}",
+                        vec_text(sensor.box->min), vec_text(sensor.box->max), sensor.part,
+                        vec_text(patch->part_bounds.min), vec_text(patch->part_bounds.max)),
+            "move the box onto the part's face (a box a few mm thick across the face)");
+}
+
+}  // namespace sabo::scene::detail

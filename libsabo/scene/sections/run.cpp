@@ -1,0 +1,253 @@
+// [run], [solvers] and [recording]: the schema of the section and its reader.
+
+#include "libsabo/scene/detail/builder.hpp"
+#include "libsabo/scene/detail/schema_tables.hpp"
+
+namespace sabo::scene::schema::detail {
+
+void Schema::build_run() {
+  run.title = "[run]";
+  run.anchor = "run";
+  run.description = "Run control: how long, how often to write output, how the processes talk.";
+  run.keys = {
+      K("end_time", Type::number).required("10.0").unit("s").gt(0).doc("Simulated time at which the run ends."),
+      K("output_interval", Type::number)
+          .required("0.1")
+          .unit("s")
+          .gt(0)
+          .doc("Simulated time between two output frames (VTK, forces.csv)."),
+      K("endpoint", Type::string)
+          .def("\"ipc\"")
+          .allowed("`\"ipc\"` or `\"tcp://HOST:PORT\"`")
+          .doc("Where the coupler listens: `ipc` is a socket in the run folder; `tcp://HOST:PORT` lets solvers "
+               "run on other hosts (port 1-65535)."),
+      K("gravity", Type::vec3).def("[0.0, 0.0, -9.81]").unit("m/s^2").doc("Gravitational acceleration (z is up)."),
+      K("hang_timeout", Type::number)
+          .def("10.0")
+          .unit("s")
+          .gt(0)
+          .doc("Wall time after which a silent process is declared hung and the run is stopped."),
+      K("max_dt", Type::number)
+          .absent("no limit")
+          .example("1e-3")
+          .unit("s")
+          .gt(0)
+          .doc("Upper bound on the coupled time step."),
+      K("checkpoint_interval", Type::number)
+          .absent("a tenth of `end_time`")
+          .example("0.5")
+          .unit("s")
+          .ge(0)
+          .doc("Simulated time between two checkpoints: every process writes its whole state at the same step "
+               "into `RUN_DIR/checkpoints/<role>_<step>.h5`, from which one process is restarted while the others "
+               "wait (docs/restart.md). `0`: no checkpoints."),
+      K("checkpoints_kept", Type::integer)
+          .def("2")
+          .ge(1)
+          .doc("How many checkpoints of each process are kept (the newest; older ones are removed)."),
+      K("restart", Type::string)
+          .def("\"auto\"")
+          .allowed("`\"auto\"` or `\"off\"`")
+          .doc("`\"auto\"`: a solver killed by a signal (a crash, kill -9, out of memory) is started again from its "
+               "newest "
+               "checkpoint while the others wait; the coupler feeds it the StepForces it was sent since then and "
+               "checks that it sends the same states to the bit before it rejoins (docs/restart.md). `\"off\"`: "
+               "the run stops."),
+      K("max_restarts", Type::integer)
+          .def("3")
+          .ge(0)
+          .doc("Restarts allowed per solver process in one run; one more death stops the run."),
+  };
+}
+
+void Schema::build_solvers() {
+  solvers.title = "[solvers]";
+  solvers.anchor = "solvers";
+  solvers.description =
+      "One table per solver role: `[solvers.sph]`, `[solvers.dem]`, `[solvers.fem]`. A role runs only when "
+      "the scene's bodies need it (`[[fluids]]` need the sph_solver, `[[particles]]` the dem_solver, "
+      "`[[structures]]` the fem_solver). A table for a role that no body needs is an error. A needed role without a "
+      "table uses the built executable and `beta = 1.0`.";
+  const std::string role_doc = "Settings of this role (see below).";
+  solvers.keys = {
+      K("sph", Type::table).inside(solver).absent("defaults").doc(role_doc),
+      K("dem", Type::table).inside(solver).absent("defaults").doc(role_doc),
+      K("fem", Type::table).inside(solver).absent("defaults").doc(role_doc),
+  };
+  solver.title = "[solvers.ROLE]";
+  solver.anchor = "solvers-role";
+  solver.description =
+      "Settings of one solver process. Any program that speaks the protocol can replace the built solver.";
+  solver.keys = {
+      K("command", Type::string_list)
+          .absent("the built executable (`sph_solver`, `dem_solver`, `fem_solver`)")
+          .example("[\"/opt/my_dem/bin/dem\", \"--fast\"]")
+          .doc("Program and fixed arguments that replace the built solver; the supervisor appends "
+               "`--scene`, `--coupler` and `--out`. The program is an absolute path, a path relative to the "
+               "scene file's folder (when it contains a `/`), or a name found on `PATH`."),
+      K("beta", Type::number)
+          .def("1.0")
+          .gt(0)
+          .le(1)
+          .doc("Safety factor on this solver's stable time step (paper eq. 7): the coupled step is "
+               "`min(beta_i * stable_dt_i)`."),
+  };
+}
+
+void Schema::build_recording() {
+  recording.title = "[recording]";
+  recording.anchor = "recording";
+  recording.description = "What the coupler records into `traffic.h5`, the log that replay and restart read.";
+  recording.keys = {
+      K("enabled", Type::boolean).def("true").doc("Record at all."),
+      K("fields", Type::string_list)
+          .def("[]")
+          .choices({"position", "velocity", "angular_velocity", "force", "torque", "node_position", "node_velocity",
+                    "node_force", "energies", "boundary_particles", "boundary_force"})
+          .doc("Fields to record; empty: all. `boundary_particles`: the SPH wall particles sent to the sph_solver "
+               "(position, velocity, normal, acceleration, volume); `boundary_force`: the fluid's forces on them "
+               "(with their `boundary_step`)."),
+      K("every", Type::integer).def("1").ge(1).doc("Record every N-th step."),
+      K("first_step", Type::integer).def("0").ge(0).doc("First recorded step."),
+      K("last_step", Type::integer)
+          .absent("to the end")
+          .example("100000")
+          .ge(0)
+          .doc("Last recorded step, not before `first_step`."),
+      K("flush_interval", Type::number)
+          .def("0.2")
+          .unit("s")
+          .gt(0)
+          .doc("Wall time between flushes to disk (the file stays readable after a crash)."),
+  };
+}
+
+}  // namespace sabo::scene::schema::detail
+
+namespace sabo::scene::detail {
+
+void Builder::read_run(const toml::table& table) {
+  Reader r(diag_, spec("run"), table, "run");
+  RunSettings& run = scene_.run;
+  if (auto v = r.number("end_time")) run.end_time = *v;
+  if (auto v = r.number("output_interval")) run.output_interval = *v;
+  if (auto v = r.string("endpoint")) {
+    const auto address = valid_endpoint(*v) && *v != "ipc" ? ipv4_problem(*v) : std::nullopt;
+    if (address) {
+      diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), *address,
+                "give an address of this machine, e.g. endpoint = \"tcp://127.0.0.1:5555\" (this machine only) or "
+                "\"tcp://0.0.0.0:5555\" (every interface)");
+    } else if (valid_endpoint(*v)) {
+      run.endpoint = *v;
+    } else {
+      diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), "must be \"ipc\" or \"tcp://HOST:PORT\"",
+                "write endpoint = \"ipc\" to run on one machine, or e.g. endpoint = \"tcp://127.0.0.1:5555\"");
+    }
+  }
+  if (auto v = r.vec3("gravity")) run.gravity = *v;
+  if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
+  run.max_dt = r.number("max_dt");
+  run.checkpoint_interval = r.number("checkpoint_interval");
+  if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
+  if (auto v = r.string("restart")) {
+    if (*v == "auto" || *v == "off") {
+      run.restart = *v == "auto";
+    } else {
+      diag_.add(r.line("restart"), r.key_path("restart"), quote_text(*v), "must be \"auto\" or \"off\"",
+                "write restart = \"auto\" to restart a solver that dies, or restart = \"off\" to stop the run");
+    }
+  }
+  if (auto v = r.integer("max_restarts")) run.max_restarts = static_cast<std::size_t>(*v);
+}
+
+void Builder::read_solvers(Reader& root) {
+  const toml::table* table = root.table("solvers");
+  Reader solvers(diag_, spec("solvers"), table != nullptr ? *table : empty_table(), "solvers");
+  struct RoleInfo {
+    Role role;
+    const char* key;
+    bool needed;
+    const char* bodies;
+  };
+  const RoleInfo roles[] = {
+      {Role::sph, "sph", has_fluids_, "[[fluids]]"},
+      {Role::dem, "dem", has_particles_, "[[particles]]"},
+      {Role::fem, "fem", has_structures_, "[[structures]]"},
+  };
+  for (const RoleInfo& info : roles) {
+    const toml::table* role_table = solvers.table(info.key);
+    const std::string path = std::string("solvers.") + info.key;
+    if (!info.needed) {
+      if (role_table != nullptr) {
+        diag_.add(line_of(*role_table), path, std::nullopt, fmt::format("no bodies need the {}", role_name(info.role)),
+                  fmt::format("remove [{}] or add {}", path, info.bodies));
+      }
+      continue;
+    }
+    Reader r(diag_, spec("solvers-role"), role_table != nullptr ? *role_table : empty_table(), path);
+    SolverSettings solver;
+    solver.role = info.role;
+    solver.origin = origin(r.line(), path);
+    if (auto v = r.number("beta")) solver.beta = *v;
+    if (auto command = r.strings("command")) {
+      solver.command = *command;
+      check_command(r, solver);
+    }
+    scene_.solvers.push_back(std::move(solver));
+  }
+}
+
+void Builder::check_command(Reader& r, SolverSettings& solver) {
+  const int line = r.line("command");
+  const std::string value = value_text(*r.node("command"));
+  const std::string fallback = fmt::format("remove 'command' to run the built {}", role_name(solver.role));
+  if (solver.command.empty() || solver.command.front().empty()) {
+    diag_.add(line, r.key_path("command"), value, "the command names no program",
+              "give the program first, e.g. command = [\"/opt/solver/bin/dem\"], or " + fallback);
+    return;
+  }
+  const std::string& program = solver.command.front();
+  if (program.find('/') != std::string::npos) {
+    const fs::path given(program);
+    const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+    if (!is_executable_file(full)) {
+      diag_.add(line, r.key_path("command"), value,
+                given.is_absolute() ? fmt::format("program '{}' does not exist or is not executable", program)
+                                    : fmt::format("program '{}' does not exist or is not executable (looked for {})",
+                                                  program, full.string()),
+                "give an existing executable (absolute, or relative to the scene file's folder), or " + fallback);
+      return;
+    }
+    solver.command.front() = full.string();
+    return;
+  }
+  const char* path_variable = std::getenv("PATH");
+  std::stringstream directories(path_variable != nullptr ? path_variable : "");
+  std::string directory;
+  while (std::getline(directories, directory, ':')) {
+    if (!directory.empty() && is_executable_file(fs::path(directory) / program)) return;
+  }
+  diag_.add(line, r.key_path("command"), value, fmt::format("program '{}' is not found on PATH", program),
+            "give the full path of the program, add its folder to PATH, or " + fallback);
+}
+
+void Builder::read_recording(Reader& root) {
+  const toml::table* table = root.table("recording");
+  Reader r(diag_, spec("recording"), table != nullptr ? *table : empty_table(), "recording");
+  Recording& recording = scene_.recording;
+  if (auto v = r.boolean("enabled")) recording.enabled = *v;
+  if (auto v = r.strings("fields")) recording.fields = *v;
+  if (auto v = r.integer("every")) recording.every = static_cast<std::uint64_t>(*v);
+  const auto first = r.integer("first_step");
+  const auto last = r.integer("last_step");
+  if (first) recording.first_step = static_cast<std::uint64_t>(*first);
+  if (last) recording.last_step = static_cast<std::uint64_t>(*last);
+  if (first && last && *first > *last) {
+    diag_.add(r.line("last_step"), r.key_path("last_step"), std::to_string(*last),
+              fmt::format("the last step comes before first_step = {}", *first),
+              "give last_step >= first_step, or swap the two");
+  }
+  if (auto v = r.number("flush_interval")) recording.flush_interval = *v;
+}
+
+}  // namespace sabo::scene::detail
