@@ -137,7 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     test_parser = commands.add_parser(
         "test", help="build, then run the tests with ctest",
-        description="Build (as `./sabo setup`), then run `ctest --test-dir BUILD --output-on-failure ARGS...`.")
+        description="Build (as `./sabo setup`), then run `ctest --test-dir BUILD --output-on-failure ARGS...`, "
+                    "one test per core (CTEST_PARALLEL_LEVEL, unless set or ARGS give -j N).")
     test_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build "
                                                                      "(must come first)")
     test_parser.add_argument("ctest_args", nargs="*", metavar="ARGS", help="passed to ctest, e.g. -R e2e -j2")
@@ -327,6 +328,10 @@ def command_test(root: str, build_dir: str, no_setup: bool, ctest_args: list[str
     if not no_setup:
         setup(root, build_dir)
     command = ["ctest", "--test-dir", build_dir, "--output-on-failure"] + list(ctest_args)
+    # One test per core unless ARGS say otherwise (-j N wins over the variable); each test runs on
+    # one thread (tests/CMakeLists.txt), so the cores are used without oversubscribing them.
+    if not os.environ.get("CTEST_PARALLEL_LEVEL"):
+        os.environ["CTEST_PARALLEL_LEVEL"] = str(os.cpu_count() or 1)
     sys.stdout.flush()
     sys.stderr.flush()
     try:

@@ -19,6 +19,7 @@ name = os.path.basename(sys.argv[0])
 args = sys.argv[1:]
 with open(os.environ["FAKE_LOG"], "a") as log:
     extra = " DEBIAN_FRONTEND=" + os.environ.get("DEBIAN_FRONTEND", "") if name == "apt-get" else ""
+    extra = " CTEST_PARALLEL_LEVEL=" + os.environ.get("CTEST_PARALLEL_LEVEL", "") if name == "ctest" else extra
     log.write(" ".join([name] + [a.replace("\n", "\\n").replace("\t", "\\t") for a in args]) + extra + "\n")
 installed_path = os.environ["FAKE_INSTALLED"]
 installed = open(installed_path).read().split()
@@ -141,14 +142,18 @@ class SetupTest(E2eTestCase):
 
     def test_sabo_test_passes_its_arguments_and_exit_code_through(self):
         self.set_installed(self.packages)
-        sabo = self.sabo(["test", "-R", "e2e_", "-j2", "--no-tests=error"], env=dict(self.env, FAKE_CTEST_RC="8"))
+        sabo = self.sabo(["test", "-R", "e2e_", "-j2", "--no-tests=error"],
+                         env=dict(self.env, FAKE_CTEST_RC="8", CTEST_PARALLEL_LEVEL=""))
         self.assertEqual(sabo.wait(60), 8, sabo.output())
+        # One test per core by default (ctest's -j2 here wins over the variable).
         self.assertEqual(self.calls()[-1],
-                         "ctest --test-dir {} --output-on-failure -R e2e_ -j2 --no-tests=error".format(self.build_dir))
+                         f"ctest --test-dir {self.build_dir} --output-on-failure -R e2e_ -j2 --no-tests=error "
+                         f"CTEST_PARALLEL_LEVEL={os.cpu_count()}")
 
-        sabo = self.sabo(["test", "--no-setup", "--", "-L", "fast"], env=self.env)
+        sabo = self.sabo(["test", "--no-setup", "--", "-L", "fast"], env=dict(self.env, CTEST_PARALLEL_LEVEL="7"))
         self.assertEqual(sabo.wait(60), 0, sabo.output())
-        self.assertEqual(self.calls(), ["ctest --test-dir {} --output-on-failure -L fast".format(self.build_dir)])
+        self.assertEqual(self.calls(),
+                         [f"ctest --test-dir {self.build_dir} --output-on-failure -L fast CTEST_PARALLEL_LEVEL=7"])
 
     def test_missing_dpkg_is_tolerated(self):
         with mock.patch("shutil.which", return_value=None):
