@@ -49,12 +49,10 @@
 // added in lane order); the per-particle results are written back by id;
 // every floating-point reduction over particles is serial (or a max).
 // Same input, same bits, for any number of threads.
-#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <span>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "libsabo/core/types.hpp"
@@ -241,6 +239,8 @@ class SphModel {
   void compute_fluid_forces();
   void compute_boundary_forces();
   void compute_velocity_divergence(double dt);
+  // With credits_wall_work(): each wall slot's credit (bcredit_) for velocity_divergence().
+  void compute_wall_compression();
   void stress_rates();
   template <class Terms>
   void fluid_forces(Terms terms);
@@ -253,31 +253,15 @@ class SphModel {
   template <class Terms>
   void wall_compression(Terms terms);
   [[nodiscard]] double initial_stable_dt() const;
+  // stable_dt() from the maxima of the last compute_fluid_forces() and compute_velocity_gradients().
+  [[nodiscard]] double forces_stable_dt() const;
+  // The neighbour search on the grid of the last build_grid(), defined in
+  // sph_solver/passes/neighbours.hpp (included by the files that search).
   // Calls visit(begin, end) for each of the 9 rows of 3 cells around the cell of (x, y, z)
   // (m, absolute): [begin, end) are slots of the cell-ordered particles of `start` (fluid
   // or boundary), rows in grid order.
   template <class Visit>
-  void for_neighbour_rows(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {
-    const double inverse_cell = inverse_cell_;
-    const auto cx = static_cast<std::int64_t>((x - grid_origin_.x()) * inverse_cell);
-    const auto cy = static_cast<std::int64_t>((y - grid_origin_.y()) * inverse_cell);
-    const auto cz = static_cast<std::int64_t>((z - grid_origin_.z()) * inverse_cell);
-    const std::int64_t x0 = std::max<std::int64_t>(cx - 1, 0), x1 = std::min(cx + 1, nx_ - 1);
-    for (std::int64_t kz = std::max<std::int64_t>(cz - 1, 0); kz <= std::min(cz + 1, nz_ - 1); ++kz) {
-      for (std::int64_t ky = std::max<std::int64_t>(cy - 1, 0); ky <= std::min(cy + 1, ny_ - 1); ++ky) {
-        const std::int64_t row = (kz * ny_ + ky) * nx_;
-        const std::uint32_t begin = start[static_cast<std::size_t>(row + x0)];
-        const std::uint32_t end = start[static_cast<std::size_t>(row + x1 + 1)];
-        if (begin < end) {
-          if constexpr (std::is_invocable_v<Visit, std::uint32_t, std::uint32_t, std::int64_t, std::int64_t>) {
-            visit(begin, end, ky, kz);
-          } else {
-            visit(begin, end);
-          }
-        }
-      }
-    }
-  }
+  void for_neighbour_rows(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const;
   // One row of 3 cells for a particle: slots [begin, end), x-sorted, and the x window
   // (m, relative to grid_origin_) outside which no slot of the row is within 2h.
   struct NeighbourRow {
@@ -286,42 +270,17 @@ class SphModel {
   };
   // The rows of for_neighbour_rows() that can hold a neighbour of (x, y, z); returns how many.
   int neighbour_rows(double x, double y, double z, const std::vector<std::uint32_t>& start,
-                     NeighbourRow (&rows)[9]) const {
-    const double cell = kernel_.support(), support2 = cell * cell;
-    const double px = x - grid_origin_.x(), py = y - grid_origin_.y(), pz = z - grid_origin_.z();
-    const auto cy = static_cast<std::int64_t>(py * inverse_cell_);
-    const auto cz = static_cast<std::int64_t>(pz * inverse_cell_);
-    // Distance from p to the band [k cell, (k + 1) cell] of offset k - c: 0 inside, else to its nearer side.
-    const auto band_distance = [&](double p, std::int64_t k, std::int64_t c) {
-      if (k < c) return p - static_cast<double>(k + 1) * cell;
-      if (k > c) return static_cast<double>(k) * cell - p;
-      return 0.0;
-    };
-    int count = 0;
-    for_neighbour_rows(x, y, z, start, [&](std::uint32_t begin, std::uint32_t end, std::int64_t ky, std::int64_t kz) {
-      const double dy = std::max(0.0, band_distance(py, ky, cy)), dz = std::max(0.0, band_distance(pz, kz, cz));
-      const double w2 = support2 - dy * dy - dz * dz;
-      if (w2 <= 0) return;
-      // The margin covers the float positions and the cell index rounding.
-      const double w = std::sqrt(w2) + 1e-4 * cell;
-      rows[count++] = {begin, end, static_cast<float>(px - w), static_cast<float>(px + w)};
-    });
-    return count;
-  }
+                     NeighbourRow (&rows)[9]) const;
   // Calls block(j0, valid) for each block of kLanes slots [j0, j0 + kLanes) of the rows of
   // neighbour_rows() around `position` (m) that meets the row's x window; sorted_x: the
   // slots' x as in the window. The first `valid` slots of the block lie in the row, the rest
-  // are the next row's or padding. Defined in sph_model.cpp (its only user).
+  // are the next row's or padding.
   template <class Block>
   void for_neighbour_blocks(const Vec3& position, const std::vector<std::uint32_t>& start, const float* sorted_x,
                             Block&& block) const;
   // Calls visit(slot) for every slot in the 27 cells around (x, y, z), cells in grid order.
   template <class Visit>
-  void for_neighbours(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const {
-    for_neighbour_rows(x, y, z, start, [&](std::uint32_t begin, std::uint32_t end) {
-      for (std::uint32_t j = begin; j < end; ++j) visit(j);
-    });
-  }
+  void for_neighbours(double x, double y, double z, const std::vector<std::uint32_t>& start, Visit&& visit) const;
 
   scene::SphSettings settings_;
   Kernel kernel_;
@@ -399,7 +358,7 @@ class SphModel {
   std::vector<float> fstress_;         // Pa, component q of slot s at q (n + kLanes) + s (only with stress)
   std::vector<float> fartificial_;     // artificial stress R / rho^2 per sorted slot like fstress_, Pa m^6/kg^2
   std::vector<float> bstress_;         // Pa, per sorted wall slot like fstress_: the fluid's stress extrapolated
-  std::vector<double> bmoment_;        // kernel moments per sorted wall slot (only with stress; sph_model.cpp)
+  std::vector<double> bmoment_;        // kernel moments per sorted wall slot (only with stress; passes/walls.cpp)
   std::vector<float> feta_;            // effective viscosity per sorted fluid particle, Pa s (only with gradients)
   std::vector<double> out_drho_;       // drho/dt per sorted fluid particle, kg/m^3/s
   double max_mu_ = 0;                  // largest |h v_ij.r_ij / (r^2 + eta^2)| in the last compute, m/s

@@ -1,6 +1,7 @@
 // SphModel::sample(): the fluid at a point, for gauges (docs/scene.md, [[gauges]]).
 #include <Eigen/Cholesky>
 
+#include "sph_solver/passes/neighbours.hpp"
 #include "sph_solver/sph_model.hpp"
 
 namespace sabo::sph {
