@@ -1,3 +1,7 @@
+// The DEM model (dem_model.hpp): the spheres' arrays sorted by cell, the pair-law table, walls, the
+// neighbour lists, the contact loop, integration, the stable step and the contact histories. Over 800
+// lines as one concept: every pass reads and writes the same cell-sorted arrays; the contact laws
+// themselves are libsabo/physics'.
 #include "dem_solver/dem_model.hpp"
 
 #include <fmt/format.h>

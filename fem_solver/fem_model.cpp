@@ -1,3 +1,6 @@
+// The FEM model (fem_model.hpp): the parts (rigid, solid, shell), their combined contact surface and its
+// topology revisions, the node forces, the step, checkpoints and output. Over 800 lines as one concept,
+// the model's assembly of its parts; the kernels are in elements/, materials/, solid_body and shell_body.
 #include "fem_solver/fem_model.hpp"
 
 #include <fmt/format.h>

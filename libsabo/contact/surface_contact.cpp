@@ -1,3 +1,6 @@
+// The particle-surface penalty contact (surface_contact.hpp, paper eqs. 3-6). Over 800 lines as one
+// concept: the surface's geometry and grid, the closest-feature search, the one-contact-per-smooth-surface
+// rule and the contacts' history are one algorithm; the laws are libsabo/physics'.
 #include "libsabo/contact/surface_contact.hpp"
 
 #include <fmt/format.h>

@@ -6,5 +6,6 @@ target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/hdf5.cpp
   ${CMAKE_CURRENT_LIST_DIR}/stl.cpp
   ${CMAKE_CURRENT_LIST_DIR}/traffic.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/traffic_reader.cpp
   ${CMAKE_CURRENT_LIST_DIR}/vtk.cpp
 )

@@ -1,6 +1,7 @@
 // Particle-surface penalty contact (paper eqs. 3-6): hand-computed forces for
 // face, edge and vertex contacts, eq. 6 stiffness, friction, one contact per
-// smooth surface, Newton's third law, search and determinism.
+// smooth surface, Newton's third law, search and determinism. Over 800 lines as
+// one concept: each case is computed by hand beside the contact's result.
 #include <gtest/gtest.h>
 #include <omp.h>
 

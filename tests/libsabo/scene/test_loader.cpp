@@ -1,5 +1,7 @@
 // The scene loader: the configs load, values map onto the scene model,
-// defaults agree with scene.hpp, and the checks across keys fire.
+// defaults agree with scene.hpp, and the checks across keys fire. Over 800
+// lines as one concept, the loader's mapping of every section; the refused
+// scenes of tests/scenes/bad are test_bad_scenes.cpp's.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
