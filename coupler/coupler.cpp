@@ -25,13 +25,7 @@ namespace sabo::coupler {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using sabo::v1::MessageType;
-constexpr std::chrono::milliseconds kPollSlice{100};
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 bool all_finite(const google::protobuf::RepeatedField<double>& values) {
   return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });

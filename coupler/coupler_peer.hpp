@@ -1,5 +1,6 @@
 #pragma once
-// One registered solver as the coupler's loop keeps it (coupler.cpp and coupler_checkpoint.cpp).
+// One registered solver as the coupler's loop keeps it, and the loop's clock (coupler.cpp,
+// coupler_registration.cpp, coupler_summary.cpp and coupler_checkpoint.cpp).
 #include <chrono>
 #include <memory>
 #include <optional>
@@ -11,6 +12,14 @@
 #include "sabo/v1/sabo.pb.h"
 
 namespace sabo::coupler {
+
+using Clock = std::chrono::steady_clock;
+// How long one receive waits before the loop checks for stop signals and hung peers.
+inline constexpr std::chrono::milliseconds kPollSlice{100};
+
+inline double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 struct Coupler::Peer {
   std::string identity;

@@ -15,16 +15,6 @@
 
 namespace sabo::coupler {
 
-namespace {
-
-using Clock = std::chrono::steady_clock;
-constexpr std::chrono::milliseconds kPollSlice{100};
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-}  // namespace
-
 void Coupler::accept_registration(const protocol::Inbound& inbound) {
   sabo::v1::Register registration;
   sabo::v1::RegisterReply reply;
@@ -136,11 +126,7 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   // A resumed run's recording holds the registrations of its start already.
   if (recorder_ && !resume_step_) recorder_->record_registration(name, peer->registration);
   if (resume_step_) peer->checkpoint_step = *resume_step_;  // its restart journal starts at its checkpoint
-  solvers_.set({.role = peer->role,
-                .name = peer->name(),
-                .beta = peer->beta,
-                .registration = &peer->registration,
-                .state = &peer->state});
+  solvers_.set({.role = peer->role, .beta = peer->beta, .registration = &peer->registration, .state = &peer->state});
   peers_.push_back(std::move(peer));
 }
 

@@ -13,15 +13,6 @@
 
 namespace sabo::coupler {
 
-namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-}  // namespace
-
 void Coupler::write_summary(const std::string& status) {
   using nlohmann::json;
   const double wall = wall_before_ + seconds_since(start_wall_);

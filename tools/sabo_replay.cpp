@@ -146,10 +146,11 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
     }
     steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
   }
+  const std::optional<Role> solver_role = role_from_name(role);
   require_fields(traffic,
-                 role == "fem_solver"   ? std::vector<std::string>{"node_force"}
-                 : role == "sph_solver" ? std::vector<std::string>{"force", "boundary_particles"}
-                                        : std::vector<std::string>{"force", "torque"},
+                 solver_role == Role::fem   ? std::vector<std::string>{"node_force"}
+                 : solver_role == Role::sph ? std::vector<std::string>{"force", "boundary_particles"}
+                                            : std::vector<std::string>{"force", "torque"},
                  "drive the solver");
   const sabo::v1::Register recorded_registration = traffic.registration(role);
   comparison.skip(unrecorded_state_fields(traffic, recorded_registration));

@@ -55,9 +55,8 @@ namespace sabo::coupler {
 
 // One registered solver as the pairs see it: its registration and its state of this step.
 struct SolverView {
-  Role role = Role::dem;
-  std::string name;  // "dem_solver", ...
-  double beta = 1;   // eq. 7 scale of its stable step
+  Role role = Role::dem;  // its process: role_name(role)
+  double beta = 1;        // eq. 7 scale of its stable step
   const sabo::v1::Register* registration = nullptr;
   const sabo::v1::StepState* state = nullptr;
 };

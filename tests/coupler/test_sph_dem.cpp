@@ -75,8 +75,8 @@ struct TwoSolvers {
       st->add_id(j), st->add_radius(r), st->add_mass(2650 * 4.0 / 3.0 * std::numbers::pi * r * r * r);
       st->add_material(0), st->add_body(0);
     }
-    solvers.set({sabo::Role::sph, "sph_solver", fluid_beta, &fluid_registration, &fluid});
-    solvers.set({sabo::Role::dem, "dem_solver", 1.0, &sphere_registration, &spheres});
+    solvers.set({sabo::Role::sph, fluid_beta, &fluid_registration, &fluid});
+    solvers.set({sabo::Role::dem, 1.0, &sphere_registration, &spheres});
   }
   void set_fluid(const std::vector<Vec3>& x, const std::vector<Vec3>& v, std::uint64_t step) {
     fluid.Clear();

@@ -37,8 +37,8 @@ class SphDemHarness {
       dt->add_id(j), dt->add_radius(dem_.radii()[j]), dt->add_mass(dem_.masses()[j]);
       dt->add_material(dem_.material_index()[j]), dt->add_body(dem_.body_index()[j]);
     }
-    solvers_.set({sabo::Role::sph, "sph_solver", 1.0, &sph_registration_, &sph_state_});
-    solvers_.set({sabo::Role::dem, "dem_solver", 1.0, &dem_registration_, &dem_state_});
+    solvers_.set({sabo::Role::sph, 1.0, &sph_registration_, &sph_state_});
+    solvers_.set({sabo::Role::dem, 1.0, &dem_registration_, &dem_state_});
     for (auto& p : pairs_) p->start(solvers_, replies_);
   }
 
