@@ -101,10 +101,15 @@ void ConnectionGuard::tick() {
     ++stats_.dropped_unregistered;
   }
   if (open_.size() > limits_.max_unregistered) {
+    // Only connections the guard knew before this tick: one it has just learnt of may have its Register
+    // queued in the socket already, unread, and is judged at the next tick (with max_unregistered = 0
+    // every solver's connection would otherwise race its own registration).
     std::vector<std::pair<Clock::time_point, int>> by_age;
-    for (const auto& [fd, since] : open_) by_age.emplace_back(since, fd);
+    for (const auto& [fd, since] : open_) {
+      if (since < now) by_age.emplace_back(since, fd);
+    }
     std::sort(by_age.begin(), by_age.end());
-    const std::size_t excess = open_.size() - limits_.max_unregistered;
+    const std::size_t excess = std::min(open_.size() - limits_.max_unregistered, by_age.size());
     for (std::size_t k = 0; k < excess; ++k) {
       shut(by_age[k].second);
       ++stats_.dropped_over_limit;

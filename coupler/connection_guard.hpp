@@ -11,8 +11,9 @@
 // one that ends (ZMQ_EVENT_DISCONNECTED, ZMQ_EVENT_CLOSED). A message carries
 // the descriptor it came in on (ZMQ_SRCFD). The guard uses these: a
 // connection that has not carried an accepted registration within `window`,
-// or beyond the `max_unregistered` most recent such connections, is shut down
-// (shutdown(2), SHUT_RDWR: ZeroMQ then sees the end of the stream and closes
+// or beyond the `max_unregistered` most recent such connections (judged from the
+// tick after the one that reads its "accepted" event, so that a Register already
+// queued is read first), is shut down (shutdown(2), SHUT_RDWR: ZeroMQ then sees the end of the stream and closes
 // it as if the peer had left). The connections of registered solvers are never
 // touched. A DEALER that is cut off reconnects by itself.
 //
