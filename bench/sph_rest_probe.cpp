@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "libsabo/scene/names.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
 
@@ -28,10 +29,11 @@ int main(int argc, char** argv) {
   CLI::App app("S4 tank at rest: where and when the fastest particle is");
   std::string kernel = "cubic_spline", diffusion = "fourtakas";
   double ratio = 1.3, alpha = 0.1, delta = 0.1, periods = 10, report = 0.25, res = 10, wall_top = 4, settle = 0;
-  app.add_option("--kernel", kernel)->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
+  app.add_option("--kernel", kernel)->check(CLI::IsMember(scene::choice_names<scene::SphSettings::Kernel>()));
   app.add_option("--ratio", ratio, "h / dx");
   app.add_option("--alpha", alpha, "artificial viscosity");
-  app.add_option("--diffusion", diffusion)->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
+  app.add_option("--diffusion", diffusion)
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::DensityDiffusion>()));
   app.add_option("--delta", delta, "density diffusion delta");
   app.add_option("--periods", periods, "run length, sqrt(H/g)");
   app.add_option("--report", report, "report window, sqrt(H/g)");
@@ -40,15 +42,15 @@ int main(int argc, char** argv) {
   app.add_option("--settle", settle, "the water's settling phase from t = 0, sqrt(H/g)");
   std::string wall_work = "bounded";
   app.add_option("--wall-work", wall_work, "sph.wall_work (the default: bounded)")
-      ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::WallWork>()));
   CLI11_PARSE(app, argc, argv);
   const double H = 0.2, dx = H / res, g = 9.81, L = 0.2, W = 0.1;
   scene::Scene s = sph::testing::water_scene(dx, 10 * std::sqrt(g * H), ratio);
-  s.sph.kernel = scene::SphSettings::kernel_named(kernel);
-  s.sph.wall_work = scene::SphSettings::wall_work_named(wall_work);
+  s.sph.kernel = scene::value_named<scene::SphSettings::Kernel>(kernel);
+  s.sph.wall_work = scene::value_named<scene::SphSettings::WallWork>(wall_work);
   s.sph.artificial_viscosity = alpha;
   s.sph.density_diffusion_delta = delta;
-  s.sph.density_diffusion = scene::SphSettings::density_diffusion_named(diffusion);
+  s.sph.density_diffusion = scene::value_named<scene::SphSettings::DensityDiffusion>(diffusion);
   s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3(L, W, H)));
   const double T = std::sqrt(H / g), U = std::sqrt(g * H);
   s.fluids.back().settle_time = settle * T;

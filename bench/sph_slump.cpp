@@ -9,6 +9,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "libsabo/scene/names.hpp"
+
 int main(int argc, char** argv) {
   using namespace sabo;
   CLI::App app("Bingham column slump on a rigid floor");
@@ -22,9 +24,10 @@ int main(int argc, char** argv) {
   app.add_option("--yield-shear-rate", c.yield_shear_rate, "gamma_0 of the regularisation, 1/s");
   app.add_option("--end-time", c.t_end, "s, at most");
   app.add_option("--rest-speed", c.rest_speed, "m/s: the collapse has ended when the fastest particle stays below it");
-  app.add_option("--viscous-operator", op, "sph.viscous_operator")->check(CLI::IsMember({"strain_rate", "morris"}));
+  app.add_option("--viscous-operator", op, "sph.viscous_operator")
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::ViscousOperator>()));
   CLI11_PARSE(app, argc, argv);
-  c.op = scene::SphSettings::viscous_operator_named(op);
+  c.op = scene::value_named<scene::SphSettings::ViscousOperator>(op);
   const sph::testing::SlumpRun run = sph::testing::run_slump(c, [](double t, double top, double fastest) {
     fmt::print("t {:.3f} s  top {:.4f} H  fastest {:.4f} m/s\n", t, top, fastest);
   });

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "libsabo/scene/names.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
 
@@ -87,19 +88,20 @@ int main(int argc, char** argv) {
   app.add_option("--impact-time", impact_time, "simulated time of the wall impact run, s");
   std::string kernel = "wendland_c2";
   app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")
-      ->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::Kernel>()));
   app.add_option("--ratio", smoothing_ratio, "h / dx");
   app.add_option("--trace", trace_every, "print the energies every N steps (0: never)");
   app.add_option("--settle", settle_periods, "the tank's settling phase from t = 0, sqrt(H/g)");
   std::string diffusion = "fourtakas";
-  app.add_option("--diffusion", diffusion, "density diffusion")->check(CLI::IsMember({"none", "molteni", "fourtakas"}));
+  app.add_option("--diffusion", diffusion, "density diffusion")
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::DensityDiffusion>()));
   std::string wall_work = "bounded";
   app.add_option("--wall-work", wall_work, "sph.wall_work: what becomes of the walls' work")
-      ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::WallWork>()));
   CLI11_PARSE(app, argc, argv);
-  kernel_choice = scene::SphSettings::kernel_named(kernel);
-  diffusion_choice = scene::SphSettings::density_diffusion_named(diffusion);
-  wall_work_choice = scene::SphSettings::wall_work_named(wall_work);
+  kernel_choice = scene::value_named<scene::SphSettings::Kernel>(kernel);
+  diffusion_choice = scene::value_named<scene::SphSettings::DensityDiffusion>(diffusion);
+  wall_work_choice = scene::value_named<scene::SphSettings::WallWork>(wall_work);
   fmt::print("kernel {}, h = {} dx, wall_work {}\n", kernel, smoothing_ratio, wall_work);
   {
     const double H = 0.2, dx = 0.02, L = 0.2, W = 0.1;

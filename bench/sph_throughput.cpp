@@ -15,6 +15,7 @@
 #include <fstream>
 #include <utility>
 
+#include "libsabo/scene/names.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
 
@@ -30,6 +31,7 @@ double resident_megabytes() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  using namespace sabo;
   CLI::App app("SPH throughput on a 3-D dam break");
   double dx = 0.009, ratio = 1.3;
   int steps = 20;
@@ -37,24 +39,23 @@ int main(int argc, char** argv) {
   app.add_option("--spacing", dx, "particle spacing, m (0.009: about 170 000 particles)");
   app.add_option("--steps", steps, "timed steps");
   app.add_option("--kernel", kernel, "wendland_c2 or cubic_spline")
-      ->check(CLI::IsMember({"wendland_c2", "cubic_spline"}));
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::Kernel>()));
   app.add_option("--ratio", ratio, "h / dx");
   std::string wall_work = "bounded";
   app.add_option("--wall-work", wall_work, "sph.wall_work (the default: bounded)")
-      ->check(CLI::IsMember({"bounded", "stored", "unstored"}));
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::WallWork>()));
   std::string rheology = "inviscid", viscous_operator = "strain_rate";
   app.add_option("--rheology", rheology, "the column's rheology (inviscid water: the default)")
       ->check(CLI::IsMember({"inviscid", "newtonian", "bingham"}));
   app.add_option("--viscous-operator", viscous_operator, "sph.viscous_operator (the default: strain_rate)")
-      ->check(CLI::IsMember({"strain_rate", "morris"}));
+      ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::ViscousOperator>()));
   CLI11_PARSE(app, argc, argv);
 
-  using namespace sabo;
   const double a = 0.4;
   scene::Scene s = sph::testing::water_scene(dx, 10.0 * std::sqrt(2 * 9.81 * 2 * a), ratio);
-  s.sph.kernel = scene::SphSettings::kernel_named(kernel);
-  s.sph.wall_work = scene::SphSettings::wall_work_named(wall_work);
-  s.sph.viscous_operator = scene::SphSettings::viscous_operator_named(viscous_operator);
+  s.sph.kernel = scene::value_named<scene::SphSettings::Kernel>(kernel);
+  s.sph.wall_work = scene::value_named<scene::SphSettings::WallWork>(wall_work);
+  s.sph.viscous_operator = scene::value_named<scene::SphSettings::ViscousOperator>(viscous_operator);
   scene::Material& material = s.materials[0];
   if (rheology == "newtonian") {
     material.rheology = scene::Material::Rheology::newtonian;

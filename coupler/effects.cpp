@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <set>
 
+#include "libsabo/scene/names.hpp"
+
 namespace sabo::coupler {
 
 namespace {
@@ -11,17 +13,6 @@ double compute_seconds(const nlohmann::json& processes, const char* name) {
   const auto it = processes.find(name);
   if (it == processes.end() || !it->contains("compute_seconds")) return 0;
   return (*it)["compute_seconds"].get<double>();
-}
-
-const char* rheology_name(scene::Material::Rheology rheology) {
-  switch (rheology) {
-    case scene::Material::Rheology::inviscid: return "inviscid";
-    case scene::Material::Rheology::newtonian: return "newtonian";
-    case scene::Material::Rheology::bingham: return "bingham";
-    case scene::Material::Rheology::herschel_bulkley: return "herschel_bulkley";
-    case scene::Material::Rheology::elastic_plastic: return "elastic_plastic";
-  }
-  return "unknown";
 }
 
 const scene::Material& material_named(const scene::Scene& scene, const std::string& name) {
@@ -44,7 +35,7 @@ nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& p
   if (scene.needs(Role::sph)) {
     std::set<std::string> rheologies;
     for (const auto& fluid : scene.fluids)
-      rheologies.insert(rheology_name(material_named(scene, fluid.material).rheology));
+      rheologies.insert(std::string(scene::name_of(material_named(scene, fluid.material).rheology)));
     effects.push_back({{"effect", "sph_fluid"},
                        {"process", "sph_solver"},
                        {"seconds", compute_seconds(processes, "sph_solver")},

@@ -79,6 +79,9 @@ struct RunSettings {
   Vec3 gravity{0, 0, -9.81};     // m/s^2
   double hang_timeout = 10.0;    // s: a solver silent this long is declared hung
   std::optional<double> max_dt;  // s: upper bound on the coupled dt
+  // Each solver at a power-of-two fraction of the exchange step, contact forces held between exchanges
+  // (docs/architecture.md, "Multirate"); false: every solver at the smallest stable step (paper eq. 7).
+  bool multirate = false;
   // s between checkpoints; absent: end_time / 10; 0: none (checkpoint_period() resolves it).
   std::optional<double> checkpoint_interval;
   std::size_t checkpoints_kept = 2;
@@ -390,21 +393,6 @@ struct SphSettings {
   ViscousOperator viscous_operator = ViscousOperator::strain_rate;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
-  // The scene's names (docs/scene.md) of the choices above; the name must be one of them.
-  [[nodiscard]] static Kernel kernel_named(std::string_view name) {
-    return name == "cubic_spline" ? Kernel::cubic_spline : Kernel::wendland_c2;
-  }
-  [[nodiscard]] static WallWork wall_work_named(std::string_view name) {
-    return name == "stored" ? WallWork::stored : name == "unstored" ? WallWork::unstored : WallWork::bounded;
-  }
-  [[nodiscard]] static ViscousOperator viscous_operator_named(std::string_view name) {
-    return name == "morris" ? ViscousOperator::morris : ViscousOperator::strain_rate;
-  }
-  [[nodiscard]] static DensityDiffusion density_diffusion_named(std::string_view name) {
-    return name == "none"      ? DensityDiffusion::none
-           : name == "molteni" ? DensityDiffusion::molteni
-                               : DensityDiffusion::fourtakas;
-  }
 };
 
 // One body of slurry, filled with particles on a cubic lattice of spacing
@@ -448,10 +436,11 @@ inline constexpr double kSettleDampingGrowth = 20.0;
 struct Gauge {
   std::string name;
   Origin origin;
-  Vec3 start = Vec3::Zero();  // m; the point of a point gauge
-  Vec3 end = Vec3::Zero();    // m; = start for a point gauge
-  std::size_t points = 1;     // 1: a point gauge, >= 2: a line
-  double interval = 0;        // s between two samples; 0: the run's output_interval
+  Vec3 start = Vec3::Zero();                      // m; the point of a point gauge
+  Vec3 end = Vec3::Zero();                        // m; = start for a point gauge
+  std::size_t points = 1;                         // 1: a point gauge, >= 2: a line
+  static constexpr std::size_t kLinePoints = 20;  // a line gauge's points when the scene does not say
+  double interval = 0;                            // s between two samples; 0: the run's output_interval
   [[nodiscard]] bool line() const { return points > 1; }
   // Point k of the gauge, m.
   [[nodiscard]] Vec3 point(std::size_t k) const {

@@ -3,10 +3,14 @@
 // the code that reads it (sections/*.cpp).
 #include <fmt/format.h>
 
+#include <cassert>
+#include <concepts>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
+#include "libsabo/scene/names.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "libsabo/scene/schema.hpp"
 
@@ -24,9 +28,35 @@ class K {
     key_.example = std::move(example);
     return *this;
   }
-  K& def(std::string literal) {
-    key_.default_value = std::move(literal);
-    return *this;
+  // The default a key takes when absent, rendered as a TOML literal from the initialiser of the
+  // scene model's member (scene.hpp), the one place a default is written: pass that member.
+  K& def(double value) { return literal(number_literal(value)); }
+  template <std::integral Integer>
+  requires(!std::same_as<Integer, bool>) K& def(Integer value) { return literal(std::to_string(value)); }
+  K& def(bool value) { return literal(value ? "true" : "false"); }
+  K& def(const Vec3& value) {
+    return literal(
+        fmt::format("[{}, {}, {}]", number_literal(value.x()), number_literal(value.y()), number_literal(value.z())));
+  }
+  K& def(std::string_view text) {
+    assert(text.find_first_of("\"\\") == std::string_view::npos && "a plain TOML basic string");
+    return literal(fmt::format("\"{}\"", text));
+  }
+  K& def(const char* text) { return def(std::string_view(text)); }
+  K& def(const std::vector<std::string>& words) {
+    std::string text = "[";
+    for (const std::string& word : words) text += (text.size() > 1 ? ", \"" : "\"") + word + "\"";
+    return literal(text + "]");
+  }
+  // An enum's default also gives the key its choices (names.hpp).
+  template <NamedEnum Enum>
+  K& def(Enum value) {
+    choices_of<Enum>();
+    return def(name_of(value));
+  }
+  template <NamedEnum Enum>
+  K& choices_of() {
+    return choices(choice_names<Enum>());
   }
   K& absent(std::string meaning) {
     key_.when_absent = std::move(meaning);
@@ -76,6 +106,16 @@ class K {
     key_.range.max = v;
     key_.range.max_exclusive = exclusive;
     return *this;
+  }
+  K& literal(std::string text) {
+    key_.default_value = std::move(text);
+    return *this;
+  }
+  // Shortest text that reads back as the same double, with a decimal point (TOML float).
+  static std::string number_literal(double value) {
+    std::string text = fmt::format("{}", value);
+    if (text.find_first_not_of("-0123456789") == std::string::npos) text += ".0";
+    return text;
   }
   Key key_;
 };

@@ -14,16 +14,24 @@ void Schema::build_sph_fem() {
       "`sph.wall_model = \"penalty\"`. Defaults of "
       "every fluid/structure pair; `[[interactions]]` override them per pair.";
   sph_fem.keys = {
-      K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
-      K("penalty_scale", Type::number).def("0.1").gt(0).doc("k1 of eq. 6."),
+      K("friction", Type::number).def(Scene{}.sph_fem_default.friction).ge(0).doc("Coulomb friction coefficient."),
+      K("penalty_scale", Type::number).def(Scene{}.sph_fem_default.penalty_scale).gt(0).doc("k1 of eq. 6."),
       K("normal_stiffness", Type::number)
           .absent("eq. 6")
           .example("1e8")
           .unit("N/m")
           .gt(0)
           .doc("Normal stiffness replacing eq. 6."),
-      K("normal_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
-      K("tangential_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Tangential damping ratio."),
+      K("normal_damping_ratio", Type::number)
+          .def(Scene{}.sph_fem_default.normal_damping_ratio)
+          .ge(0)
+          .lt(1)
+          .doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
+      K("tangential_damping_ratio", Type::number)
+          .def(Scene{}.sph_fem_default.tangential_damping_ratio)
+          .ge(0)
+          .lt(1)
+          .doc("Tangential damping ratio."),
   };
 }
 
@@ -44,8 +52,7 @@ void Schema::build_sph_dem() {
       "particles touch it, so buoyancy comes only through contacts and is not Archimedes'.";
   sph_dem.keys = {
       K("model", Type::string)
-          .def("\"boundary_particles\"")
-          .choices({"boundary_particles", "penalty"})
+          .def(SphDemContact{}.model)
           .doc("Contact law: boulder surfaces as wall particles, or the paper's penalty."),
       K("normal_stiffness", Type::number)
           .absent("rho0 c^2 dx, lowered so that 0.2 pi sqrt(rho0 dx^3 / K) >= cfl h / c")
@@ -55,12 +62,12 @@ void Schema::build_sph_dem() {
           .doc("Penalty stiffness K (penalty only); its pair step 0.2 pi sqrt(rho0 dx^3 / K) may not be below "
                "the SPH step cfl h / c."),
       K("normal_damping_ratio", Type::number)
-          .def("0.0")
+          .def(SphDemContact{}.normal_damping_ratio)
           .ge(0)
           .lt(1)
           .doc("Normal damping of the penalty law: eta = 2 ratio sqrt(K m*), m* the reduced mass (penalty only)."),
       K("friction", Type::number)
-          .def("0.0")
+          .def(SphDemContact{}.friction)
           .ge(0)
           .doc("Coulomb friction of the penalty law, tangential spring k_t = K (penalty only)."),
   };
@@ -110,26 +117,30 @@ void Schema::build_contact() {
       "`normal_stiffness` or `normal_stiffness_scale`, not both.";
   const std::string damping_doc = "damping as a fraction of critical damping (linear).";
   dem_dem.keys = {
-      K("model", Type::string).def("\"linear\"").choices({"linear", "hertz_mindlin"}).doc("Contact law."),
-      K("normal_damping_ratio", Type::number).def("0.7").ge(0).lt(1).doc("Normal " + damping_doc),
+      K("model", Type::string).def(DemContact{}.model).doc("Contact law."),
+      K("normal_damping_ratio", Type::number)
+          .def(DemContact{}.normal_damping_ratio)
+          .ge(0)
+          .lt(1)
+          .doc("Normal " + damping_doc),
       K("tangential_damping_ratio", Type::number)
-          .def("0.4")
+          .def(DemContact{}.tangential_damping_ratio)
           .ge(0)
           .lt(1)
           .doc("Tangential " + damping_doc + " Also the rolling spring's dashpot."),
       K("restitution", Type::number)
-          .def("0.5")
+          .def(DemContact{}.restitution)
           .gt(0)
           .le(1)
           .doc("Coefficient of restitution of the normal impact (hertz_mindlin); 1: no damping."),
-      K("friction", Type::number).def("1.0").ge(0).doc("Sliding friction coefficient."),
-      K("rolling", Type::string).def("\"constant\"").choices({"constant", "viscous"}).doc("Rolling resistance model."),
+      K("friction", Type::number).def(DemContact{}.friction).ge(0).doc("Sliding friction coefficient."),
+      K("rolling", Type::string).def(DemContact{}.rolling).doc("Rolling resistance model."),
       K("rolling_friction", Type::number)
-          .def("0.1")
+          .def(DemContact{}.rolling_friction)
           .ge(0)
           .doc("Constant rolling resistance: torque = rolling_friction * r_eff * |F_n| (0: none)."),
       K("rolling_viscosity", Type::number)
-          .def("0.0")
+          .def(DemContact{}.rolling_viscosity)
           .unit("s/m")
           .ge(0)
           .doc("Viscous rolling resistance: torque = rolling_viscosity * r_eff * |F_n| * r_eff |w_rel|."),
@@ -140,11 +151,11 @@ void Schema::build_contact() {
           .gt(0)
           .doc("Linear normal contact stiffness, the same for every pair."),
       K("normal_stiffness_scale", Type::number)
-          .def("0.01")
+          .def(DemContact{}.normal_stiffness_scale)
           .gt(0)
           .doc("LS-DYNA's NormK: k_n = scale * K1 r1 K2 r2 / (K1 r1 + K2 r2), K the bulk modulus, r the radius."),
       K("tangential_stiffness_ratio", Type::number)
-          .def("0.2857142857142857")
+          .def(DemContact{}.tangential_stiffness_ratio)
           .gt(0)
           .doc("k_t / k_n of the linear law (2/7 keeps normal and tangential oscillations in step)."),
       K("pairs", Type::table_list)
@@ -165,11 +176,7 @@ void Schema::build_contact() {
           .required("[\"granite\", \"sandstone\"]")
           .allowed("two `[materials.NAME]`")
           .doc("The two materials."),
-      K("model", Type::string)
-          .absent(from_dem)
-          .example("\"hertz_mindlin\"")
-          .choices({"linear", "hertz_mindlin"})
-          .doc("Contact law."),
+      K("model", Type::string).absent(from_dem).example("\"hertz_mindlin\"").choices_of<DemLaw>().doc("Contact law."),
       K("normal_damping_ratio", Type::number).absent(from_dem).example("0.7").ge(0).lt(1).doc("Normal " + damping_doc),
       K("tangential_damping_ratio", Type::number)
           .absent(from_dem)
@@ -187,7 +194,7 @@ void Schema::build_contact() {
       K("rolling", Type::string)
           .absent(from_dem)
           .example("\"viscous\"")
-          .choices({"constant", "viscous"})
+          .choices_of<RollingModel>()
           .doc("Rolling resistance model."),
       K("rolling_friction", Type::number)
           .absent(from_dem)
@@ -213,17 +220,16 @@ void Schema::build_contact() {
       "sphere's radius) is off by default here.";
   dem_fem.keys = {
       K("model", Type::string)
-          .def("\"penalty\"")
-          .choices({"penalty", "hertz_mindlin"})
+          .def(SurfaceContact{}.model)
           .doc("Contact law: the paper's penalty (eqs. 3-6) or Hertz-Mindlin."),
       K("restitution", Type::number)
-          .def("0.5")
+          .def(SurfaceContact{}.restitution)
           .gt(0)
           .le(1)
           .doc("Coefficient of restitution (hertz_mindlin only; refused with the penalty law); 1: no damping."),
-      K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
+      K("friction", Type::number).def(SurfaceContact{}.friction).ge(0).doc("Coulomb friction coefficient."),
       K("penalty_scale", Type::number)
-          .def("0.1")
+          .def(SurfaceContact{}.penalty_scale)
           .gt(0)
           .doc("k1 of eq. 6: k_n = k1 K s^2 / V (solid face) or k1 K s / max_diagonal (shell)."),
       K("normal_stiffness", Type::number)
@@ -232,24 +238,27 @@ void Schema::build_contact() {
           .unit("N/m")
           .gt(0)
           .doc("Normal stiffness replacing eq. 6."),
-      K("normal_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
+      K("normal_damping_ratio", Type::number)
+          .def(SurfaceContact{}.normal_damping_ratio)
+          .ge(0)
+          .lt(1)
+          .doc("Normal damping: c_n = 2 ratio sqrt(k_n m)."),
       K("tangential_damping_ratio", Type::number)
-          .def("0.0")
+          .def(SurfaceContact{}.tangential_damping_ratio)
           .ge(0)
           .lt(1)
           .doc("Tangential damping ratio (and the rolling spring's dashpot)."),
       K("rolling", Type::string)
-          .def("\"constant\"")
-          .choices({"constant", "viscous"})
+          .def(SurfaceContact{}.rolling)
           .doc("Rolling resistance model against the structure (as `[contact.dem_dem]`, r_eff = the sphere's "
                "radius)."),
       K("rolling_friction", Type::number)
-          .def("0.0")
+          .def(SurfaceContact{}.rolling_friction)
           .ge(0)
           .doc("Constant rolling resistance against the structure: an elastic-plastic rolling spring capped at "
                "rolling_friction * r * |F_n| (0: none)."),
       K("rolling_viscosity", Type::number)
-          .def("0.0")
+          .def(SurfaceContact{}.rolling_viscosity)
           .unit("s/m")
           .ge(0)
           .doc("Viscous rolling resistance against the structure: torque = rolling_viscosity * r * |F_n| * r |w|."),
@@ -273,11 +282,11 @@ void Schema::build_fem_fem() {
       "sqrt(m / k_n) is part of the fem_solver's.";
   fem_fem.keys = {
       K("enabled", Type::boolean)
-          .def("false")
+          .def(Scene{}.fem_fem_default.enabled)
           .doc("`true`: every pair of structures (at least one deformable) is in contact."),
-      K("friction", Type::number).def("0.3").ge(0).doc("Coulomb friction coefficient."),
+      K("friction", Type::number).def(Scene{}.fem_fem_default.friction).ge(0).doc("Coulomb friction coefficient."),
       K("penalty_scale", Type::number)
-          .def("0.1")
+          .def(Scene{}.fem_fem_default.penalty_scale)
           .gt(0)
           .doc("k1 of eq. 6: k_n = k1 K s^2 / V (solid face) or k1 K s / max_diagonal (shell or rigid face)."),
       K("normal_stiffness", Type::number)
@@ -287,12 +296,16 @@ void Schema::build_fem_fem() {
           .gt(0)
           .doc("Normal stiffness replacing eq. 6."),
       K("normal_damping_ratio", Type::number)
-          .def("0.0")
+          .def(Scene{}.fem_fem_default.normal_damping_ratio)
           .ge(0)
           .lt(1)
           .doc("Normal damping: c_n = 2 ratio sqrt(k_n m), m the reduced mass of the node and the face's "
                "lightest node (a rigid side is infinitely heavy)."),
-      K("tangential_damping_ratio", Type::number).def("0.0").ge(0).lt(1).doc("Tangential damping ratio."),
+      K("tangential_damping_ratio", Type::number)
+          .def(Scene{}.fem_fem_default.tangential_damping_ratio)
+          .ge(0)
+          .lt(1)
+          .doc("Tangential damping ratio."),
   };
 }
 
@@ -305,7 +318,7 @@ namespace sabo::scene::detail {
 // the resulting law is the penalty one, which has no use for it.
 void Builder::read_surface_contact_law(Reader& r, SurfaceContact& contact, const char* model_fix) {
   if (auto v = r.string("model")) {
-    contact.model = *v == "hertz_mindlin" ? SurfaceContact::Model::hertz_mindlin : SurfaceContact::Model::penalty;
+    contact.model = value_named<SurfaceContact::Model>(*v);
   }
   if (auto v = r.number("restitution")) contact.restitution = *v;
   if (r.has("restitution") && contact.model != SurfaceContact::Model::hertz_mindlin) {
@@ -327,7 +340,7 @@ void Builder::read_surface_contact(Reader& r, SurfaceContact& contact) {
 // A sphere's rolling resistance against a structure ([contact.dem_fem] or a set's interaction): the
 // viscosity only with the viscous model, and a viscous model only with a viscosity.
 void Builder::read_surface_rolling(Reader& r, SurfaceContact& contact) {
-  if (auto v = r.string("rolling")) contact.rolling = *v == "viscous" ? RollingModel::viscous : RollingModel::constant;
+  if (auto v = r.string("rolling")) contact.rolling = value_named<RollingModel>(*v);
   if (auto v = r.number("rolling_friction")) contact.rolling_friction = *v;
   if (auto v = r.number("rolling_viscosity")) contact.rolling_viscosity = *v;
   if (r.has("rolling_viscosity") && contact.rolling != RollingModel::viscous) {
@@ -344,12 +357,12 @@ void Builder::read_surface_rolling(Reader& r, SurfaceContact& contact) {
 
 // The keys of one DEM-DEM contact law ([contact.dem_dem] or one of its pairs).
 void Builder::read_dem_law(Reader& r, DemContactLaw& law) {
-  if (auto v = r.string("model")) law.model = *v == "hertz_mindlin" ? DemLaw::hertz_mindlin : DemLaw::linear;
+  if (auto v = r.string("model")) law.model = value_named<DemLaw>(*v);
   if (auto v = r.number("normal_damping_ratio")) law.normal_damping_ratio = *v;
   if (auto v = r.number("tangential_damping_ratio")) law.tangential_damping_ratio = *v;
   if (auto v = r.number("restitution")) law.restitution = *v;
   if (auto v = r.number("friction")) law.friction = *v;
-  if (auto v = r.string("rolling")) law.rolling = *v == "viscous" ? RollingModel::viscous : RollingModel::constant;
+  if (auto v = r.string("rolling")) law.rolling = value_named<RollingModel>(*v);
   if (auto v = r.number("rolling_friction")) law.rolling_friction = *v;
   if (auto v = r.number("rolling_viscosity")) law.rolling_viscosity = *v;
 }
@@ -497,7 +510,7 @@ void Builder::read_contact(Reader& root) {
 // The keys of a fluid/particle-set contact ([contact.sph_dem] or an interaction of the two).
 void Builder::read_sph_dem_contact(Reader& r, SphDemContact& contact) {
   if (auto v = r.string("model")) {
-    contact.model = *v == "penalty" ? SphDemContact::Model::penalty : SphDemContact::Model::boundary_particles;
+    contact.model = value_named<SphDemContact::Model>(*v);
   }
   if (auto v = r.number("normal_stiffness")) contact.normal_stiffness = *v;
   if (auto v = r.number("normal_damping_ratio")) contact.normal_damping_ratio = *v;

@@ -18,23 +18,16 @@ void Schema::build_sph() {
   sph.keys = {
       K("particle_spacing", Type::number).required("0.02").unit("m").gt(0).doc("Initial particle spacing dx."),
       K("smoothing_ratio", Type::number)
-          .def("1.5")
+          .def(SphSettings{}.smoothing_ratio)
           .ge(0.5)
           .le(3)
           .doc("h / dx. The default 1.5 keeps a Wendland C2 lattice at rest (about 100 neighbours); at 1.3 it "
                "rearranges (docs/physics.md, \"The kernel at rest\"). With the cubic spline 1.3 holds and 1.5 "
                "does not."),
-      K("kernel", Type::string)
-          .def("\"wendland_c2\"")
-          .choices({"wendland_c2", "cubic_spline"})
-          .doc("Smoothing kernel; both have support 2h."),
-      K("wall_model", Type::string)
-          .def("\"boundary_particles\"")
-          .choices({"boundary_particles", "penalty"})
-          .doc("How structures act on the fluid (see above)."),
+      K("kernel", Type::string).def(SphSettings{}.kernel).doc("Smoothing kernel; both have support 2h."),
+      K("wall_model", Type::string).def(SphSettings{}.wall_model).doc("How structures act on the fluid (see above)."),
       K("wall_work", Type::string)
-          .def("\"bounded\"")
-          .choices({"bounded", "stored", "unstored"})
+          .def(SphSettings{}.wall_work)
           .doc("Boundary-particle walls: what becomes of the work that the walls' extrapolated pressure does "
                "on the fluid (docs/physics.md, \"Energy\"). `\"unstored\"`: nothing stores it (Adami et al. "
                "2012 as published); a column released beside walls gains up to 5e-4 of its energy. "
@@ -53,21 +46,23 @@ void Schema::build_sph() {
           .gt(0)
           .doc("Artificial sound speed c of every fluid: at least ten times the largest expected flow speed."),
       K("cfl", Type::number)
-          .def("0.25")
+          .def(SphSettings{}.cfl)
           .gt(0)
           .le(1)
           .doc("The stable dt sent to the coupler: cfl * min(h / (c + h max|div v|), sqrt(h / max|a|), "
                "rho h^2 / (8 eta)) (paper eq. 7's SPH term with its force and viscous conditions)."),
-      K("artificial_viscosity", Type::number).def("0.01").ge(0).doc("Monaghan's alpha."),
+      K("artificial_viscosity", Type::number).def(SphSettings{}.artificial_viscosity).ge(0).doc("Monaghan's alpha."),
       K("density_diffusion", Type::string)
-          .def("\"fourtakas\"")
-          .choices({"none", "molteni", "fourtakas"})
+          .def(SphSettings{}.density_diffusion)
           .doc("delta-SPH term of the continuity equation: Molteni & Colagrossi 2009, or with the hydrostatic "
                "part taken out (Fourtakas et al. 2019)."),
-      K("density_diffusion_delta", Type::number).def("0.1").ge(0).le(1).doc("delta of the density diffusion."),
+      K("density_diffusion_delta", Type::number)
+          .def(SphSettings{}.density_diffusion_delta)
+          .ge(0)
+          .le(1)
+          .doc("delta of the density diffusion."),
       K("viscous_operator", Type::string)
-          .def("\"strain_rate\"")
-          .choices({"strain_rate", "morris"})
+          .def(SphSettings{}.viscous_operator)
           .doc("How the viscous stress 2 eta D of the fluids (`rheology` newtonian, bingham, herschel_bulkley, "
                "elastic_plastic's `viscosity`) enters the momentum (docs/physics.md, \"Viscosity\"). "
                "`\"strain_rate\"`: the divergence of the deviatoric 2 eta D' = eta (L + L^T) - 2/3 eta tr(L) I, "
@@ -138,12 +133,12 @@ void Schema::build_sph() {
           .only_for({"extruded_polygon"})
           .doc("Polygon vertices (s, z) in order, at least 3, not self-intersecting."),
       K("origin", Type::vec3)
-          .def("[0.0, 0.0, 0.0]")
+          .def(FluidBody{}.profile_origin)
           .unit("m")
           .only_for({"extruded_polygon"})
           .doc("Where s = 0 (its z is ignored: profile heights are absolute)."),
       K("direction", Type::vec3)
-          .def("[1.0, 0.0, 0.0]")
+          .def(FluidBody{}.direction)
           .only_for({"extruded_polygon"})
           .doc("Horizontal direction of s (z = 0), not zero."),
       K("width", Type::number)
@@ -152,12 +147,12 @@ void Schema::build_sph() {
           .gt(0)
           .only_for({"extruded_polygon"})
           .doc("Extrusion width across `direction`."),
-      K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity."),
+      K("velocity", Type::vec3).def(FluidBody{}.velocity).unit("m/s").doc("Initial velocity."),
       K("hydrostatic", Type::boolean)
-          .def("true")
+          .def(FluidBody{}.hydrostatic)
           .doc("Start with the hydrostatic pressure of the column above each particle."),
       K("settle_time", Type::number)
-          .def("0.0")
+          .def(FluidBody{}.settle_time)
           .unit("s")
           .ge(0)
           .doc(fmt::format(
@@ -179,18 +174,13 @@ void Schema::build_sph() {
 namespace sabo::scene::detail {
 
 void Builder::read_fluid_material(Reader& r, Material& material) {
-  if (auto v = r.string("eos")) material.eos = *v == "polynomial" ? Material::Eos::polynomial : Material::Eos::tait;
+  if (auto v = r.string("eos")) material.eos = value_named<Material::Eos>(*v);
   if (auto v = r.number("tait_exponent")) material.tait_exponent = *v;
   if (auto v = r.number("eos_c0")) material.eos_c0 = *v;
   if (auto v = r.number("eos_c1")) material.eos_c1 = *v;
   if (auto v = r.number("eos_c2")) material.eos_c2 = *v;
   if (auto v = r.number("eos_c3")) material.eos_c3 = *v;
-  if (auto v = r.string("rheology")) {
-    if (*v == "newtonian") material.rheology = Material::Rheology::newtonian;
-    if (*v == "bingham") material.rheology = Material::Rheology::bingham;
-    if (*v == "herschel_bulkley") material.rheology = Material::Rheology::herschel_bulkley;
-    if (*v == "elastic_plastic") material.rheology = Material::Rheology::elastic_plastic;
-  }
+  if (auto v = r.string("rheology")) material.rheology = value_named<Material::Rheology>(*v);
   if (auto v = r.number("viscosity")) material.viscosity = *v;
   if (auto v = r.number("yield_shear_rate")) material.yield_shear_rate = *v;
   if (auto v = r.number("consistency_index")) material.consistency_index = *v;
@@ -221,17 +211,15 @@ void Builder::read_sph(Reader& root) {
   SphSettings& sph = scene_.sph;
   if (auto v = r.number("particle_spacing")) sph.particle_spacing = *v;
   if (auto v = r.number("smoothing_ratio")) sph.smoothing_ratio = *v;
-  if (auto v = r.string("kernel")) sph.kernel = SphSettings::kernel_named(*v);
-  if (auto v = r.string("wall_model")) {
-    sph.wall_model = *v == "penalty" ? SphSettings::WallModel::penalty : SphSettings::WallModel::boundary_particles;
-  }
-  if (auto v = r.string("wall_work")) sph.wall_work = SphSettings::wall_work_named(*v);
+  if (auto v = r.string("kernel")) sph.kernel = value_named<SphSettings::Kernel>(*v);
+  if (auto v = r.string("wall_model")) sph.wall_model = value_named<SphSettings::WallModel>(*v);
+  if (auto v = r.string("wall_work")) sph.wall_work = value_named<SphSettings::WallWork>(*v);
   if (auto v = r.number("sound_speed")) sph.sound_speed = *v;
   if (auto v = r.number("cfl")) sph.cfl = *v;
   if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
-  if (auto v = r.string("density_diffusion")) sph.density_diffusion = SphSettings::density_diffusion_named(*v);
+  if (auto v = r.string("density_diffusion")) sph.density_diffusion = value_named<SphSettings::DensityDiffusion>(*v);
   if (auto v = r.number("density_diffusion_delta")) sph.density_diffusion_delta = *v;
-  if (auto v = r.string("viscous_operator")) sph.viscous_operator = SphSettings::viscous_operator_named(*v);
+  if (auto v = r.string("viscous_operator")) sph.viscous_operator = value_named<SphSettings::ViscousOperator>(*v);
   const auto min = r.vec3("domain_min"), max = r.vec3("domain_max");
   if (r.has("domain_min") != r.has("domain_max")) {
     const char* given = r.has("domain_min") ? "domain_min" : "domain_max";

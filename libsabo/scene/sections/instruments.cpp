@@ -37,7 +37,12 @@ void Schema::build_gauges() {
           .unit("m")
           .only_for({"line"})
           .doc("Last point of the line, not `start`."),
-      K("points", Type::integer).def("20").ge(2).le(10000).only_for({"line"}).doc("Points along the line."),
+      K("points", Type::integer)
+          .def(Gauge::kLinePoints)
+          .ge(2)
+          .le(10000)
+          .only_for({"line"})
+          .doc("Points along the line."),
       K("interval", Type::number)
           .absent("`run.output_interval`")
           .example("0.001")

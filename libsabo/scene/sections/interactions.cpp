@@ -24,7 +24,7 @@ void Schema::build_interactions() {
                    "structures")
           .doc("The two bodies."),
       K("enabled", Type::boolean)
-          .def("true")
+          .def(SurfaceContact{}.enabled)
           .doc("`false` switches contact of this pair off (two structures: also when `[contact.fem_fem]` "
                "enables every pair)."),
       K("model", Type::string)
@@ -66,7 +66,7 @@ void Schema::build_interactions() {
       K("rolling", Type::string)
           .absent(from_default)
           .example("\"viscous\"")
-          .choices({"constant", "viscous"})
+          .choices_of<RollingModel>()
           .doc("Rolling resistance model (a particle set and a structure)."),
       K("rolling_friction", Type::number)
           .absent(from_default)

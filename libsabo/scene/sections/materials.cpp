@@ -36,29 +36,26 @@ void Schema::build_materials() {
       K("density", Type::number).required("3000.0").unit("kg/m^3").gt(0).doc("Mass density."),
       K("youngs_modulus", Type::number).required("30e9").unit("Pa").gt(0).doc("Young's modulus E."),
       K("poisson_ratio", Type::number).required("0.3").ge(0).lt(0.5).doc("Poisson's ratio nu."),
-      K("eos", Type::string).def("\"tait\"").choices({"tait", "polynomial"}).doc("Fluids: equation of state."),
-      K("tait_exponent", Type::number).def("7.0").ge(1).doc("Fluids, Tait: exponent gamma."),
-      K("eos_c0", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C0."),
+      K("eos", Type::string).def(Material{}.eos).doc("Fluids: equation of state."),
+      K("tait_exponent", Type::number).def(Material{}.tait_exponent).ge(1).doc("Fluids, Tait: exponent gamma."),
+      K("eos_c0", Type::number).def(Material{}.eos_c0).unit("Pa").doc("Fluids, polynomial: C0."),
       K("eos_c1", Type::number)
           .absent("required with eos = \"polynomial\"")
           .example("20e9")
           .unit("Pa")
           .gt(0)
           .doc("Fluids, polynomial: C1."),
-      K("eos_c2", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C2."),
-      K("eos_c3", Type::number).def("0.0").unit("Pa").doc("Fluids, polynomial: C3."),
-      K("rheology", Type::string)
-          .def("\"inviscid\"")
-          .choices({"inviscid", "newtonian", "bingham", "herschel_bulkley", "elastic_plastic"})
-          .doc("Fluids: constitutive model of the deviatoric stress."),
+      K("eos_c2", Type::number).def(Material{}.eos_c2).unit("Pa").doc("Fluids, polynomial: C2."),
+      K("eos_c3", Type::number).def(Material{}.eos_c3).unit("Pa").doc("Fluids, polynomial: C3."),
+      K("rheology", Type::string).def(Material{}.rheology).doc("Fluids: constitutive model of the deviatoric stress."),
       K("viscosity", Type::number)
-          .def("0.0")
+          .def(Material{}.viscosity)
           .unit("Pa s")
           .ge(0)
           .doc("Fluids: dynamic viscosity (newtonian, > 0), plastic viscosity (bingham, > 0), extra viscosity "
                "(elastic_plastic)."),
       K("yield_shear_rate", Type::number)
-          .def("1.0")
+          .def(Material{}.yield_shear_rate)
           .unit("1/s")
           .gt(0)
           .doc("Fluids, bingham and herschel_bulkley: shear rate below which the regularised law turns viscous "
@@ -73,7 +70,7 @@ void Schema::build_materials() {
           .gt(0)
           .doc("Fluids, herschel_bulkley: consistency index K of tau = tau_y + K gamma_dot^n."),
       K("flow_index", Type::number)
-          .def("1.0")
+          .def(Material{}.flow_index)
           .gt(0)
           .le(2)
           .doc("Fluids, herschel_bulkley: flow index n of tau = tau_y + K gamma_dot^n (< 1 shear-thinning, 1 "
@@ -113,13 +110,13 @@ void Schema::add_plasticity_keys() {
                "stress tau_y (bingham, herschel_bulkley), or the von Mises yield stress sigma_y "
                "(elastic_plastic)."));
   material.keys.push_back(K("tangent_modulus", Type::number)
-                              .def("0.0")
+                              .def(Material{}.tangent_modulus)
                               .unit("Pa")
                               .ge(0)
                               .allowed(">= 0 and < youngs_modulus")
                               .doc("Slope of the stress-strain curve after yield (needs `yield_stress`)."));
   material.keys.push_back(K("hardening", Type::number)
-                              .def("0.0")
+                              .def(Material{}.hardening)
                               .ge(0)
                               .le(1)
                               .doc("beta: 0 kinematic, 1 isotropic hardening (needs `yield_stress`)."));
@@ -128,8 +125,10 @@ void Schema::add_plasticity_keys() {
                               .unit("1/s")
                               .gt(0)
                               .doc("Cowper-Symonds C (needs `yield_stress`)."));
-  material.keys.push_back(
-      K("cowper_symonds_p", Type::number).def("1.0").gt(0).doc("Cowper-Symonds exponent p (with C)."));
+  material.keys.push_back(K("cowper_symonds_p", Type::number)
+                              .def(Material{}.cowper_symonds_p)
+                              .gt(0)
+                              .doc("Cowper-Symonds exponent p (with C)."));
   material.keys.push_back(K("failure_strain", Type::number)
                               .absent("no failure")
                               .gt(0)

@@ -28,7 +28,7 @@ void Schema::build_particles() {
           .example("{ min = [0.0, 0.0, 0.0], max = [4.0, 4.0, 4.0], count = 10, diameter = [0.5, 1.0] }")
           .doc("Random filling of a box (inline table, see below)."),
       K("fixed", Type::boolean)
-          .def("false")
+          .def(ParticleSet{}.fixed)
           .doc("The set's spheres never move (a glued bed of beads, a rough bed): they take any force, and "
                "their contacts with other spheres, structures and the fluid are computed as for the others."),
   };
@@ -38,8 +38,8 @@ void Schema::build_particles() {
   sphere.keys = {
       K("center", Type::vec3).required("[0.0, 0.0, 5.0]").unit("m").doc("Centre."),
       K("radius", Type::number).required("0.5").unit("m").gt(0).doc("Radius."),
-      K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity."),
-      K("angular_velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("rad/s").doc("Initial angular velocity."),
+      K("velocity", Type::vec3).def(Sphere{}.velocity).unit("m/s").doc("Initial velocity."),
+      K("angular_velocity", Type::vec3).def(Sphere{}.angular_velocity).unit("rad/s").doc("Initial angular velocity."),
   };
   fill.title = "[[particles]] fill = { ... }";
   fill.anchor = "particles-fill";
@@ -79,10 +79,7 @@ void Schema::build_particles() {
           .unit("m")
           .doc("Polygon region: extent along y `[min, max]`, min < max."),
       K("count", Type::integer).required("200").ge(1).doc("Number of spheres."),
-      K("distribution", Type::string)
-          .def("\"uniform\"")
-          .choices({"uniform", "normal", "sieve"})
-          .doc("How diameters are drawn (see above)."),
+      K("distribution", Type::string).def(ParticleSet{}.distribution).doc("How diameters are drawn (see above)."),
       K("diameter", Type::number_pair)
           .required("[1.0, 2.0]")
           .unit("m")
@@ -106,14 +103,14 @@ void Schema::build_particles() {
           .only_for({"sieve"})
           .doc("Grading curve, rows `[diameter (m), fraction finer]`, at least 2 rows."),
       K("sieve_basis", Type::string)
-          .def("\"mass\"")
+          .def(ParticleSet{}.sieve_by_mass ? "mass" : "count")
           .choices({"mass", "count"})
           .only_for({"sieve"})
           .doc("The sieve fractions are of the mass or of the count."),
-      K("seed", Type::integer).def("1").ge(0).doc("Seed of the random generator."),
-      K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Initial velocity of every sphere."),
+      K("seed", Type::integer).def(ParticleSet{}.seed).ge(0).doc("Seed of the random generator."),
+      K("velocity", Type::vec3).def(ParticleSet{}.velocity).unit("m/s").doc("Initial velocity of every sphere."),
       K("settle_time", Type::number)
-          .def("0.0")
+          .def(ParticleSet{}.settle_time)
           .unit("s")
           .ge(0)
           .doc("Simulated time the set settles under gravity inside its region before step 0 (0: no "
@@ -183,9 +180,7 @@ void Builder::read_fill(const toml::table& table, const std::string& path, Parti
   const std::size_t errors_before = diag_.count();
   if (const auto distribution = f.string("distribution")) {
     f.select(*distribution);
-    set.distribution = *distribution == "normal"  ? SizeDistribution::normal
-                       : *distribution == "sieve" ? SizeDistribution::sieve
-                                                  : SizeDistribution::uniform;
+    set.distribution = value_named<SizeDistribution>(*distribution);
   }
   const auto count = f.integer("count");
   if (count) set.count = static_cast<std::size_t>(*count);

@@ -17,13 +17,13 @@ void Schema::build_run() {
           .gt(0)
           .doc("Simulated time between two output frames (VTK, forces.csv)."),
       K("endpoint", Type::string)
-          .def("\"ipc\"")
+          .def(RunSettings{}.endpoint)
           .allowed("`\"ipc\"` or `\"tcp://HOST:PORT\"`")
           .doc("Where the coupler listens: `ipc` is a socket in the run folder; `tcp://HOST:PORT` lets solvers "
                "run on other hosts (port 1-65535)."),
-      K("gravity", Type::vec3).def("[0.0, 0.0, -9.81]").unit("m/s^2").doc("Gravitational acceleration (z is up)."),
+      K("gravity", Type::vec3).def(RunSettings{}.gravity).unit("m/s^2").doc("Gravitational acceleration (z is up)."),
       K("hang_timeout", Type::number)
-          .def("10.0")
+          .def(RunSettings{}.hang_timeout)
           .unit("s")
           .gt(0)
           .doc("Wall time after which a silent process is declared hung and the run is stopped."),
@@ -33,6 +33,13 @@ void Schema::build_run() {
           .unit("s")
           .gt(0)
           .doc("Upper bound on the coupled time step."),
+      K("multirate", Type::boolean)
+          .def(RunSettings{}.multirate)
+          .doc("Each solver at its own stable step: the exchange step is that of the slower side of each contact "
+               "pair (never above the pair's own stable step), and a solver whose stable step is shorter takes a "
+               "power of two of steps in it with the contact forces held, so that momentum is exchanged exactly "
+               "(docs/architecture.md, \"Multirate\"). `false`: every solver at the smallest stable step of all "
+               "(paper eq. 7)."),
       K("checkpoint_interval", Type::number)
           .absent("a tenth of `end_time`")
           .example("0.5")
@@ -42,11 +49,11 @@ void Schema::build_run() {
                "into `RUN_DIR/checkpoints/<role>_<step>.h5`, from which one process is restarted while the others "
                "wait (docs/restart.md). `0`: no checkpoints."),
       K("checkpoints_kept", Type::integer)
-          .def("2")
+          .def(RunSettings{}.checkpoints_kept)
           .ge(1)
           .doc("How many checkpoints of each process are kept (the newest; older ones are removed)."),
       K("restart", Type::string)
-          .def("\"auto\"")
+          .def(RunSettings{}.restart ? "auto" : "off")
           .allowed("`\"auto\"` or `\"off\"`")
           .doc("`\"auto\"`: a solver killed by a signal (a crash, kill -9, out of memory) is started again from its "
                "newest "
@@ -54,7 +61,7 @@ void Schema::build_run() {
                "checks that it sends the same states to the bit before it rejoins (docs/restart.md). `\"off\"`: "
                "the run stops."),
       K("max_restarts", Type::integer)
-          .def("3")
+          .def(RunSettings{}.max_restarts)
           .ge(0)
           .doc("Restarts allowed per solver process in one run; one more death stops the run."),
   };
@@ -86,7 +93,7 @@ void Schema::build_solvers() {
                "`--scene`, `--coupler` and `--out`. The program is an absolute path, a path relative to the "
                "scene file's folder (when it contains a `/`), or a name found on `PATH`."),
       K("beta", Type::number)
-          .def("1.0")
+          .def(SolverSettings{}.beta)
           .gt(0)
           .le(1)
           .doc("Safety factor on this solver's stable time step (paper eq. 7): the coupled step is "
@@ -99,23 +106,23 @@ void Schema::build_recording() {
   recording.anchor = "recording";
   recording.description = "What the coupler records into `traffic.h5`, the log that replay and restart read.";
   recording.keys = {
-      K("enabled", Type::boolean).def("true").doc("Record at all."),
+      K("enabled", Type::boolean).def(Recording{}.enabled).doc("Record at all."),
       K("fields", Type::string_list)
-          .def("[]")
+          .def(Recording{}.fields)
           .choices({"position", "velocity", "angular_velocity", "force", "torque", "node_position", "node_velocity",
                     "node_force", "energies", "boundary_particles", "boundary_force"})
           .doc("Fields to record; empty: all. `boundary_particles`: the SPH wall particles sent to the sph_solver "
                "(position, velocity, normal, acceleration, volume); `boundary_force`: the fluid's forces on them "
                "(with their `boundary_step`)."),
-      K("every", Type::integer).def("1").ge(1).doc("Record every N-th step."),
-      K("first_step", Type::integer).def("0").ge(0).doc("First recorded step."),
+      K("every", Type::integer).def(Recording{}.every).ge(1).doc("Record every N-th step."),
+      K("first_step", Type::integer).def(Recording{}.first_step).ge(0).doc("First recorded step."),
       K("last_step", Type::integer)
           .absent("to the end")
           .example("100000")
           .ge(0)
           .doc("Last recorded step, not before `first_step`."),
       K("flush_interval", Type::number)
-          .def("0.2")
+          .def(Recording{}.flush_interval)
           .unit("s")
           .gt(0)
           .doc("Wall time between flushes to disk (the file stays readable after a crash)."),
@@ -131,6 +138,7 @@ void Builder::read_run(const toml::table& table) {
   RunSettings& run = scene_.run;
   if (auto v = r.number("end_time")) run.end_time = *v;
   if (auto v = r.number("output_interval")) run.output_interval = *v;
+  if (auto v = r.boolean("multirate")) run.multirate = *v;
   if (auto v = r.string("endpoint")) {
     const auto address = valid_endpoint(*v) && *v != "ipc" ? ipv4_problem(*v) : std::nullopt;
     if (address) {

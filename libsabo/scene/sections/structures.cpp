@@ -32,13 +32,13 @@ void Schema::build_structures() {
           .doc("Name of the part, unique among particle sets and structures."),
       K("material", Type::string).required("\"concrete\"").allowed("a `[materials.NAME]`").doc("Material."),
       K("rigid", Type::boolean)
-          .def("true")
+          .def(Structure{}.rigid)
           .doc("Rigid part, fixed in space. `false`: deformable (explicit FEM, docs/physics.md): a `box` "
                "without thickness is a solid of hexahedra; a `box` with a `thickness` is a thin-walled "
                "building of shells (four walls, `floors` slabs with the roof); a `plane` with a "
                "`thickness` is a shell panel. Elements of about `element_size`."),
       K("fixed", Type::string_list)
-          .def("[]")
+          .def(Structure{}.fixed_faces)
           .choices({"x-", "x+", "y-", "y+", "z-", "z+"})
           .doc("Deformable: faces of the box around the structure's nodes whose nodes have every degree of "
                "freedom fixed (a `box`: its own faces; a `mesh`: the faces of the box that bounds its nodes, "
@@ -50,10 +50,9 @@ void Schema::build_structures() {
           .example("[ { box = { min = [-1.0, -1.0, -0.001], max = [1.0, 1.0, 0.001] }, dofs = [\"z\"] } ]")
           .doc("Deformable: degrees of freedom held on node sets, each selected by a box or a mesh's physical "
                "group (a roller, a symmetry plane, a frictionless anvil; inline tables, see below)."),
-      K("velocity", Type::vec3).def("[0.0, 0.0, 0.0]").unit("m/s").doc("Deformable: initial velocity."),
+      K("velocity", Type::vec3).def(Structure{}.velocity).unit("m/s").doc("Deformable: initial velocity."),
       K("element_formulation", Type::string)
-          .def("\"one_point\"")
-          .choices({"one_point", "fully_integrated", "enhanced_strain"})
+          .def(Structure{}.element_formulation)
           .only_for({"box", "mesh", "plane"})
           .doc("Deformable solid (hexahedra): `one_point`, one integration point with hourglass control "
                "(cheapest, exact in bending with a few elements through the depth); `enhanced_strain`, 2 x 2 x 2 "
@@ -66,12 +65,12 @@ void Schema::build_structures() {
                "points with MITC4 transverse shear (no hourglass modes, no shear locking: for concentrated "
                "impact loads; about twice the cost per element); `enhanced_strain` is for solids only."),
       K("floors", Type::integer)
-          .def("1")
+          .def(Structure{}.floors)
           .ge(1)
           .only_for({"box"})
           .doc("Deformable building (box with a thickness): storeys; a slab tops each."),
       K("roof_thickness", Type::number)
-          .def("0.0")
+          .def(Structure{}.roof_thickness)
           .unit("m")
           .ge(0)
           .only_for({"box"})
@@ -82,33 +81,33 @@ void Schema::build_structures() {
           .only_for({"box"})
           .doc("Deformable building: material of the floor and roof slabs."),
       K("slit_count", Type::integer)
-          .def("0")
+          .def(Structure{}.slit_count)
           .ge(0)
           .only_for({"box"})
           .doc("Deformable solid box (no `thickness`): a slit dam. Number of vertical slits, open at the top, "
                "cut through the box along `slit_axis` and spaced evenly along the other horizontal axis (the "
                "`slit_count + 1` piers between them are equally wide). 0: a plain box."),
       K("slit_width", Type::number)
-          .def("0.0")
+          .def(Structure{}.slit_width)
           .unit("m")
           .ge(0)
           .only_for({"box"})
           .doc("Slit dam: width of each slit; with `slit_count`, below the box's length across `slit_axis`."),
       K("slit_depth", Type::number)
-          .def("0.0")
+          .def(Structure{}.slit_depth)
           .unit("m")
           .ge(0)
           .only_for({"box"})
           .doc("Slit dam: depth of the slits from the top of the box down; at most its height (`max.z - min.z`; "
                "equal: the slits reach the ground)."),
       K("slit_axis", Type::string)
-          .def("\"y\"")
+          .def(Structure{}.slit_axis == 0 ? "x" : "y")
           .choices({"x", "y"})
           .only_for({"box"})
           .doc("Slit dam: the horizontal axis the slits pass through (the flow direction, across the dam's "
                "thickness)."),
       K("thickness", Type::number)
-          .def("0.0")
+          .def(Structure{}.thickness)
           .unit("m")
           .ge(0)
           .doc("Shell thickness: contact acts at half of it from the surface (paper eq. 3); 0 for a solid face."),
@@ -121,9 +120,9 @@ void Schema::build_structures() {
           .unit("m")
           .only_for(plane_chute)
           .doc("Plane: centre. Chute: centre of the floor's upper edge."),
-      K("normal", Type::vec3).def("[0.0, 0.0, 1.0]").only_for({"plane"}).doc("Normal, not zero."),
+      K("normal", Type::vec3).def(Shape{}.normal).only_for({"plane"}).doc("Normal, not zero."),
       K("direction", Type::vec3)
-          .def("[1.0, 0.0, 0.0]")
+          .def(Shape{}.direction)
           .only_for(plane_chute)
           .doc("Plane: direction of `length`, not along the normal. Chute: horizontal downhill direction "
                "(z = 0)."),
@@ -142,13 +141,13 @@ void Schema::build_structures() {
           .only_for({"chute"})
           .doc("Inclination of the floor below the horizontal."),
       K("wall_height", Type::number)
-          .def("0.0")
+          .def(Shape{}.wall_height)
           .unit("m")
           .ge(0)
           .only_for({"chute"})
           .doc("Height of the side walls (0: none)."),
       K("end_wall_height", Type::number)
-          .def("0.0")
+          .def(Shape{}.end_wall_height)
           .unit("m")
           .ge(0)
           .only_for({"chute"})
@@ -160,7 +159,7 @@ void Schema::build_structures() {
           .only_for({"box"})
           .doc("Upper corner, above `min` on every axis."),
       K("element_size", Type::number)
-          .def("0.0")
+          .def(Shape{}.element_size)
           .unit("m")
           .ge(0)
           .only_for({"plane", "box", "chute"})
@@ -171,9 +170,13 @@ void Schema::build_structures() {
           .allowed("an existing `.stl` file (rigid) or `.msh` file (deformable)")
           .doc("STL file, relative to the scene file's folder; for `rigid = false`, a Gmsh msh 4.1 ASCII file of "
                "8-node hexahedra (solid) or 4-node quadrangles (shells of `thickness`)."),
-      K("scale", Type::number).def("1.0").gt(0).only_for({"mesh"}).doc("Scale applied to the file's coordinates."),
+      K("scale", Type::number)
+          .def(Shape{}.scale)
+          .gt(0)
+          .only_for({"mesh"})
+          .doc("Scale applied to the file's coordinates."),
       K("translate", Type::vec3)
-          .def("[0.0, 0.0, 0.0]")
+          .def(Shape{}.translate)
           .unit("m")
           .only_for({"mesh"})
           .doc("Translation applied after scaling."),
@@ -227,9 +230,7 @@ void Builder::read_deformable(Reader& r, Structure& structure, const std::option
   if (const toml::array* list = r.table_list("constraints")) read_constraints(r, *list, structure);
   if (auto v = r.vec3("velocity")) structure.velocity = *v;
   if (auto v = r.string("element_formulation")) {
-    structure.element_formulation = *v == "fully_integrated"  ? Structure::ElementFormulation::fully_integrated
-                                    : *v == "enhanced_strain" ? Structure::ElementFormulation::enhanced_strain
-                                                              : Structure::ElementFormulation::one_point;
+    structure.element_formulation = value_named<Structure::ElementFormulation>(*v);
     if (!structure.rigid && structure.thickness > 0 &&
         structure.element_formulation == Structure::ElementFormulation::enhanced_strain) {
       diag_.add(r.line("element_formulation"), r.key_path("element_formulation"),
