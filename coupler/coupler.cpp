@@ -312,14 +312,44 @@ void Coupler::prepare_contacts() {
   }
 }
 
-double Coupler::coupled_dt() const {
-  double dt = std::numeric_limits<double>::infinity();
-  for (const auto& peer : peers_) dt = std::min(dt, peer->beta * peer->state.stable_dt());
-  for (const auto& slot : pairs_) dt = std::min(dt, slot.pair->stable_dt());
-  if (scene_.run.max_dt) dt = std::min(dt, *scene_.run.max_dt);
+RatePlan Coupler::plan_step() {
+  std::vector<SolverRate> solvers;
+  for (const auto& peer : peers_) {
+    solvers.push_back(
+        {.stable_step = peer->beta * peer->state.stable_dt(), .max_substeps = peer->registration.max_substeps()});
+  }
+  const auto index_of = [&](Role role) {
+    const auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
+    assert(it != peers_.end() && "a pair joins registered solvers");
+    return static_cast<std::size_t>(it - peers_.begin());
+  };
+  std::vector<PairRate> pairs;
+  for (const auto& slot : pairs_) {
+    const auto roles = slot.pair->roles();
+    pairs.push_back({.a = index_of(roles[0]), .b = index_of(roles[1]), .stable_dt = slot.pair->stable_dt()});
+  }
   // Only rigid parts and nothing else that limits the step: take output-sized steps.
-  if (!std::isfinite(dt)) dt = scene_.run.output_interval;
-  return dt;
+  const double until_output = std::min(next_output_time_, scene_.run.end_time) - time_;
+  const RatePlan plan = plan_rates(solvers, pairs,
+                                   {.max_dt = scene_.run.max_dt,
+                                    .fallback_dt = scene_.run.output_interval,
+                                    .until_next_output = until_output > 0 ? until_output : scene_.run.output_interval},
+                                   scene_.run.multirate);
+  if (scene_.run.multirate) {
+    pair_rate_reported_.resize(pairs.size(), false);
+    for (std::size_t j = 0; j < pairs.size(); ++j) {
+      const double slower = std::max(solvers[pairs[j].a].stable_step, solvers[pairs[j].b].stable_step);
+      if (pair_rate_reported_[j] || !(pairs[j].stable_dt < slower) || plan.exchange_dt > pairs[j].stable_dt) continue;
+      pair_rate_reported_[j] = true;
+      spdlog::info(
+          "multirate: the {} pair is exchanged every {:.3e} s, below the {:.3e} s step of its slower side ({}): its "
+          "stiffness and the masses it joins would not be stable with its forces held longer",
+          pairs_[j].pair->name(), pairs[j].stable_dt, slower,
+          solvers[pairs[j].a].stable_step >= solvers[pairs[j].b].stable_step ? peers_[pairs[j].a]->name()
+                                                                             : peers_[pairs[j].b]->name());
+    }
+  }
+  return plan;
 }
 
 void Coupler::compute_contacts(const StepClock& clock) {
@@ -382,19 +412,24 @@ void assign_vectors(google::protobuf::RepeatedField<double>& field,
 }
 }  // namespace
 
-void Coupler::send_forces(std::uint64_t step, double dt, bool output, bool stop, bool checkpoint) {
+void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output, bool stop, bool checkpoint) {
   const auto start = Clock::now();
   replies_.begin_step(solvers_, surface_nodes_);
   for (auto& slot : pairs_) {
     const auto pair_start = Clock::now();
-    slot.pair->scatter(solvers_, dt, replies_);
+    slot.pair->scatter(solvers_, plan.exchange_dt, replies_);
     slot.seconds += seconds_since(pair_start);
   }
-  for (auto& peer : peers_) {
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    Peer* const peer = peers_[k].get();
     auto& f = peer->forces;
     f.Clear();
     f.set_step(step);
-    f.set_dt(dt);
+    // A power-of-two division: substeps * dt is exchange_dt to the bit.
+    const std::uint32_t substeps = plan.substeps[k];
+    f.set_dt(plan.exchange_dt / substeps);
+    if (substeps > 1) f.set_substeps(substeps);
+    if (!stop) peer->solver_steps += substeps;
     f.set_output(output);
     f.set_stop(stop);
     f.set_checkpoint(checkpoint);
@@ -695,7 +730,9 @@ int Coupler::run() {
       advance_output_time();
       compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous_});
       check_newton_third_law(step);
-      const double dt = coupled_dt();
+      const RatePlan plan = plan_step();
+      const double dt = plan.exchange_dt;
+      if (!last) lock_step_equivalent_ += dt / plan.lock_step_dt;
       dt_min_ = std::min(dt_min_, dt);
       dt_max_ = std::max(dt_max_, dt);
       account(step, time_, dt, output);
@@ -707,7 +744,7 @@ int Coupler::run() {
                               time_ + dt >= next_checkpoint_time_ - 1e-9 * period;
       while (checkpoint && next_checkpoint_time_ <= time_ + dt + 1e-9 * period) next_checkpoint_time_ += period;
       if (checkpoint) ++checkpoints_;
-      send_forces(step, dt, output, last, checkpoint);
+      send_forces(step, plan, output, last, checkpoint);
       for (auto& peer : peers_) peer->has_state = false;
       if (recorder_) recorder_->end_step(step);
       steps_ = step + 1;

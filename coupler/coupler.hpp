@@ -19,6 +19,7 @@
 #include "coupler/contact/contact_pair.hpp"
 #include "coupler/eta.hpp"
 #include "coupler/events.hpp"
+#include "coupler/multirate.hpp"
 #include "coupler/sensors.hpp"
 #include "libsabo/io/checkpoint.hpp"
 #include "libsabo/io/traffic.hpp"
@@ -76,10 +77,12 @@ class Coupler {
   void accept_state(Peer& peer, std::uint64_t step);
   void validate_state(const Peer& peer);
   void prepare_contacts();
-  double coupled_dt() const;
+  // The exchange step of this step and each solver's steps in it (multirate.hpp); logs a pair whose own
+  // limit holds the exchange below its slower side's step, once.
+  RatePlan plan_step();
   void compute_contacts(const StepClock& clock);
   void check_newton_third_law(std::uint64_t step);
-  void send_forces(std::uint64_t step, double dt, bool output, bool stop, bool checkpoint);
+  void send_forces(std::uint64_t step, const RatePlan& plan, bool output, bool stop, bool checkpoint);
   // Ends the run (naming the entity) when a force about to be sent is not finite.
   void check_forces(const Peer& peer, const sabo::v1::StepForces& forces);
   void account(std::uint64_t step, double time, double dt, bool output);
@@ -89,6 +92,7 @@ class Coupler {
   void stop_solvers(const std::string& reason);
   void wait_for_goodbyes(std::chrono::milliseconds timeout);
   void write_summary(const std::string& status);
+  [[nodiscard]] nlohmann::json multirate_summary() const;
   // A failure after the run started: reported, and the solvers told to stop.
   void handle_failure(const std::exception& error, std::string& status, int& exit_code);
 
@@ -147,6 +151,10 @@ class Coupler {
   double time_ = 0;
   double dt_min_ = std::numeric_limits<double>::infinity();
   double dt_max_ = 0;
+  // Multirate: the steps lock-step would have taken (the sum of exchange_dt / lock_step_dt), and the pairs
+  // already reported as holding the exchange below their slower side's step.
+  double lock_step_equivalent_ = 0;
+  std::vector<bool> pair_rate_reported_;
   double contact_seconds_ = 0;
   double receive_seconds_ = 0;  // parsing, checking and recording the states
   double send_seconds_ = 0;     // building, recording and sending the replies

@@ -69,6 +69,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     io::hdf5::Group stats = group.create_group("statistics");
     stats.set_attribute("dt_min", dt_min_);
     stats.set_attribute("dt_max", dt_max_);
+    stats.set_attribute("lock_step_equivalent", lock_step_equivalent_);
     stats.set_attribute("newton_max_residual", newton_max_residual_);
     stats.set_attribute("newton_violations", static_cast<std::int64_t>(newton_violations_));
     stats.set_attribute("max_contacts", static_cast<std::int64_t>(max_contacts_));
@@ -85,8 +86,10 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     stats.set_attribute("bytes_sent", static_cast<std::int64_t>(bytes_sent_before_ + socket_.bytes_sent()));
     stats.set_attribute("restarts", restarts_.dump());
     stats.set_attribute("resumes", resumes_.dump());
-    for (const auto& peer : peers_)
+    for (const auto& peer : peers_) {
       stats.set_attribute(std::string(peer->name()) + "_compute_seconds", peer->compute_seconds);
+      stats.set_attribute(std::string(peer->name()) + "_solver_steps", static_cast<std::int64_t>(peer->solver_steps));
+    }
 
     if (forces_csv_) {
       io::hdf5::Group forces = group.create_group("forces");
@@ -188,6 +191,8 @@ void Coupler::restore_state() {
   const io::hdf5::Group stats = group.group("statistics");
   dt_min_ = stats.double_attribute("dt_min");
   dt_max_ = stats.double_attribute("dt_max");
+  lock_step_equivalent_ =
+      stats.has_attribute("lock_step_equivalent") ? stats.double_attribute("lock_step_equivalent") : 0;
   newton_max_residual_ = stats.double_attribute("newton_max_residual");
   newton_violations_ = static_cast<std::uint64_t>(stats.int_attribute("newton_violations"));
   max_contacts_ = static_cast<std::size_t>(stats.int_attribute("max_contacts"));
@@ -205,6 +210,8 @@ void Coupler::restore_state() {
   for (auto& peer : peers_) {
     const std::string key = std::string(peer->name()) + "_compute_seconds";
     if (stats.has_attribute(key)) peer->compute_seconds = stats.double_attribute(key);
+    const std::string steps_key = std::string(peer->name()) + "_solver_steps";
+    if (stats.has_attribute(steps_key)) peer->solver_steps = static_cast<std::uint64_t>(stats.int_attribute(steps_key));
   }
   steps_ = *resume_step_;
 

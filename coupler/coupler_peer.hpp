@@ -33,7 +33,8 @@ struct Coupler::Peer {
   bool has_state = false;
   bool said_goodbye = false;
   sabo::v1::Goodbye goodbye;
-  double compute_seconds = 0;  // reported in StepState, summed
+  double compute_seconds = 0;      // reported in StepState, summed
+  std::uint64_t solver_steps = 0;  // steps it took (multirate: several per exchange), summed from StepForces
   // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.
   std::unique_ptr<RestartJournal> journal;
   std::optional<std::uint64_t> checkpoint_step;  // the step of the checkpoint it was last asked for

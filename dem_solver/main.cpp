@@ -54,6 +54,7 @@ class DemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
   void integrate(double dt_previous, double dt) override { model_.integrate(dt_previous, dt); }
+  [[nodiscard]] std::uint32_t max_substeps() const override { return solver::kMaxSubsteps; }
   [[nodiscard]] bool can_checkpoint() const override { return true; }
   void save_checkpoint(io::hdf5::Group& group) const override {
     io::hdf5::Group model = group.create_group("model");

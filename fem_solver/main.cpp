@@ -75,6 +75,7 @@ class FemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }
   void integrate(double /*dt_previous*/, double dt) override { model_.step(dt); }
+  [[nodiscard]] std::uint32_t max_substeps() const override { return solver::kMaxSubsteps; }
   [[nodiscard]] bool can_checkpoint() const override { return true; }
   void save_checkpoint(io::hdf5::Group& group) const override {
     io::hdf5::Group model = group.create_group("model");

@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
+#include <cassert>
 #include <chrono>
 #include <map>
 #include <optional>
@@ -303,6 +305,9 @@ struct ForcesStream {
     if (message.output()) bits |= kFlagOutput;
     if (message.stop()) bits |= kFlagStop;
     if (message.interest_all()) bits |= kFlagInterestAll;
+    const std::uint32_t substeps = std::max<std::uint32_t>(message.substeps(), 1);
+    assert(std::has_single_bit(substeps) && substeps <= kMaxRecordedSubsteps && "the coupler sends powers of two");
+    bits |= static_cast<std::uint8_t>(std::countr_zero(substeps) << kSubstepsShift);
     flags.push(bits);
     if (index) index->push(span_of(message.index()));
     if (force) force->push(span_of(message.force()));

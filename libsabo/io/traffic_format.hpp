@@ -12,5 +12,8 @@ constexpr std::uint8_t kFlagCheckpoint = 1;
 constexpr std::uint8_t kFlagOutput = 2;
 constexpr std::uint8_t kFlagStop = 4;
 constexpr std::uint8_t kFlagInterestAll = 8;
+// Bits 4-7: log2 of StepForces.substeps (multirate; 0: one step, as in recordings made before it).
+constexpr int kSubstepsShift = 4;
+constexpr std::uint32_t kMaxRecordedSubsteps = 1u << 15;
 
 }  // namespace sabo::io::traffic_format

@@ -292,6 +292,7 @@ sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_
   message.set_output((bits & kFlagOutput) != 0);
   message.set_stop((bits & kFlagStop) != 0);
   message.set_interest_all((bits & kFlagInterestAll) != 0);
+  if (const int log2_substeps = bits >> kSubstepsShift; log2_substeps > 0) message.set_substeps(1u << log2_substeps);
   stream.array<std::uint32_t>("index", entry, message.mutable_index());
   stream.array<double>("force", entry, message.mutable_force());
   stream.array<double>("torque", entry, message.mutable_torque());

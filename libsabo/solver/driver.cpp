@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cassert>
 #include <chrono>
 
@@ -136,6 +137,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   registration.set_pid(static_cast<std::uint32_t>(::getpid()));
   solver.describe(registration);
   registration.set_checkpoints(solver.can_checkpoint());
+  registration.set_max_substeps(solver.max_substeps());
 
   const std::string role_text = role_name(role);
   const io::CheckpointStore checkpoints(options.out_dir / "checkpoints", role_text, io::file_digest(options.scene),
@@ -168,6 +170,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   sabo::v1::Goodbye goodbye;
   double compute_seconds = 0;
   double checkpoint_seconds = 0;
+  std::uint64_t substeps_taken = 0;
   int exit_code = 0;
   try {
     const auto& reply = link.register_solver(registration);
@@ -203,9 +206,24 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         ++step;
         break;
       }
-      solver.integrate(dt_previous, forces.dt());
-      time += forces.dt();
-      dt_previous = forces.dt();
+      // Multirate: the further steps of this exchange with the same contact forces held.
+      const std::uint32_t substeps = std::max<std::uint32_t>(forces.substeps(), 1);
+      if (substeps > registration.max_substeps() && substeps > 1) {
+        throw ProtocolError(
+            fmt::format("StepForces of step {} asks for {} steps of dt = {:.6g} s; this solver "
+                        "registered max_substeps = {}",
+                        step, substeps, forces.dt(), registration.max_substeps()));
+      }
+      for (std::uint32_t k = 0; k < substeps; ++k) {
+        if (k > 0) {
+          solver.compute_internal_forces(dt_previous);
+          solver.apply_coupling_forces(forces);
+        }
+        solver.integrate(dt_previous, forces.dt());
+        time += forces.dt();
+        dt_previous = forces.dt();
+      }
+      substeps_taken += substeps;
       if (forces.checkpoint() && solver.can_checkpoint()) {
         const auto checkpoint_start = Clock::now();
         checkpoints.write(step + 1, time, [&](io::hdf5::File& file) {
@@ -221,7 +239,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       compute_seconds += compute_since_last;
     }
     goodbye.set_reason("completed");
-    spdlog::info("completed {} steps, t = {:.6g} s", step, time);
+    spdlog::info("completed {} exchanges ({} steps), t = {:.6g} s", step, substeps_taken, time);
   } catch (const StopRequested& stop) {
     spdlog::warn("{}", stop.what());
     goodbye.set_reason(stop.what());

@@ -16,6 +16,9 @@
 
 namespace sabo::solver {
 
+// The most steps a built solver takes per exchange with held forces (multirate).
+inline constexpr std::uint32_t kMaxSubsteps = 64;
+
 // Interest regions received from the coupler: only entities inside need to be sent.
 class Interest {
  public:
@@ -43,6 +46,10 @@ class Interest {
 //   6. save_checkpoint() when StepForces.checkpoint is set (after integrate:
 //      the state a restart resumes from at step n + 1, docs/restart.md). The
 //      driver writes step, time, dt_n and the interest regions beside it.
+// Multirate (docs/protocol.md, "Multirate"): with StepForces.substeps = m > 1, step 5 is followed
+// by m - 1 further steps, each compute_internal_forces(dt_n), apply_coupling_forces() with the
+// same forces (held) and integrate(dt_n, dt_n); the next state is at t_n + m dt_n. A solver
+// whose held inputs would not be exact over several steps says so with max_substeps() = 1.
 // A solver started with --resume FILE is built from the scene as usual, then
 // load_checkpoint() puts it back at step n + 1: from there it must produce
 // the same bits as the process that wrote the file.
@@ -59,6 +66,8 @@ class CoupledSolver {
   virtual void apply_coupling_forces(const sabo::v1::StepForces& forces) = 0;
   virtual void write_output(std::uint64_t step, double time) = 0;
   virtual void integrate(double dt_previous, double dt) = 0;
+  // The most steps this solver takes per exchange with held forces (a power of two; 1: lock-step).
+  [[nodiscard]] virtual std::uint32_t max_substeps() const { return 1; }
   // Restarts: a solver that can write its whole state says so; save writes it into `group`, load
   // restores it from a group that save wrote for the same scene (FileError otherwise).
   [[nodiscard]] virtual bool can_checkpoint() const { return false; }

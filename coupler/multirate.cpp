@@ -1,0 +1,70 @@
+#include "coupler/multirate.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <bit>
+#include <cassert>
+#include <cmath>
+#include <limits>
+
+namespace sabo::coupler {
+
+std::uint32_t power_of_two_substeps(double interval, double step, std::uint32_t cap) {
+  assert(cap >= 1 && (cap & (cap - 1)) == 0 && "a power of two");
+  std::uint32_t m = 1;
+  // interval / m is exact for a power of two m, so the comparison is the solver's own step.
+  while (m < cap && interval / m > step) m *= 2;
+  return m;
+}
+
+RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRate> pairs, const RateLimits& limits,
+                    bool multirate) {
+  RatePlan plan;
+  plan.substeps.assign(solvers.size(), 1);
+  double dt = std::numeric_limits<double>::infinity();
+  std::string limit = "nothing";
+  const auto take = [&](double candidate, const std::string& why) {
+    if (candidate < dt) dt = candidate, limit = why;
+  };
+  for (std::size_t i = 0; i < solvers.size(); ++i) take(solvers[i].stable_step, fmt::format("solver {}", i));
+  for (std::size_t j = 0; j < pairs.size(); ++j) take(pairs[j].stable_dt, fmt::format("pair {}", j));
+  if (limits.max_dt) take(*limits.max_dt, "max_dt");
+  if (!std::isfinite(dt)) dt = limits.fallback_dt;
+  plan.lock_step_dt = dt;
+  if (!multirate) {
+    plan.exchange_dt = dt;
+    plan.limit = limit;
+    return plan;
+  }
+
+  dt = std::numeric_limits<double>::infinity();
+  limit = "nothing";
+  for (std::size_t i = 0; i < solvers.size(); ++i) {
+    const std::uint32_t cap = std::bit_floor(std::max<std::uint32_t>(solvers[i].max_substeps, 1));
+    take(solvers[i].stable_step * cap, fmt::format("solver {}", i));
+  }
+  for (std::size_t j = 0; j < pairs.size(); ++j) {
+    const PairRate& pair = pairs[j];
+    take(std::min(pair.stable_dt, std::max(solvers[pair.a].stable_step, solvers[pair.b].stable_step)),
+         fmt::format("pair {}", j));
+  }
+  if (limits.max_dt) take(*limits.max_dt, "max_dt");
+  if (!std::isfinite(dt)) dt = limits.fallback_dt;
+  // Never shorter than lock-step's step (rounding), and no longer than the way to the next output time
+  // when that is longer than lock-step's step: output lands on its time as often as lock-step's does.
+  if (dt < plan.lock_step_dt) dt = plan.lock_step_dt;
+  if (dt > plan.lock_step_dt && limits.until_next_output < dt) {
+    const double until = std::max(limits.until_next_output, plan.lock_step_dt);
+    if (until < dt) dt = until, limit = "next output";
+  }
+  plan.exchange_dt = dt;
+  plan.limit = limit;
+  for (std::size_t i = 0; i < solvers.size(); ++i) {
+    const std::uint32_t cap = std::bit_floor(std::max<std::uint32_t>(solvers[i].max_substeps, 1));
+    plan.substeps[i] = power_of_two_substeps(dt, solvers[i].stable_step, cap);
+  }
+  return plan;
+}
+
+}  // namespace sabo::coupler

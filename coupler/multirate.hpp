@@ -1,0 +1,49 @@
+#pragma once
+// The coupled step and each solver's steps within it (docs/architecture.md, "Multirate"): lock-step
+// (paper eq. 7: every solver at the smallest stable step) or multirate (each solver at a power-of-two
+// fraction of the exchange step, with the contact forces held in between).
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace sabo::coupler {
+
+struct SolverRate {
+  double stable_step = 0;          // s: beta * stable_dt; infinity: no limit (rigid parts only)
+  std::uint32_t max_substeps = 1;  // Register.max_substeps: 0 is read as 1, others rounded down to a power of two
+};
+
+struct PairRate {
+  std::size_t a = 0, b = 0;  // indices of the two solvers it joins
+  double stable_dt = 0;      // s: the pair's own limit (eq. 7 contact term); infinity: none
+};
+
+struct RatePlan {
+  double exchange_dt = 0;               // s: the interval between two exchanges, Delta_n
+  std::vector<std::uint32_t> substeps;  // per solver: steps of exchange_dt / substeps in it
+  double lock_step_dt = 0;              // s: what lock-step would take now (eq. 7)
+  // What set exchange_dt: "solver N", "pair N", "max_dt", "next output", "nothing" (output_interval).
+  std::string limit;
+};
+
+struct RateLimits {
+  std::optional<double> max_dt;  // s: the scene's run.max_dt
+  double fallback_dt = 0;        // s: the step when nothing limits it (the output interval)
+  // s from now to the next output time (or the end): a multirate exchange step longer than lock-step's
+  // stops there, so that output lands on its time. Infinity: no such cap.
+  double until_next_output = 0;
+};
+
+// Lock-step: exchange_dt = min(stable steps, pair limits, max_dt), one step each. Multirate: each pair
+// is exchanged at the step of the slower of its two sides and never above its own limit, every solver
+// at most max_substeps times its stable step; exchange_dt is the smallest of these, and each solver
+// takes the smallest power of two of steps that keeps its own step within its stable step.
+[[nodiscard]] RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRate> pairs,
+                                  const RateLimits& limits, bool multirate);
+
+// The smallest power of two m >= 1 with interval / m <= step, at most `cap` (a power of two).
+[[nodiscard]] std::uint32_t power_of_two_substeps(double interval, double step, std::uint32_t cap);
+
+}  // namespace sabo::coupler

@@ -1,0 +1,123 @@
+// The coupled step and each solver's steps in it (coupler/multirate.hpp, docs/architecture.md
+// "Multirate"): lock-step is paper eq. 7; multirate exchanges each pair at its slower side's step,
+// never above the pair's own limit, and every solver takes a power of two of steps that keeps its own
+// step within its stable step.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <vector>
+
+#include "coupler/multirate.hpp"
+
+using sabo::coupler::PairRate;
+using sabo::coupler::plan_rates;
+using sabo::coupler::power_of_two_substeps;
+using sabo::coupler::RateLimits;
+using sabo::coupler::SolverRate;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+const RateLimits kNoLimits{.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = kInf};
+
+// Steps in units of some base (exact binary numbers, so that the comparisons are exact).
+// sph (slow, expensive), dem, fem (fast): the debris-flow scene's three solvers and its three pairs.
+std::vector<SolverRate> three_solvers(double sph, double dem, double fem) {
+  return {{.stable_step = sph, .max_substeps = 64},
+          {.stable_step = dem, .max_substeps = 64},
+          {.stable_step = fem, .max_substeps = 64}};
+}
+std::vector<PairRate> three_pairs() {
+  return {
+      {.a = 0, .b = 2, .stable_dt = kInf}, {.a = 1, .b = 2, .stable_dt = kInf}, {.a = 0, .b = 1, .stable_dt = kInf}};
+}
+
+}  // namespace
+
+TEST(Multirate, LockStepIsTheSmallestStableStepOfAll) {
+  const auto solvers = three_solvers(8.0, 3.0, 1.0);
+  auto pairs = three_pairs();
+  pairs[1].stable_dt = 2.0;
+  const auto plan = plan_rates(solvers, pairs, kNoLimits, false);
+  EXPECT_EQ(plan.exchange_dt, 1.0);
+  EXPECT_EQ(plan.lock_step_dt, 1.0);
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 1}));
+  EXPECT_EQ(plan.limit, "solver 2");
+  const auto capped =
+      plan_rates(solvers, pairs, {.max_dt = 0.5, .fallback_dt = 0.01, .until_next_output = kInf}, false);
+  EXPECT_EQ(capped.exchange_dt, 0.5);
+  EXPECT_EQ(capped.limit, "max_dt");
+}
+
+TEST(Multirate, TheStiffestStructureNoLongerSetsTheSlurrysStep) {
+  // fem 8 times faster than the others: the exchange is the slower sides' step, the fem takes 8 steps.
+  const auto plan = plan_rates(three_solvers(8.0, 9.0, 1.0), three_pairs(), kNoLimits, true);
+  std::cout << "exchange " << plan.exchange_dt << " s (lock-step " << plan.lock_step_dt << " s), substeps sph "
+            << plan.substeps[0] << " dem " << plan.substeps[1] << " fem " << plan.substeps[2] << "\n";
+  EXPECT_EQ(plan.exchange_dt, 8.0);
+  EXPECT_EQ(plan.lock_step_dt, 1.0);
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 8}));
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double step = plan.exchange_dt / plan.substeps[i];
+    EXPECT_LE(step, three_solvers(8.0, 9.0, 1.0)[i].stable_step) << "solver " << i;
+    // A power of two divides exactly: the solver's steps add up to the exchange step to the bit.
+    EXPECT_EQ(step * plan.substeps[i], plan.exchange_dt);
+  }
+  // Not a power of two of the fem's step: it takes the next power of two above the ratio.
+  const auto odd = plan_rates(three_solvers(8.0, 9.0, 1.5), three_pairs(), kNoLimits, true);
+  EXPECT_EQ(odd.substeps[2], 8u);
+  EXPECT_LE(odd.exchange_dt / 8, 1.5);
+  EXPECT_GT(odd.exchange_dt / 4, 1.5);
+}
+
+TEST(Multirate, APairsOwnLimitHoldsTheExchangeBelowItsSlowerSide) {
+  // A stiff penalty against a light particle: the pair is stable only at 2 although both its
+  // sides step at 8 or more; the exchange keeps to the pair, the sides take power-of-two steps.
+  auto pairs = three_pairs();
+  pairs[2].stable_dt = 2.0;
+  const auto plan = plan_rates(three_solvers(8.0, 9.0, 1.0), pairs, kNoLimits, true);
+  EXPECT_EQ(plan.exchange_dt, 2.0);
+  EXPECT_EQ(plan.limit, "pair 2");
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 2}));
+}
+
+TEST(Multirate, ASolverThatCannotSubcycleKeepsTheExchangeAtItsStep) {
+  auto solvers = three_solvers(8.0, 9.0, 1.0);
+  solvers[2].max_substeps = 1;  // registered max_substeps 0 or 1
+  const auto plan = plan_rates(solvers, three_pairs(), kNoLimits, true);
+  EXPECT_EQ(plan.exchange_dt, 1.0);
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 1}));
+  // A cap that is not a power of two is read as the power of two below it.
+  solvers[2].max_substeps = 6;
+  const auto capped = plan_rates(solvers, three_pairs(), kNoLimits, true);
+  EXPECT_EQ(capped.exchange_dt, 4.0);
+  EXPECT_EQ(capped.substeps[2], 4u);
+}
+
+TEST(Multirate, NeverShorterThanLockStepAndStopsAtTheNextOutput) {
+  const auto solvers = three_solvers(8.0, 9.0, 1.0);
+  const auto near =
+      plan_rates(solvers, three_pairs(), {.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = 3.0}, true);
+  EXPECT_EQ(near.exchange_dt, 3.0);
+  EXPECT_EQ(near.limit, "next output");
+  EXPECT_EQ(near.substeps[2], 4u);
+  // The next output closer than lock-step's step: lock-step's step, as lock-step would take.
+  const auto closer = plan_rates(solvers, three_pairs(),
+                                 {.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = 0.01}, true);
+  EXPECT_EQ(closer.exchange_dt, 1.0);
+  EXPECT_EQ(closer.substeps, (std::vector<std::uint32_t>{1, 1, 1}));
+  // Nothing limits anything (rigid parts only): the fallback, as lock-step.
+  const std::vector<SolverRate> rigid{{.stable_step = kInf, .max_substeps = 64}};
+  EXPECT_EQ(plan_rates(rigid, {}, kNoLimits, true).exchange_dt, 0.01);
+  EXPECT_EQ(plan_rates(rigid, {}, kNoLimits, false).exchange_dt, 0.01);
+}
+
+TEST(Multirate, PowerOfTwoSubsteps) {
+  EXPECT_EQ(power_of_two_substeps(1.0, 1.0, 64), 1u);
+  EXPECT_EQ(power_of_two_substeps(1.0, 0.5, 64), 2u);
+  EXPECT_EQ(power_of_two_substeps(1.0, 0.49, 64), 4u);
+  EXPECT_EQ(power_of_two_substeps(1.0, 1e-9, 64), 64u);
+  EXPECT_EQ(power_of_two_substeps(1.0, kInf, 64), 1u);
+}
