@@ -3,11 +3,17 @@
 contact forces held between exchanges, against lock-step at the fem_solver's own step. The rebound
 speed and the peak contact force stay within 1% of lock-step (measured: 0.73% and 0.19% at 8 steps),
 the block's plastic work within 2% (1.2% at 4), summary.json counts each solver's steps, and the held
-forces keep Newton's third law to rounding. The energy balance rises above its start by at most
+forces keep Newton's third law to rounding; the pair whose own stable step holds the exchange below its
+slower side's is named in the coupler's log. The same bits on one and two threads and across a restart
+of the fem_solver; every process replays from traffic.h5 to the bit. The energy balance rises above its start by at most
 2.0e-3 of it at 8 steps (0 in lock-step): held forces do a little work the contact spring does not
 store; the limit is 5e-3."""
 import csv
+import filecmp
+import json
 import os
+import signal
+import time
 import unittest
 
 import h5py
@@ -18,6 +24,7 @@ SCENE = "configs/tests/sphere_on_block.toml"
 # The exchange step max_dt = EXCHANGE * m: the fem_solver's stable step (about 8.8e-5 s for 0.125 m
 # hexahedra of this concrete) lies in [EXCHANGE, 2 EXCHANGE), so it takes m steps per exchange.
 EXCHANGE = 7e-5
+OUTPUTS = ["forces.csv", "energy.csv", "dem.pvd", "fem.pvd", "fem_block.pvd", "fem_energy.csv"]
 
 
 def sphere_rebound_speed(run_dir):
@@ -33,7 +40,7 @@ def peak_contact_force(run_dir):
 
 class MultirateSphereOnBlockTest(RealRunTestCase):
 
-    def run_case(self, name, multirate, max_dt):
+    def write_scene(self, name, multirate, max_dt):
         with open(self.scene_path(SCENE), encoding="utf-8") as handle:
             text = handle.read()
         self.assertIn("max_dt = 5e-5\n", text)
@@ -45,6 +52,10 @@ class MultirateSphereOnBlockTest(RealRunTestCase):
         scene = os.path.join(self.tmp, name + ".toml")  # the scene names no file: it runs from anywhere
         with open(scene, "w", encoding="utf-8") as handle:
             handle.write(text)
+        return scene
+
+    def run_case(self, name, multirate, max_dt):
+        scene = self.write_scene(name, multirate, max_dt)
         out = os.path.join(self.tmp, name)
         sabo = self.run_sabo(scene, out)
         self.assertEqual(sabo.wait(300), 0, sabo.output())
@@ -74,6 +85,59 @@ class MultirateSphereOnBlockTest(RealRunTestCase):
                                                       out.splitlines()[0] if out else err))
             self.assertEqual(code, 0, out + err)
             self.assertIn("every field matches", out)
+
+    def assertSameOutputs(self, reference, run):
+        for name in OUTPUTS:
+            self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
+                            "{} differs from {}".format(os.path.join(run, name), os.path.join(reference, name)))
+        for folder in ("dem", "fem"):
+            names = sorted(os.listdir(os.path.join(reference, folder)))
+            self.assertEqual(names, sorted(os.listdir(os.path.join(run, folder))))
+            _, mismatch, errors = filecmp.cmpfiles(os.path.join(reference, folder), os.path.join(run, folder), names,
+                                                   shallow=False)
+            self.assertEqual((mismatch, errors), ([], []), folder)
+        print("{}: {} and every frame of dem/ and fem/ are the bits of {}".format(
+            os.path.basename(run), ", ".join(OUTPUTS), os.path.basename(reference)))
+
+    def test_same_bits_on_one_and_two_threads_and_across_a_restart(self):
+        """A subcycled run (the fem_solver at two steps per exchange) is a pure function of its input: the
+        same bits with one and two OpenMP threads per solver, and when the fem_solver is killed mid-run
+        and restarted from its newest checkpoint (the coupler feeds it the StepForces, substeps included,
+        since then)."""
+        scene = self.write_scene("bits", True, 2 * EXCHANGE)
+        runs = {}
+        for threads in ("1", "2"):
+            out = os.path.join(self.tmp, "threads_" + threads)
+            env = {"SABO_BUILD_DIR": os.environ.get("SABO_BUILD_DIR", ""), "SABO_PLAN_OVERRIDE": "",
+                   "SABO_WATCHDOG_MIN_S": "", "OMP_NUM_THREADS": threads}
+            sabo = self.sabo(["run", scene, "--out", out, "--no-setup", "--no-plots"], env=env)
+            self.assertEqual(sabo.wait(300), 0, sabo.output())
+            runs[threads] = out
+        self.assertGreater(read_json(os.path.join(runs["1"], "summary.json"))["multirate"]["solvers"]["fem_solver"]
+                           ["steps"], 900)
+        self.assertSameOutputs(runs["1"], runs["2"])
+
+        out = os.path.join(self.tmp, "restarted")
+        sabo = self.run_sabo(scene, out)
+        events = os.path.join(out, "coupler.events.jsonl")
+        deadline = time.monotonic() + 120
+        killed = False
+        while sabo.popen.poll() is None and not killed and time.monotonic() < deadline:
+            try:
+                with open(events, encoding="utf-8") as handle:
+                    steps = [json.loads(line).get("step", 0) for line in handle if '"progress"' in line]
+                if steps and steps[-1] >= 150:
+                    os.kill(read_json(os.path.join(out, "pids.json"))["fem_solver"], signal.SIGKILL)
+                    killed = True
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.005)
+        self.assertTrue(killed, "the run ended before step 150")
+        self.assertEqual(sabo.wait(180), 0, sabo.output())
+        restarts = read_json(os.path.join(out, "summary.json"))["restarts"]
+        print("restarts: {}".format(restarts))
+        self.assertEqual(len(restarts), 1)
+        self.assertSameOutputs(runs["1"], out)
 
     def test_fem_subcycling_matches_lock_step(self):
         reference = self.run_case("lock_step", False, 8 * EXCHANGE)
@@ -105,6 +169,13 @@ class MultirateSphereOnBlockTest(RealRunTestCase):
             rise = energies["max_rise_over_initial"] / energies["initial"]["total"]
             print("  energy: largest rise over the initial total {:+.2e} of it, limit 5e-3".format(rise))
             self.assertLess(rise, 5e-3)
+            if substeps == 8:
+                # In contact the dem_fem pair's own stable step (its penalty stiffness and the block's node
+                # masses) is below the exchange max_dt allows: the coupler keeps the exchange at it, says so.
+                with open(os.path.join(case["out"], "coupler.log"), encoding="utf-8") as handle:
+                    held = [line.strip() for line in handle if "multirate: the dem_fem pair is exchanged" in line]
+                print("  coupler.log: {}".format(held[0] if held else "no line on the dem_fem pair"))
+                self.assertEqual(len(held), 1)
             newton = summary["newton_third_law"]["max_relative_residual"]
             print("  Newton residual: measured {:.1e}, limit 1e-10".format(newton))
             self.assertLess(newton, 1e-10)
