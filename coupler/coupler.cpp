@@ -717,7 +717,9 @@ int Coupler::run() {
     for (std::uint64_t step = current_step_;; ++step) {
       current_step_ = step;
       collect_states(step);
-      time_ = peers_.front()->state.time();
+      // The coupler's own clock, the sum of the exchange steps it sent: each solver sums its own steps (with
+      // substeps, in another order of rounding), and the first to register may be any of them.
+      time_ = expected_time_;
       double step_compute = 0;
       for (auto& peer : peers_) {
         step_compute = std::max(step_compute, peer->state.compute_seconds());

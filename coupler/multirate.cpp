@@ -18,18 +18,30 @@ std::uint32_t power_of_two_substeps(double interval, double step, std::uint32_t 
   return m;
 }
 
+std::string StepLimit::text() const {
+  switch (kind) {
+    case Kind::solver: return fmt::format("solver {}", index);
+    case Kind::pair: return fmt::format("pair {}", index);
+    case Kind::max_dt: return "max_dt";
+    case Kind::next_output: return "next output";
+    case Kind::nothing: break;
+  }
+  return "nothing";
+}
+
 RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRate> pairs, const RateLimits& limits,
                     bool multirate) {
+  using Kind = StepLimit::Kind;
   RatePlan plan;
   plan.substeps.assign(solvers.size(), 1);
   double dt = std::numeric_limits<double>::infinity();
-  std::string limit = "nothing";
-  const auto take = [&](double candidate, const std::string& why) {
+  StepLimit limit;
+  const auto take = [&](double candidate, StepLimit why) {
     if (candidate < dt) dt = candidate, limit = why;
   };
-  for (std::size_t i = 0; i < solvers.size(); ++i) take(solvers[i].stable_step, fmt::format("solver {}", i));
-  for (std::size_t j = 0; j < pairs.size(); ++j) take(pairs[j].stable_dt, fmt::format("pair {}", j));
-  if (limits.max_dt) take(*limits.max_dt, "max_dt");
+  for (std::size_t i = 0; i < solvers.size(); ++i) take(solvers[i].stable_step, {Kind::solver, i});
+  for (std::size_t j = 0; j < pairs.size(); ++j) take(pairs[j].stable_dt, {Kind::pair, j});
+  if (limits.max_dt) take(*limits.max_dt, {Kind::max_dt, 0});
   if (!std::isfinite(dt)) dt = limits.fallback_dt;
   plan.lock_step_dt = dt;
   if (!multirate) {
@@ -38,31 +50,28 @@ RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRat
     return plan;
   }
 
+  // Register.max_substeps: 0 is one step, others the power of two at or below them.
+  const auto cap = [&](std::size_t i) { return std::bit_floor(std::max<std::uint32_t>(solvers[i].max_substeps, 1)); };
   dt = std::numeric_limits<double>::infinity();
-  limit = "nothing";
-  for (std::size_t i = 0; i < solvers.size(); ++i) {
-    const std::uint32_t cap = std::bit_floor(std::max<std::uint32_t>(solvers[i].max_substeps, 1));
-    take(solvers[i].stable_step * cap, fmt::format("solver {}", i));
-  }
+  limit = {};
+  for (std::size_t i = 0; i < solvers.size(); ++i) take(solvers[i].stable_step * cap(i), {Kind::solver, i});
   for (std::size_t j = 0; j < pairs.size(); ++j) {
     const PairRate& pair = pairs[j];
-    take(std::min(pair.stable_dt, std::max(solvers[pair.a].stable_step, solvers[pair.b].stable_step)),
-         fmt::format("pair {}", j));
+    take(std::min(pair.stable_dt, std::max(solvers[pair.a].stable_step, solvers[pair.b].stable_step)), {Kind::pair, j});
   }
-  if (limits.max_dt) take(*limits.max_dt, "max_dt");
+  if (limits.max_dt) take(*limits.max_dt, {Kind::max_dt, 0});
   if (!std::isfinite(dt)) dt = limits.fallback_dt;
   // Never shorter than lock-step's step (rounding), and no longer than the way to the next output time
   // when that is longer than lock-step's step: output lands on its time as often as lock-step's does.
   if (dt < plan.lock_step_dt) dt = plan.lock_step_dt;
   if (dt > plan.lock_step_dt && limits.until_next_output < dt) {
     const double until = std::max(limits.until_next_output, plan.lock_step_dt);
-    if (until < dt) dt = until, limit = "next output";
+    if (until < dt) dt = until, limit = {Kind::next_output, 0};
   }
   plan.exchange_dt = dt;
   plan.limit = limit;
   for (std::size_t i = 0; i < solvers.size(); ++i) {
-    const std::uint32_t cap = std::bit_floor(std::max<std::uint32_t>(solvers[i].max_substeps, 1));
-    plan.substeps[i] = power_of_two_substeps(dt, solvers[i].stable_step, cap);
+    plan.substeps[i] = power_of_two_substeps(dt, solvers[i].stable_step, cap(i));
   }
   return plan;
 }

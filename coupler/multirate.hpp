@@ -20,12 +20,19 @@ struct PairRate {
   double stable_dt = 0;      // s: the pair's own limit (eq. 7 contact term); infinity: none
 };
 
+// What set a plan's exchange step; text(): "solver 2", "pair 0", "max_dt", "next output", "nothing".
+struct StepLimit {
+  enum class Kind { nothing, solver, pair, max_dt, next_output };
+  Kind kind = Kind::nothing;
+  std::size_t index = 0;  // of the solver or the pair
+  [[nodiscard]] std::string text() const;
+};
+
 struct RatePlan {
   double exchange_dt = 0;               // s: the interval between two exchanges, Delta_n
   std::vector<std::uint32_t> substeps;  // per solver: steps of exchange_dt / substeps in it
   double lock_step_dt = 0;              // s: what lock-step would take now (eq. 7)
-  // What set exchange_dt: "solver N", "pair N", "max_dt", "next output", "nothing" (output_interval).
-  std::string limit;
+  StepLimit limit;                      // what set exchange_dt (nothing: the fallback, output_interval)
 };
 
 struct RateLimits {

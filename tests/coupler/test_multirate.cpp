@@ -44,11 +44,11 @@ TEST(Multirate, LockStepIsTheSmallestStableStepOfAll) {
   EXPECT_EQ(plan.exchange_dt, 1.0);
   EXPECT_EQ(plan.lock_step_dt, 1.0);
   EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 1}));
-  EXPECT_EQ(plan.limit, "solver 2");
+  EXPECT_EQ(plan.limit.text(), "solver 2");
   const auto capped =
       plan_rates(solvers, pairs, {.max_dt = 0.5, .fallback_dt = 0.01, .until_next_output = kInf}, false);
   EXPECT_EQ(capped.exchange_dt, 0.5);
-  EXPECT_EQ(capped.limit, "max_dt");
+  EXPECT_EQ(capped.limit.text(), "max_dt");
 }
 
 TEST(Multirate, TheStiffestStructureNoLongerSetsTheSlurrysStep) {
@@ -79,7 +79,7 @@ TEST(Multirate, APairsOwnLimitHoldsTheExchangeBelowItsSlowerSide) {
   pairs[2].stable_dt = 2.0;
   const auto plan = plan_rates(three_solvers(8.0, 9.0, 1.0), pairs, kNoLimits, true);
   EXPECT_EQ(plan.exchange_dt, 2.0);
-  EXPECT_EQ(plan.limit, "pair 2");
+  EXPECT_EQ(plan.limit.text(), "pair 2");
   EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 2}));
 }
 
@@ -101,7 +101,7 @@ TEST(Multirate, NeverShorterThanLockStepAndStopsAtTheNextOutput) {
   const auto near =
       plan_rates(solvers, three_pairs(), {.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = 3.0}, true);
   EXPECT_EQ(near.exchange_dt, 3.0);
-  EXPECT_EQ(near.limit, "next output");
+  EXPECT_EQ(near.limit.text(), "next output");
   EXPECT_EQ(near.substeps[2], 4u);
   // The next output closer than lock-step's step: lock-step's step, as lock-step would take.
   const auto closer = plan_rates(solvers, three_pairs(),

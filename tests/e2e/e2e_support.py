@@ -226,10 +226,39 @@ class RealRunTestCase(E2eTestCase):
     """Runs `./sabo run --no-setup` with the built executables of BUILD_DIR (ctest builds them first);
     `plots`: draw the figures at the end (a second or two more per run; test_plot.py's concern)."""
 
-    def run_sabo(self, scene, out, extra=(), plots=False):
-        env = {"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
+    def run_sabo(self, scene, out, extra=(), plots=False, env=None):
+        """`env`: more variables for the run (OMP_NUM_THREADS, say)."""
+        full_env = {"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": "", "SABO_WATCHDOG_MIN_S": ""}
+        full_env.update(env or {})
         args = ["run", scene, "--out", out, "--no-setup"] + ([] if plots else ["--no-plots"]) + list(extra)
-        return self.sabo(args, env=env)
+        return self.sabo(args, env=full_env)
+
+    def run_and_kill(self, scene, out, role, at_step):
+        """Runs `scene`, sends SIGKILL to `role` once the coupler reports step `at_step`; returns the exit code
+        and the run."""
+        sabo = self.run_sabo(scene, out)
+        events = os.path.join(out, "coupler.events.jsonl")
+        deadline = time.monotonic() + 120
+        killed = False
+        while sabo.popen.poll() is None and not killed and time.monotonic() < deadline:
+            try:
+                with open(events, encoding="utf-8") as handle:
+                    steps = [json.loads(line).get("step", 0) for line in handle if '"progress"' in line]
+                if steps and steps[-1] >= at_step:
+                    os.kill(read_json(os.path.join(out, "pids.json"))[role], signal.SIGKILL)
+                    killed = True
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.01)
+        self.assertTrue(killed, "the run ended before step {}".format(at_step))
+        return sabo.wait(180), sabo
+
+    def replay(self, run_dir, role, extra=()):
+        """`./sabo replay RUN_DIR ROLE EXTRA...`: its exit code, stdout and stderr."""
+        sabo = self.sabo(["replay", run_dir, role, "--no-setup"] + list(extra),
+                         env={"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": ""})
+        code = sabo.wait(120)
+        return code, sabo.stdout, sabo.stderr
 
     def scene_path(self, relative):
         path = os.path.join(ROOT, relative)

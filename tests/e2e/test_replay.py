@@ -34,12 +34,6 @@ class ReplayTest(RealRunTestCase):
         folder = sorted(f for f in os.listdir(os.path.join(run_dir, "replay")) if f.startswith(role + "-"))[-1]
         return os.path.join(run_dir, "replay", folder, "replay.json")
 
-    def replay(self, run_dir, role, extra=()):
-        env = {"SABO_BUILD_DIR": os.environ.get("SABO_BUILD_DIR", ""), "SABO_PLAN_OVERRIDE": ""}
-        sabo = self.sabo(["replay", run_dir, role, "--no-setup"] + list(extra), env=env)
-        code = sabo.wait(120)
-        return code, sabo.stdout, sabo.stderr
-
     def test_every_process_of_an_unchanged_build_matches_its_recording(self):
         run = self.recorded_run()
         for role in ("sph", "dem", "fem", "coupler"):

@@ -5,11 +5,8 @@ feeds it the StepForces since then and checks its states against the ones it sen
 every output file (forces.csv, energy.csv, the .pvd series and each .vtp frame) is byte for byte that of an
 uninterrupted run, and summary.json names the restart. A scene with restart = "off" stops instead."""
 import filecmp
-import json
 import os
 import random
-import signal
-import time
 
 from e2e_support import RealRunTestCase, read_json
 
@@ -29,25 +26,6 @@ class RestartTest(RealRunTestCase):
         with open(scene, "w", encoding="utf-8") as handle:
             handle.write(text)
         return scene
-
-    def run_and_kill(self, scene, out, role, at_step):
-        """Runs `scene`, sends SIGKILL to `role` once the coupler reports step `at_step`; returns the exit code."""
-        sabo = self.run_sabo(scene, out)
-        events = os.path.join(out, "coupler.events.jsonl")
-        deadline = time.monotonic() + 120
-        killed = False
-        while sabo.popen.poll() is None and not killed and time.monotonic() < deadline:
-            try:
-                with open(events, encoding="utf-8") as handle:
-                    steps = [json.loads(line).get("step", 0) for line in handle if '"progress"' in line]
-                if steps and steps[-1] >= at_step:
-                    os.kill(read_json(os.path.join(out, "pids.json"))[role], signal.SIGKILL)
-                    killed = True
-            except (OSError, ValueError, KeyError):
-                pass
-            time.sleep(0.01)
-        self.assertTrue(killed, "the run ended before step {}".format(at_step))
-        return sabo.wait(180), sabo
 
     def assertSameOutputs(self, reference, run):
         for name in OUTPUTS:

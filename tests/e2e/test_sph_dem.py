@@ -95,9 +95,7 @@ class BouldersInWaterTest(RealRunTestCase):
         runs = []
         for threads in ("1", "2"):
             out = os.path.join(self.tmp, "threads" + threads)
-            env = {"SABO_BUILD_DIR": os.environ.get("SABO_BUILD_DIR", ""), "SABO_PLAN_OVERRIDE": "",
-                   "SABO_WATCHDOG_MIN_S": "", "OMP_NUM_THREADS": threads}
-            sabo = self.sabo(["run", scene, "--out", out, "--no-setup", "--no-plots"], env=env)
+            sabo = self.run_sabo(scene, out, env={"OMP_NUM_THREADS": threads})
             self.assertEqual(sabo.wait(240), 0, sabo.output())
             runs.append(out)
         compared = 0
