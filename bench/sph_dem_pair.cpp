@@ -71,7 +71,7 @@ int main(int argc, char** argv) {
   s.particle_sets.push_back(set);
   s.sph_dem_default.model =
       model == "penalty" ? scene::SphDemContact::Model::penalty : scene::SphDemContact::Model::boundary_particles;
-  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.push_back({role, {}, 1.0, {}});
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
 
   sabo::testing::SphDemHarness run(s, sph::testing::container_walls(Vec3::Zero(), top + Vec3(0, 0, 0.1), dx, 3));
   run.step();

@@ -15,27 +15,88 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr std::chrono::milliseconds kTickInterval{100};
-constexpr int kEvents = ZMQ_EVENT_ACCEPTED | ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_CLOSED;
+constexpr int kEvents = ZMQ_EVENT_ACCEPTED | ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_CLOSED |
+                        ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
+                        ZMQ_EVENT_HANDSHAKE_FAILED_AUTH;
+constexpr std::size_t kRefusalsKept = 100;
+// How long registered() waits for the "accepted" event of a connection (microseconds, normally).
+constexpr std::chrono::milliseconds kSyncLimit{2000};
 
+std::string handshake_problem(std::uint16_t event, std::uint32_t value) {
+  if (event == ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) {
+    return fmt::format("its key or token is not one of this run's (authentication refused, ZAP status {})", value);
+  }
+  if (event == ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL) {
+    switch (value) {
+      case ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH:
+        return "it offers another security mechanism than this coupler's (no keys, or the wrong kind)";
+      case ZMQ_PROTOCOL_ERROR_ZMTP_CRYPTOGRAPHIC:
+        return "its CURVE handshake does not decrypt (a replayed or forged handshake, or the wrong coupler key)";
+      case ZMQ_PROTOCOL_ERROR_ZMTP_KEY_EXCHANGE: return "its CURVE key exchange failed";
+      default:
+        return fmt::format("its handshake breaks the protocol (replayed, forged or garbled; ZeroMQ protocol error {:#x})",
+                           value);
+    }
+  }
+  return fmt::format("the handshake failed ({})",
+                     value == 0 ? std::string("no detail") : zmq_strerror(static_cast<int>(value)));
+}
 }  // namespace
 
-ConnectionGuard::ConnectionGuard(zmq::context_t& context, protocol::Socket& socket, ConnectionLimits limits)
+ConnectionGuard::ConnectionGuard(zmq::context_t& context, protocol::Socket& socket, ConnectionLimits limits,
+                                 Authenticator* authenticator)
     : socket_(socket),
       limits_(limits),
+      authenticator_(authenticator),
+      monitor_(context, zmq::socket_type::pair),
+      relay_(context, zmq::socket_type::pair),
       events_(context, zmq::socket_type::pair),
       address_(fmt::format("inproc://sabo-connection-guard-{}", static_cast<const void*>(this))) {
-  socket_.monitor(address_, kEvents);
-  events_.set(zmq::sockopt::linger, 0);
-  events_.set(zmq::sockopt::rcvhwm, 0);  // no limit on the events queued between two ticks: none is lost
+  const std::string monitor_address = address_ + "-monitor";
+  socket_.monitor(monitor_address, kEvents);
+  for (auto* pair : {&monitor_, &relay_, &events_}) {
+    pair->set(zmq::sockopt::linger, 0);
+    pair->set(zmq::sockopt::rcvhwm, 0);  // no limit on the events queued between two ticks: none is lost
+    pair->set(zmq::sockopt::sndhwm, 0);
+  }
+  monitor_.connect(monitor_address);
+  relay_.bind(address_);
   events_.connect(address_);
+  relay_thread_ = std::thread([this] { relay(); });
   reserve_fd_ = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
 }
 
 ConnectionGuard::~ConnectionGuard() {
+  stop_relay_ = true;
+  if (relay_thread_.joinable()) relay_thread_.join();
   release_reserve();
   try {
     socket_.monitor("", 0);  // stops the monitor
   } catch (const std::exception&) {
+  }
+}
+
+void ConnectionGuard::relay() {
+  zmq::message_t head, endpoint;
+  while (!stop_relay_) {
+    zmq::pollitem_t item{monitor_.handle(), 0, ZMQ_POLLIN, 0};
+    try {
+      if (zmq::poll(&item, 1, kTickInterval) == 0) continue;
+      if (!monitor_.recv(head, zmq::recv_flags::none)) continue;
+      if (head.more()) (void)monitor_.recv(endpoint, zmq::recv_flags::none);
+      std::string peer;
+      if (head.size() >= 6) {
+        std::uint16_t event = 0;
+        std::int32_t fd = -1;
+        std::memcpy(&event, head.data(), sizeof event);
+        std::memcpy(&fd, static_cast<const char*>(head.data()) + 2, sizeof fd);
+        if (event == ZMQ_EVENT_ACCEPTED) peer = protocol::peer_info(fd).address;
+      }
+      relay_.send(head, zmq::send_flags::sndmore);
+      relay_.send(zmq::buffer(peer), zmq::send_flags::none);
+    } catch (const zmq::error_t&) {
+      return;  // the context is ending
+    }
   }
 }
 
@@ -47,10 +108,32 @@ void ConnectionGuard::release_reserve() {
 void ConnectionGuard::registered(int fd) {
   if (fd < 0) return;
   // The monitor's "accepted" event of this connection may still be queued (the guard reads them at most
-  // every 100 ms): read it first, or it would later file the solver's connection as unregistered.
+  // every 100 ms), or still on its way through the relay thread: read up to it, or it would later file the
+  // solver's connection as unregistered. The connection is open (its message just came), so the last event
+  // of its descriptor is then its "accepted" one; whatever ended before under the same descriptor number (a
+  // dead solver whose replacement this is, say) is no loss of this connection.
   drain();
+  const auto deadline = Clock::now() + kSyncLimit;
+  while (open_.count(fd) == 0 && Clock::now() < deadline) {
+    zmq::pollitem_t item{events_.handle(), 0, ZMQ_POLLIN, 0};
+    try {
+      (void)zmq::poll(&item, 1, std::chrono::milliseconds(10));
+    } catch (const zmq::error_t&) {
+      break;
+    }
+    drain();
+  }
+  lost_.erase(std::remove(lost_.begin(), lost_.end(), fd), lost_.end());
   registered_.insert(fd);
   open_.erase(fd);
+  addresses_.erase(fd);
+}
+
+std::vector<int> ConnectionGuard::take_lost() {
+  drain();
+  std::vector<int> lost;
+  lost.swap(lost_);
+  return lost;
 }
 
 void ConnectionGuard::drain() {
@@ -58,7 +141,7 @@ void ConnectionGuard::drain() {
   while (true) {
     try {
       if (!events_.recv(head, zmq::recv_flags::dontwait)) return;
-      if (head.more()) (void)events_.recv(address, zmq::recv_flags::none);
+      if (head.more()) (void)events_.recv(address, zmq::recv_flags::none);  // the relay's: the peer's address
     } catch (const zmq::error_t&) {
       return;
     }
@@ -71,9 +154,37 @@ void ConnectionGuard::drain() {
       ++stats_.accepted;
       registered_.erase(fd);  // a descriptor number ZeroMQ gave to a new connection
       open_[fd] = Clock::now();
+      addresses_[fd] = address.to_string();
       stats_.most_unregistered = std::max(stats_.most_unregistered, open_.size());
+    } else if (event & (ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
+                        ZMQ_EVENT_HANDSHAKE_FAILED_AUTH)) {
+      // The value is the reason, not the descriptor: the connection's end follows at once (one I/O thread).
+      ++stats_.refused_handshakes;
+      handshake_failure_ = handshake_problem(event, static_cast<std::uint32_t>(fd));
+      if (event == ZMQ_EVENT_HANDSHAKE_FAILED_AUTH && authenticator_ != nullptr) {
+        if (auto refusal = authenticator_->take_refusal()) handshake_failure_ = refusal->reason;
+      }
     } else {
+      if (!handshake_failure_.empty()) {
+        const auto known = addresses_.find(fd);
+        const std::string peer = known == addresses_.end() || known->second.empty() ? "unknown" : known->second;
+        const std::string host = peer.starts_with("pid ") ? peer : peer.substr(0, peer.rfind(':'));
+        auto same = std::find_if(refused_.begin(), refused_.end(), [&](const RefusedConnection& r) {
+          return r.reason == handshake_failure_ &&
+                 (r.address.starts_with("pid ") ? r.address : r.address.substr(0, r.address.rfind(':'))) == host;
+        });
+        if (same != refused_.end()) {
+          ++same->count;
+        } else {
+          spdlog::warn("refused a connection from {}: {} (the same again from there is counted, not logged)", peer,
+                       handshake_failure_);
+          if (refused_.size() < kRefusalsKept) refused_.push_back({peer, handshake_failure_, 1});
+        }
+        handshake_failure_.clear();
+      }
+      if (registered_.count(fd) != 0) lost_.push_back(fd);
       open_.erase(fd);
+      addresses_.erase(fd);
       registered_.erase(fd);
     }
   }

@@ -49,7 +49,41 @@ Coupler::Coupler(const scene::Scene& scene, CouplerOptions options, EventStream&
                                                       : scene::max_message_bytes(scene::estimate_scene(scene_));
   socket_.set_max_message_size(max_message_bytes_);
   socket_.set_handshake_interval(options_.connections.window);
-  guard_ = std::make_unique<ConnectionGuard>(context_, socket_, options_.connections);
+  secure();
+  guard_ = std::make_unique<ConnectionGuard>(context_, socket_, options_.connections, authenticator_.get());
+}
+
+void Coupler::secure() {
+  using protocol::Mechanism;
+  using protocol::Transport;
+  const Transport transport = protocol::transport_of(options_.endpoint);
+  const bool tcp_in_clear =
+      transport == Transport::tcp && scene_.run.tcp_security == scene::RunSettings::TcpSecurity::none;
+  if (tcp_in_clear) {
+    security_warning_ = fmt::format(
+        "tcp_security = \"none\": any process that reaches {} can register as a solver, read the run's state and "
+        "send forces; nothing is encrypted",
+        options_.endpoint);
+    spdlog::warn("{}", security_warning_);
+  } else if (!options_.keys.empty()) {
+    std::vector<std::string> roles;
+    for (const auto& solver : scene_.solvers) roles.emplace_back(role_name(solver.role));
+    auto credentials = protocol::read_server_credentials(options_.keys, roles, options_.endpoint);
+    mechanism_ = credentials.mechanism;
+    if (mechanism_ != Mechanism::none) {
+      socket_.secure_server(credentials);
+      // Before the socket binds: a CURVE or PLAIN server without a ZAP handler would let every client in.
+      authenticator_ = std::make_unique<Authenticator>(context_, std::move(credentials));
+    }
+  } else if (transport == Transport::tcp) {
+    throw EndpointError(fmt::format(
+        "{} is a tcp endpoint and the scene asks for CURVE (run.tcp_security = \"curve\", the default), but the "
+        "coupler has no keys. Fix: start it with --keys DIR ('./sabo keys DIR' writes a key set; './sabo run' makes "
+        "one in RUN_DIR/keys), or set tcp_security = \"none\" in the scene's [run] to run without authentication",
+        options_.endpoint));
+  }
+  const auto timeout = std::chrono::milliseconds(static_cast<long>(1000 * scene_.run.heartbeat_timeout));
+  socket_.set_heartbeat({.interval = timeout / 5, .timeout = timeout});
 }
 
 Coupler::~Coupler() = default;
@@ -61,11 +95,15 @@ void Coupler::fail(const std::string& process, const std::string& message) {
 
 void Coupler::bind() {
   socket_.bind(options_.endpoint);
+  const char* security = mechanism_ == protocol::Mechanism::curve   ? "CURVE: only this run's keys join, encrypted"
+                         : mechanism_ == protocol::Mechanism::plain ? "only this run's token joins"
+                                                                    : "no authentication";
   spdlog::info(
-      "listening on {}; frames above {:.3g} MB are refused, connections that do not register within {} s "
-      "are closed (at most {} at once)",
-      socket_.endpoint(), static_cast<double>(max_message_bytes_) / 1e6,
-      std::chrono::duration<double>(options_.connections.window).count(), options_.connections.max_unregistered);
+      "listening on {} ({}); frames above {:.3g} MB are refused, connections that do not register within {} s "
+      "are closed (at most {} at once), a connection silent for {} s is closed",
+      socket_.endpoint(), security, static_cast<double>(max_message_bytes_) / 1e6,
+      std::chrono::duration<double>(options_.connections.window).count(), options_.connections.max_unregistered,
+      scene_.run.heartbeat_timeout);
   events_.listening(socket_.endpoint());
 }
 
@@ -159,6 +197,7 @@ void Coupler::collect_states(std::uint64_t step) {
   while (pending() > 0) {
     if (stop_requested()) throw StopRequested(fmt::format("stopped by signal {} at step {}", stop_signal(), step));
     guard_->tick();
+    check_lost_peers(step);
     if (!socket_.receive(inbound_, kPollSlice)) {
       if (Clock::now() - wait_start > hang) {
         std::vector<std::string> silent;
@@ -191,6 +230,29 @@ void Coupler::collect_states(std::uint64_t step) {
     receive_seconds_ += seconds_since(receive_start);
   }
   wait_seconds_ += seconds_since(wait_start);
+}
+
+void Coupler::check_lost_peers(std::uint64_t step) {
+  for (const int fd : guard_->take_lost()) {
+    auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->source_fd == fd; });
+    if (it == peers_.end() || (*it)->said_goodbye) continue;
+    Peer& peer = **it;
+    peer.source_fd = -1;
+    const std::string message = fmt::format(
+        "{} (pid {}{}) lost its connection to the coupler at step {}: nothing heard from it for heartbeat_timeout = {} "
+        "s, or its process ended (its host is unreachable, its network down, or the process stopped or killed)",
+        peer.name(), peer.registration.pid(), peer.address.empty() ? "" : ", at " + peer.address, step,
+        scene_.run.heartbeat_timeout);
+    if (peer.journal) {
+      // The supervisor ends what is left of it and starts it again from its checkpoint; the wait starts again.
+      spdlog::warn("{}; waiting for it to be restarted from its checkpoint", message);
+      events_.emit(
+          {{"event", "lost"}, {"process", peer.name()}, {"pid", peer.registration.pid()}, {"message", message}});
+      continue;
+    }
+    peer.said_goodbye = true;  // it will not say goodbye: do not wait for it
+    fail(peer.name(), message);
+  }
 }
 
 void Coupler::validate_state(const Peer& peer) {

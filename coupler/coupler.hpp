@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "coupler/accounting.hpp"
+#include "coupler/authenticator.hpp"
 #include "coupler/connection_guard.hpp"
 #include "coupler/contact/contact_pair.hpp"
 #include "coupler/eta.hpp"
@@ -41,6 +42,9 @@ struct CouplerOptions {
   // start at step 0. The solvers must register resumed from their checkpoints of the same step.
   std::filesystem::path resume;
   std::string resume_reason;  // why the run is resumed, for summary.json (the supervisor says)
+  // The run's key set (libsabo/protocol/security.hpp): over tcp CURVE with these keys, over ipc the run's token.
+  // Empty: no authentication (ipc only; over tcp the scene must say tcp_security = "none").
+  std::filesystem::path keys;
 };
 
 // Exit codes of the coupler process (the supervisor reads them).
@@ -56,12 +60,21 @@ class Coupler {
  private:
   struct Peer;
 
+  // Authentication (docs/security.md) and heartbeats, before the socket binds.
+  void secure();
   void bind();
   void wait_for_registrations();
   // Handles one message outside of the expected flow (unknown peers, bad
   // frames, late registrations). Returns the peer it came from, if known.
   Peer* route(const protocol::Inbound& inbound, sabo::v1::MessageType expected, std::uint64_t step);
   void accept_registration(const protocol::Inbound& inbound);
+  // Why the connection `inbound` came on may not register as `name`: it authenticated as another role, or
+  // another user's process is at its other end; nullopt when it may.
+  [[nodiscard]] std::optional<std::string> identity_problem(const protocol::Inbound& inbound,
+                                                            const std::string& name) const;
+  // Registered solvers whose connection ended (a vanished host, a stopped or dead process): the run stops, or,
+  // when it restarts its processes, waits for the replacement that the supervisor starts.
+  void check_lost_peers(std::uint64_t step);
   // A solver restarted from its checkpoint registers again (docs/restart.md): it takes its role back and is fed
   // the journalled forces from its checkpoint's step while its states are checked against the journal.
   void accept_replacement(const protocol::Inbound& inbound, const sabo::v1::Register& registration);
@@ -93,6 +106,7 @@ class Coupler {
   void wait_for_goodbyes(std::chrono::milliseconds timeout);
   void write_summary(const std::string& status);
   [[nodiscard]] nlohmann::json multirate_summary() const;
+  [[nodiscard]] nlohmann::json security_summary() const;
   // A failure after the run started: reported, and the solvers told to stop.
   void handle_failure(const std::exception& error, std::string& status, int& exit_code);
 
@@ -114,7 +128,10 @@ class Coupler {
   EventStream& events_;
   zmq::context_t context_{1};
   protocol::Socket socket_;
-  std::int64_t max_message_bytes_ = 0;  // frames above are refused (ZMQ_MAXMSGSIZE)
+  std::int64_t max_message_bytes_ = 0;            // frames above are refused (ZMQ_MAXMSGSIZE)
+  std::unique_ptr<Authenticator> authenticator_;  // before guard_: the guard asks it why a handshake failed
+  protocol::Mechanism mechanism_ = protocol::Mechanism::none;
+  std::string security_warning_;  // for summary.json: tcp without CURVE
   std::unique_ptr<ConnectionGuard> guard_;
   protocol::Inbound inbound_;
   std::vector<std::unique_ptr<Peer>> peers_;           // in registration order

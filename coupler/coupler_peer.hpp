@@ -23,6 +23,8 @@ inline double seconds_since(Clock::time_point start) {
 
 struct Coupler::Peer {
   std::string identity;
+  int source_fd = -1;   // its connection (ConnectionGuard::take_lost)
+  std::string address;  // "10.0.0.2:41234" (tcp) or "pid 1234" (ipc), for messages
   Role role = Role::dem;
   [[nodiscard]] const char* name() const { return role_name(role); }
   double beta = 1.0;

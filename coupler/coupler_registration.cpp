@@ -3,6 +3,7 @@
 // role the scene needs.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -14,6 +15,23 @@
 #include "libsabo/protocol/wire.hpp"
 
 namespace sabo::coupler {
+
+std::optional<std::string> Coupler::identity_problem(const protocol::Inbound& inbound, const std::string& name) const {
+  if (authenticator_ && inbound.user_id != name) {
+    return fmt::format(
+        "this connection authenticated as '{}' (with that role's {}) and cannot register as {}: each role joins "
+        "with its own keys (RUN_DIR/keys/{}.key_secret)",
+        inbound.user_id, mechanism_ == protocol::Mechanism::curve ? "key" : "name", name, name);
+  }
+  const protocol::PeerInfo who = protocol::peer_info(inbound.source_fd);
+  if (who.uid >= 0 && static_cast<unsigned>(who.uid) != ::geteuid()) {
+    return fmt::format(
+        "the process at the other end ({}) belongs to user {}, and this run to user {}: only the run's "
+        "user may join it",
+        who.address, who.uid, ::geteuid());
+  }
+  return std::nullopt;
+}
 
 void Coupler::accept_registration(const protocol::Inbound& inbound) {
   sabo::v1::Register registration;
@@ -48,6 +66,10 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     return;
   }
   const Role role = *known_role;
+  if (auto problem = identity_problem(inbound, name)) {
+    refuse(*problem);
+    return;
+  }
   const scene::SolverSettings* settings = scene_.solver(role);
   if (settings == nullptr) {
     refuse(fmt::format("the scene {} has no bodies for a {}", scene_.file.string(), name));
@@ -109,6 +131,9 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   auto peer = std::make_unique<Peer>();
   if (auto journal = journals_.find(role); journal != journals_.end()) peer->journal = std::move(journal->second);
   peer->identity = inbound.peer;
+  const protocol::PeerInfo who = protocol::peer_info(inbound.source_fd);
+  peer->source_fd = inbound.source_fd;
+  if (who.uid < 0) peer->address = who.address;  // tcp (over ipc the pid is the registration's)
   peer->role = role;
   peer->beta = settings->beta;
   peer->registration = std::move(registration);
@@ -122,7 +147,8 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   guard_->registered(inbound.source_fd);
   spdlog::info("registered {} (pid {}, '{}'): {} particles, {} surface nodes", name, peer->registration.pid(),
                peer->registration.name(), n, peer->registration.surface().node_id_size());
-  events_.registered(name, peer->registration.pid(), peer->registration.name());
+  events_.registered(name, peer->registration.pid(), peer->registration.name(), who.pid,
+                     who.uid < 0 ? who.address : std::string());
   // A resumed run's recording holds the registrations of its start already.
   if (recorder_ && !resume_step_) recorder_->record_registration(name, peer->registration);
   if (resume_step_) peer->checkpoint_step = *resume_step_;  // its restart journal starts at its checkpoint
@@ -176,6 +202,8 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
   spdlog::warn("{} (pid {}) rejoins from its checkpoint of step {} (pid {} before): catching up {} steps", name,
                registration.pid(), from, peer.registration.pid(), current_step_ - from);
   peer.identity = inbound.peer;
+  peer.source_fd = inbound.source_fd;
+  if (const auto who = protocol::peer_info(inbound.source_fd); who.uid < 0) peer.address = who.address;
   peer.registration.set_pid(registration.pid());
   peer.catching_up = from < peer.journal->end_step() || (peer.has_state && from <= current_step_);
   peer.resumed_at = from;

@@ -158,6 +158,7 @@ void Coupler::write_summary(const std::string& status) {
         {"closed_unregistered", guard_->stats().dropped_unregistered},
         {"closed_over_limit", guard_->stats().dropped_over_limit},
         {"most_unregistered_at_once", guard_->stats().most_unregistered}}},
+      {"security", security_summary()},
       {"peak_force", peak_forces},
       {"active_effects", effects},
   };
@@ -175,6 +176,21 @@ void Coupler::write_summary(const std::string& status) {
     if (!out) throw FileError(fmt::format("cannot write '{}'", temporary.string()));
   }
   std::filesystem::rename(temporary, file);
+}
+
+nlohmann::json Coupler::security_summary() const {
+  nlohmann::json refused = nlohmann::json::array();
+  for (const auto& connection : guard_->refused()) {
+    refused.push_back({{"address", connection.address}, {"reason", connection.reason}, {"count", connection.count}});
+  }
+  nlohmann::json security = {
+      {"transport", protocol::transport_of(options_.endpoint) == protocol::Transport::tcp ? "tcp" : "ipc"},
+      {"mechanism", protocol::mechanism_name(mechanism_)},
+      {"heartbeat_timeout", scene_.run.heartbeat_timeout},
+      {"refused_handshakes", guard_->stats().refused_handshakes},
+      {"refused", refused}};
+  if (!security_warning_.empty()) security["warning"] = security_warning_;
+  return security;
 }
 
 }  // namespace sabo::coupler

@@ -12,8 +12,12 @@ void EventStream::listening(const std::string& endpoint) {
   emit({{"event", "listening"}, {"endpoint", endpoint}});
 }
 
-void EventStream::registered(const std::string& role, std::uint32_t pid, const std::string& name) {
-  emit({{"event", "registered"}, {"role", role}, {"pid", pid}, {"name", name}});
+void EventStream::registered(const std::string& role, std::uint32_t pid, const std::string& name, int peer_pid,
+                             const std::string& address) {
+  nlohmann::json event = {{"event", "registered"}, {"role", role}, {"pid", pid}, {"name", name}};
+  if (peer_pid > 0) event["peer_pid"] = peer_pid;
+  if (!address.empty()) event["address"] = address;
+  emit(event);
 }
 
 void EventStream::error(const std::string& process, const std::string& message) {

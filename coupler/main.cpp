@@ -40,6 +40,9 @@ int main(int argc, char** argv) {
       "--resume", options.resume,
       "continue the run in --out from this checkpoint of the coupler (RUN_DIR/checkpoints/coupler_<step>.h5); "
       "every solver must start from its checkpoint of the same step");
+  app.add_option("--keys", options.keys,
+                 "the run's key set (./sabo keys DIR writes one): over tcp only its roles' CURVE keys join, over ipc "
+                 "only its token");
   app.add_option("--resume-reason", options.resume_reason, "why the run is resumed (for summary.json)");
   try {
     app.parse(argc, argv);

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import time
 from typing import TYPE_CHECKING
@@ -31,6 +32,7 @@ Sabo: co-simulation of debris flows striking protective structures.
   ./sabo plot RUN_DIR      figures of a run (forces, energy, gauges, sensors, time steps) in RUN_DIR/plots/
   ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
   ./sabo status RUN_DIR    what a run folder holds; repairs what a killed run left behind
+  ./sabo keys DIR          a key set for a run whose solvers are started by hand on other hosts
 """
 
 EPILOG = """\
@@ -66,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--quiet", action="store_true", help="no progress line, only errors and the summary")
     run_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
     run_parser.add_argument("--no-plots", action="store_true", help="no figures in RUN_DIR/plots/ at the end")
+    run_parser.add_argument("--keys", metavar="DIR",
+                            help="use the key set in DIR (from ./sabo keys DIR) instead of a new one: for solvers "
+                                 "started by hand on other hosts with a copy of it (docs/security.md)")
 
     resume_parser = commands.add_parser(
         "resume", help="continue a killed run from its checkpoints",
@@ -134,6 +139,16 @@ def build_parser() -> argparse.ArgumentParser:
                                     "at or before A (from step 0 when none is kept), and the replay ends at B")
     replay_parser.add_argument("--out", metavar="DIR", help="the replay's folder (default: RUN_DIR/replay/ROLE-<time>)")
     replay_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+
+    keys_parser = commands.add_parser(
+        "keys", help="write a key set for runs whose solvers start by hand on other hosts",
+        description="Write a key set into DIR (created 0700, files 0600): a ZeroMQ CURVE key pair for the coupler "
+                    "and for each solver role, and a token for ipc runs. Start the run with ./sabo run SCENE --keys "
+                    "DIR, and a solver on another host with --keys pointing at a copy of DIR/coupler.key and its "
+                    "role's .key_secret (docs/security.md). Exit status: 0 written, 1 not written, 2 bad input.")
+    keys_parser.add_argument("folder", metavar="DIR", help="the folder to write, e.g. ~/sabo-keys/wenjia")
+    keys_parser.add_argument("--force", action="store_true", help="replace a key set already in DIR")
+    keys_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
 
     test_parser = commands.add_parser(
         "test", help="build, then run the tests with ctest",
@@ -210,16 +225,31 @@ def set_up_and_check(root: str, build_dir: str, args: argparse.Namespace, scene:
         raise
 
 
+def command_keys(root: str, build_dir: str, args: argparse.Namespace) -> int:
+    if not args.no_setup:
+        setup(root, build_dir, quiet=True)
+    tool = os.path.join(build_dir, "bin", "sabo_keys")
+    command = [tool, args.folder] + (["--force"] if args.force else [])
+    try:
+        return subprocess.run(command, stdin=subprocess.DEVNULL).returncode
+    except OSError as error:
+        raise SaboError(f"cannot run {tool}: {error.strerror}; build the project with ./sabo setup")
+
+
 def command_run(root: str, build_dir: str, args: argparse.Namespace) -> int:
     scene = args.scene
     if not os.path.isfile(scene):
         raise SaboError(f"scene file not found: {scene}", EXIT_BAD_INPUT)
     if args.out is not None:
         refuse_used_run_dir(args.out)
+    if args.keys is not None and not os.path.isfile(os.path.join(args.keys, "ipc.token")):
+        raise SaboError(f"--keys {args.keys}: not a key set (no ipc.token in it). Fix: write one with "
+                        f"./sabo keys {args.keys}", EXIT_BAD_INPUT)
     plan = set_up_and_check(root, build_dir, args, scene)
     run_dir = create_run_dir(args.out, scene)
+    run_folder.make_private(run_dir)
     display = Display(quiet=args.quiet)
-    code = Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin")).run()
+    code = Supervisor(plan, scene, run_dir, display, bin_dir=os.path.join(build_dir, "bin"), keys=args.keys).run()
     return plot_after_run(root, run_dir, args, display, code)
 
 
@@ -255,6 +285,7 @@ def command_resume(root: str, build_dir: str, args: argparse.Namespace) -> int:
                         "first checkpoint ([run] checkpoint_interval), or it never wrote any. Fix: start it again "
                         f"with ./sabo run {scene}", EXIT_BAD_INPUT)
     # What the killed run left behind (its socket, an unfinished summary) goes; the rest continues.
+    run_folder.make_private(run_dir)
     run_folder.remove_socket(run_dir)
     try:
         os.unlink(os.path.join(run_dir, run_folder.SUMMARY_FILE + ".tmp"))
@@ -358,6 +389,12 @@ def main(root: str, argv: list[str] | None = None) -> int:
             return EXIT_BAD_INPUT
         if args.command == "setup":
             return command_setup(root, build_dir, args)
+        if args.command == "keys":
+            return command_keys(root, build_dir, args)
+        if args.command in ("run", "resume"):
+            # What a run writes is the user's alone: files 0600, folders 0700, whatever the umask was
+            # (the processes inherit it).
+            os.umask(0o077)
         if args.command == "resume":
             return command_resume(root, build_dir, args)
         if args.command == "status":

@@ -4,9 +4,11 @@
 as one JSON object:
 
     {"scene": "/abs/scene.toml", "end_time": 2.0, "output_interval": 0.01,
-     "hang_timeout": 10.0, "endpoint": "ipc" | "tcp://HOST:PORT",
+     "hang_timeout": 10.0, "endpoint": "ipc" | "tcp" | "tcp://HOST:PORT",
+     "tcp_security": "curve" | "none", "connect_host": "head-node" (optional),
      "processes": [{"role": "coupler", "command": ["/abs/coupler"]},
-                   {"role": "dem_solver", "command": ["/abs/dem_solver"]}, ...]}
+                   {"role": "dem_solver", "command": ["/abs/dem_solver"],
+                    "launcher": ["ssh", "node2"] (optional)}, ...]}
 
 Exit status 2 with the errors on stderr means the scene is wrong.
 For debugging, the environment variable SABO_PLAN_OVERRIDE may name a JSON
@@ -28,15 +30,19 @@ PLAN_OVERRIDE_VARIABLE = "SABO_PLAN_OVERRIDE"
 
 
 class ProcessSpec:
-    def __init__(self, role: str, command: list[str]) -> None:
+    def __init__(self, role: str, command: list[str], launcher: list[str] | None = None) -> None:
         self.role = role
         self.command = list(command)
+        self.launcher = list(launcher or [])  # a prefix that places the process (["ssh", "node2"]); empty: here
 
 
 class LaunchPlan:
     def __init__(self, scene: str | None, end_time: float, output_interval: float, hang_timeout: float,
-                 endpoint: str, processes: list[ProcessSpec], restart: str = "off", max_restarts: int = 0) -> None:
+                 endpoint: str, processes: list[ProcessSpec], restart: str = "off", max_restarts: int = 0,
+                 tcp_security: str = "curve", connect_host: str | None = None) -> None:
         self.scene = scene
+        self.tcp_security = tcp_security  # "curve" or "none" (docs/security.md)
+        self.connect_host = connect_host  # where launched solvers connect to; None: the endpoint's address
         self.restart = restart            # "auto": restart a solver that dies from its newest checkpoint
         self.max_restarts = max_restarts  # per solver
         self.end_time = end_time
@@ -72,9 +78,17 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
         raise SaboError(f"{source}: the launch plan must be a JSON object", EXIT_FAILED)
 
     endpoint = plan.get("endpoint", "ipc")
-    if not isinstance(endpoint, str) or not (endpoint == "ipc" or endpoint.startswith("tcp://")):
-        raise SaboError(f"{source}: launch plan key \"endpoint\" must be \"ipc\" or \"tcp://HOST:PORT\", "
+    if not isinstance(endpoint, str) or not (endpoint in ("ipc", "tcp") or endpoint.startswith("tcp://")):
+        raise SaboError(f"{source}: launch plan key \"endpoint\" must be \"ipc\", \"tcp\" or \"tcp://HOST:PORT\", "
                         f"got {endpoint!r}", EXIT_FAILED)
+    tcp_security = plan.get("tcp_security", "curve")
+    if tcp_security not in ("curve", "none"):
+        raise SaboError(f"{source}: launch plan key \"tcp_security\" must be \"curve\" or \"none\", got "
+                        f"{tcp_security!r}", EXIT_FAILED)
+    connect_host = plan.get("connect_host")
+    if connect_host is not None and (not isinstance(connect_host, str) or not connect_host):
+        raise SaboError(f"{source}: launch plan key \"connect_host\" must be a host name, got {connect_host!r}",
+                        EXIT_FAILED)
 
     entries = plan.get("processes")
     if not isinstance(entries, list) or not entries:
@@ -84,7 +98,7 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
         where = f"{source}: processes[{index}]"
         if not isinstance(entry, dict):
             raise SaboError(f"{where} must be an object with \"role\" and \"command\"", EXIT_FAILED)
-        role, command = entry.get("role"), entry.get("command")
+        role, command, launcher = entry.get("role"), entry.get("command"), entry.get("launcher", [])
         if not isinstance(role, str) or not role or "/" in role:
             raise SaboError(f"{where}: \"role\" must be a name such as \"dem_solver\", got {role!r}",
                             EXIT_FAILED)
@@ -92,9 +106,12 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
                 not all(isinstance(part, str) and part for part in command)):
             raise SaboError(f"{where} ({role}): \"command\" must be a non-empty list of strings, got {command!r}",
                             EXIT_FAILED)
+        if not isinstance(launcher, list) or not all(isinstance(part, str) and part for part in launcher):
+            raise SaboError(f"{where} ({role}): \"launcher\" must be a list of strings, got {launcher!r}",
+                            EXIT_FAILED)
         if any(spec.role == role for spec in processes):
             raise SaboError(f"{where}: role \"{role}\" appears twice", EXIT_FAILED)
-        processes.append(ProcessSpec(role, command))
+        processes.append(ProcessSpec(role, command, launcher))
     couplers = [spec for spec in processes if spec.role == COUPLER_ROLE]
     if len(couplers) != 1:
         raise SaboError(f"{source}: the launch plan must have exactly one process with role \"coupler\"",
@@ -108,7 +125,9 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
                       endpoint=endpoint,
                       processes=processes,
                       restart=plan.get("restart", "off"),
-                      max_restarts=int(plan.get("max_restarts", 0)))
+                      max_restarts=int(plan.get("max_restarts", 0)),
+                      tcp_security=tcp_security,
+                      connect_host=connect_host)
 
 
 def check_scene(scene: str, bin_dir: str) -> LaunchPlan:

@@ -14,6 +14,7 @@ import os
 import selectors
 import shutil
 import signal
+import socket
 import stat
 import subprocess
 import tempfile
@@ -63,7 +64,11 @@ class Outcome:
 
 
 def resolve_endpoint(plan_endpoint: str, run_dir: str) -> tuple[str, str | None]:
-    """(endpoint for the coupler and solvers, temporary folder to remove at the end or None)."""
+    """(endpoint for the coupler and solvers, temporary folder to remove at the end or None). The ipc socket
+    sits in the run folder (0700) or, when that path is too long for a socket, in a folder of /tmp that
+    mkdtemp makes 0700: only the user can enter either."""
+    if plan_endpoint == "tcp":
+        return "tcp://127.0.0.1:*", None
     if plan_endpoint != "ipc":
         return plan_endpoint, None
     path = os.path.join(os.path.abspath(run_dir), "coupler.sock")
@@ -84,15 +89,43 @@ def watchdog_seconds(hang_timeout: float) -> float:
     return max(3.0 * hang_timeout, minimum)
 
 
+def connect_endpoint(endpoint: str, launched: bool, connect_host: str | None) -> str:
+    """Where a solver connects to the coupler listening on `endpoint` (as it reported it): a solver started
+    through a launcher may be on another host, which reaches the coupler at `connect_host` (or this machine's
+    name) when the coupler listens on every interface."""
+    if not launched or not endpoint.startswith("tcp://"):
+        return endpoint
+    host, port = endpoint[len("tcp://"):].rsplit(":", 1)
+    if connect_host:
+        host = connect_host
+    elif host in ("0.0.0.0", "*"):
+        host = socket.getfqdn()
+    return f"tcp://{host}:{port}"
+
+
+def started_by(peer_pid: int, process: ManagedProcess) -> bool:
+    """The process the kernel names at the other end of an ipc connection is `process` or one of the processes
+    it started (its process group: the supervisor starts each in a session of its own)."""
+    if peer_pid == process.pid:
+        return True
+    try:
+        return os.getpgid(peer_pid) == process.pid
+    except OSError:
+        return False
+
+
 class Supervisor:
     def __init__(self, plan: LaunchPlan, scene: str, run_dir: str, display: Display, bin_dir: str | None = None,
-                 resume: tuple[int, dict[str, str]] | None = None) -> None:
+                 resume: tuple[int, dict[str, str]] | None = None, keys: str | None = None) -> None:
         """`resume`: (step, {role: checkpoint path}) to continue the run in `run_dir` from (`./sabo resume`), with
-        the coupler's checkpoint under "coupler"; None: a new run."""
+        the coupler's checkpoint under "coupler"; None: a new run. `keys`: a key set (`./sabo keys DIR`) to copy
+        into RUN_DIR/keys instead of making a new one."""
         self.plan = plan
         self._resume = resume
         self._resume_reason = "./sabo resume" if resume is not None else None
-        self.bin_dir = bin_dir  # the built tools (sabo_traffic), for the repairs after a crash
+        self.bin_dir = bin_dir  # the built tools (sabo_traffic, sabo_keys)
+        self._keys_source = keys
+        self.keys_dir = None         # RUN_DIR/keys once made; None: the processes run without keys
         self.scene = os.path.abspath(scene)
         self.run_dir = os.path.abspath(run_dir)
         self.display = display
@@ -117,6 +150,7 @@ class Supervisor:
         self._done = None            # the done event
         self._errors = []            # error events
         self._registered = set()     # roles the coupler reported registered
+        self._impostor = None        # why a registration came from a process the supervisor did not start
         self._last_progress = None   # last progress event
         self._last_activity = None   # monotonic time of the last progress (watchdog)
         self._started_at = None
@@ -134,7 +168,8 @@ class Supervisor:
             self._write_pids()
             if self._resume is None:
                 run_folder.write_run_file(self.run_dir, self.scene)
-            outcome = self._start_and_supervise()
+            problem = self._prepare_keys()
+            outcome = self._outcome_failed(problem) if problem else self._start_and_supervise()
         finally:
             self._kill_leftovers()
             self._close_pipe()
@@ -159,6 +194,39 @@ class Supervisor:
     def _on_signal(self, number: int, _frame: FrameType | None) -> None:
         self._interrupts.append(number)
 
+    # --------------------------------------------------------------------------- keys
+
+    def _prepare_keys(self) -> str | None:
+        """RUN_DIR/keys: the key set every process of the run proves itself with (docs/security.md), made by
+        sabo_keys, copied from --keys, or kept from the run being resumed. None, or why the run cannot start."""
+        folder = os.path.join(self.run_dir, run_folder.KEYS_FOLDER)
+        if self._keys_source is not None:
+            try:
+                run_folder.copy_key_set(self._keys_source, folder)
+            except OSError as error:
+                return f"--keys {self._keys_source}: cannot copy the key set: {error}"
+        elif not os.path.isfile(os.path.join(folder, "ipc.token")):
+            tool = os.path.join(self.bin_dir or "", "sabo_keys")
+            if self.bin_dir is None or not os.access(tool, os.X_OK):
+                return f"{tool} is missing: build the project with `./sabo setup`"
+            result = subprocess.run([tool, folder, "--force"], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, universal_newlines=True, errors="replace")
+            if result.returncode != 0:
+                return f"could not make the run's keys: {result.stderr.strip() or describe_exit(result.returncode)}"
+        self.keys_dir = folder
+        return None
+
+    def _security_arguments(self) -> list[str]:
+        """--keys for every process, but over tcp with tcp_security = "none" (nothing to prove there)."""
+        in_clear = self.endpoint.startswith("tcp://") and self.plan.tcp_security == "none"
+        return ["--keys", self.keys_dir] if self.keys_dir and not in_clear else []
+
+    def _solver_command(self, spec: ProcessSpec, endpoint: str, extra: list[str]) -> list[str]:
+        """The command line of a solver: its launcher, its program, and the arguments every solver takes."""
+        target = connect_endpoint(endpoint, bool(spec.launcher), self.plan.connect_host)
+        return (spec.launcher + spec.command + ["--scene", self.scene, "--coupler", target, "--out", self.run_dir] +
+                self._security_arguments() + extra)
+
     # ---------------------------------------------------------------------- processes
 
     @property
@@ -172,9 +240,9 @@ class Supervisor:
     def _running(self, processes: Iterable[ManagedProcess] | None = None) -> list[ManagedProcess]:
         return [p for p in (self.processes if processes is None else processes) if p.running]
 
-    def _start(self, spec: ProcessSpec, arguments: list[str], pipe: bool) -> ManagedProcess:
-        process = start_process(spec.role, spec.command + arguments, self.run_dir,
-                                os.path.join(self.run_dir, spec.role + ".log"), stdout_to_pipe=pipe)
+    def _start(self, spec: ProcessSpec, command: list[str], pipe: bool) -> ManagedProcess:
+        process = start_process(spec.role, command, self.run_dir, os.path.join(self.run_dir, spec.role + ".log"),
+                                stdout_to_pipe=pipe)
         self.processes.append(process)
         self._write_pids()
         return process
@@ -199,10 +267,11 @@ class Supervisor:
         """Starts the coupler (from its checkpoint when resuming); None, or why it could not be started."""
         spec = self.plan.coupler
         arguments = ["--scene", self.scene, "--endpoint", self.endpoint, "--out", self.run_dir]
+        arguments += self._security_arguments()
         if self._resume is not None:
             arguments += ["--resume", self._resume[1]["coupler"], "--resume-reason", self._resume_reason]
         try:
-            coupler = self._start(spec, arguments, pipe=True)
+            coupler = self._start(spec, spec.command + arguments, pipe=True)
         except OSError as error:
             return f"could not start the coupler: {spec.command[0]}: {error.strerror}"
         self._pipe = coupler.popen.stdout
@@ -217,11 +286,9 @@ class Supervisor:
         for spec in self.plan.solvers:
             if self._interrupts:
                 return
-            arguments = ["--scene", self.scene, "--coupler", endpoint, "--out", self.run_dir]
-            if self._resume is not None:
-                arguments += ["--resume", self._resume[1][spec.role]]
+            extra = ["--resume", self._resume[1][spec.role]] if self._resume is not None else []
             try:
-                self._start(spec, arguments, pipe=False)
+                self._start(spec, self._solver_command(spec, endpoint, extra), pipe=False)
             except OSError as error:
                 self._start_failure = f"could not start {spec.role}: {spec.command[0]}: {error.strerror}"
                 return
@@ -236,6 +303,8 @@ class Supervisor:
                 return self._stop_on_interrupt()
             if self._start_failure:
                 return self._fail(self._start_failure)
+            if self._impostor:
+                return self._fail(self._impostor)
             if self.coupler.poll() is not None:
                 if not self._coupler_may_restart():
                     return self._on_coupler_exit()
@@ -298,10 +367,10 @@ class Supervisor:
             return f"{died}; no checkpoint of it to restart from yet (the first comes at [run] checkpoint_interval)"
         step, path = checkpoint
         spec = next(p for p in self.plan.solvers if p.role == process.role)
-        arguments = ["--scene", self.scene, "--coupler", self._solver_endpoint, "--out", self.run_dir, "--resume", path]
         try:
-            replacement = start_process(spec.role, spec.command + arguments, self.run_dir,
-                                        os.path.join(self.run_dir, spec.role + ".log"), stdout_to_pipe=False)
+            replacement = start_process(spec.role, self._solver_command(spec, self._solver_endpoint, ["--resume", path]),
+                                        self.run_dir, os.path.join(self.run_dir, spec.role + ".log"),
+                                        stdout_to_pipe=False)
         except OSError as error:
             return f"{died}; could not start it again: {error.strerror}"
         process.sweep()
@@ -630,9 +699,32 @@ class Supervisor:
 
     def _on_registered(self, event: dict) -> None:
         self._last_activity = time.monotonic()
-        self._registered.add(event.get("role"))
+        role = event.get("role")
+        self._registered.add(role)
         name = f", {event['name']}" if event.get("name") else ""
-        self.display.info(f"sabo: {event.get('role', '?')} registered (pid {event.get('pid', '?')}{name})")
+        where = f", from {event['address']}" if event.get("address") else ""
+        self.display.info(f"sabo: {event.get('role', '?')} registered (pid {event.get('pid', '?')}{name}{where})")
+        # Over ipc the kernel names the process at the other end: it must be the one started for the role (or
+        # one it started). The run's token keeps others out already; this catches a process of the same user
+        # that read it.
+        process = self._process_by_role(role)
+        spec = next((p for p in self.plan.solvers if p.role == role), None)
+        peer_pid = event.get("peer_pid")
+        if (isinstance(peer_pid, int) and process is not None and spec is not None and not spec.launcher and
+                process.running and not started_by(peer_pid, process)):
+            self._impostor = (f"{role} registered from pid {peer_pid}, which the supervisor did not start (it started "
+                              f"{role} as pid {process.pid}): another process of this user took the role; the run "
+                              "stops")
+
+    def _on_lost(self, event: dict) -> None:
+        """The coupler lost a solver's connection (its host vanished, its process stopped): what is left of it
+        is killed, so that it is restarted from its checkpoint like a solver that died."""
+        self._last_activity = time.monotonic()
+        role = event.get("process")
+        self.display.error(f"sabo: the coupler reports: {event.get('message', role)}")
+        process = self._process_by_role(role)
+        if process is not None and process.running:
+            process.send(signal.SIGKILL)
 
     def _on_progress(self, event: dict) -> None:
         self._last_activity = time.monotonic()
@@ -670,6 +762,7 @@ class Supervisor:
     _EVENT_HANDLERS = {
         "listening": _on_listening,
         "registered": _on_registered,
+        "lost": _on_lost,
         "progress": _on_progress,
         "error": _on_error,
         "restarted": _on_restarted,

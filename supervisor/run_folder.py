@@ -26,6 +26,38 @@ RUN_FILE = "run.json"
 SUMMARY_FILE = "summary.json"
 TRAFFIC_FILE = "traffic.h5"
 SOCKET_FILE = "coupler.sock"
+KEYS_FOLDER = "keys"
+KEY_FILE_SUFFIXES = (".key", ".key_secret", ".token")
+PRIVATE_FOLDER_MODE = 0o700
+PRIVATE_FILE_MODE = 0o600
+
+
+def make_private(run_dir: str) -> None:
+    """The run folder, only the user's (0700): the results, the logs, the keys and the ipc socket inside it.
+    Files made in it are 0600 by the umask `./sabo run` sets (077)."""
+    os.chmod(run_dir, PRIVATE_FOLDER_MODE)
+
+
+def copy_key_set(source: str, folder: str) -> None:
+    """Copy the key set in `source` (`./sabo keys DIR`) into `folder` (0700, files 0600). OSError when `source`
+    is not a key set."""
+    if not os.path.isfile(os.path.join(source, "ipc.token")) or not os.path.isfile(
+            os.path.join(source, "coupler.key_secret")):
+        raise OSError(f"{source} holds no key set (coupler.key_secret and ipc.token are missing): write one with "
+                      f"./sabo keys {source}")
+    os.makedirs(folder, mode=PRIVATE_FOLDER_MODE, exist_ok=True)
+    os.chmod(folder, PRIVATE_FOLDER_MODE)
+    for name in sorted(os.listdir(source)):
+        if not name.endswith(KEY_FILE_SUFFIXES):
+            continue
+        with open(os.path.join(source, name), "rb") as handle:
+            data = handle.read()
+        target = os.path.join(folder, name)
+        descriptor = os.open(target + ".tmp", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, PRIVATE_FILE_MODE)
+        with os.fdopen(descriptor, "wb") as handle:
+            os.fchmod(handle.fileno(), PRIVATE_FILE_MODE)
+            handle.write(data)
+        os.replace(target + ".tmp", target)
 
 
 def _command_line(pid: int) -> str | None:

@@ -42,12 +42,35 @@ def load_messages():
                         "SABO_PROTO_PYTHON=DIR".format(", ".join(c for c in candidates if c)))
 
 
+def authenticate(socket, keys, role, endpoint):
+    """Sets the socket's ZeroMQ security as the coupler of a Sabo run expects it (docs/security.md)."""
+    import zmq.auth
+    if endpoint.startswith("tcp://"):
+        try:
+            public, secret = zmq.auth.load_certificate(os.path.join(keys, role + ".key_secret"))
+            server, _ = zmq.auth.load_certificate(os.path.join(keys, "coupler.key"))
+        except (OSError, ValueError) as error:
+            raise ProtocolError("--keys {}: {}".format(keys, error))
+        if secret is None:
+            raise ProtocolError("--keys {}: {}.key_secret holds no secret key".format(keys, role))
+        socket.curve_publickey, socket.curve_secretkey, socket.curve_serverkey = public, secret, server
+    elif endpoint.startswith("ipc://"):
+        try:
+            with open(os.path.join(keys, "ipc.token"), encoding="ascii") as handle:
+                token = handle.readline().strip()
+        except OSError as error:
+            raise ProtocolError("--keys {}: {}".format(keys, error))
+        socket.plain_username, socket.plain_password = role.encode(), token.encode()
+
+
 class SolverLink:
     """One solver's connection to the coupler."""
 
     POLL_SLICE_MS = 100
 
-    def __init__(self, messages, endpoint, reply_timeout_s, stop_flag):
+    def __init__(self, messages, endpoint, reply_timeout_s, stop_flag, keys=None, role="dem_solver"):
+        """`keys`: the run's key set (RUN_DIR/keys, docs/security.md): over tcp this role's CURVE keys and the
+        coupler's public key, over ipc the run's token; None: no authentication."""
         self.pb = messages
         self.endpoint = endpoint
         self.reply_timeout_s = reply_timeout_s
@@ -56,6 +79,8 @@ class SolverLink:
         self.context = zmq.Context()
         self.socket = self.context.socket(zmq.DEALER)
         self.socket.setsockopt(zmq.LINGER, 2000)  # let the Goodbye leave before the socket closes
+        if keys is not None:
+            authenticate(self.socket, keys, role, endpoint)
         self.socket.connect(endpoint)
         self.types = {
             self.pb.MESSAGE_TYPE_REGISTER: self.pb.Register,

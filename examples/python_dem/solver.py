@@ -159,6 +159,7 @@ def main(argv=None):
     parser.add_argument("--coupler", required=True, help="coupler endpoint, e.g. ipc:///tmp/run/coupler.sock")
     parser.add_argument("--out", default=".", help="run folder for output files")
     parser.add_argument("--resume", help="not supported: this solver writes no checkpoints")
+    parser.add_argument("--keys", help="the run's key set (RUN_DIR/keys): CURVE keys over tcp, the token over ipc")
     args = parser.parse_args(argv)
     if args.resume:
         log("--resume {}: this solver cannot restart from a checkpoint (it registers checkpoints = false). "
@@ -181,7 +182,14 @@ def main(argv=None):
     signal.signal(signal.SIGTERM, lambda number, frame: _stop_signal.append(number))
     signal.signal(signal.SIGINT, lambda number, frame: _stop_signal.append(number))
     hang_timeout = float(scene.get("run", {}).get("hang_timeout", 10.0))
-    link = sabo_wire.SolverLink(messages, args.coupler, max(60.0, 6.0 * hang_timeout), lambda: bool(_stop_signal))
+    # A scene that runs tcp in clear (tcp_security = "none") has a coupler that takes no keys.
+    in_clear = args.coupler.startswith("tcp://") and scene.get("run", {}).get("tcp_security") == "none"
+    try:
+        link = sabo_wire.SolverLink(messages, args.coupler, max(60.0, 6.0 * hang_timeout), lambda: bool(_stop_signal),
+                                    keys=None if in_clear else args.keys)
+    except sabo_wire.ProtocolError as error:
+        log(str(error))
+        return 2
     goodbye = messages.Goodbye(reason="completed")
     code, steps, compute = 0, 0, 0.0
     try:

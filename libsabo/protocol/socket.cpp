@@ -1,6 +1,9 @@
 #include "libsabo/protocol/socket.hpp"
 
+#include <arpa/inet.h>
 #include <fmt/format.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 
 #include <array>
 #include <cerrno>
@@ -130,6 +133,66 @@ void Socket::set_handshake_interval(std::chrono::milliseconds interval) {
   socket_.set(zmq::sockopt::handshake_ivl, static_cast<int>(interval.count()));
 }
 
+void Socket::secure_server(const ServerCredentials& credentials) {
+  switch (credentials.mechanism) {
+    case Mechanism::curve:
+      socket_.set(zmq::sockopt::curve_server, 1);
+      socket_.set(zmq::sockopt::curve_secretkey, credentials.own.secret_key);
+      break;
+    case Mechanism::plain: socket_.set(zmq::sockopt::plain_server, 1); break;
+    case Mechanism::none: break;
+  }
+}
+
+void Socket::secure_client(const ClientCredentials& credentials) {
+  switch (credentials.mechanism) {
+    case Mechanism::curve:
+      socket_.set(zmq::sockopt::curve_serverkey, credentials.server_key);
+      socket_.set(zmq::sockopt::curve_publickey, credentials.own.public_key);
+      socket_.set(zmq::sockopt::curve_secretkey, credentials.own.secret_key);
+      break;
+    case Mechanism::plain:
+      socket_.set(zmq::sockopt::plain_username, credentials.user);
+      socket_.set(zmq::sockopt::plain_password, credentials.token);
+      break;
+    case Mechanism::none: break;
+  }
+}
+
+void Socket::set_heartbeat(const Heartbeat& heartbeat) {
+  socket_.set(zmq::sockopt::heartbeat_ivl, static_cast<int>(heartbeat.interval.count()));
+  socket_.set(zmq::sockopt::heartbeat_timeout, static_cast<int>(heartbeat.timeout.count()));
+  // The peer closes its side too when it hears nothing for as long.
+  socket_.set(zmq::sockopt::heartbeat_ttl, static_cast<int>(heartbeat.timeout.count()));
+}
+
+PeerInfo peer_info(int fd) {
+  PeerInfo info;
+  if (fd < 0) return info;
+  sockaddr_storage address{};
+  socklen_t size = sizeof(address);
+  if (::getpeername(fd, reinterpret_cast<sockaddr*>(&address), &size) != 0) return info;
+  std::array<char, INET6_ADDRSTRLEN> text{};
+  if (address.ss_family == AF_INET) {
+    const auto* in = reinterpret_cast<const sockaddr_in*>(&address);
+    ::inet_ntop(AF_INET, &in->sin_addr, text.data(), text.size());
+    info.address = fmt::format("{}:{}", text.data(), ntohs(in->sin_port));
+  } else if (address.ss_family == AF_INET6) {
+    const auto* in = reinterpret_cast<const sockaddr_in6*>(&address);
+    ::inet_ntop(AF_INET6, &in->sin6_addr, text.data(), text.size());
+    info.address = fmt::format("[{}]:{}", text.data(), ntohs(in->sin6_port));
+  } else if (address.ss_family == AF_UNIX) {
+    ucred credentials{};
+    socklen_t length = sizeof(credentials);
+    if (::getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &credentials, &length) == 0) {
+      info.pid = credentials.pid;
+      info.uid = static_cast<int>(credentials.uid);
+      info.address = fmt::format("pid {}", credentials.pid);
+    }
+  }
+  return info;
+}
+
 void Socket::monitor(const std::string& address, int events) {
   if (zmq_socket_monitor(socket_.handle(), address.empty() ? nullptr : address.c_str(), events) != 0) {
     throw LibraryError(
@@ -187,6 +250,7 @@ bool Socket::receive(Inbound& inbound, std::chrono::milliseconds timeout) {
   if (is_router_) {
     inbound.peer = frames_[0].to_string();
     inbound.source_fd = zmq_msg_get(frames_.back().handle(), ZMQ_SRCFD);  // -1 when none (inproc)
+    inbound.user_id.clear();
     first = 1;
   }
   const std::size_t count = frames_.size() - first;
@@ -198,6 +262,10 @@ bool Socket::receive(Inbound& inbound, std::chrono::milliseconds timeout) {
   auto decoded = decode_header({static_cast<const std::uint8_t*>(header.data()), header.size()}, inbound.problem);
   if (!decoded) return true;
   inbound.header = *decoded;
+  if (is_router_ && decoded->type == sabo::v1::MESSAGE_TYPE_REGISTER) {
+    const char* user = zmq_msg_gets(frames_[first + 1].handle(), "User-Id");
+    if (user != nullptr) inbound.user_id = user;
+  }
   if (decoded->version != kProtocolVersion && decoded->type != sabo::v1::MESSAGE_TYPE_REGISTER) {
     inbound.problem = fmt::format("protocol version {} in the header, expected {}", decoded->version, kProtocolVersion);
     return true;

@@ -11,6 +11,7 @@
 #include <zmq.hpp>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/protocol/security.hpp"
 #include "libsabo/protocol/wire.hpp"
 
 namespace sabo::protocol {
@@ -38,11 +39,23 @@ struct Inbound {
   zmq::message_t body;
   std::string problem;  // non-empty: the frames were not a valid Sabo message
   int source_fd = -1;   // ROUTER: the file descriptor of the connection it came in on (ZMQ_SRCFD)
+  // Register messages only: the name the connection authenticated as (ZAP's User-Id; empty without
+  // authentication).
+  std::string user_id;
 
   [[nodiscard]] bool valid() const { return problem.empty(); }
   // Parses the body into `out`; throws ProtocolError when it is not a valid message.
   void parse(google::protobuf::MessageLite& out) const;
 };
+
+// Who is at the other end of a connection (Inbound::source_fd): for tcp its address and port; for ipc the
+// process and user the kernel names (SO_PEERCRED).
+struct PeerInfo {
+  std::string address;  // "10.0.0.2:41234"; ipc: "pid 1234"
+  int pid = 0;          // ipc; 0: not known
+  int uid = -1;         // ipc; -1: not known
+};
+[[nodiscard]] PeerInfo peer_info(int fd);
 
 // What is wrong with `endpoint` when binding it failed with `error_number` (errno), and the fix: the text
 // of the EndpointError that Socket::bind throws.
@@ -59,6 +72,12 @@ class Socket {
   // is closed (ZMQ_HANDSHAKE_IVL).
   void set_max_message_size(std::int64_t bytes);
   void set_handshake_interval(std::chrono::milliseconds interval);
+  // Before bind or connect (security.hpp). The server: CURVE with the coupler's pair over tcp, PLAIN over ipc,
+  // both answered by a ZAP handler in the same context (coupler/authenticator.hpp); without one ZeroMQ would
+  // let every client in. The client: its pair and the server's key, or its role and the run's token.
+  void secure_server(const ServerCredentials& credentials);
+  void secure_client(const ClientCredentials& credentials);
+  void set_heartbeat(const Heartbeat& heartbeat);
   // Publishes the socket's connection events `events` (ZMQ_EVENT_*) on the inproc `address` (a PAIR socket
   // reads them); an empty address stops it.
   void monitor(const std::string& address, int events);

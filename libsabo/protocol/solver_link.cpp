@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <cstring>
+
 #include "libsabo/core/signals.hpp"
 
 namespace sabo::protocol {
@@ -10,9 +12,55 @@ namespace {
 constexpr std::chrono::milliseconds kPollSlice{100};
 }
 
-SolverLink::SolverLink(const std::string& endpoint, std::chrono::milliseconds reply_timeout)
-    : context_(1), socket_(context_, zmq::socket_type::dealer), reply_timeout_(reply_timeout) {
+SolverLink::SolverLink(const std::string& endpoint, std::chrono::milliseconds reply_timeout,
+                       const ClientCredentials& credentials, const Heartbeat& heartbeat)
+    : context_(1),
+      socket_(context_, zmq::socket_type::dealer),
+      monitor_(context_, zmq::socket_type::pair),
+      mechanism_(credentials.mechanism),
+      reply_timeout_(reply_timeout) {
+  const std::string address = fmt::format("inproc://sabo-solver-link-{}", static_cast<const void*>(this));
+  socket_.monitor(address, ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
+                               ZMQ_EVENT_HANDSHAKE_FAILED_AUTH);
+  monitor_.set(zmq::sockopt::linger, 0);
+  monitor_.connect(address);
+  socket_.secure_client(credentials);
+  socket_.set_heartbeat(heartbeat);
   socket_.connect(endpoint);
+}
+
+void SolverLink::check_handshake() {
+  zmq::message_t head, endpoint;
+  try {
+    if (!monitor_.recv(head, zmq::recv_flags::dontwait)) return;
+    if (head.more()) (void)monitor_.recv(endpoint, zmq::recv_flags::none);
+  } catch (const zmq::error_t&) {
+    return;
+  }
+  if (head.size() < 6) return;
+  std::uint16_t event = 0;
+  std::uint32_t value = 0;
+  std::memcpy(&event, head.data(), sizeof event);
+  std::memcpy(&value, static_cast<const char*>(head.data()) + 2, sizeof value);
+  const char* keys = mechanism_ == Mechanism::none ? "this solver was started without keys (--keys DIR)"
+                                                   : "the keys given with --keys are not the ones of the coupler's run";
+  std::string why;
+  if (event == ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) {
+    why = "it does not know this solver's key or token";
+  } else if (event == ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL && value == ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH) {
+    why = mechanism_ == Mechanism::none ? "it asks for keys" : "it expects another security mechanism";
+  } else if (event == ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL) {
+    why = fmt::format(
+        "it closed the connection during the handshake ({}): it takes another security mechanism, "
+        "or keys it does not know",
+        zmq_strerror(static_cast<int>(value)));
+  } else {
+    why = fmt::format("the handshake failed (ZeroMQ event {:#x}, value {:#x})", event, value);
+  }
+  throw ProtocolError(fmt::format(
+      "the coupler at {} refused the connection: {}; {}. Fix: start the solver with --keys RUN_DIR/keys (over tcp "
+      "from another host: a copy of RUN_DIR/keys/coupler.key and of this role's .key_secret, docs/security.md)",
+      socket_.endpoint(), why, keys));
 }
 
 const Inbound& SolverLink::wait_for(MessageType expected, const std::string& what) {
@@ -21,6 +69,7 @@ const Inbound& SolverLink::wait_for(MessageType expected, const std::string& wha
     if (stop_requested())
       throw StopRequested(fmt::format("stopped by signal {} while waiting for {}", stop_signal(), what));
     if (socket_.receive(inbound_, kPollSlice)) break;
+    check_handshake();
     if (std::chrono::steady_clock::now() - start > reply_timeout_) {
       throw LibraryError(fmt::format("the coupler at {} did not answer within {} s while waiting for {}",
                                      socket_.endpoint(), static_cast<double>(reply_timeout_.count()) / 1000.0, what));

@@ -12,7 +12,9 @@ class SolverLink {
  public:
   // reply_timeout: how long to wait for any single reply before declaring the
   // coupler gone. SIGINT/SIGTERM end every wait at once (StopRequested).
-  SolverLink(const std::string& endpoint, std::chrono::milliseconds reply_timeout);
+  // credentials: what the process proves itself with (security.hpp; mechanism none: nothing).
+  SolverLink(const std::string& endpoint, std::chrono::milliseconds reply_timeout,
+             const ClientCredentials& credentials = {}, const Heartbeat& heartbeat = {});
 
   // Sends the registration and waits for the reply. Throws ProtocolError with
   // the coupler's reason when the registration is refused.
@@ -34,9 +36,14 @@ class SolverLink {
  private:
   // Waits for the next valid message; handles Stop and Error messages.
   const Inbound& wait_for(MessageType expected, const std::string& what);
+  // Throws ProtocolError when the coupler refused the handshake (the socket's monitor says so): ZeroMQ would
+  // otherwise try again and again, and the solver wait for a reply that cannot come.
+  void check_handshake();
 
   zmq::context_t context_;
   Socket socket_;
+  zmq::socket_t monitor_;
+  Mechanism mechanism_;
   SendBuffer state_buffer_;
   Inbound inbound_;
   sabo::v1::RegisterReply register_reply_;

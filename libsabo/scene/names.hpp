@@ -55,6 +55,9 @@ constexpr std::array<std::string_view, 3> names(SphSettings::DensityDiffusion) {
 constexpr std::array<std::string_view, 2> names(SphSettings::ViscousOperator) {
   return {"strain_rate", "morris"};
 }
+constexpr std::array<std::string_view, 2> names(RunSettings::TcpSecurity) {
+  return {"curve", "none"};
+}
 
 template <class Enum>
 concept NamedEnum = std::is_enum_v<Enum> && requires(Enum value) {

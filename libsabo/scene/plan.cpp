@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "libsabo/scene/estimate.hpp"
+#include "libsabo/scene/names.hpp"
 
 namespace sabo::scene {
 
@@ -15,6 +16,9 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
   plan["hang_timeout"] = scene.run.hang_timeout;
   if (scene.run.max_dt) plan["max_dt"] = *scene.run.max_dt;
   plan["endpoint"] = scene.run.endpoint;
+  plan["tcp_security"] = name_of(scene.run.tcp_security);
+  plan["heartbeat_timeout"] = scene.run.heartbeat_timeout;
+  if (!scene.run.connect_host.empty()) plan["connect_host"] = scene.run.connect_host;
   plan["restart"] = scene.run.restart ? "auto" : "off";
   plan["max_restarts"] = scene.run.max_restarts;
 
@@ -29,7 +33,9 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
     } else {
       for (const auto& word : solver->command) command.push_back(word);
     }
-    processes.push_back({{"role", role_name(role)}, {"command", command}, {"beta", solver->beta}});
+    nlohmann::json process = {{"role", role_name(role)}, {"command", command}, {"beta", solver->beta}};
+    if (!solver->launcher.empty()) process["launcher"] = solver->launcher;
+    processes.push_back(std::move(process));
   }
   plan["processes"] = processes;
 

@@ -73,9 +73,20 @@ struct Material {
 };
 
 struct RunSettings {
-  double end_time = 0;           // s, > 0
-  double output_interval = 0;    // s, > 0
-  std::string endpoint = "ipc";  // "ipc" (socket in the run folder) or "tcp://HOST:PORT"
+  double end_time = 0;         // s, > 0
+  double output_interval = 0;  // s, > 0
+  // "ipc" (socket in the run folder), "tcp" (this machine only, a free port) or "tcp://HOST:PORT" (PORT "*":
+  // a free one)
+  std::string endpoint = "ipc";
+  // tcp: CURVE (docs/security.md) or, only when asked for, nothing at all.
+  enum class TcpSecurity { curve, none };
+  TcpSecurity tcp_security = TcpSecurity::curve;
+  // s: a connection silent this long (ZMTP heartbeats) is closed, and a solver on it declared lost
+  double heartbeat_timeout = 5.0;
+  // The host solvers started through a launcher connect to; empty: the endpoint's address (the supervisor's
+  // host name when that is 0.0.0.0).
+  std::string connect_host;
+  Origin endpoint_origin;        // where endpoint (or, when absent, [run]) is written, for warnings
   Vec3 gravity{0, 0, -9.81};     // m/s^2
   double hang_timeout = 10.0;    // s: a solver silent this long is declared hung
   std::optional<double> max_dt;  // s: upper bound on the coupled dt
@@ -97,6 +108,8 @@ struct SolverSettings {
   std::vector<std::string> command;
   double beta = 1.0;  // eq. 7 scale of this solver's stable dt, in (0, 1]
   Origin origin;
+  // A command prefix that places the process (["ssh", "node2"], ["srun", "--het-group=1"]); empty: started here.
+  std::vector<std::string> launcher;
 };
 
 struct Sphere {

@@ -51,6 +51,18 @@ void warn_narrow_sensors(const Scene& scene, std::vector<std::string>& warnings)
   }
 }
 
+// tcp without CURVE: whoever reaches the port joins the run (docs/security.md).
+void warn_insecure_tcp(const Scene& scene, std::vector<std::string>& warnings) {
+  if (!scene.run.endpoint.starts_with("tcp") || scene.run.tcp_security != RunSettings::TcpSecurity::none) return;
+  const bool every_interface = scene.run.endpoint.starts_with("tcp://0.0.0.0:");
+  warnings.push_back(
+      located(scene.run.endpoint_origin,
+              fmt::format("run.tcp_security = \"none\" over {}: any process that reaches the port{} can register as a "
+                          "solver, read the run's state every step and send forces; nothing is encrypted",
+                          scene.run.endpoint, every_interface ? ", on any interface of this machine," : ""),
+              "remove tcp_security (CURVE is the default), or listen on this machine only with endpoint = \"tcp\""));
+}
+
 }  // namespace
 
 std::vector<std::string> scene_warnings(const Scene& scene) {
@@ -83,6 +95,7 @@ std::vector<std::string> scene_warnings(const Scene& scene) {
                                "the other structures; or remove the structure"));
   }
   warn_narrow_sensors(scene, warnings);
+  warn_insecure_tcp(scene, warnings);
   return warnings;
 }
 

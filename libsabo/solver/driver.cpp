@@ -115,6 +115,9 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
   app.add_option("--log-level", options.log_level, "trace, debug, info, warn or error")->capture_default_str();
   app.add_option("--resume", options.resume,
                  "start from this checkpoint (RUN_DIR/checkpoints/<role>_<step>.h5) instead of step 0");
+  app.add_option("--keys", options.keys,
+                 "the run's key set (RUN_DIR/keys, or a copy of coupler.key and this role's .key_secret): over tcp "
+                 "this solver's CURVE keys, over ipc the run's token");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& help) {
@@ -129,7 +132,16 @@ std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, co
 int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOptions& options, Role role) {
   const auto reply_timeout =
       std::chrono::milliseconds(static_cast<long>(1000.0 * std::max(60.0, 6.0 * scene.run.hang_timeout)));
-  protocol::SolverLink link(options.coupler_endpoint, reply_timeout);
+  // A scene that runs tcp in clear (tcp_security = "none") has a coupler that takes no keys.
+  const bool in_clear = protocol::transport_of(options.coupler_endpoint) == protocol::Transport::tcp &&
+                        scene.run.tcp_security == scene::RunSettings::TcpSecurity::none;
+  const protocol::ClientCredentials credentials =
+      options.keys.empty() || in_clear
+          ? protocol::ClientCredentials{}
+          : protocol::read_client_credentials(options.keys, role_name(role), options.coupler_endpoint);
+  const auto heartbeat = std::chrono::milliseconds(static_cast<long>(1000 * scene.run.heartbeat_timeout));
+  protocol::SolverLink link(options.coupler_endpoint, reply_timeout, credentials,
+                            {.interval = heartbeat / 5, .timeout = heartbeat});
 
   sabo::v1::Register registration;
   registration.set_protocol_version(protocol::kProtocolVersion);

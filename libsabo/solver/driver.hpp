@@ -101,6 +101,7 @@ struct SolverOptions {
   std::filesystem::path out_dir = ".";
   std::string log_level = "info";
   std::filesystem::path resume;  // a checkpoint file to start from; empty: start at step 0
+  std::filesystem::path keys;    // the run's key set (libsabo/protocol/security.hpp); empty: none
 };
 
 // Parses the command line shared by every solver:

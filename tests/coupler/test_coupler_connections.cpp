@@ -213,6 +213,7 @@ TEST(CouplerConnections, IdleConnectionsDoNotLockOutTheSolvers) {
 end_time = 0.01
 output_interval = 0.005
 hang_timeout = 5.0
+tcp_security = "none"
 [recording]
 enabled = false
 [materials.rock]

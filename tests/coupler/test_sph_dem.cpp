@@ -52,7 +52,7 @@ scene::Scene two_body_scene(scene::SphDemContact::Model model) {
   scene.sph.particle_spacing = kDx;
   scene.sph.sound_speed = kSoundSpeed;
   scene.sph_dem_default.model = model;
-  for (auto role : {sabo::Role::sph, sabo::Role::dem}) scene.solvers.push_back({role, {}, 1.0, {}});
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) scene.solvers.emplace_back().role = role;
   return scene;
 }
 

@@ -47,7 +47,7 @@ scene::Scene tank_scene(double width, double depth, double sound_speed, double v
   set.spheres = spheres;
   s.particle_sets.push_back(set);
   s.sph_dem_default.model = model;
-  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.push_back({role, {}, 1.0, {}});
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
   return s;
 }
 

@@ -202,6 +202,8 @@ class FakeRunTestCase(E2eTestCase):
             handle.write('#!/bin/sh\nexec "{}" "{}" "$@"\n'.format(sys.executable,
                                                                   os.path.join(FAKES, "sabo_scene.py")))
         os.chmod(checker, 0o755)
+        # The run's key set is made by the real tool (the fakes take --keys and ignore it).
+        os.symlink(os.path.join(BUILD_DIR, "bin", "sabo_keys"), os.path.join(self.build_dir, "bin", "sabo_keys"))
 
     def scene(self, name="fake", **behaviour):
         """A fake scene file; `behaviour` as documented in fakes/coupler.py and fakes/solver.py."""

@@ -3,6 +3,7 @@ import json
 import os
 import signal
 import sys
+import time
 import unittest
 
 from e2e_support import ROOT
@@ -12,7 +13,8 @@ from supervisor.display import format_duration, format_progress, wrap_items  # n
 from supervisor.errors import SaboError  # noqa: E402
 from supervisor.plan import parse_plan  # noqa: E402
 from supervisor.processes import describe_exit  # noqa: E402
-from supervisor.run import resolve_endpoint, watchdog_seconds  # noqa: E402
+from supervisor.processes import start_process  # noqa: E402
+from supervisor.run import connect_endpoint, resolve_endpoint, started_by, watchdog_seconds  # noqa: E402
 
 PLAN = {"scene": "/s.toml", "end_time": 2.0, "output_interval": 0.1, "hang_timeout": 10.0, "endpoint": "ipc",
         "processes": [{"role": "dem_solver", "command": ["/b/dem_solver"]},
@@ -55,7 +57,8 @@ class LaunchPlanTest(unittest.TestCase):
     def test_invalid_plans_are_explained(self):
         cases = [
             ("not json", "not valid JSON"),
-            (plan_with(endpoint="udp://x"), "\"endpoint\" must be \"ipc\" or \"tcp://HOST:PORT\""),
+            (plan_with(endpoint="udp://x"), "\"endpoint\" must be \"ipc\", \"tcp\" or \"tcp://HOST:PORT\""),
+            (plan_with(tcp_security="tls"), "\"tcp_security\" must be \"curve\" or \"none\", got 'tls'"),
             (plan_with(hang_timeout=0), "\"hang_timeout\" must be a positive number, got 0"),
             (plan_with(end_time="2"), "\"end_time\" must be a positive number"),
             (plan_with(processes=[]), "\"processes\" must be a non-empty list"),
@@ -63,6 +66,10 @@ class LaunchPlanTest(unittest.TestCase):
             (plan_with(processes=[{"role": "coupler", "command": ["c"]}, {"role": "coupler", "command": ["c"]}]),
              "role \"coupler\" appears twice"),
             (plan_with(processes=[{"role": "dem_solver", "command": ["d"]}]), "exactly one process with role"),
+            (plan_with(processes=[{"role": "coupler", "command": ["c"]},
+                                  {"role": "dem_solver", "command": ["d"], "launcher": "ssh node2"}]),
+             "\"launcher\" must be a list of strings, got 'ssh node2'"),
+            (plan_with(connect_host=""), "\"connect_host\" must be a host name"),
         ]
         for text, message in cases:
             with self.subTest(message=message):
@@ -84,6 +91,43 @@ class EndpointTest(unittest.TestCase):
         finally:
             os.rmdir(folder)
         self.assertEqual(resolve_endpoint("tcp://10.0.0.2:5555", "/x"), ("tcp://10.0.0.2:5555", None))
+        # "tcp": this machine only, at a port the system chooses.
+        self.assertEqual(resolve_endpoint("tcp", "/x"), ("tcp://127.0.0.1:*", None))
+
+    def test_a_launched_solver_connects_to_an_address_other_hosts_reach(self):
+        self.assertEqual(connect_endpoint("tcp://0.0.0.0:5555", False, None), "tcp://0.0.0.0:5555")
+        self.assertEqual(connect_endpoint("ipc:///r/coupler.sock", True, "head"), "ipc:///r/coupler.sock")
+        self.assertEqual(connect_endpoint("tcp://10.0.0.1:5555", True, None), "tcp://10.0.0.1:5555")
+        self.assertEqual(connect_endpoint("tcp://0.0.0.0:5555", True, "head.cluster"), "tcp://head.cluster:5555")
+        host = connect_endpoint("tcp://0.0.0.0:5555", True, None)[len("tcp://"):].rsplit(":", 1)[0]
+        self.assertNotIn(host, ("0.0.0.0", ""))
+        plan = parse_plan(plan_with(processes=[{"role": "coupler", "command": ["c"]},
+                                               {"role": "dem_solver", "command": ["d"], "launcher": ["ssh", "n2"]}],
+                                    connect_host="head", tcp_security="none"), "test")
+        self.assertEqual((plan.solvers[0].launcher, plan.connect_host, plan.tcp_security), (["ssh", "n2"], "head", "none"))
+        self.assertEqual(parse_plan(json.dumps(PLAN), "test").solvers[0].launcher, [])
+
+    def test_a_registration_is_the_started_process_or_one_it_started(self):
+        log = os.path.join(os.environ.get("TMPDIR", "/tmp"), "sabo-started-by-{}.log".format(os.getpid()))
+        process = start_process("dem_solver", ["/bin/sh", "-c", "sleep 30 & wait"], "/", log, stdout_to_pipe=False)
+        try:
+            child = None
+            for _ in range(100):
+                children = open("/proc/{}/task/{}/children".format(process.pid, process.pid)).read().split()
+                if children:
+                    child = int(children[0])
+                    break
+                time.sleep(0.02)
+            self.assertIsNotNone(child)
+            self.assertTrue(started_by(process.pid, process))
+            self.assertTrue(started_by(child, process))   # a wrapper's child: the same process group
+            self.assertFalse(started_by(os.getpid(), process))
+            self.assertFalse(started_by(2 ** 22 + 7, process))  # no such process
+        finally:
+            process.send(signal.SIGKILL)
+            process.popen.wait(5)
+            process.sweep()
+            os.unlink(log)
 
     def test_watchdog_is_three_hang_timeouts_or_30_s(self):
         os.environ.pop("SABO_WATCHDOG_MIN_S", None)

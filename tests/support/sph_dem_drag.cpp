@@ -60,7 +60,7 @@ DragResult run_drag(const DragCase& c, double report, const std::function<void(c
   set.spheres.push_back({start, 0.5 * d, Vec3::Zero(), Vec3::Zero()});
   s.particle_sets.push_back(set);
   s.sph_dem_default.model = scene::SphDemContact::Model::boundary_particles;
-  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.push_back({role, {}, 1.0, {}});
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
 
   auto walls = sph::testing::container_walls(Vec3::Zero(), Vec3(r.width, r.width, r.height), r.dx, 3, /*lid=*/true);
   r.wall_particles = walls.size();

@@ -121,7 +121,7 @@ bool valid_name(std::string_view name) {
 }
 
 bool valid_endpoint(std::string_view endpoint) {
-  if (endpoint == "ipc") return true;
+  if (endpoint == "ipc" || endpoint == "tcp") return true;
   constexpr std::string_view prefix = "tcp://";
   if (!endpoint.starts_with(prefix)) return false;
   const std::string_view rest = endpoint.substr(prefix.size());
@@ -133,6 +133,7 @@ bool valid_endpoint(std::string_view endpoint) {
     return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' || c == '-' || c == '_' || c == '*';
   });
   if (!bracketed && !plain_host) return false;
+  if (port == "*") return true;
   if (port.empty() || port.size() > 5 ||
       !std::all_of(port.begin(), port.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
     return false;

@@ -18,9 +18,30 @@ void Schema::build_run() {
           .doc("Simulated time between two output frames (VTK, forces.csv)."),
       K("endpoint", Type::string)
           .def(RunSettings{}.endpoint)
-          .allowed("`\"ipc\"` or `\"tcp://HOST:PORT\"`")
-          .doc("Where the coupler listens: `ipc` is a socket in the run folder; `tcp://HOST:PORT` lets solvers "
-               "run on other hosts (port 1-65535)."),
+          .allowed("`\"ipc\"`, `\"tcp\"` or `\"tcp://HOST:PORT\"`")
+          .doc("Where the coupler listens: `ipc` is a socket in the run folder (a folder only you can enter); "
+               "`tcp` is this machine's loopback (127.0.0.1) at a free port; `tcp://HOST:PORT` listens on the "
+               "address HOST of this machine, so that solvers on other hosts can join (PORT 1-65535, or `*` for a "
+               "free one; `tcp://0.0.0.0:PORT` for every interface). Over tcp every connection is authenticated "
+               "and encrypted (`tcp_security`; docs/security.md)."),
+      K("tcp_security", Type::string)
+          .def(RunSettings{}.tcp_security)
+          .doc("`\"curve\"`: over tcp the coupler accepts only processes that hold this run's keys (ZeroMQ CURVE: "
+               "authenticated and encrypted; the supervisor makes the keys in `RUN_DIR/keys`). `\"none\"`: no "
+               "authentication and no encryption: any process that reaches the port can join the run, read its "
+               "state and send forces; said in the log and in summary.json."),
+      K("heartbeat_timeout", Type::number)
+          .def(RunSettings{}.heartbeat_timeout)
+          .unit("s")
+          .gt(0)
+          .doc("A connection on which nothing is heard this long (ZMTP heartbeats every fifth of it) is closed: a "
+               "solver whose host vanished or whose process stopped is declared lost, and the run stops or "
+               "restarts it (`restart`)."),
+      K("connect_host", Type::string)
+          .absent("the endpoint's address (this machine's host name for `0.0.0.0`)")
+          .example("\"head-node.cluster\"")
+          .doc("The host name or address that solvers started through a `launcher` connect to, when they run on "
+               "another host."),
       K("gravity", Type::vec3).def(RunSettings{}.gravity).unit("m/s^2").doc("Gravitational acceleration (z is up)."),
       K("hang_timeout", Type::number)
           .def(RunSettings{}.hang_timeout)
@@ -92,6 +113,13 @@ void Schema::build_solvers() {
           .doc("Program and fixed arguments that replace the built solver; the supervisor appends "
                "`--scene`, `--coupler` and `--out`. The program is an absolute path, a path relative to the "
                "scene file's folder (when it contains a `/`), or a name found on `PATH`."),
+      K("launcher", Type::string_list)
+          .absent("started on this machine")
+          .example("[\"ssh\", \"node2\"]")
+          .doc("A command that places this process, put before its command line: `[\"ssh\", \"node2\"]`, "
+               "`[\"srun\", \"--het-group=1\"]`, `[\"mpirun\", \"-n\", \"1\"]`. The scene, the run folder and the "
+               "built solver must be at the same paths there (a shared file system; docs/cluster.md). Needs a tcp "
+               "`endpoint`."),
       K("beta", Type::number)
           .def(SolverSettings{}.beta)
           .gt(0)
@@ -139,17 +167,35 @@ void Builder::read_run(const toml::table& table) {
   if (auto v = r.number("end_time")) run.end_time = *v;
   if (auto v = r.number("output_interval")) run.output_interval = *v;
   if (auto v = r.boolean("multirate")) run.multirate = *v;
+  run.endpoint_origin = origin(r.line("endpoint"), r.node("endpoint") != nullptr ? r.key_path("endpoint") : "run");
   if (auto v = r.string("endpoint")) {
-    const auto address = valid_endpoint(*v) && *v != "ipc" ? ipv4_problem(*v) : std::nullopt;
-    if (address) {
+    const auto address = valid_endpoint(*v) && v->starts_with("tcp://") ? ipv4_problem(*v) : std::nullopt;
+    if (v->starts_with("tcp://*:")) {
+      diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v),
+                "'*' would listen on every interface without saying so",
+                fmt::format("write endpoint = \"tcp://0.0.0.0:{}\" to listen on every interface, or \"tcp\" for this "
+                            "machine only",
+                            v->substr(8)));
+    } else if (address) {
       diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), *address,
                 "give an address of this machine, e.g. endpoint = \"tcp://127.0.0.1:5555\" (this machine only) or "
                 "\"tcp://0.0.0.0:5555\" (every interface)");
     } else if (valid_endpoint(*v)) {
       run.endpoint = *v;
     } else {
-      diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v), "must be \"ipc\" or \"tcp://HOST:PORT\"",
+      diag_.add(r.line("endpoint"), r.key_path("endpoint"), quote_text(*v),
+                "must be \"ipc\", \"tcp\" or \"tcp://HOST:PORT\"",
                 "write endpoint = \"ipc\" to run on one machine, or e.g. endpoint = \"tcp://127.0.0.1:5555\"");
+    }
+  }
+  if (auto v = r.string("tcp_security")) run.tcp_security = value_named<RunSettings::TcpSecurity>(*v);
+  if (auto v = r.number("heartbeat_timeout")) run.heartbeat_timeout = *v;
+  if (auto v = r.string("connect_host")) {
+    if (v->empty() || v->find_first_of(" /:\t") != std::string::npos) {
+      diag_.add(r.line("connect_host"), r.key_path("connect_host"), quote_text(*v), "not a host name or IPv4 address",
+                "write a name or address only, e.g. connect_host = \"node1\"");
+    } else {
+      run.connect_host = *v;
     }
   }
   if (auto v = r.vec3("gravity")) run.gravity = *v;
@@ -200,6 +246,23 @@ void Builder::read_solvers(Reader& root) {
     if (auto command = r.strings("command")) {
       solver.command = *command;
       check_command(r, solver);
+    }
+    if (auto launcher = r.strings("launcher")) {
+      if (launcher->empty() || launcher->front().empty()) {
+        diag_.add(r.line("launcher"), r.key_path("launcher"), value_text(*r.node("launcher")),
+                  "the launcher names no program",
+                  "give the program first, e.g. launcher = [\"ssh\", \"node2\"], or remove 'launcher' to start the "
+                  "process here");
+      } else if (!scene_.run.endpoint.starts_with("tcp")) {
+        diag_.add(r.line("launcher"), r.key_path("launcher"), value_text(*r.node("launcher")),
+                  fmt::format("a launched process may run on another host, and run.endpoint = \"{}\" is a socket "
+                              "of this machine",
+                              scene_.run.endpoint),
+                  "set [run] endpoint = \"tcp://0.0.0.0:5555\" (or the address of this machine the other hosts "
+                  "reach), or remove 'launcher'");
+      } else {
+        solver.launcher = *launcher;
+      }
     }
     scene_.solvers.push_back(std::move(solver));
   }

@@ -145,6 +145,7 @@ def main():
     parser.add_argument("--scene", required=True)
     parser.add_argument("--endpoint", required=True)
     parser.add_argument("--out", required=True)
+    parser.add_argument("--keys")  # the run's key set: the fakes speak no ZeroMQ, and need none
     args = parser.parse_args()
     with open(args.scene, encoding="utf-8") as handle:
         scene = json.load(handle)

@@ -49,6 +49,7 @@ def main():
     parser.add_argument("--scene", required=True)
     parser.add_argument("--coupler", required=True)
     parser.add_argument("--out", required=True)
+    parser.add_argument("--keys")  # the run's key set: the fakes speak no ZeroMQ, and need none
     args = parser.parse_args()
     signal.signal(signal.SIGTERM, on_sigterm)
     with open(args.scene, encoding="utf-8") as handle:

@@ -887,15 +887,55 @@ TEST(SceneLoader, Endpoints) {
     text.insert(text.find("[materials"), std::string("endpoint = \"") + endpoint + "\"\n");
     return text + kOneSphere;
   };
-  for (const char* good :
-       {"ipc", "tcp://127.0.0.1:5555", "tcp://node-7.cluster:65535", "tcp://[::1]:1", "tcp://*:5555"}) {
+  for (const char* good : {"ipc", "tcp", "tcp://127.0.0.1:5555", "tcp://node-7.cluster:65535", "tcp://[::1]:1",
+                           "tcp://10.0.0.1:*", "tcp://0.0.0.0:5555"}) {
     EXPECT_EQ(load_text(with_endpoint(good)).run.endpoint, good);
   }
   for (const char* bad :
-       {"tcp://127.0.0.1", "tcp://:5555", "tcp://host:0", "tcp://host:70000", "ipc://x", "tcp://a b:1"}) {
+       {"tcp://127.0.0.1", "tcp://:5555", "tcp://host:0", "tcp://host:70000", "ipc://x", "tcp://a b:1", "tcp:"}) {
     const std::string message = error_of(with_endpoint(bad));
-    EXPECT_NE(message.find("must be \"ipc\" or \"tcp://HOST:PORT\""), std::string::npos) << bad << ": " << message;
+    EXPECT_NE(message.find("must be \"ipc\", \"tcp\" or \"tcp://HOST:PORT\""), std::string::npos)
+        << bad << ": " << message;
   }
+  // Every interface is said in so many words.
+  const std::string star = error_of(with_endpoint("tcp://*:5555"));
+  EXPECT_NE(star.find("'*' would listen on every interface"), std::string::npos) << star;
+  EXPECT_NE(star.find("tcp://0.0.0.0:5555"), std::string::npos) << star;
+}
+
+TEST(SceneLoader, TcpSecurityHeartbeatAndLaunchers) {
+  const auto scene_with = [](const std::string& run_keys, const std::string& solver_table = "") {
+    std::string text = kSceneHead;
+    text.insert(text.find("[materials"), run_keys + "\n" + solver_table + "\n");
+    return text + kOneSphere;
+  };
+  const Scene defaults = load_text(scene_with(""));
+  EXPECT_EQ(defaults.run.tcp_security, RunSettings::TcpSecurity::curve);
+  EXPECT_EQ(defaults.run.heartbeat_timeout, 5.0);
+  EXPECT_TRUE(defaults.run.connect_host.empty());
+  EXPECT_TRUE(defaults.solver(Role::dem)->launcher.empty());
+
+  const Scene remote = load_text(scene_with(
+      "endpoint = \"tcp://0.0.0.0:5555\"\ntcp_security = \"none\"\nheartbeat_timeout = 2.5\nconnect_host = \"head\"",
+      "[solvers.dem]\nlauncher = [\"ssh\", \"node2\"]"));
+  EXPECT_EQ(remote.run.tcp_security, RunSettings::TcpSecurity::none);
+  EXPECT_EQ(remote.run.heartbeat_timeout, 2.5);
+  EXPECT_EQ(remote.run.connect_host, "head");
+  EXPECT_EQ(remote.solver(Role::dem)->launcher, (std::vector<std::string>{"ssh", "node2"}));
+
+  const std::string choice = error_of(scene_with("tcp_security = \"tls\""));
+  EXPECT_NE(choice.find("run.tcp_security"), std::string::npos) << choice;
+  EXPECT_NE(choice.find("\"curve\""), std::string::npos) << choice;
+  const std::string heartbeat = error_of(scene_with("heartbeat_timeout = 0.0"));
+  EXPECT_NE(heartbeat.find("run.heartbeat_timeout"), std::string::npos) << heartbeat;
+  const std::string host = error_of(scene_with("connect_host = \"tcp://head:5555\""));
+  EXPECT_NE(host.find("not a host name"), std::string::npos) << host;
+  // A launched process may sit on another host: an ipc socket cannot reach it.
+  const std::string ipc = error_of(scene_with("", "[solvers.dem]\nlauncher = [\"ssh\", \"node2\"]"));
+  EXPECT_NE(ipc.find("solvers.dem.launcher"), std::string::npos) << ipc;
+  EXPECT_NE(ipc.find("endpoint = \"tcp://0.0.0.0:5555\""), std::string::npos) << ipc;
+  const std::string empty = error_of(scene_with("endpoint = \"tcp\"", "[solvers.dem]\nlauncher = []"));
+  EXPECT_NE(empty.find("the launcher names no program"), std::string::npos) << empty;
 }
 
 TEST(SceneLoader, UnreadableFileIsAFileError) {
