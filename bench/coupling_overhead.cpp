@@ -2,21 +2,33 @@
 // one solver process and one coupler process exchange a full StepState
 // (index, position, velocity, angular velocity of N spheres) and a full
 // StepForces (index, force, torque) every step, through the same library code
-// as a real run (Socket, SendBuffer, SolverLink). Prints one JSON line.
+// as a real run (Socket, SendBuffer, SolverLink), with the security of a real run
+// (--security: CURVE over tcp, the run's token over ipc, or none). Prints one JSON line.
 //
 //   bench_coupling_overhead --entities 10000 --transport ipc --steps 2000
+//   bench_coupling_overhead --entities 10000 --transport tcp --security curve
+// Across two network stacks (issue 25's veth benchmark; as root, namespaces made with `ip netns add`):
+//   bench_coupling_overhead --transport tcp --host 10.231.0.1 --coupler-netns sabo-a --solver-netns sabo-b
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sched.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
+#include <stdexcept>
 #include <vector>
 
+#include "coupler/authenticator.hpp"
+#include "libsabo/protocol/security.hpp"
 #include "libsabo/protocol/solver_link.hpp"
 #include "libsabo/protocol/wire.hpp"
 
@@ -27,9 +39,27 @@ namespace {
 
 // The coupler side (the forked child). Binds `endpoint` and writes the bound
 // endpoint (the port chosen by the system for tcp) to `endpoint_pipe`.
-int run_coupler(const std::string& endpoint, int endpoint_pipe, int steps) {
+// Moves the calling process (single-threaded: before any ZeroMQ context) into the named network namespace.
+void enter_netns(const std::string& name) {
+  if (name.empty()) return;
+  const std::string path = "/run/netns/" + name;
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::setns(fd, CLONE_NEWNET) != 0) {
+    throw std::runtime_error(fmt::format("cannot enter the network namespace {}: {}", path, std::strerror(errno)));
+  }
+  ::close(fd);
+}
+
+int run_coupler(const std::string& endpoint, int endpoint_pipe, int steps, const std::filesystem::path& keys) {
   zmq::context_t context(1);
   protocol::Socket socket(context, zmq::socket_type::router);
+  std::unique_ptr<coupler::Authenticator> authenticator;
+  if (!keys.empty()) {
+    const std::vector<std::string> roles{"dem_solver"};
+    auto credentials = protocol::read_server_credentials(keys, roles, endpoint);
+    socket.secure_server(credentials);
+    authenticator = std::make_unique<coupler::Authenticator>(context, credentials);
+  }
   socket.bind(endpoint);
   const std::string& bound = socket.endpoint();
   if (::write(endpoint_pipe, bound.data(), bound.size()) != static_cast<ssize_t>(bound.size())) return 1;
@@ -69,8 +99,10 @@ struct Result {
   double median_us, min_us, p90_us;
 };
 
-Result run_solver(const std::string& endpoint, int entities, int steps, int warmup) {
-  protocol::SolverLink link(endpoint, std::chrono::milliseconds(20000));
+Result run_solver(const std::string& endpoint, int entities, int steps, int warmup, const std::filesystem::path& keys) {
+  const auto credentials =
+      keys.empty() ? protocol::ClientCredentials{} : protocol::read_client_credentials(keys, "dem_solver", endpoint);
+  protocol::SolverLink link(endpoint, std::chrono::milliseconds(20000), credentials);
   sabo::v1::Register registration;
   registration.set_protocol_version(protocol::kProtocolVersion);
   registration.set_role(sabo::protocol::to_wire(sabo::Role::dem));
@@ -118,11 +150,25 @@ int main(int argc, char** argv) {
   app.add_option("--steps", steps, "measured steps + warmup")->capture_default_str();
   app.add_option("--warmup", warmup, "steps not measured")->capture_default_str();
   app.add_option("--transport", transport, "ipc or tcp")->check(CLI::IsMember({"ipc", "tcp"}))->capture_default_str();
+  std::string security = "none";
+  app.add_option("--security", security, "none, or as a run: CURVE over tcp, the token over ipc")
+      ->check(CLI::IsMember({"none", "run"}))
+      ->capture_default_str();
+  std::string host = "127.0.0.1", coupler_netns, solver_netns;
+  app.add_option("--host", host, "tcp: the address the coupler listens on")->capture_default_str();
+  app.add_option("--coupler-netns", coupler_netns, "run the coupler process in this network namespace");
+  app.add_option("--solver-netns", solver_netns, "run the solver process in this network namespace");
   CLI11_PARSE(app, argc, argv);
   steps += warmup;
 
   const std::string ipc_path = fmt::format("/tmp/sabo-bench-{}.sock", ::getpid());
-  const std::string endpoint = transport == "ipc" ? "ipc://" + ipc_path : std::string("tcp://127.0.0.1:*");
+  const std::string endpoint = transport == "ipc" ? "ipc://" + ipc_path : fmt::format("tcp://{}:*", host);
+  std::filesystem::path keys;
+  if (security == "run") {
+    keys = std::filesystem::temp_directory_path() / fmt::format("sabo-bench-keys-{}", ::getpid());
+    const std::vector<std::string> names{"coupler", "dem_solver"};
+    protocol::write_key_set(keys, names, true);
+  }
 
   int endpoint_pipe[2];
   if (::pipe(endpoint_pipe) != 0) {
@@ -134,7 +180,8 @@ int main(int argc, char** argv) {
     ::close(endpoint_pipe[0]);
     int code = 1;
     try {
-      code = run_coupler(endpoint, endpoint_pipe[1], steps);
+      enter_netns(coupler_netns);
+      code = run_coupler(endpoint, endpoint_pipe[1], steps, keys);
     } catch (const std::exception& error) {
       std::fprintf(stderr, "coupler process: %s\n", error.what());
     }
@@ -151,16 +198,27 @@ int main(int argc, char** argv) {
     ::waitpid(child, nullptr, 0);
     return 1;
   }
-  const Result result = run_solver(bound, entities, steps, warmup);
+  Result result{};
+  try {
+    enter_netns(solver_netns);
+    result = run_solver(bound, entities, steps, warmup, keys);
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "solver process: %s\n", error.what());
+    ::kill(child, SIGKILL);
+  }
   int status = 0;
   ::waitpid(child, &status, 0);
   if (transport == "ipc") std::filesystem::remove(ipc_path);
+  if (!keys.empty()) std::filesystem::remove_all(keys);
   const double bytes_per_step =
       static_cast<double>(entities) * (4 + 3 * 8 * 3) + static_cast<double>(entities) * (4 + 2 * 3 * 8);
   fmt::print(
-      "{{\"bench\": \"coupling_overhead\", \"transport\": \"{}\", \"entities\": {}, \"steps\": {}, "
+      "{{\"bench\": \"coupling_overhead\", \"transport\": \"{}\", \"security\": \"{}\", \"across_netns\": {}, "
+      "\"entities\": {}, \"steps\": {}, "
       "\"median_us_per_step\": {:.2f}, \"min_us_per_step\": {:.2f}, \"p90_us_per_step\": {:.2f}, "
       "\"payload_bytes_per_step\": {:.0f}}}\n",
-      transport, entities, steps - warmup, result.median_us, result.min_us, result.p90_us, bytes_per_step);
+      transport, security == "none" ? "none" : (transport == "tcp" ? "curve" : "token"),
+      coupler_netns.empty() && solver_netns.empty() ? "false" : "true", entities, steps - warmup, result.median_us,
+      result.min_us, result.p90_us, bytes_per_step);
   return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : 1;
 }

@@ -34,12 +34,14 @@ std::string handshake_problem(std::uint16_t event, std::uint32_t value) {
         return "its CURVE handshake does not decrypt (a replayed or forged handshake, or the wrong coupler key)";
       case ZMQ_PROTOCOL_ERROR_ZMTP_KEY_EXCHANGE: return "its CURVE key exchange failed";
       default:
-        return fmt::format("its handshake breaks the protocol (replayed, forged or garbled; ZeroMQ protocol error {:#x})",
-                           value);
+        return fmt::format(
+            "its handshake breaks the protocol (replayed, forged or garbled; ZeroMQ protocol error {:#x})", value);
     }
   }
-  return fmt::format("the handshake failed ({})",
-                     value == 0 ? std::string("no detail") : zmq_strerror(static_cast<int>(value)));
+  // The peer gave up first (it saw this coupler's greeting ask for another mechanism, say): no detail but errno.
+  return fmt::format(
+      "it closed the connection during the handshake ({}): it offers another security mechanism, or none",
+      value == 0 ? std::string("no detail") : zmq_strerror(static_cast<int>(value)));
 }
 }  // namespace
 

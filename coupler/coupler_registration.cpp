@@ -209,12 +209,11 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
   peer.resumed_at = from;
   peer.restarted_wall = Clock::now();
   ++peer.restarts;
-  events_.emit({{"event", "restarted"},
-                {"process", name},
-                {"pid", registration.pid()},
-                {"from_step", from},
-                {"at_step", current_step_},
-                {"catch_up_steps", current_step_ - from}});
+  nlohmann::json restarted = {{"event", "restarted"},      {"process", name},
+                              {"pid", registration.pid()}, {"from_step", from},
+                              {"at_step", current_step_},  {"catch_up_steps", current_step_ - from}};
+  if (!peer.address.empty()) restarted["address"] = peer.address;
+  events_.emit(restarted);
 }
 
 bool Coupler::restarting() const {

@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdlib>
+#include <optional>
 
 #include "coupler/coupler.hpp"
 #include "libsabo/core/log.hpp"
@@ -17,15 +18,15 @@ int main(int argc, char** argv) {
   std::filesystem::path scene_file;
   coupler::CouplerOptions options;
   std::string log_level = "info";
-  double registration_timeout = 30;
+  std::optional<double> registration_timeout;
   CLI::App app{"coupler: couples the Sabo solvers of a scene. Normally started by './sabo run SCENE'.", "coupler"};
   app.add_option("--scene", scene_file, "scene file (TOML)")->required();
   app.add_option("--endpoint", options.endpoint, "ZeroMQ endpoint to bind, e.g. ipc:///tmp/run/coupler.sock")
       ->required();
   app.add_option("--out", options.out_dir, "run folder (must exist)")->required();
   app.add_option("--log-level", log_level, "trace, debug, info, warn or error")->capture_default_str();
-  app.add_option("--registration-timeout", registration_timeout, "seconds to wait for the solvers to register")
-      ->capture_default_str();
+  app.add_option("--registration-timeout", registration_timeout,
+                 "seconds to wait for the solvers to register (default: the scene's run.registration_timeout)");
   double connection_window = 10;
   app.add_option("--connection-window", connection_window,
                  "seconds a connection may stay without registering before it is closed")
@@ -58,7 +59,6 @@ int main(int argc, char** argv) {
   }
   install_stop_handlers();
   coupler::EventStream events;
-  options.registration_timeout = std::chrono::milliseconds(static_cast<long>(1000 * registration_timeout));
   options.connections.window = std::chrono::milliseconds(static_cast<long>(1000 * connection_window));
   if (const char* bytes = std::getenv("SABO_MAX_MESSAGE_BYTES"); bytes != nullptr && options.max_message_bytes == 0) {
     options.max_message_bytes = std::atoll(bytes);
@@ -72,6 +72,8 @@ int main(int argc, char** argv) {
   }
   try {
     const scene::Scene scene = scene::load_scene(scene_file);
+    options.registration_timeout = std::chrono::milliseconds(
+        static_cast<long>(1000 * registration_timeout.value_or(scene.run.registration_timeout)));
     coupler::Coupler coupler(scene, options, events);
     return coupler.run();
   } catch (const SceneError& error) {

@@ -8,7 +8,7 @@ as one JSON object:
      "tcp_security": "curve" | "none", "connect_host": "head-node" (optional),
      "processes": [{"role": "coupler", "command": ["/abs/coupler"]},
                    {"role": "dem_solver", "command": ["/abs/dem_solver"],
-                    "launcher": ["ssh", "node2"] (optional)}, ...]}
+                    "launcher": ["ssh", "node2"], "by_hand": false (both optional)}, ...]}
 
 Exit status 2 with the errors on stderr means the scene is wrong.
 For debugging, the environment variable SABO_PLAN_OVERRIDE may name a JSON
@@ -30,17 +30,20 @@ PLAN_OVERRIDE_VARIABLE = "SABO_PLAN_OVERRIDE"
 
 
 class ProcessSpec:
-    def __init__(self, role: str, command: list[str], launcher: list[str] | None = None) -> None:
+    def __init__(self, role: str, command: list[str], launcher: list[str] | None = None, by_hand: bool = False) -> None:
         self.role = role
         self.command = list(command)
         self.launcher = list(launcher or [])  # a prefix that places the process (["ssh", "node2"]); empty: here
+        self.by_hand = by_hand                # the supervisor does not start it: a user does (docs/cluster.md)
 
 
 class LaunchPlan:
     def __init__(self, scene: str | None, end_time: float, output_interval: float, hang_timeout: float,
                  endpoint: str, processes: list[ProcessSpec], restart: str = "off", max_restarts: int = 0,
-                 tcp_security: str = "curve", connect_host: str | None = None) -> None:
+                 tcp_security: str = "curve", connect_host: str | None = None,
+                 registration_timeout: float = 30.0) -> None:
         self.scene = scene
+        self.registration_timeout = registration_timeout  # s the coupler waits for the solvers to register
         self.tcp_security = tcp_security  # "curve" or "none" (docs/security.md)
         self.connect_host = connect_host  # where launched solvers connect to; None: the endpoint's address
         self.restart = restart            # "auto": restart a solver that dies from its newest checkpoint
@@ -99,6 +102,7 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
         if not isinstance(entry, dict):
             raise SaboError(f"{where} must be an object with \"role\" and \"command\"", EXIT_FAILED)
         role, command, launcher = entry.get("role"), entry.get("command"), entry.get("launcher", [])
+        by_hand = entry.get("by_hand", False)
         if not isinstance(role, str) or not role or "/" in role:
             raise SaboError(f"{where}: \"role\" must be a name such as \"dem_solver\", got {role!r}",
                             EXIT_FAILED)
@@ -111,7 +115,9 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
                             EXIT_FAILED)
         if any(spec.role == role for spec in processes):
             raise SaboError(f"{where}: role \"{role}\" appears twice", EXIT_FAILED)
-        processes.append(ProcessSpec(role, command, launcher))
+        if not isinstance(by_hand, bool):
+            raise SaboError(f"{where} ({role}): \"by_hand\" must be true or false, got {by_hand!r}", EXIT_FAILED)
+        processes.append(ProcessSpec(role, command, launcher, by_hand))
     couplers = [spec for spec in processes if spec.role == COUPLER_ROLE]
     if len(couplers) != 1:
         raise SaboError(f"{source}: the launch plan must have exactly one process with role \"coupler\"",
@@ -127,7 +133,8 @@ def parse_plan(text: str, source: str) -> LaunchPlan:
                       restart=plan.get("restart", "off"),
                       max_restarts=int(plan.get("max_restarts", 0)),
                       tcp_security=tcp_security,
-                      connect_host=connect_host)
+                      connect_host=connect_host,
+                      registration_timeout=float(plan.get("registration_timeout", 30.0)))
 
 
 def check_scene(scene: str, bin_dir: str) -> LaunchPlan:

@@ -227,6 +227,14 @@ class Supervisor:
         return (spec.launcher + spec.command + ["--scene", self.scene, "--coupler", target, "--out", self.run_dir] +
                 self._security_arguments() + extra)
 
+    def _ask_for(self, spec: ProcessSpec, endpoint: str) -> None:
+        """A role started by hand: say how, once the coupler listens."""
+        target = connect_endpoint(endpoint, True, self.plan.connect_host)
+        keys = (f" --keys DIR (a copy of {os.path.join(self.keys_dir, 'coupler.key')} and of "
+                f"{os.path.join(self.keys_dir, spec.role + '.key_secret')}, mode 0600)") if self.keys_dir else ""
+        self.display.info(f"sabo: waiting for {spec.role}, started by hand within {self.plan.registration_timeout:g} s: "
+                          f"{spec.role} --scene {self.scene} --coupler {target} --out DIR{keys}")
+
     # ---------------------------------------------------------------------- processes
 
     @property
@@ -286,6 +294,9 @@ class Supervisor:
         for spec in self.plan.solvers:
             if self._interrupts:
                 return
+            if spec.by_hand:
+                self._ask_for(spec, endpoint)
+                continue
             extra = ["--resume", self._resume[1][spec.role]] if self._resume is not None else []
             try:
                 self._start(spec, self._solver_command(spec, endpoint, extra), pipe=False)
@@ -343,7 +354,11 @@ class Supervisor:
                     solver.handled = True
                     return self._fail(f"{solver.role} (pid {solver.pid}) exited with code 0 before the coupler reported "
                                       "the end of the run", culprits=[solver])
-            if now - self._last_activity > self.watchdog_s:
+            # Before the first step the coupler may wait registration_timeout for a solver started by hand.
+            waits_for_hands = self._last_progress is None and any(spec.by_hand for spec in self.plan.solvers)
+            watchdog_s = max(self.watchdog_s, self.plan.registration_timeout + EARLY_EXIT_GRACE_S) if (
+                waits_for_hands) else self.watchdog_s
+            if now - self._last_activity > watchdog_s:
                 return self._fail(
                     f"no progress reported by the coupler for {now - self._last_activity:.0f} s while every process is "
                     "alive: the run looks "
@@ -711,7 +726,7 @@ class Supervisor:
         spec = next((p for p in self.plan.solvers if p.role == role), None)
         peer_pid = event.get("peer_pid")
         if (isinstance(peer_pid, int) and process is not None and spec is not None and not spec.launcher and
-                process.running and not started_by(peer_pid, process)):
+                not spec.by_hand and process.running and not started_by(peer_pid, process)):
             self._impostor = (f"{role} registered from pid {peer_pid}, which the supervisor did not start (it started "
                               f"{role} as pid {process.pid}): another process of this user took the role; the run "
                               "stops")

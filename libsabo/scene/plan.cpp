@@ -14,6 +14,7 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
   plan["end_time"] = scene.run.end_time;
   plan["output_interval"] = scene.run.output_interval;
   plan["hang_timeout"] = scene.run.hang_timeout;
+  plan["registration_timeout"] = scene.run.registration_timeout;
   if (scene.run.max_dt) plan["max_dt"] = *scene.run.max_dt;
   plan["endpoint"] = scene.run.endpoint;
   plan["tcp_security"] = name_of(scene.run.tcp_security);
@@ -35,6 +36,7 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
     }
     nlohmann::json process = {{"role", role_name(role)}, {"command", command}, {"beta", solver->beta}};
     if (!solver->launcher.empty()) process["launcher"] = solver->launcher;
+    if (solver->by_hand) process["by_hand"] = true;
     processes.push_back(std::move(process));
   }
   plan["processes"] = processes;

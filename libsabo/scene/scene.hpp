@@ -86,10 +86,11 @@ struct RunSettings {
   // The host solvers started through a launcher connect to; empty: the endpoint's address (the supervisor's
   // host name when that is 0.0.0.0).
   std::string connect_host;
-  Origin endpoint_origin;        // where endpoint (or, when absent, [run]) is written, for warnings
-  Vec3 gravity{0, 0, -9.81};     // m/s^2
-  double hang_timeout = 10.0;    // s: a solver silent this long is declared hung
-  std::optional<double> max_dt;  // s: upper bound on the coupled dt
+  Origin endpoint_origin;              // where endpoint (or, when absent, [run]) is written, for warnings
+  Vec3 gravity{0, 0, -9.81};           // m/s^2
+  double hang_timeout = 10.0;          // s: a solver silent this long is declared hung
+  double registration_timeout = 30.0;  // s: the coupler waits this long for every solver to register
+  std::optional<double> max_dt;        // s: upper bound on the coupled dt
   // Each solver at a power-of-two fraction of the exchange step, contact forces held between exchanges
   // (docs/architecture.md, "Multirate"); false: every solver at the smallest stable step (paper eq. 7).
   bool multirate = false;
@@ -110,6 +111,7 @@ struct SolverSettings {
   Origin origin;
   // A command prefix that places the process (["ssh", "node2"], ["srun", "--het-group=1"]); empty: started here.
   std::vector<std::string> launcher;
+  bool by_hand = false;  // the supervisor does not start it: a user does, on any host (docs/cluster.md)
 };
 
 struct Sphere {

@@ -48,6 +48,12 @@ void Schema::build_run() {
           .unit("s")
           .gt(0)
           .doc("Wall time after which a silent process is declared hung and the run is stopped."),
+      K("registration_timeout", Type::number)
+          .def(RunSettings{}.registration_timeout)
+          .unit("s")
+          .gt(0)
+          .doc("Wall time the coupler waits for every solver to register before it gives up; give a solver "
+               "started by hand (`by_hand`) the time to be started."),
       K("max_dt", Type::number)
           .absent("no limit")
           .example("1e-3")
@@ -120,6 +126,11 @@ void Schema::build_solvers() {
                "`[\"srun\", \"--het-group=1\"]`, `[\"mpirun\", \"-n\", \"1\"]`. The scene, the run folder and the "
                "built solver must be at the same paths there (a shared file system; docs/cluster.md). Needs a tcp "
                "`endpoint`."),
+      K("by_hand", Type::boolean)
+          .def(SolverSettings{}.by_hand)
+          .doc("`true`: the supervisor does not start this role; you start it yourself, on this host or another, "
+               "with `--keys` pointing at a copy of the run's keys (docs/cluster.md, \"By hand\"). The coupler "
+               "waits `registration_timeout` for it. Needs a tcp `endpoint` to come from another host."),
       K("beta", Type::number)
           .def(SolverSettings{}.beta)
           .gt(0)
@@ -200,6 +211,7 @@ void Builder::read_run(const toml::table& table) {
   }
   if (auto v = r.vec3("gravity")) run.gravity = *v;
   if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
+  if (auto v = r.number("registration_timeout")) run.registration_timeout = *v;
   run.max_dt = r.number("max_dt");
   run.checkpoint_interval = r.number("checkpoint_interval");
   if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
@@ -262,6 +274,17 @@ void Builder::read_solvers(Reader& root) {
                   "reach), or remove 'launcher'");
       } else {
         solver.launcher = *launcher;
+      }
+    }
+    if (auto by_hand = r.boolean("by_hand")) {
+      solver.by_hand = *by_hand;
+      if (*by_hand && (!solver.launcher.empty() || !solver.command.empty())) {
+        const char* other = solver.launcher.empty() ? "command" : "launcher";
+        diag_.add(r.line("by_hand"), r.key_path("by_hand"), "true",
+                  fmt::format("a role started by hand is not started by the supervisor, so its '{}' would never be "
+                              "used",
+                              other),
+                  fmt::format("remove '{}', or remove by_hand to let the supervisor start the role", other));
       }
     }
     scene_.solvers.push_back(std::move(solver));

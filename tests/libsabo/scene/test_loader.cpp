@@ -936,6 +936,16 @@ TEST(SceneLoader, TcpSecurityHeartbeatAndLaunchers) {
   EXPECT_NE(ipc.find("endpoint = \"tcp://0.0.0.0:5555\""), std::string::npos) << ipc;
   const std::string empty = error_of(scene_with("endpoint = \"tcp\"", "[solvers.dem]\nlauncher = []"));
   EXPECT_NE(empty.find("the launcher names no program"), std::string::npos) << empty;
+
+  // A role started by hand: the supervisor neither starts nor places it.
+  const Scene by_hand = load_text(scene_with("registration_timeout = 300.0", "[solvers.dem]\nby_hand = true"));
+  EXPECT_TRUE(by_hand.solver(Role::dem)->by_hand);
+  EXPECT_EQ(by_hand.run.registration_timeout, 300.0);
+  EXPECT_EQ(defaults.run.registration_timeout, 30.0);
+  const std::string both =
+      error_of(scene_with("endpoint = \"tcp\"", "[solvers.dem]\nby_hand = true\nlauncher = [\"ssh\", \"n2\"]"));
+  EXPECT_NE(both.find("solvers.dem.by_hand"), std::string::npos) << both;
+  EXPECT_NE(both.find("its 'launcher' would never be used"), std::string::npos) << both;
 }
 
 TEST(SceneLoader, UnreadableFileIsAFileError) {
