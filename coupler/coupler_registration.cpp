@@ -245,7 +245,7 @@ bool Coupler::catch_up(Peer& peer, std::uint64_t step) {
          fmt::format("restarted from its checkpoint of step {}, it sent a state of step {} that differs from the one "
                      "it sent before it died, first in field {}: the restart would change the answer, so the run "
                      "stops. Find where with ./sabo replay RUN_DIR {} --resume RUN_DIR/checkpoints/{}_{:010}.h5",
-                     peer.resumed_at, s, differs, std::string(peer.name()).substr(0, 3), peer.name(), peer.resumed_at));
+                     peer.resumed_at, s, differs, role_key(peer.role), peer.name(), peer.resumed_at));
   }
   if (s < step) socket_.send(peer.journal->forces(s), peer.buffer, peer.identity);
   if (s + 1 == step || s == step) {

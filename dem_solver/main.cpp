@@ -4,6 +4,9 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <limits>
+
 #include "dem_solver/dem_model.hpp"
 #include "dem_solver/dem_output.hpp"
 #include "libsabo/solver/driver.hpp"
@@ -14,7 +17,7 @@ namespace {
 class DemSolver final : public solver::CoupledSolver {
  public:
   DemSolver(const scene::Scene& scene, const solver::SolverOptions& options)
-      : model_(scene), output_(options.out_dir, model_) {
+      : model_(scene), output_(options.out_dir, model_), limits_(solver::stability_limits(scene, Role::dem)) {
     spdlog::info("{} spheres in {} sets, stable dt {:.3e} s", model_.size(), scene.particle_sets.size(),
                  model_.stable_dt());
   }
@@ -54,6 +57,20 @@ class DemSolver final : public solver::CoupledSolver {
 
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
   void integrate(double dt_previous, double dt) override { model_.integrate(dt_previous, dt); }
+  [[nodiscard]] std::optional<solver::Instability> check_stability() const override {
+    auto found = solver::check_motion(model_.positions(), model_.velocities(), {}, limits_.max_speed, "sphere");
+    if (found) return found;
+    // A spin that is not finite shows in the position only a step later.
+    return solver::check_motion(model_.positions(), model_.angular_velocities(), {},
+                                std::numeric_limits<double>::infinity(), "sphere (angular velocity)");
+  }
+  void write_instability(const solver::Instability& instability, const std::filesystem::path& file) const override {
+    const auto radii = model_.radii();
+    const double largest = radii.empty() ? 0.0 : *std::max_element(radii.begin(), radii.end());
+    // Neighbours: the spheres that can touch a culprit.
+    const std::pair<std::string, std::span<const double>> radius{"radius", radii};
+    solver::write_instability(file, model_.positions(), model_.velocities(), instability, 4.0 * largest, {&radius, 1});
+  }
   [[nodiscard]] std::uint32_t max_substeps() const override { return solver::kMaxSubsteps; }
   [[nodiscard]] bool can_checkpoint() const override { return true; }
   void save_checkpoint(io::hdf5::Group& group) const override {
@@ -70,6 +87,7 @@ class DemSolver final : public solver::CoupledSolver {
  private:
   DemModel model_;
   DemOutput output_;
+  solver::StabilityLimits limits_;
 };
 
 }  // namespace

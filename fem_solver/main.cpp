@@ -1,7 +1,10 @@
 // fem_solver: the structures of a scene, coupled through the Sabo protocol.
 //   fem_solver --scene FILE --coupler ENDPOINT [--out DIR]
 // The physics is FemModel (fem_model.hpp); this file is the protocol side.
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
+
+#include <cmath>
 
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
@@ -13,7 +16,7 @@ namespace {
 class FemSolver final : public solver::CoupledSolver {
  public:
   FemSolver(const scene::Scene& scene, const solver::SolverOptions& options)
-      : model_(scene), out_dir_(options.out_dir) {
+      : model_(scene), out_dir_(options.out_dir), limits_(solver::stability_limits(scene, Role::fem)) {
     spdlog::info("{} parts, {} surface nodes, {} faces", model_.part_count(), model_.surface().node_count(),
                  model_.surface().face_count());
   }
@@ -100,9 +103,67 @@ class FemSolver final : public solver::CoupledSolver {
     }
   }
 
+  // Every deformable part's nodes (not finite, too fast), and its hexahedra: one of a material that does not
+  // erode turning inside out is an instability (an eroding material's element fails instead).
+  [[nodiscard]] std::optional<solver::Instability> check_stability() const override {
+    for (std::size_t index = 0; index < model_.part_count(); ++index) {
+      const DeformablePart* part = model_.deformable(index);
+      if (part == nullptr) continue;
+      const std::string noun = fmt::format("node of '{}'", model_.part(index).name);
+      const auto [positions, velocities] = motion(*part);
+      if (auto found = solver::check_motion(positions, velocities, {}, limits_.max_speed, noun)) {
+        found->group = index;
+        return found;
+      }
+      const SolidBody* solid = part->solid();
+      if (solid == nullptr || solid->material().erodes()) continue;
+      if (auto found = inverted(*solid, model_.part(index).name)) {
+        found->group = index;
+        return found;
+      }
+    }
+    return std::nullopt;
+  }
+  void write_instability(const solver::Instability& instability, const std::filesystem::path& file) const override {
+    const auto [positions, velocities] = motion(*model_.deformable(instability.group));
+    // Neighbours: the nodes within a few elements (an element's size from the part's own extent is not at hand:
+    // the nodes within 1/10 of the part's bounding box).
+    Aabb box;
+    for (const Vec3& x : positions) box.extend(x);
+    const double diagonal = (box.max - box.min).norm();
+    const double reach = std::isfinite(diagonal) ? 0.1 * diagonal : 0.0;
+    solver::write_instability(file, positions, velocities, instability, reach);
+  }
+
  private:
+  static std::pair<std::span<const Vec3>, std::span<const Vec3>> motion(const DeformablePart& part) {
+    if (part.solid() != nullptr) return {part.solid()->positions(), part.solid()->velocities()};
+    return {part.shell()->positions(), part.shell()->velocities()};
+  }
+
+  static std::optional<solver::Instability> inverted(const SolidBody& solid, const std::string& name) {
+    const std::vector<std::size_t> elements = solid.inverted_elements();
+    if (elements.empty()) return std::nullopt;
+    solver::Instability found;
+    found.what = "inverted";
+    std::string list;
+    for (std::size_t k = 0; k < elements.size() && k < solver::Instability::kMaxReported; ++k) {
+      for (const std::uint32_t node : solid.mesh().element[elements[k]]) found.indices.push_back(node);
+      list += fmt::format("{}{}", k > 0 ? ", " : "", elements[k]);
+    }
+    found.detail = fmt::format(
+        "{} hexahedr{} of '{}' turned inside out (its material does not erode, so they cannot "
+        "fail): element{} {}{}",
+        elements.size(), elements.size() > 1 ? "a" : "on", name, elements.size() > 1 ? "s" : "", list,
+        elements.size() > solver::Instability::kMaxReported
+            ? fmt::format(" and {} more", elements.size() - solver::Instability::kMaxReported)
+            : std::string());
+    return found;
+  }
+
   FemModel model_;
   std::filesystem::path out_dir_;
+  solver::StabilityLimits limits_;
 };
 
 }  // namespace

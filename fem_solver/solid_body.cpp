@@ -178,4 +178,15 @@ void SolidBody::restore_state(const BodyState& state, const std::string& what) {
   erosion_.count = static_cast<std::size_t>(state.counters[1]);
 }
 
+std::vector<std::size_t> SolidBody::inverted_elements() const {
+  std::vector<std::size_t> inverted;
+  for (std::size_t e = 0; e < mesh_.element.size(); ++e) {
+    if (active_[e] == 0) continue;
+    HexNodes x;
+    for (std::size_t a = 0; a < 8; ++a) x[a] = position_[mesh_.element[e][a]];
+    if (!(hex8_volume(x) > 0)) inverted.push_back(e);  // NaN too
+  }
+  return inverted;
+}
+
 }  // namespace sabo::fem

@@ -72,6 +72,9 @@ class SolidBody {
   [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }  // 1: not eroded
   [[nodiscard]] double total_mass() const { return sum_masses(mass_); }
 
+  // The active elements whose volume at the current positions is not positive (inside out), in index order.
+  [[nodiscard]] std::vector<std::size_t> inverted_elements() const;
+
   // See the class comment. Returns the number of elements eroded now.
   std::size_t compute_internal_forces(double dt_previous);
   // external_force: per node (N), or empty for none.

@@ -45,7 +45,10 @@ class SphSolver final : public solver::CoupledSolver {
         audit_(model_),
         output_(options.out_dir, model_),
         gauges_(options.out_dir, scene),
-        boundary_walls_(scene.sph_receives_boundary_particles()) {
+        boundary_walls_(scene.sph_receives_boundary_particles()),
+        limits_(solver::stability_limits(scene, Role::sph)) {
+    for (const scene::Material& material : scene.materials) rest_density_.push_back(material.density);
+    scene_max_speed_ = scene.run.max_speed.has_value();
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
@@ -126,6 +129,24 @@ class SphSolver final : public solver::CoupledSolver {
     }
   }
 
+  [[nodiscard]] std::optional<solver::Instability> check_stability() const override {
+    auto found =
+        solver::check_motion(model_.positions(), model_.velocities(), model_.active(), limits_.max_speed, "particle");
+    if (found && found->what == "too fast" && !scene_max_speed_) {
+      found->detail += fmt::format(
+          " (here the sound speed sph.sound_speed: the weakly compressible model needs the "
+          "flow well below it; raise it, or set run.max_speed)");
+    }
+    if (found) return found;
+    return solver::check_density(model_.densities(), model_.material_index(), rest_density_, model_.active(), limits_);
+  }
+  void write_instability(const solver::Instability& instability, const std::filesystem::path& file) const override {
+    const std::pair<std::string, std::span<const double>> arrays[] = {{"density", model_.densities()},
+                                                                      {"pressure", model_.pressures()}};
+    solver::write_instability(file, model_.positions(), model_.velocities(), instability, 2.0 * model_.kernel().h,
+                              arrays);
+  }
+
   // Walls arrive as boundary particles at x_n and the fluid's force on them goes back for that one
   // step: held over several steps, neither would be exact, so such a run is lock-step for the fluid.
   [[nodiscard]] std::uint32_t max_substeps() const override { return boundary_walls_ ? 1 : solver::kMaxSubsteps; }
@@ -155,6 +176,9 @@ class SphSolver final : public solver::CoupledSolver {
   bool boundary_walls_;
   bool have_boundary_forces_ = false;
   double dt_previous_ = 0;
+  solver::StabilityLimits limits_;
+  bool scene_max_speed_ = false;
+  std::vector<double> rest_density_;  // kg/m^3, by scene material index
 };
 
 }  // namespace

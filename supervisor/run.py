@@ -336,7 +336,10 @@ class Supervisor:
                 refused = [reason for reason in (self._restart(p) for p in failed) if reason]
                 if not refused:
                     continue
-                return self._fail("; ".join(refused), culprits=failed)
+                # What the solver told the coupler before it went (an instability, a model error) is the why.
+                reported = [f'the coupler reports: {e.get("process", "?")}: {e.get("message", "?")}'
+                            for e in self._errors]
+                return self._fail("; ".join(refused + reported), culprits=failed)
             for solver in self.solvers:
                 if solver.poll() is None or solver.handled:
                     continue

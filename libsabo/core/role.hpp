@@ -23,6 +23,16 @@ inline constexpr std::array<Role, 3> kRoles = {Role::sph, Role::dem, Role::fem};
   return "unknown";
 }
 
+// The role's key in the scene ([solvers.sph]) and on the command lines of ./sabo replay: "sph", "dem", "fem".
+[[nodiscard]] constexpr const char* role_key(Role role) {
+  switch (role) {
+    case Role::sph: return "sph";
+    case Role::dem: return "dem";
+    case Role::fem: return "fem";
+  }
+  return "unknown";
+}
+
 // role_name's inverse; nullopt for any other text.
 [[nodiscard]] constexpr std::optional<Role> role_from_name(std::string_view name) {
   for (const Role role : kRoles) {

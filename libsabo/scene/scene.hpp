@@ -91,6 +91,8 @@ struct RunSettings {
   double hang_timeout = 10.0;          // s: a solver silent this long is declared hung
   double registration_timeout = 30.0;  // s: the coupler waits this long for every solver to register
   std::optional<double> max_dt;        // s: upper bound on the coupled dt
+  // m/s: a particle or node faster than this is an instability (libsabo/solver/stability.hpp); absent: derived
+  std::optional<double> max_speed;
   // Each solver at a power-of-two fraction of the exchange step, contact forces held between exchanges
   // (docs/architecture.md, "Multirate"); false: every solver at the smallest stable step (paper eq. 7).
   bool multirate = false;
@@ -396,6 +398,8 @@ struct SphSettings {
   DensityDiffusion density_diffusion = DensityDiffusion::fourtakas;
   double density_diffusion_delta = 0.1;  // delta of delta-SPH
   std::optional<Aabb> domain;            // particles leaving it are taken out of the simulation (counted, logged)
+  // rho / rho0 outside [min, max] is an instability (libsabo/solver/stability.hpp)
+  std::array<double, 2> density_ratio_limits{0.5, 2.0};
   // Periodic boundaries, m: [min, max) along x and y; a particle leaving it re-enters at the
   // other end, and the fluid sees across the seam (docs/physics.md, "Periodic boundaries").
   std::optional<std::array<double, 2>> periodic_x, periodic_y;

@@ -96,6 +96,15 @@ std::vector<std::string> scene_warnings(const Scene& scene) {
   }
   warn_narrow_sensors(scene, warnings);
   warn_insecure_tcp(scene, warnings);
+  for (const SolverSettings& solver : scene.solvers) {
+    if (solver.beta <= 1) continue;
+    warnings.push_back(located(
+        {solver.origin.file, solver.origin.line, solver.origin.key + ".beta"},
+        fmt::format("beta = {:g} takes steps {:g} times the {}'s stable step: the run may become unstable", solver.beta,
+                    solver.beta, role_name(solver.role)),
+        "keep beta <= 1 unless you are looking for where the step breaks (the instability check stops the run at the "
+        "step it does)"));
+  }
   return warnings;
 }
 

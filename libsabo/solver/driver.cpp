@@ -234,6 +234,17 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         solver.integrate(dt_previous, forces.dt());
         time += forces.dt();
         dt_previous = forces.dt();
+        if (auto instability = solver.check_stability()) {
+          const auto file = instability_file(options.out_dir, role);
+          solver.write_instability(*instability, file);
+          throw InstabilityError(fmt::format(
+              "unstable after step {}{} (t = {:.9g} s, dt = {:.6g} s): {}. The entities and their neighbours are in "
+              "{} (ParaView; 'culprit' = 1). Fix: a smaller step ([solvers.{}] beta, or what sets the step: the "
+              "coupler's log names it), or look for what drives them (a contact stiffness, an initial overlap, a "
+              "material)",
+              step, substeps > 1 ? fmt::format(" (substep {} of {})", k + 1, substeps) : std::string(), time,
+              forces.dt(), instability->detail, file.string(), role_key(role)));
+        }
       }
       substeps_taken += substeps;
       if (forces.checkpoint() && solver.can_checkpoint()) {

@@ -12,6 +12,7 @@
 
 #include "libsabo/io/hdf5.hpp"
 #include "libsabo/scene/scene.hpp"
+#include "libsabo/solver/stability.hpp"
 #include "sabo/v1/sabo.pb.h"
 
 namespace sabo::solver {
@@ -42,7 +43,9 @@ class Interest {
 //      (dt_{n-1} is the step that led to x_n, 0 at n = 0);
 //   3. apply_coupling_forces(): the contact forces received for step n;
 //   4. write_output() when the coupler asks for output at t_n;
-//   5. integrate(dt_{n-1}, dt_n): v_{n+1/2}, x_{n+1} (skipped on the last step).
+//   5. integrate(dt_{n-1}, dt_n): v_{n+1/2}, x_{n+1} (skipped on the last step), then
+//      check_stability(): the state it reached, judged against the scene's limits (stability.hpp); a
+//      finding stops the solver with InstabilityError after write_instability() wrote the culprits.
 //   6. save_checkpoint() when StepForces.checkpoint is set (after integrate:
 //      the state a restart resumes from at step n + 1, docs/restart.md). The
 //      driver writes step, time, dt_n and the interest regions beside it.
@@ -66,6 +69,10 @@ class CoupledSolver {
   virtual void apply_coupling_forces(const sabo::v1::StepForces& forces) = 0;
   virtual void write_output(std::uint64_t step, double time) = 0;
   virtual void integrate(double dt_previous, double dt) = 0;
+  // What is wrong with the state integrate() reached (stability.hpp), or nullopt; called after every step.
+  [[nodiscard]] virtual std::optional<Instability> check_stability() const { return std::nullopt; }
+  // Writes the culprits of `instability` and their neighbours into `file` (write_instability of stability.hpp).
+  virtual void write_instability(const Instability& /*instability*/, const std::filesystem::path& /*file*/) const {}
   // The most steps this solver takes per exchange with held forces (a power of two; 1: lock-step).
   [[nodiscard]] virtual std::uint32_t max_substeps() const { return 1; }
   // Restarts: a solver that can write its whole state says so; save writes it into `group`, load

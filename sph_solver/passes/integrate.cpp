@@ -173,13 +173,10 @@ void SphModel::integrate(double dt_previous, double dt) {
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
-    if (!std::isfinite(position_[i].x() + position_[i].y() + position_[i].z() + density_[i])) {
-      throw Error(
-          fmt::format("sph_solver: particle {} is no longer finite (position {} {} {}, density {}) after a "
-                      "step of {:.3e} s. Fix: lower [solvers.sph] beta or sph.cfl.",
-                      i, position_[i].x(), position_[i].y(), position_[i].z(), density_[i], dt));
-    }
-    if (settings_.domain && !settings_.domain->contains(position_[i])) {
+    // A position that is not finite is no particle leaving the domain: the solver's check_stability()
+    // (libsabo/solver/stability.hpp) stops the run on it.
+    const bool finite = std::isfinite(position_[i].x() + position_[i].y() + position_[i].z());
+    if (finite && settings_.domain && !settings_.domain->contains(position_[i])) {
       active_[i] = 0;
       velocity_[i].setZero();
       ++lost_;

@@ -176,3 +176,30 @@ TEST(HexElement, StableStepIsBelowTheCriticalStepOfEveryShape) {
     }
   }
 }
+
+// Instability detection of the fem_solver (libsabo/solver/stability.hpp): a hexahedron whose node has been
+// driven through the opposite face is found inside out at that step; its neighbours are not.
+TEST(HexElement, AnElementDrivenInsideOutIsFoundAtThatStep) {
+  using namespace sabo::fem;
+  SolidBody body(structured_box(sabo::Aabb{sabo::Vec3(0, 0, 0), sabo::Vec3(2, 1, 1)}, {2, 1, 1}), test::steel());
+  EXPECT_TRUE(body.inverted_elements().empty());
+  // Node (0, 0, 0) belongs to element 0 only (the unit cube [0, 1]^3): push it along +x by 0.105 m a step. The
+  // element's centre volume 8 det J is then 1 - d/4 m^3 for a displacement d: not positive from d = 4 m on, at
+  // step 39 (d = 4.095 m); step 38 (d = 3.99 m) is still positive.
+  std::size_t corner = 0;
+  for (std::size_t i = 0; i < body.node_count(); ++i) {
+    if (body.positions()[i].norm() < 1e-12) corner = i;
+  }
+  std::size_t found_at = 0;
+  for (std::size_t step = 1; step <= 100 && found_at == 0; ++step) {
+    body.set_node_velocity(corner, sabo::Vec3(1.05, 0, 0));
+    body.integrate(0.1, 0.1);
+    if (!body.inverted_elements().empty()) {
+      found_at = step;
+      EXPECT_EQ(body.inverted_elements(), (std::vector<std::size_t>{0}));  // not its neighbour
+    }
+  }
+  std::cout << "element 0 found inside out at step " << found_at
+            << " (expected 39), corner at x = " << body.positions()[corner].x() << " m\n";
+  EXPECT_EQ(found_at, 39u);
+}

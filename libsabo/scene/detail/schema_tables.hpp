@@ -38,6 +38,9 @@ class K {
     return literal(
         fmt::format("[{}, {}, {}]", number_literal(value.x()), number_literal(value.y()), number_literal(value.z())));
   }
+  K& def(const std::array<double, 2>& pair) {
+    return literal(fmt::format("[{}, {}]", number_literal(pair[0]), number_literal(pair[1])));
+  }
   K& def(std::string_view text) {
     assert(text.find_first_of("\"\\") == std::string_view::npos && "a plain TOML basic string");
     return literal(fmt::format("\"{}\"", text));

@@ -87,6 +87,11 @@ void Schema::build_sph() {
           .example("[10.0, 1.0, 5.0]")
           .unit("m")
           .doc("Upper corner of the domain, above `domain_min` on every axis."),
+      K("density_ratio_limits", Type::number_pair)
+          .def(SphSettings{}.density_ratio_limits)
+          .doc("A fluid particle whose density over its rest density leaves `[min, max]` after a step is an "
+               "instability: the run stops there (docs/physics.md, \"Instability detection\"). A weakly "
+               "compressible flow stays within a few percent of 1."),
       K("periodic_x", Type::number_pair)
           .absent("not periodic along x")
           .example("[0.0, 0.3]")
@@ -234,6 +239,15 @@ void Builder::read_sph(Reader& root) {
     } else {
       sph.domain = Aabb{*min, *max};
       domain_line_ = r.line("domain_max");
+    }
+  }
+  if (auto limits = r.pair("density_ratio_limits")) {
+    if (!((*limits)[0] > 0 && (*limits)[0] < 1 && (*limits)[1] > 1)) {
+      diag_.add(r.line("density_ratio_limits"), r.key_path("density_ratio_limits"),
+                value_text(*r.node("density_ratio_limits")), "must be [min, max] with 0 < min < 1 < max",
+                "give e.g. density_ratio_limits = [0.5, 2.0]");
+    } else {
+      sph.density_ratio_limits = *limits;
     }
   }
   read_periodic(r, "periodic_x", sph.periodic_x, periodic_line_[0]);

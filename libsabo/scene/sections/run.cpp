@@ -60,6 +60,16 @@ void Schema::build_run() {
           .unit("s")
           .gt(0)
           .doc("Upper bound on the coupled time step."),
+      K("max_speed", Type::number)
+          .absent("the sph_solver's sound speed for fluid particles; 1000 m/s, or ten times the fastest initial "
+                  "velocity of the scene when that is more, for spheres and structure nodes")
+          .example("200.0")
+          .unit("m/s")
+          .gt(0)
+          .doc("Every solver checks its state after each step (docs/physics.md, \"Instability detection\"): a "
+               "particle or node faster than this, or with a position or velocity that is not finite, stops the run "
+               "at that step, naming the process, the step, the entities and their values, with those entities and "
+               "their neighbours in `RUN_DIR/instability.vtp`."),
       K("multirate", Type::boolean)
           .def(RunSettings{}.multirate)
           .doc("Each solver at its own stable step: the exchange step is that of the slower side of each contact "
@@ -134,9 +144,11 @@ void Schema::build_solvers() {
       K("beta", Type::number)
           .def(SolverSettings{}.beta)
           .gt(0)
-          .le(1)
+          .le(10)
           .doc("Safety factor on this solver's stable time step (paper eq. 7): the coupled step is "
-               "`min(beta_i * stable_dt_i)`."),
+               "`min(beta_i * stable_dt_i)`. Above 1 the steps are longer than the stable step: a warning says "
+               "so, and the run may become unstable (to find where the returns stop in a study; the instability "
+               "check stops such a run at the step it goes wrong)."),
   };
 }
 
@@ -213,6 +225,7 @@ void Builder::read_run(const toml::table& table) {
   if (auto v = r.number("hang_timeout")) run.hang_timeout = *v;
   if (auto v = r.number("registration_timeout")) run.registration_timeout = *v;
   run.max_dt = r.number("max_dt");
+  run.max_speed = r.number("max_speed");
   run.checkpoint_interval = r.number("checkpoint_interval");
   if (auto v = r.integer("checkpoints_kept")) run.checkpoints_kept = static_cast<std::size_t>(*v);
   if (auto v = r.string("restart")) {

@@ -646,7 +646,7 @@ TEST(SceneLoader, ChecksAcrossKeys) {
       {head + kOneSphere + "[solvers.sph]\nbeta = 0.5\n",
        "key 'solvers.sph': no bodies need the sph_solver. Fix: remove [solvers.sph]"},
       {head + kOneSphere + "[solvers.dem]\ncommand = []\n", "the command names no program"},
-      {head + kOneSphere + "[solvers.dem]\nbeta = 1.5\n", "key 'solvers.dem.beta' = 1.5: must be in (0, 1]"},
+      {head + kOneSphere + "[solvers.dem]\nbeta = 12.0\n", "key 'solvers.dem.beta' = 12.0: must be in (0, 10]"},
       {head + kOneSphere + "[solvers.dem]\ncommand = [\"no_such_sabo_program_xyz\"]\n",
        "program 'no_such_sabo_program_xyz' is not found on PATH"},
       {head + kOneSphere + "[recording]\nevery = 0\n", "key 'recording.every' = 0: must be >= 1"},

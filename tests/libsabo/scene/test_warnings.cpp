@@ -37,6 +37,23 @@ TEST(SceneWarnings, StructureThatNothingTouchesIsNamed) {
   EXPECT_NE(w.find("Fix: give it a contact"), std::string::npos) << w;
 }
 
+TEST(SceneWarnings, AStepAboveTheStableOneAndTcpInClearAreSaid) {
+  const auto beta = warnings_of(std::string(kSceneHead) + kOneSphere + kGround + "[solvers.dem]\nbeta = 2.5\n");
+  ASSERT_EQ(beta.size(), 1u);
+  EXPECT_NE(beta[0].find("key 'solvers.dem.beta': warning: beta = 2.5 takes steps 2.5 times the dem_solver's stable "
+                         "step: the run may become unstable"),
+            std::string::npos)
+      << beta[0];
+  std::string clear = std::string(kSceneHead) + kOneSphere + kGround;
+  clear.insert(clear.find("[materials"), "endpoint = \"tcp://0.0.0.0:5555\"\ntcp_security = \"none\"\n");
+  const auto tcp = warnings_of(clear);
+  ASSERT_EQ(tcp.size(), 1u);
+  EXPECT_NE(tcp[0].find("key 'run.endpoint': warning: run.tcp_security = \"none\" over tcp://0.0.0.0:5555: any process "
+                        "that reaches the port, on any interface of this machine, can register as a solver"),
+            std::string::npos)
+      << tcp[0];
+}
+
 TEST(SceneWarnings, CheckPrintsTheWarningAndStillPlansTheRun) {
   const auto result =
       testing::run_tool("check '" + (testing::source_dir() / "tests/scenes/warn/untouchable_structure.toml").string() +
