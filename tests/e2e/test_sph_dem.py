@@ -2,56 +2,14 @@
 fem_solver): SPH-DEM boundary particles in a tank of water, the same bits on one and two threads, and the
 reduced three-solver debris flow against a check dam and a house. Each check prints measured beside
 expected."""
-import csv
 import filecmp
 import os
 import unittest
 
-from e2e_support import RealRunTestCase, load_scene, read_json
+from e2e_support import RealRunTestCase, largest_energy_rise, load_scene, read_csv, read_json, read_vtk, vtp_series
 
 TANK = "configs/tests/sph_boulders_tank.toml"
 DEBRIS = "configs/tests/debris_flow_dam_small.toml"
-
-
-def read_csv(path):
-    with open(path, newline="") as handle:
-        return list(csv.DictReader(handle))
-
-
-def vtp_series(run_dir, name):
-    """(time, path) of each file of RUN_DIR/NAME.pvd."""
-    import xml.etree.ElementTree as ET
-    root = ET.parse(os.path.join(run_dir, name + ".pvd")).getroot()
-    return [(float(e.get("timestep")), os.path.join(run_dir, e.get("file"))) for e in root.iter("DataSet")]
-
-
-def read_vtk(path):
-    """The arrays of one of Sabo's VTK XML files (appended raw data, UInt64 headers), by name."""
-    import re
-    import numpy as np
-    types = {"Float64": np.float64, "Float32": np.float32, "UInt64": np.uint64, "Int64": np.int64,
-             "UInt32": np.uint32, "Int32": np.int32, "UInt8": np.uint8}
-    with open(path, "rb") as handle:
-        raw = handle.read()
-    start = raw.index(b"<AppendedData")
-    head = raw[:start].decode()
-    data = raw.index(b"_", start) + 1
-    arrays = {}
-    pattern = r'<DataArray type="(\w+)" Name="(\w+)" NumberOfComponents="(\d+)" format="appended" offset="(\d+)"'
-    for match in re.finditer(pattern, head):
-        kind, name, components, offset = match.group(1), match.group(2), int(match.group(3)), int(match.group(4))
-        at = data + offset
-        size = int(np.frombuffer(raw[at:at + 8], np.uint64)[0])
-        values = np.frombuffer(raw[at + 8:at + 8 + size], types[kind])
-        arrays[name] = values.reshape(-1, components) if components > 1 else values
-    return arrays
-
-
-def largest_energy_rise(run_dir):
-    """The largest rise of energy.csv's total over its first row, J, and that first total."""
-    rows = read_csv(os.path.join(run_dir, "energy.csv"))
-    initial = float(rows[0]["total"])
-    return max(float(row["total"]) for row in rows) - initial, initial
 
 
 class BouldersInWaterTest(RealRunTestCase):
