@@ -14,6 +14,7 @@ from .display import Display, format_progress, list_run_folder, wrap_items
 from .errors import SaboError, EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 from .plan import check_scene
 from .replay import command_replay
+from .study import command_study
 from .run import PIDS_FILE, Supervisor
 from .setup_env import setup
 
@@ -33,6 +34,7 @@ Sabo: co-simulation of debris flows striking protective structures.
   ./sabo test [ARGS...]    build, then run the test suite with ctest (ARGS go to ctest)
   ./sabo status RUN_DIR    what a run folder holds; repairs what a killed run left behind
   ./sabo keys DIR          a key set for a run whose solvers are started by hand on other hosts
+  ./sabo study STUDY.toml  what accuracy costs: a scene swept over keys, errors against wall time, Pareto front
 """
 
 EPILOG = """\
@@ -139,6 +141,23 @@ def build_parser() -> argparse.ArgumentParser:
                                     "at or before A (from step 0 when none is kept), and the replay ends at B")
     replay_parser.add_argument("--out", metavar="DIR", help="the replay's folder (default: RUN_DIR/replay/ROLE-<time>)")
     replay_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
+
+    study_parser = commands.add_parser(
+        "study", help="sweep scene keys, measure each run's error and cost, draw the Pareto front",
+        description="Run every combination of the study file's swept scene keys through the supervisor (as many "
+                    "at once as the cores allow; runs completed by an earlier invocation are taken as they are), "
+                    "read each measure from the run folders, compare it with its reference and write study.csv, "
+                    "study.md (sorted by cost, the Pareto-optimal runs marked, the observed orders of "
+                    "convergence), pareto.png and convergence_<key>.png into the study folder "
+                    "(docs/accuracy-cost.md). Exit status: 0 every run completed, 1 some failed, 2 bad input.")
+    study_parser.add_argument("study", metavar="STUDY", help="study file (TOML), e.g. configs/studies/s1_front.toml")
+    study_parser.add_argument("--out", metavar="DIR", help="the study folder (default: studies/<name>); reused: "
+                                                           "completed runs are kept")
+    study_parser.add_argument("--runs-at-once", type=int, default=0, metavar="N",
+                              help="runs at the same time (default: the study's runs_at_once, else the cores / "
+                                   "threads_per_run)")
+    study_parser.add_argument("--dry-run", action="store_true", help="check the study and its scenes, list the runs")
+    study_parser.add_argument("--no-setup", action="store_true", help="skip the package check and the build")
 
     keys_parser = commands.add_parser(
         "keys", help="write a key set for runs whose solvers start by hand on other hosts",
@@ -391,6 +410,11 @@ def main(root: str, argv: list[str] | None = None) -> int:
             return command_setup(root, build_dir, args)
         if args.command == "keys":
             return command_keys(root, build_dir, args)
+        if args.command == "study":
+            if not args.no_setup:
+                setup(root, build_dir, quiet=True)
+            os.umask(0o077)
+            return command_study(root, build_dir, args)
         if args.command in ("run", "resume"):
             # What a run writes is the user's alone: files 0600, folders 0700, whatever the umask was
             # (the processes inherit it).

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 from . import run_folder
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
 from .plan import check_scene
+from .scene_text import absolute_file_keys, apply_overrides
 from .processes import start_process
 
 if TYPE_CHECKING:
@@ -34,44 +35,6 @@ if TYPE_CHECKING:
 
 ROLES = {"sph": "sph_solver", "dem": "dem_solver", "fem": "fem_solver", "coupler": "coupler"}
 EXIT_PROCESS_FAILED = 3
-
-
-def _absolute_file_keys(text: str, scene_folder: str) -> str:
-    """The scene's relative `file = "..."` paths made absolute against the recorded scene's folder (the
-    replayed scene lives elsewhere)."""
-    def absolute(match: re.Match) -> str:
-        path = match.group(2)
-        if os.path.isabs(path):
-            return match.group(0)
-        return f'{match.group(1)}"{os.path.normpath(os.path.join(scene_folder, path))}"'
-    return re.sub(r'(^\s*file\s*=\s*)"([^"]*)"', absolute, text, flags=re.MULTILINE)
-
-
-def apply_overrides(text: str, overrides: list[str]) -> str:
-    """`text` with each KEY=VALUE of `overrides` set: KEY is TABLE.KEY (e.g. materials.granite.density or
-    run.end_time), VALUE a TOML value. The key's line in the table is replaced, or added under the table's
-    header. SaboError (exit 2) for a malformed override or a table the scene does not have."""
-    lines = text.splitlines()
-    for override in overrides:
-        key, equals, value = override.partition("=")
-        key, value = key.strip(), value.strip()
-        if not equals or "." not in key or not value:
-            raise SaboError(f"--set {override}: expected TABLE.KEY=VALUE, e.g. --set materials.granite.density=3100",
-                            EXIT_BAD_INPUT)
-        table, name = key.rsplit(".", 1)
-        header = re.compile(rf"^\s*\[\s*{re.escape(table)}\s*\]\s*(#.*)?$")
-        start = next((k for k, line in enumerate(lines) if header.match(line)), None)
-        if start is None:
-            raise SaboError(f"--set {override}: the scene has no table [{table}] (the table must be written as a "
-                            "header; arrays of tables are not overridden)", EXIT_BAD_INPUT)
-        end = next((k for k in range(start + 1, len(lines)) if lines[k].lstrip().startswith("[")), len(lines))
-        line_of_key = re.compile(rf"^\s*{re.escape(name)}\s*=")
-        at = next((k for k in range(start + 1, end) if line_of_key.match(lines[k])), None)
-        if at is None:
-            lines.insert(start + 1, f"{name} = {value}")
-        else:
-            lines[at] = f"{name} = {value}"
-    return "\n".join(lines) + "\n"
 
 
 def _wait(process: ManagedProcess, timeout_s: float) -> bool:
@@ -144,7 +107,7 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
                             "a checkpoint needs the scene it was written with", EXIT_BAD_INPUT)
         scene = recorded_scene
     else:
-        text = _absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
+        text = absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
         text = apply_overrides(text, args.set or [])
         if role == "coupler":
             # The replayed coupler's own recording would only repeat what the replay compares, at the cost of

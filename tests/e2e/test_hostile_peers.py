@@ -19,7 +19,7 @@ import subprocess
 import time
 import unittest
 
-from e2e_support import BUILD_DIR, ROOT, RealRunTestCase, read_events, read_json, wait_for_events
+from e2e_support import BUILD_DIR, RealRunTestCase, read_events, read_json, wait_for_events
 
 CHUTE_SMALL = "configs/tests/chute_small.toml"
 

@@ -15,6 +15,8 @@ from supervisor.plan import parse_plan  # noqa: E402
 from supervisor.processes import describe_exit  # noqa: E402
 from supervisor.processes import start_process  # noqa: E402
 from supervisor.run import connect_endpoint, resolve_endpoint, started_by, watchdog_seconds  # noqa: E402
+from supervisor.scene_text import apply_overrides  # noqa: E402
+from supervisor.study import observed_order, pareto_front, relative_error  # noqa: E402
 
 PLAN = {"scene": "/s.toml", "end_time": 2.0, "output_interval": 0.1, "hang_timeout": 10.0, "endpoint": "ipc",
         "processes": [{"role": "dem_solver", "command": ["/b/dem_solver"]},
@@ -145,3 +147,30 @@ class ExitTextTest(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class StudyUnitsTest(unittest.TestCase):
+    def test_the_pareto_front_keeps_what_no_other_run_beats_in_cost_and_error(self):
+        points = [(10.0, 0.5), (1.0, 2.0), (5.0, 0.5), (2.0, 3.0), (20.0, 0.1), (5.0, 0.6)]
+        # (1, 2.0), then (5, 0.5) (cheaper than (10, 0.5) for the same error), then (20, 0.1).
+        self.assertEqual(pareto_front(points), [1, 2, 4])
+        self.assertEqual(pareto_front([]), [])
+
+    def test_the_observed_order_is_the_slope_in_log_log(self):
+        steps = [0.1, 0.05, 0.025, 0.0125]
+        self.assertAlmostEqual(observed_order(steps, [3.0 * h ** 2 for h in steps]), 2.0, places=12)
+        self.assertAlmostEqual(observed_order(steps, [0.7 * h for h in steps]), 1.0, places=12)
+        self.assertIsNone(observed_order([0.1], [0.01]))
+        self.assertIsNone(observed_order([0.1, 0.05], [0.0, None]))  # no error to fit
+        self.assertAlmostEqual(relative_error(11474.0, 11470.0), 4.0 / 11470.0)
+        self.assertEqual(relative_error(0.5, 0.0), 0.5)  # a zero reference: the absolute error
+        self.assertIsNone(relative_error(None, 1.0))
+
+    def test_an_override_replaces_a_key_adds_one_or_adds_its_table(self):
+        text = "[run]\nend_time = 1.0\n\n[sph]\ncfl = 0.25\n"
+        out = apply_overrides(text, ["run.end_time=2.0", "sph.sound_speed=40.0", "solvers.dem.beta=0.5"])
+        self.assertIn("end_time = 2.0\n", out)
+        self.assertNotIn("end_time = 1.0", out)
+        self.assertIn("[sph]\nsound_speed = 40.0\ncfl = 0.25", out)
+        self.assertTrue(out.rstrip().endswith("[solvers.dem]\nbeta = 0.5"))
+
