@@ -87,7 +87,7 @@ def main():
             finest = r["parameters"]
     for key in swept:
         others = {k: v for k, v in finest.items() if k != key}
-        line = [r for r in runs if all(r["parameters"][k] == v for k, v in others.items()) and not r.get("finest")]
+        line = [r for r in runs if all(r["parameters"][k] == v for k, v in others.items())]
         values = [r["parameters"][key] for r in line]
         if len(line) < 2 or not all(isinstance(v, (int, float)) and v > 0 for v in values):
             continue
@@ -95,8 +95,10 @@ def main():
         drawn = False
         for index, measure in enumerate(study["measures"]):
             name = measure["name"]
+            # The finest run is left out where it is the reference (its error is 0 by definition).
             pairs = sorted((r["parameters"][key], r["errors"].get(name)) for r in line
-                           if r["errors"].get(name) not in (None, 0))
+                           if r["errors"].get(name) not in (None, 0)
+                           and not (r.get("finest") and measure.get("reference_is_finest")))
             if len(pairs) < 2:
                 continue
             drawn = True

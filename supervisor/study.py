@@ -643,10 +643,12 @@ def write_outputs(root: str, study: Study, rows: list[dict], out: str) -> None:
         if not parameter.numeric or len(parameter.values) < 3:
             continue
         others = {k: v for k, v in study.finest().items() if k != parameter.key}
-        line = [r for r in rows if all(r["parameters"][k] == v for k, v in others.items()) and not r["finest"]]
+        line = [r for r in rows if all(r["parameters"][k] == v for k, v in others.items())]
         for m in study.measures:
-            order = observed_order([float(r["parameters"][parameter.key]) for r in line],
-                                   [r["errors"].get(m.name) for r in line])
+            # The finest run is left out where it is the reference (its error is 0 by definition).
+            fit = [r for r in line if not (r["finest"] and m.reference == "finest")]
+            order = observed_order([float(r["parameters"][parameter.key]) for r in fit],
+                                   [r["errors"].get(m.name) for r in fit])
             if order is not None:
                 orders[(parameter.key, m.name)] = order
     lines = [f"# Study {study.name}", "",
@@ -689,8 +691,8 @@ def write_outputs(root: str, study: Study, rows: list[dict], out: str) -> None:
         handle.write("\n".join(lines) + "\n")
     with open(os.path.join(out, "study.json"), "w", encoding="utf-8") as handle:
         json.dump({"name": study.name, "parameters": keys,
-                   "measures": [{"name": m.name, "unit": m.unit,
-                                 "reference": getattr(m, "reference_value", None)} for m in study.measures],
+                   "measures": [{"name": m.name, "unit": m.unit, "reference": getattr(m, "reference_value", None),
+                                 "reference_is_finest": m.reference == "finest"} for m in study.measures],
                    "orders": [{"parameter": k, "measure": n, "order": o} for (k, n), o in orders.items()],
                    "pareto": {name: sorted((rows[k]["run"] for k in front), key=lambda r: next(
                        row["wall_s"] for row in rows if row["run"] == r)) for name, front in fronts.items()},
