@@ -24,8 +24,8 @@ from scene_runs import ROOT, run_scene  # noqa: E402
 HARD = os.path.join(ROOT, "configs", "tests", "hard")
 
 
-def read(name):
-    with open(os.path.join(HARD, name + ".toml"), encoding="utf-8") as handle:
+def read(name, folder=HARD):
+    with open(os.path.join(folder, name + ".toml"), encoding="utf-8") as handle:
         return handle.read()
 
 
@@ -63,8 +63,7 @@ CASES = {
                                                                             ("output_interval = 0.01",
                                                                              "output_interval = 0.1")])),
     "stiff_penalty_dem": ("DEM-FEM penalty at k1 = 1, configs/boulders_chute.toml (200 boulders)",
-                          lambda args: replaced(open(os.path.join(ROOT, "configs", "boulders_chute.toml"),
-                                                     encoding="utf-8").read(),
+                          lambda args: replaced(read("boulders_chute", os.path.join(ROOT, "configs")),
                                                 [("penalty_scale = 0.1", "penalty_scale = 1.0")])),
     "slurry_40ms": ("slurry at 40 m/s into a rigid dam, dx = 10 mm (4000 particles)",
                     lambda args: replaced(read("slurry_40ms"), [("particle_spacing = 0.02", "particle_spacing = 0.01")])),

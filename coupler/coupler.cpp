@@ -57,9 +57,7 @@ void Coupler::secure() {
   using protocol::Mechanism;
   using protocol::Transport;
   const Transport transport = protocol::transport_of(options_.endpoint);
-  const bool tcp_in_clear =
-      transport == Transport::tcp && scene_.run.tcp_security == scene::RunSettings::TcpSecurity::none;
-  if (tcp_in_clear) {
+  if (scene_.run.tcp_in_clear(options_.endpoint)) {
     security_warning_ = fmt::format(
         "tcp_security = \"none\": any process that reaches {} can register as a solver, read the run's state and "
         "send forces; nothing is encrypted",
@@ -82,8 +80,7 @@ void Coupler::secure() {
         "one in RUN_DIR/keys), or set tcp_security = \"none\" in the scene's [run] to run without authentication",
         options_.endpoint));
   }
-  const auto timeout = std::chrono::milliseconds(static_cast<long>(1000 * scene_.run.heartbeat_timeout));
-  socket_.set_heartbeat({.interval = timeout / 5, .timeout = timeout});
+  socket_.set_heartbeat(protocol::Heartbeat::after(scene_.run.heartbeat_timeout));
 }
 
 Coupler::~Coupler() = default;

@@ -70,7 +70,9 @@ class Coupler {
   void accept_registration(const protocol::Inbound& inbound);
   // Why the connection `inbound` came on may not register as `name`: it authenticated as another role, or
   // another user's process is at its other end; nullopt when it may.
+  // `who`: protocol::peer_info of its connection.
   [[nodiscard]] std::optional<std::string> identity_problem(const protocol::Inbound& inbound,
+                                                            const protocol::PeerInfo& who,
                                                             const std::string& name) const;
   // Registered solvers whose connection ended (a vanished host, a stopped or dead process): the run stops, or,
   // when it restarts its processes, waits for the replacement that the supervisor starts.

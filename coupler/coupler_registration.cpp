@@ -16,14 +16,14 @@
 
 namespace sabo::coupler {
 
-std::optional<std::string> Coupler::identity_problem(const protocol::Inbound& inbound, const std::string& name) const {
+std::optional<std::string> Coupler::identity_problem(const protocol::Inbound& inbound, const protocol::PeerInfo& who,
+                                                     const std::string& name) const {
   if (authenticator_ && inbound.user_id != name) {
     return fmt::format(
         "this connection authenticated as '{}' (with that role's {}) and cannot register as {}: each role joins "
         "with its own keys (RUN_DIR/keys/{}.key_secret)",
         inbound.user_id, mechanism_ == protocol::Mechanism::curve ? "key" : "name", name, name);
   }
-  const protocol::PeerInfo who = protocol::peer_info(inbound.source_fd);
   if (who.uid >= 0 && static_cast<unsigned>(who.uid) != ::geteuid()) {
     return fmt::format(
         "the process at the other end ({}) belongs to user {}, and this run to user {}: only the run's "
@@ -66,7 +66,8 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
     return;
   }
   const Role role = *known_role;
-  if (auto problem = identity_problem(inbound, name)) {
+  const protocol::PeerInfo who = protocol::peer_info(inbound.source_fd);
+  if (auto problem = identity_problem(inbound, who, name)) {
     refuse(*problem);
     return;
   }
@@ -131,7 +132,6 @@ void Coupler::accept_registration(const protocol::Inbound& inbound) {
   auto peer = std::make_unique<Peer>();
   if (auto journal = journals_.find(role); journal != journals_.end()) peer->journal = std::move(journal->second);
   peer->identity = inbound.peer;
-  const protocol::PeerInfo who = protocol::peer_info(inbound.source_fd);
   peer->source_fd = inbound.source_fd;
   if (who.uid < 0) peer->address = who.address;  // tcp (over ipc the pid is the registration's)
   peer->role = role;

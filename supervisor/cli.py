@@ -261,7 +261,7 @@ def command_run(root: str, build_dir: str, args: argparse.Namespace) -> int:
         raise SaboError(f"scene file not found: {scene}", EXIT_BAD_INPUT)
     if args.out is not None:
         refuse_used_run_dir(args.out)
-    if args.keys is not None and not os.path.isfile(os.path.join(args.keys, "ipc.token")):
+    if args.keys is not None and not os.path.isfile(os.path.join(args.keys, run_folder.TOKEN_FILE)):
         raise SaboError(f"--keys {args.keys}: not a key set (no ipc.token in it). Fix: write one with "
                         f"./sabo keys {args.keys}", EXIT_BAD_INPUT)
     plan = set_up_and_check(root, build_dir, args, scene)
@@ -410,15 +410,14 @@ def main(root: str, argv: list[str] | None = None) -> int:
             return command_setup(root, build_dir, args)
         if args.command == "keys":
             return command_keys(root, build_dir, args)
-        if args.command == "study":
-            if not args.no_setup:
-                setup(root, build_dir, quiet=True)
-            os.umask(0o077)
-            return command_study(root, build_dir, args)
-        if args.command in ("run", "resume"):
+        if args.command in ("run", "resume", "study"):
             # What a run writes is the user's alone: files 0600, folders 0700, whatever the umask was
             # (the processes inherit it).
             os.umask(0o077)
+        if args.command == "study":
+            if not args.no_setup:
+                setup(root, build_dir, quiet=True)
+            return command_study(root, build_dir, args)
         if args.command == "resume":
             return command_resume(root, build_dir, args)
         if args.command == "status":

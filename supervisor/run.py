@@ -205,7 +205,7 @@ class Supervisor:
                 run_folder.copy_key_set(self._keys_source, folder)
             except OSError as error:
                 return f"--keys {self._keys_source}: cannot copy the key set: {error}"
-        elif not os.path.isfile(os.path.join(folder, "ipc.token")):
+        elif not os.path.isfile(os.path.join(folder, run_folder.TOKEN_FILE)):
             tool = os.path.join(self.bin_dir or "", "sabo_keys")
             if self.bin_dir is None or not os.access(tool, os.X_OK):
                 return f"{tool} is missing: build the project with `./sabo setup`"
@@ -337,8 +337,7 @@ class Supervisor:
                 if not refused:
                     continue
                 # What the solver told the coupler before it went (an instability, a model error) is the why.
-                reported = [f'the coupler reports: {e.get("process", "?")}: {e.get("message", "?")}'
-                            for e in self._errors]
+                reported = ["the coupler reports: " + self._error_text()] if self._errors else []
                 return self._fail("; ".join(refused + reported), culprits=failed)
             for solver in self.solvers:
                 if solver.poll() is None or solver.handled:

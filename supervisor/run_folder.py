@@ -27,6 +27,7 @@ SUMMARY_FILE = "summary.json"
 TRAFFIC_FILE = "traffic.h5"
 SOCKET_FILE = "coupler.sock"
 KEYS_FOLDER = "keys"
+TOKEN_FILE = "ipc.token"  # of a key set (libsabo/protocol/security.hpp): its presence marks one
 KEY_FILE_SUFFIXES = (".key", ".key_secret", ".token")
 PRIVATE_FOLDER_MODE = 0o700
 PRIVATE_FILE_MODE = 0o600
@@ -41,7 +42,7 @@ def make_private(run_dir: str) -> None:
 def copy_key_set(source: str, folder: str) -> None:
     """Copy the key set in `source` (`./sabo keys DIR`) into `folder` (0700, files 0600). OSError when `source`
     is not a key set."""
-    if not os.path.isfile(os.path.join(source, "ipc.token")) or not os.path.isfile(
+    if not os.path.isfile(os.path.join(source, TOKEN_FILE)) or not os.path.isfile(
             os.path.join(source, "coupler.key_secret")):
         raise OSError(f"{source} holds no key set (coupler.key_secret and ipc.token are missing): write one with "
                       f"./sabo keys {source}")

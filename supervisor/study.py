@@ -332,11 +332,10 @@ def toml_value(value: Any) -> str:
     return repr(value)
 
 
-def variant_text(study: Study, combination: dict) -> str:
-    with open(study.scene, encoding="utf-8") as handle:
-        text = absolute_file_keys(handle.read(), os.path.dirname(study.scene))
+def variant_text(study: Study, base: str, combination: dict) -> str:
+    """The base scene's text `base` (its mesh paths made absolute) with the combination's keys set."""
     try:
-        return apply_overrides(text, [f"{key}={toml_value(value)}" for key, value in combination.items()])
+        return apply_overrides(base, [f"{key}={toml_value(value)}" for key, value in combination.items()])
     except SaboError as error:
         raise SaboError(f"{study.path}: {error} (the base scene is {study.scene})", EXIT_BAD_INPUT)
 
@@ -566,10 +565,12 @@ def command_study(root: str, build_dir: str, args) -> int:
         os.makedirs(os.path.join(out, folder), exist_ok=True)
     plan = []
     bin_dir = os.path.join(build_dir, "bin")
+    with open(study.scene, encoding="utf-8") as handle:
+        base = absolute_file_keys(handle.read(), os.path.dirname(study.scene))
     for index, combination in enumerate(combinations):
         rid = run_id(index, combination)
         scene = os.path.join(out, "scenes", rid + ".toml")
-        text = variant_text(study, combination)
+        text = variant_text(study, base, combination)
         with open(scene, "w", encoding="utf-8") as handle:
             handle.write(text)
         try:
@@ -651,17 +652,18 @@ def write_outputs(root: str, study: Study, rows: list[dict], out: str) -> None:
                                    [r["errors"].get(m.name) for r in fit])
             if order is not None:
                 orders[(parameter.key, m.name)] = order
-    lines = [f"# Study {study.name}", "",
-             f"Base scene `{os.path.relpath(study.scene, root)}`; study file `{os.path.relpath(study.path, root)}`; "
-             f"{len(rows)} runs, {study.threads_per_run} thread(s) each.", ""]
+    findings = []  # the references and the orders: in study.md, and on the terminal
     for m in study.measures:
         ref = getattr(m, "reference_value", None)
         what = "the finest run" if m.reference == "finest" else "given"
-        lines.append(f"- **{m.name}**{f' ({m.unit})' if m.unit else ''}: reference {format_value(ref) if ref is not None else 'none'} "
+        findings.append(f"**{m.name}**{f' ({m.unit})' if m.unit else ''}: reference {format_value(ref) if ref is not None else 'none'} "
                      f"({what}); error = |value - reference| / |reference|.")
     for (key, name), order in orders.items():
-        lines.append(f"- observed order of convergence of {name} in {key}: **{order:.2f}** (least squares of "
-                     "log error against log value, the other keys at their finest)")
+        findings.append(f"observed order of convergence of {name} in {key}: **{order:.2f}** (least squares of "
+                        "log error against log value, the other keys at their finest)")
+    lines = [f"# Study {study.name}", "",
+             f"Base scene `{os.path.relpath(study.scene, root)}`; study file `{os.path.relpath(study.path, root)}`; "
+             f"{len(rows)} runs, {study.threads_per_run} thread(s) each.", ""] + ["- " + f for f in findings]
     lines += ["", "Sorted by wall time; ★: Pareto-optimal for that measure (no run is both cheaper and more "
               "accurate).", ""]
     fronts = {}
@@ -694,11 +696,11 @@ def write_outputs(root: str, study: Study, rows: list[dict], out: str) -> None:
                    "measures": [{"name": m.name, "unit": m.unit, "reference": getattr(m, "reference_value", None),
                                  "reference_is_finest": m.reference == "finest"} for m in study.measures],
                    "orders": [{"parameter": k, "measure": n, "order": o} for (k, n), o in orders.items()],
-                   "pareto": {name: sorted((rows[k]["run"] for k in front), key=lambda r: next(
-                       row["wall_s"] for row in rows if row["run"] == r)) for name, front in fronts.items()},
+                   "pareto": {name: [rows[k]["run"] for k in sorted(front, key=lambda k: rows[k]["wall_s"])]
+                              for name, front in fronts.items()},
                    "runs": rows}, handle, indent=1, default=str)
-    for line in lines[4:4 + len(study.measures) + len(orders)]:
-        print("  " + line.lstrip("- "))
+    for finding in findings:
+        print("  " + finding)
     _plot(root, out)
 
 

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cerrno>
+#include <cstring>
 
 namespace sabo::protocol {
 
@@ -164,6 +165,14 @@ void Socket::set_heartbeat(const Heartbeat& heartbeat) {
   socket_.set(zmq::sockopt::heartbeat_timeout, static_cast<int>(heartbeat.timeout.count()));
   // The peer closes its side too when it hears nothing for as long.
   socket_.set(zmq::sockopt::heartbeat_ttl, static_cast<int>(heartbeat.timeout.count()));
+}
+
+std::optional<MonitorEvent> decode_monitor_event(const zmq::message_t& head) {
+  if (head.size() < 6) return std::nullopt;
+  MonitorEvent decoded;
+  std::memcpy(&decoded.event, head.data(), sizeof decoded.event);
+  std::memcpy(&decoded.value, static_cast<const char*>(head.data()) + 2, sizeof decoded.value);
+  return decoded;
 }
 
 PeerInfo peer_info(int fd) {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 #include <zmq.hpp>
@@ -56,6 +57,19 @@ struct PeerInfo {
   int uid = -1;         // ipc; -1: not known
 };
 [[nodiscard]] PeerInfo peer_info(int fd);
+
+// A socket monitor's event (zmq_socket_monitor): its first frame holds the event (uint16) and a value (uint32:
+// the descriptor of a connection's events, the reason of a failed handshake).
+struct MonitorEvent {
+  std::uint16_t event = 0;
+  std::uint32_t value = 0;
+  [[nodiscard]] int fd() const { return static_cast<int>(value); }
+};
+// nullopt when `head` is not such a frame.
+[[nodiscard]] std::optional<MonitorEvent> decode_monitor_event(const zmq::message_t& head);
+// The events of a handshake that failed: the peer's credentials (or the lack of them) refused.
+inline constexpr int kHandshakeFailedEvents =
+    ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL | ZMQ_EVENT_HANDSHAKE_FAILED_AUTH;
 
 // What is wrong with `endpoint` when binding it failed with `error_number` (errno), and the fix: the text
 // of the EndpointError that Socket::bind throws.

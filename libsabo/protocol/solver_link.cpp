@@ -2,8 +2,6 @@
 
 #include <fmt/format.h>
 
-#include <cstring>
-
 #include "libsabo/core/signals.hpp"
 
 namespace sabo::protocol {
@@ -20,8 +18,7 @@ SolverLink::SolverLink(const std::string& endpoint, std::chrono::milliseconds re
       mechanism_(credentials.mechanism),
       reply_timeout_(reply_timeout) {
   const std::string address = fmt::format("inproc://sabo-solver-link-{}", static_cast<const void*>(this));
-  socket_.monitor(address, ZMQ_EVENT_HANDSHAKE_FAILED_NO_DETAIL | ZMQ_EVENT_HANDSHAKE_FAILED_PROTOCOL |
-                               ZMQ_EVENT_HANDSHAKE_FAILED_AUTH);
+  socket_.monitor(address, kHandshakeFailedEvents);
   monitor_.set(zmq::sockopt::linger, 0);
   monitor_.connect(address);
   socket_.secure_client(credentials);
@@ -37,11 +34,10 @@ void SolverLink::check_handshake() {
   } catch (const zmq::error_t&) {
     return;
   }
-  if (head.size() < 6) return;
-  std::uint16_t event = 0;
-  std::uint32_t value = 0;
-  std::memcpy(&event, head.data(), sizeof event);
-  std::memcpy(&value, static_cast<const char*>(head.data()) + 2, sizeof value);
+  const auto decoded = decode_monitor_event(head);
+  if (!decoded) return;
+  const std::uint16_t event = decoded->event;
+  const std::uint32_t value = decoded->value;
   const char* keys = mechanism_ == Mechanism::none ? "this solver was started without keys (--keys DIR)"
                                                    : "the keys given with --keys are not the ones of the coupler's run";
   std::string why;

@@ -18,7 +18,6 @@ nlohmann::json launch_plan(const Scene& scene, const std::filesystem::path& bin_
   if (scene.run.max_dt) plan["max_dt"] = *scene.run.max_dt;
   plan["endpoint"] = scene.run.endpoint;
   plan["tcp_security"] = name_of(scene.run.tcp_security);
-  plan["heartbeat_timeout"] = scene.run.heartbeat_timeout;
   if (!scene.run.connect_host.empty()) plan["connect_host"] = scene.run.connect_host;
   plan["restart"] = scene.run.restart ? "auto" : "off";
   plan["max_restarts"] = scene.run.max_restarts;

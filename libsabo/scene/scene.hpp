@@ -81,6 +81,10 @@ struct RunSettings {
   // tcp: CURVE (docs/security.md) or, only when asked for, nothing at all.
   enum class TcpSecurity { curve, none };
   TcpSecurity tcp_security = TcpSecurity::curve;
+  // Whether a coupler at `endpoint` (the scene's, or the one it reported: tcp://HOST:PORT) takes no keys.
+  [[nodiscard]] bool tcp_in_clear(const std::string& at) const {
+    return at.starts_with("tcp") && tcp_security == TcpSecurity::none;
+  }
   // s: a connection silent this long (ZMTP heartbeats) is closed, and a solver on it declared lost
   double heartbeat_timeout = 5.0;
   // The host solvers started through a launcher connect to; empty: the endpoint's address (the supervisor's

@@ -53,7 +53,7 @@ void warn_narrow_sensors(const Scene& scene, std::vector<std::string>& warnings)
 
 // tcp without CURVE: whoever reaches the port joins the run (docs/security.md).
 void warn_insecure_tcp(const Scene& scene, std::vector<std::string>& warnings) {
-  if (!scene.run.endpoint.starts_with("tcp") || scene.run.tcp_security != RunSettings::TcpSecurity::none) return;
+  if (!scene.run.tcp_in_clear(scene.run.endpoint)) return;
   const bool every_interface = scene.run.endpoint.starts_with("tcp://0.0.0.0:");
   warnings.push_back(
       located(scene.run.endpoint_origin,

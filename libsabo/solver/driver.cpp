@@ -133,15 +133,12 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   const auto reply_timeout =
       std::chrono::milliseconds(static_cast<long>(1000.0 * std::max(60.0, 6.0 * scene.run.hang_timeout)));
   // A scene that runs tcp in clear (tcp_security = "none") has a coupler that takes no keys.
-  const bool in_clear = protocol::transport_of(options.coupler_endpoint) == protocol::Transport::tcp &&
-                        scene.run.tcp_security == scene::RunSettings::TcpSecurity::none;
   const protocol::ClientCredentials credentials =
-      options.keys.empty() || in_clear
+      options.keys.empty() || scene.run.tcp_in_clear(options.coupler_endpoint)
           ? protocol::ClientCredentials{}
           : protocol::read_client_credentials(options.keys, role_name(role), options.coupler_endpoint);
-  const auto heartbeat = std::chrono::milliseconds(static_cast<long>(1000 * scene.run.heartbeat_timeout));
   protocol::SolverLink link(options.coupler_endpoint, reply_timeout, credentials,
-                            {.interval = heartbeat / 5, .timeout = heartbeat});
+                            protocol::Heartbeat::after(scene.run.heartbeat_timeout));
 
   sabo::v1::Register registration;
   registration.set_protocol_version(protocol::kProtocolVersion);

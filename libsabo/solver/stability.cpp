@@ -34,48 +34,42 @@ StabilityLimits stability_limits(const scene::Scene& scene, Role role) {
   return limits;
 }
 
+namespace {
+
+// "; and 7 more" when `count` entities are bad and `shown` of them are named.
+std::string and_more(std::size_t count, std::size_t shown) {
+  return count > shown ? fmt::format("; and {} more", count - shown) : std::string();
+}
+
+}  // namespace
+
 std::optional<Instability> check_motion(std::span<const Vec3> position, std::span<const Vec3> velocity,
                                         std::span<const std::uint8_t> active, double max_speed, std::string_view noun,
                                         std::span<const std::uint64_t> ids) {
   const double limit2 = max_speed * max_speed;
-  const std::size_t n = position.size();
-  const auto is_bad = [&](std::size_t i) {
-    if (!active.empty() && active[i] == 0) return false;
-    const double x = position[i].x() + position[i].y() + position[i].z();
-    const double v = velocity[i].x() + velocity[i].y() + velocity[i].z();
-    return !std::isfinite(x) || !std::isfinite(v) || velocity[i].squaredNorm() > limit2;  // inf when it overflows
-  };
-  std::size_t first = n;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (is_bad(i)) {
-      first = i;
-      break;
-    }
-  }
-  if (first == n) return std::nullopt;
   Instability found;
   std::size_t count = 0;
-  bool finite = true;
-  for (std::size_t i = first; i < n; ++i) {
-    if (!is_bad(i)) continue;
-    ++count;
-    const bool not_finite = !std::isfinite(position[i].x() + position[i].y() + position[i].z()) ||
-                            !std::isfinite(velocity[i].x() + velocity[i].y() + velocity[i].z());
-    finite = finite && !not_finite;
-    if (found.indices.size() >= Instability::kMaxReported) continue;
-    found.indices.push_back(i);
-    const std::uint64_t id = ids.empty() ? i : ids[i];
+  bool all_finite = true;
+  for (std::size_t i = 0; i < position.size(); ++i) {
+    if (!active.empty() && active[i] == 0) continue;
     const Vec3& x = position[i];
     const Vec3& v = velocity[i];
-    found.detail += fmt::format("{}{} {}: at ({:.6g}, {:.6g}, {:.6g}) m, velocity ({:.6g}, {:.6g}, {:.6g}) m/s{}",
-                                found.indices.size() > 1 ? "; " : "", noun, id, x.x(), x.y(), x.z(), v.x(), v.y(),
-                                v.z(), not_finite ? ", not finite" : fmt::format(", speed {:.6g} m/s", v.stableNorm()));
+    const bool finite = std::isfinite(x.x() + x.y() + x.z()) && std::isfinite(v.x() + v.y() + v.z());
+    if (finite && !(v.squaredNorm() > limit2)) continue;  // the square is inf when it overflows: too fast
+    ++count;
+    all_finite = all_finite && finite;
+    if (found.indices.size() >= Instability::kMaxReported) continue;
+    found.indices.push_back(i);
+    found.detail +=
+        fmt::format("{}{} {}: at ({:.6g}, {:.6g}, {:.6g}) m, velocity ({:.6g}, {:.6g}, {:.6g}) m/s{}",
+                    found.indices.size() > 1 ? "; " : "", noun, ids.empty() ? i : ids[i], x.x(), x.y(), x.z(), v.x(),
+                    v.y(), v.z(), finite ? fmt::format(", speed {:.6g} m/s", v.stableNorm()) : ", not finite");
   }
-  found.what = finite ? "too fast" : "not finite";
-  found.detail = fmt::format(
-      "{} {}{} {} max_speed = {:g} m/s: {}{}", count, noun, count > 1 ? "s" : "",
-      finite ? "faster than" : "not finite, or faster than", max_speed, found.detail,
-      count > found.indices.size() ? fmt::format("; and {} more", count - found.indices.size()) : std::string());
+  if (count == 0) return std::nullopt;
+  found.what = all_finite ? "too fast" : "not finite";
+  found.detail = fmt::format("{} {}{} {} max_speed = {:g} m/s: {}{}", count, noun, count > 1 ? "s" : "",
+                             all_finite ? "faster than" : "not finite, or faster than", max_speed, found.detail,
+                             and_more(count, found.indices.size()));
   return found;
 }
 
@@ -97,10 +91,9 @@ std::optional<Instability> check_density(std::span<const double> density, std::s
   if (count == 0) return std::nullopt;
   found.what = "density";
   found.detail = fmt::format(
-      "{} particle{} with a density outside sph.density_ratio_limits = [{:g}, {:g}] of the "
-      "rest density: {}{}",
-      count, count > 1 ? "s" : "", limits.min_density_ratio, limits.max_density_ratio, found.detail,
-      count > found.indices.size() ? fmt::format("; and {} more", count - found.indices.size()) : std::string());
+      "{} particle{} with a density outside sph.density_ratio_limits = [{:g}, {:g}] of the rest density: {}{}", count,
+      count > 1 ? "s" : "", limits.min_density_ratio, limits.max_density_ratio, found.detail,
+      and_more(count, found.indices.size()));
   return found;
 }
 

@@ -304,6 +304,19 @@ class RealRunTestCase(E2eTestCase):
         code = sabo.wait(120)
         return code, sabo.stdout, sabo.stderr
 
+    def scene_variant(self, source, name, replace=(), append=""):
+        """TMP/NAME.toml: the repository's scene `source` with each (old, new) of `replace` done once (old must
+        be there) and `append` added at the end."""
+        with open(self.scene_path(source), encoding="utf-8") as handle:
+            text = handle.read()
+        for old, new in replace:
+            self.assertIn(old, text)
+            text = text.replace(old, new, 1)
+        path = os.path.join(self.tmp, name + ".toml")
+        with open(path, "w", encoding="utf-8") as handle:
+            handle.write(text + append)
+        return path
+
     def scene_path(self, relative):
         path = os.path.join(ROOT, relative)
         self.assertTrue(os.path.isfile(path), "missing test scene {}".format(relative))

@@ -22,17 +22,6 @@ CHUTE_FLOOR = ((math.sin(math.radians(20.0)), 0.0, math.cos(math.radians(20.0)))
 
 
 class HardCaseTest(RealRunTestCase):
-    def scene_from(self, source, name, replace=(), append=""):
-        with open(self.scene_path(source), encoding="utf-8") as handle:
-            text = handle.read()
-        for old, new in replace:
-            self.assertIn(old, text)
-            text = text.replace(old, new, 1)
-        path = os.path.join(self.tmp, name + ".toml")
-        with open(path, "w", encoding="utf-8") as handle:
-            handle.write(text + append)
-        return path
-
     def run_hard(self, scene, name, bodies, timeout_s=300, floor=None):
         """Runs `scene`; `bodies`: {"dem" or "sph": (lower corner, upper corner, what)} the container of the
         body's particles in the last frame; `floor`: (unit normal, what) of a plane through the origin that every
@@ -118,10 +107,10 @@ class HardCaseTest(RealRunTestCase):
                                "the bin, a smallest radius (0.4 m) in less 5 cm of penalty overlap")})
 
     def test_every_solver_at_nine_tenths_of_its_stable_step(self):
-        dem = self.scene_from("configs/tests/chute_small.toml", "dem_beta", [("beta = 0.8\n", "beta = 0.9\n")])
+        dem = self.scene_variant("configs/tests/chute_small.toml", "dem_beta", [("beta = 0.8\n", "beta = 0.9\n")])
         self.run_hard(dem, "dem_beta_0.9", CHUTE, floor=CHUTE_FLOOR)
-        sph = self.scene_from(HARD + "long_tank.toml", "sph_beta", [("end_time = 19.0\n", "end_time = 2.0\n")],
+        sph = self.scene_variant(HARD + "long_tank.toml", "sph_beta", [("end_time = 19.0\n", "end_time = 2.0\n")],
                               "\n[solvers.sph]\nbeta = 0.9\n")
         self.run_hard(sph, "sph_beta_0.9", {"sph": ((0.0, 0.0, 0.0), (0.4, 0.4, 0.35), "the tank")})
-        fem = self.scene_from("configs/tests/sphere_on_block.toml", "fem_beta", append="\n[solvers.fem]\nbeta = 0.9\n")
+        fem = self.scene_variant("configs/tests/sphere_on_block.toml", "fem_beta", append="\n[solvers.fem]\nbeta = 0.9\n")
         self.run_hard(fem, "fem_beta_0.9", {"dem": ((-1.0, -1.0, 0.5), (2.0, 2.0, 3.0), "above the block's top")})

@@ -29,17 +29,6 @@ def vtp_points(path):
 
 
 class InstabilityTest(RealRunTestCase):
-    def scene(self, name, source, replace):
-        with open(self.scene_path(source), encoding="utf-8") as handle:
-            text = handle.read()
-        for old, new in replace:
-            self.assertIn(old, text)
-            text = text.replace(old, new, 1)
-        path = os.path.join(self.tmp, name + ".toml")
-        with open(path, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        return path
-
     def failed_run(self, scene, name):
         out = os.path.join(self.tmp, name)
         sabo = self.run_sabo(scene, out)
@@ -52,7 +41,7 @@ class InstabilityTest(RealRunTestCase):
         return out, errors[0], sabo
 
     def test_a_speed_bound_is_caught_at_the_step_it_is_passed(self):
-        scene = self.scene("drop", SPHERE_DROP, [("max_dt = 3e-5\n", "max_dt = 3e-5\nmax_speed = 1.0\n")])
+        scene = self.scene_variant(SPHERE_DROP, "drop", [("max_dt = 3e-5\n", "max_dt = 3e-5\nmax_speed = 1.0\n")])
         out, error, _ = self.failed_run(scene, "drop")
         message = error["message"]
         print(message)
@@ -73,7 +62,7 @@ class InstabilityTest(RealRunTestCase):
         self.assertIn(os.path.join(out, "instability.vtp"), message)
 
     def test_steps_eight_times_the_stable_step_are_stopped_before_a_bad_state_is_sent(self):
-        scene = self.scene("chute", CHUTE_SMALL, [("beta = 0.8\n", "beta = 8.0\n")])
+        scene = self.scene_variant(CHUTE_SMALL, "chute", [("beta = 0.8\n", "beta = 8.0\n")])
         out, error, sabo = self.failed_run(scene, "chute")
         message = error["message"]
         print(message)
@@ -98,7 +87,7 @@ class InstabilityTest(RealRunTestCase):
         self.assertIn('Name="culprit"', text)
 
     def test_a_density_out_of_its_limits_stops_the_sph_solver(self):
-        scene = self.scene("tank", TANK, [("[sph]\n", "[sph]\ndensity_ratio_limits = [0.999, 1.001]\n")])
+        scene = self.scene_variant(TANK, "tank", [("[sph]\n", "[sph]\ndensity_ratio_limits = [0.999, 1.001]\n")])
         out, error, _ = self.failed_run(scene, "tank")
         message = error["message"]
         print(message[:400])
