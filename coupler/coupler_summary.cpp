@@ -2,6 +2,7 @@
 // each process's compute and wait seconds, the coupling overhead, the effects and their pairs' seconds, the
 // restarts and the energies.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <fstream>
@@ -109,6 +110,18 @@ void Coupler::write_summary(const std::string& status) {
       }
     }
   }
+  // Each solver's own results (Goodbye results_json): a JSON object, or the reason it is not one.
+  json results = json::object();
+  for (const auto& peer : peers_) {
+    const std::string& text = peer->goodbye.results_json();
+    if (!peer->said_goodbye || text.empty()) continue;
+    json parsed = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    if (parsed.is_discarded() || !parsed.is_object()) {
+      spdlog::warn("{}: its results are not a JSON object ({} bytes); summary.json says so", peer->name(), text.size());
+      parsed = {{"error", fmt::format("the solver's results are not a JSON object ({} bytes)", text.size())}};
+    }
+    results[peer->name()] = std::move(parsed);
+  }
   json effects = solver_effects(scene_, processes);
   json pair_residuals = json::object();
   for (const auto& slot : pairs_) {
@@ -160,6 +173,7 @@ void Coupler::write_summary(const std::string& status) {
         {"most_unregistered_at_once", guard_->stats().most_unregistered}}},
       {"security", security_summary()},
       {"peak_force", peak_forces},
+      {"results", results},
       {"active_effects", effects},
   };
   const auto file = options_.out_dir / "summary.json";

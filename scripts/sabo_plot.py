@@ -18,6 +18,9 @@ One figure per concern, each only when its data are in the folder:
                   any element eroded, the number of eroded elements.
   gauges.png      gauges.csv: pressure per point gauge, free-surface depth per line gauge (distance from the
                   line's start to the free surface), velocity magnitude per point gauge.
+  fronts.png      fronts.csv: each front's position along its path, its speed (the advance between two
+                  samples over the time between them) and the mean flow speed just behind it.
+  front_stations.png  front_stations.csv: the flow depth at each station of each front.
   sensors.png     sensors.csv: force magnitude F per sensor and source; the sensor's mean normal pressure
                   (the sum over its sources).
   steps.png       coupler.events.jsonl: the time step and the step rate over simulated time. Every step's dt
@@ -71,8 +74,10 @@ FEM_ENERGY_COLUMNS = ("time_s", "kinetic_J", "internal_J", "plastic_work_J", "ho
                       "external_work_J", "eroded_elements")
 GAUGES_COLUMNS = ("time", "gauge", "point", "x", "y", "z", "kernel_sum", "pressure", "velocity_x", "velocity_y",
                   "velocity_z", "depth")
+FRONTS_COLUMNS = ("time", "front", "position", "speed", "flow_speed", "x", "y", "z")
+FRONT_STATIONS_COLUMNS = ("time", "front", "station", "at", "depth")
 SENSORS_COLUMNS = ("time", "sensor", "part", "source", "Fx", "Fy", "Fz", "F", "F_peak", "area", "pressure")
-TEXT_COLUMNS = ("part", "source", "gauge", "sensor")
+TEXT_COLUMNS = ("part", "source", "gauge", "sensor", "front", "station")
 
 SI_PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "µ"))
 
@@ -464,6 +469,44 @@ def plot_gauges(runs, tables, path):
     finish(fig, figure_title(runs, "gauges (gauges.csv)"), entries, path, runs)
 
 
+# ------------------------------------------------------------------------------------------- fronts
+
+
+def plot_series_panels(runs, tables, path, key, panels, what):
+    """One panel per (column, unit, title) of `panels`, a curve per value of the text column `key`."""
+    names = list(dict.fromkeys(name for table in tables for name in table[key]))
+    fig, axes = new_figure(len(panels))
+    for ax, (quantity, unit, title) in zip(axes[:, 0], panels):
+        factor, scaled_unit = si_scale(largest_abs([table[quantity] for table in tables]), unit)
+        for table, style in zip(tables, RUN_LINESTYLES):
+            for index, name in enumerate(names):
+                rows = table[key] == name
+                if rows.any():
+                    ax.plot(table["time"][rows], table[quantity][rows] / factor, color=colour(index),
+                            linestyle=style)
+        ax.set_ylabel("{} [{}]".format(quantity.replace("_", " "), scaled_unit))
+        ax.set_title(title, fontsize=9, loc="left")
+    axes[-1, 0].set_xlabel("time [s]")
+    entries = [(Line2D([], [], color=colour(i)), name) for i, name in enumerate(names)]
+    finish(fig, figure_title(runs, what), entries, path, runs)
+
+
+def plot_fronts(runs, tables, path):
+    plot_series_panels(runs, tables, path, "front", (
+        ("position", "m", "front: distance along its path"),
+        ("speed", "m/s", "front speed: advance between two samples / time between them"),
+        ("flow_speed", "m/s", "mean flow speed along the path within 2 h behind the front")),
+        "fronts (fronts.csv)")
+
+
+def plot_front_stations(runs, tables, path):
+    for table in tables:
+        table.columns["label"] = np.array(["{} {}".format(f, s) for f, s in zip(table["front"], table["station"])])
+    plot_series_panels(runs, tables, path, "label", (
+        ("depth", "m", "flow depth above each station's path point (front, station)"),),
+        "front stations (front_stations.csv)")
+
+
 # ------------------------------------------------------------------------------------------ sensors
 
 
@@ -583,6 +626,9 @@ FIGURES = (
     ("energy.png", "energy.csv", lambda path: read_csv(path, ENERGY_COLUMNS), plot_energy),
     ("fem_energy.png", "fem_energy.csv", lambda path: read_csv(path, FEM_ENERGY_COLUMNS), plot_fem_energy),
     ("gauges.png", "gauges.csv", lambda path: read_csv(path, GAUGES_COLUMNS), plot_gauges),
+    ("fronts.png", "fronts.csv", lambda path: read_csv(path, FRONTS_COLUMNS), plot_fronts),
+    ("front_stations.png", "front_stations.csv", lambda path: read_csv(path, FRONT_STATIONS_COLUMNS),
+     plot_front_stations),
     ("sensors.png", "sensors.csv", lambda path: read_csv(path, SENSORS_COLUMNS), plot_sensors),
     ("steps.png", EVENTS_FILE, read_progress, plot_steps),
 )

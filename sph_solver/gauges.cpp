@@ -20,6 +20,24 @@ constexpr double kMaxDepthSamples = 1e5;
 
 }  // namespace
 
+bool SampleSchedule::due(double time) {
+  if (time < (static_cast<double>(next_) - kTimeTolerance) * interval_) return false;
+  next_ = static_cast<std::uint64_t>(std::floor(time / interval_ + kTimeTolerance)) + 1;
+  return true;
+}
+
+void append_csv_rows(const std::filesystem::path& file, bool& started, std::string_view header, const std::string& rows,
+                     std::string_view what) {
+  std::ofstream out(file, started ? std::ios::app : std::ios::trunc);
+  if (!started) {
+    out << header << "\n";
+    started = true;
+  }
+  out << rows;
+  out.flush();
+  if (!out) throw FileError(fmt::format("{}: cannot write {}", file.string(), what));
+}
+
 double surface_distance(const SphModel& model, const Vec3& start, const Vec3& end, double spacing) {
   const double length = (end - start).norm();
   const auto intervals = static_cast<std::size_t>(std::clamp(std::ceil(length / spacing), 1.0, kMaxDepthSamples));
@@ -40,16 +58,13 @@ double surface_distance(const SphModel& model, const Vec3& start, const Vec3& en
 GaugeRecorder::GaugeRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene)
     : file_(run_dir / kGaugesFile), gauges_(scene.gauges), depth_spacing_(0.25 * scene.sph.particle_spacing) {
   for (const scene::Gauge& gauge : gauges_)
-    interval_.push_back(gauge.interval > 0 ? gauge.interval : scene.run.output_interval);
-  next_.assign(gauges_.size(), 0);
+    schedule_.emplace_back(gauge.interval > 0 ? gauge.interval : scene.run.output_interval);
 }
 
 void GaugeRecorder::sample(const SphModel& model, double time) {
   std::string rows;
   for (std::size_t g = 0; g < gauges_.size(); ++g) {
-    const double interval = interval_[g];
-    if (time < (static_cast<double>(next_[g]) - kTimeTolerance) * interval) continue;
-    next_[g] = static_cast<std::uint64_t>(std::floor(time / interval + kTimeTolerance)) + 1;
+    if (!schedule_[g].due(time)) continue;
     const scene::Gauge& gauge = gauges_[g];
     const std::string depth =
         gauge.line() ? fmt::format("{:.9g}", surface_distance(model, gauge.start, gauge.end, depth_spacing_)) : "";
@@ -62,20 +77,16 @@ void GaugeRecorder::sample(const SphModel& model, double time) {
     }
   }
   if (rows.empty()) return;
-  std::ofstream out(file_, started_ ? std::ios::app : std::ios::trunc);
-  if (!started_) {
-    out << "time,gauge,point,x,y,z,kernel_sum,pressure,velocity_x,velocity_y,velocity_z,depth\n";
-    started_ = true;
-  }
-  out << rows;
-  out.flush();
-  if (!out) throw FileError(fmt::format("{}: cannot write the gauges' readings", file_.string()));
+  append_csv_rows(file_, started_, "time,gauge,point,x,y,z,kernel_sum,pressure,velocity_x,velocity_y,velocity_z,depth",
+                  rows, "the gauges' readings");
 }
 
 void GaugeRecorder::save(io::hdf5::Group& group) const {
   if (gauges_.empty()) return;
   io::hdf5::Group out = group.create_group("gauges");
-  io::write_array<std::uint64_t>(out, "next_sample", next_);
+  std::vector<std::uint64_t> next;
+  for (const SampleSchedule& schedule : schedule_) next.push_back(schedule.next());
+  io::write_array<std::uint64_t>(out, "next_sample", next);
   out.set_attribute("started", started_ ? 1 : 0);
   if (started_) io::write_file_size(out, "gauges_csv", file_);
 }
@@ -96,7 +107,7 @@ void GaugeRecorder::load(const io::hdf5::Group& group) {
                     "this scene, unchanged",
                     group.file_name(), next.size(), gauges_.size()));
   }
-  next_ = next;
+  for (std::size_t g = 0; g < next.size(); ++g) schedule_[g].set_next(next[g]);
   // A restart into another folder (a replay) starts the file afresh.
   started_ = in.int_attribute("started") != 0 && io::truncate_to_saved_size(in, "gauges_csv", file_);
 }

@@ -5,6 +5,8 @@
 // free surface along it, empty for point gauges.
 #include <cstdint>
 #include <filesystem>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "libsabo/io/hdf5.hpp"
@@ -17,6 +19,26 @@ namespace sabo::sph {
 // point where the kernel sum falls through kSurfaceKernelSum, on a sub-sampling of at most `spacing`
 // (m); 0 when the line is dry, its length when it ends in the fluid.
 [[nodiscard]] double surface_distance(const SphModel& model, const Vec3& start, const Vec3& end, double spacing);
+
+// When an instrument samples: at the first step whose t_n reaches k * interval, k = 0, 1, ...
+class SampleSchedule {
+ public:
+  explicit SampleSchedule(double interval) : interval_(interval) {}
+  // Whether `time` (s) reached the next sample time; when it did, the one after it becomes the next.
+  [[nodiscard]] bool due(double time);
+  // The index k of the next sample time, for checkpoints.
+  [[nodiscard]] std::uint64_t next() const { return next_; }
+  void set_next(std::uint64_t next) { next_ = next; }
+
+ private:
+  double interval_;  // s
+  std::uint64_t next_ = 0;
+};
+
+// Appends `rows` to the CSV file `file`, writing `header` first when `started` is false (then sets it);
+// throws FileError naming `what` when the file cannot be written.
+void append_csv_rows(const std::filesystem::path& file, bool& started, std::string_view header, const std::string& rows,
+                     std::string_view what);
 
 class GaugeRecorder {
  public:
@@ -34,10 +56,9 @@ class GaugeRecorder {
  private:
   std::filesystem::path file_;
   std::vector<scene::Gauge> gauges_;
-  std::vector<double> interval_;     // s, per gauge
-  std::vector<std::uint64_t> next_;  // per gauge: the index k of its next sample time k * interval
-  double depth_spacing_ = 0;         // m, the sub-sampling of the depth (dx / 4)
-  bool started_ = false;             // the header is written
+  std::vector<SampleSchedule> schedule_;  // per gauge
+  double depth_spacing_ = 0;              // m, the sub-sampling of the depth (dx / 4)
+  bool started_ = false;                  // the header is written
 };
 
 }  // namespace sabo::sph

@@ -17,6 +17,7 @@
 #include "libsabo/core/error.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/energy_audit.hpp"
+#include "sph_solver/fronts.hpp"
 #include "sph_solver/gauges.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "sph_solver/sph_output.hpp"
@@ -45,10 +46,12 @@ class SphSolver final : public solver::CoupledSolver {
         audit_(model_),
         output_(options.out_dir, model_),
         gauges_(options.out_dir, scene),
+        fronts_(options.out_dir, scene),
         boundary_walls_(scene.sph_receives_boundary_particles()),
         limits_(solver::stability_limits(scene, Role::sph)) {
     for (const scene::Material& material : scene.materials) rest_density_.push_back(material.density);
     scene_max_speed_ = scene.run.max_speed.has_value();
+    has_fronts_ = !scene.fronts.empty();
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
@@ -115,6 +118,7 @@ class SphSolver final : public solver::CoupledSolver {
     model_.add_external_forces(index, force);
     audit_.before_integrate(model_, index, force);
     gauges_.sample(model_, model_.time());
+    fronts_.sample(model_, model_.time());
   }
 
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
@@ -157,6 +161,7 @@ class SphSolver final : public solver::CoupledSolver {
     audit_.save(group);
     output_.save(group);
     gauges_.save(group);
+    fronts_.save(group);
     group.set_attribute("have_boundary_forces", have_boundary_forces_ ? 1 : 0);
   }
   void load_checkpoint(const io::hdf5::Group& group) override {
@@ -164,7 +169,12 @@ class SphSolver final : public solver::CoupledSolver {
     audit_.load(group);
     output_.load(group);
     gauges_.load(group);
+    fronts_.load(group);
     have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
+  }
+  [[nodiscard]] std::string results() const override {
+    if (!has_fronts_) return {};
+    return nlohmann::json{{"fronts", fronts_.results()}}.dump();
   }
   void finish() override {}
 
@@ -173,6 +183,8 @@ class SphSolver final : public solver::CoupledSolver {
   EnergyAudit audit_;
   SphOutput output_;
   GaugeRecorder gauges_;
+  FrontRecorder fronts_;
+  bool has_fronts_ = false;
   bool boundary_walls_;
   bool have_boundary_forces_ = false;
   double dt_previous_ = 0;

@@ -88,7 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
         "plot", help="figures of a run folder, or of two overlaid",
         description="Draw the figures of a run folder into RUN_DIR/plots/ (PNG): forces.png (forces.csv), "
                     "energy.png (energy.csv, with the balance's residual), fem_energy.png (fem_energy.csv), "
-                    "gauges.png (gauges.csv), sensors.png (sensors.csv), steps.png (the time step and the step "
+                    "gauges.png (gauges.csv), fronts.png (fronts.csv), front_stations.png (front_stations.csv), "
+                    "sensors.png (sensors.csv), steps.png (the time step and the step "
                     "rate, from coupler.events.jsonl), each when its data are there. With RUN_DIR_B the same "
                     "figures with both runs overlaid (RUN_DIR solid, RUN_DIR_B dashed) into "
                     "RUN_DIR/plots/compare_<name of RUN_DIR_B>/. `./sabo run` and `./sabo resume` make them at "

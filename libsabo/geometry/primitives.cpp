@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <numbers>
 
 #include "libsabo/core/error.hpp"
@@ -70,21 +71,33 @@ class PatchBuilder {
   std::vector<std::array<std::uint32_t, 3>> triangles_;
 };
 
-// Levels of `grid_levels(height, element_size)` plus those of the other
-// wall below `height`: two walls meeting along an edge get the same nodes there.
-std::vector<double> wall_levels(double height, double other_height, double element_size) {
+// Levels of `grid_levels(height, element_size)` plus `other_levels` below `height`: two walls meeting
+// along an edge get the same nodes there.
+std::vector<double> levels_with(double height, const std::vector<double>& other_levels, double element_size) {
   std::vector<double> levels = grid_levels(height, element_size);
-  if (other_height > 0) {
-    for (double level : grid_levels(other_height, element_size)) {
-      if (level < height) levels.push_back(level);
-    }
+  double highest = height;
+  for (double level : other_levels) {
+    highest = std::max(highest, level);
+    if (level < height) levels.push_back(level);
   }
   std::sort(levels.begin(), levels.end());
-  const double tolerance = 1e-12 * std::max(height, other_height);
+  const double tolerance = 1e-12 * highest;
   levels.erase(std::unique(levels.begin(), levels.end(),
                            [tolerance](double a, double b) { return std::abs(a - b) <= tolerance; }),
                levels.end());
   return levels;
+}
+
+// Levels of a wall `height` high meeting walls of `other_heights` (0: none) along its vertical edges.
+std::vector<double> wall_levels(double height, std::initializer_list<double> other_heights, double element_size) {
+  std::vector<double> others;
+  for (double other_height : other_heights) {
+    if (other_height > 0) {
+      const auto levels = grid_levels(other_height, element_size);
+      others.insert(others.end(), levels.begin(), levels.end());
+    }
+  }
+  return levels_with(height, others, element_size);
 }
 
 SurfaceMesh plane(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
@@ -158,13 +171,75 @@ SurfaceMesh chute(const scene::Shape& shape, const std::string& part, const scen
   const Vec3 right_top = shape.origin - half_width * frame.lateral;  // upper edge, right side (looking down-slope)
   builder.grid(right_top, frame.down_slope, along, frame.lateral, across, frame.normal);
   if (shape.wall_height > 0) {
-    const auto up = wall_levels(shape.wall_height, shape.end_wall_height, es);
+    const auto up = wall_levels(shape.wall_height, {shape.end_wall_height}, es);
     builder.grid(right_top, frame.down_slope, along, frame.normal, up, frame.lateral);
     builder.grid(shape.origin + half_width * frame.lateral, frame.down_slope, along, frame.normal, up, -frame.lateral);
   }
   if (shape.end_wall_height > 0) {
-    const auto up = wall_levels(shape.end_wall_height, shape.wall_height, es);
+    const auto up = wall_levels(shape.end_wall_height, {shape.wall_height}, es);
     builder.grid(right_top + length * frame.down_slope, frame.lateral, across, frame.normal, up, -frame.down_slope);
+  }
+  return builder.finish(part);
+}
+
+SurfaceMesh channel(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
+  const auto& profile = shape.profile;
+  if (!(shape.width > 0)) {
+    shape_error(origin, part, fmt::format("channel of width {}", shape.width), "give a positive width (m)");
+  }
+  if (profile.size() < 2) {
+    shape_error(origin, part, fmt::format("channel profile of {} points", profile.size()),
+                "give at least two points (distance, elevation)");
+  }
+  for (std::size_t k = 1; k < profile.size(); ++k) {
+    if (!(profile[k][0] > profile[k - 1][0])) {
+      shape_error(origin, part,
+                  fmt::format("channel profile: distance {} at point {} after {}", profile[k][0], k, profile[k - 1][0]),
+                  "sort the points by distance and drop repeated ones");
+    }
+  }
+  if (!(shape.wall_height >= 0) || !(shape.start_wall_height >= 0) || !(shape.end_wall_height >= 0)) {
+    shape_error(origin, part,
+                fmt::format("channel wall heights {}, {} and {}", shape.wall_height, shape.start_wall_height,
+                            shape.end_wall_height),
+                "give heights >= 0 (0: no wall)");
+  }
+  const Vec3 along(shape.direction.x(), shape.direction.y(), 0);
+  if (!(along.norm() > 0)) {
+    shape_error(origin, part, "channel direction has no horizontal component",
+                "give the horizontal direction of increasing distance, e.g. [1, 0, 0]");
+  }
+  const Vec3 downstream = along.normalized();
+  const Vec3 lateral = Vec3::UnitZ().cross(downstream);  // to the left looking downstream
+  const auto bed = [&](std::size_t k) -> Vec3 {
+    return Vec3(shape.origin.x(), shape.origin.y(), 0) + profile[k][0] * downstream + profile[k][1] * Vec3::UnitZ();
+  };
+  const double half_width = 0.5 * shape.width;
+  const double es = shape.element_size;
+  double size = shape.width + shape.wall_height + shape.start_wall_height + shape.end_wall_height;
+  for (std::size_t k = 0; k + 1 < profile.size(); ++k) size += (bed(k + 1) - bed(k)).norm();
+  const auto across = grid_levels(shape.width, es);
+  const auto side_up = wall_levels(shape.wall_height, {shape.start_wall_height, shape.end_wall_height}, es);
+  PatchBuilder builder(size);
+  for (std::size_t k = 0; k + 1 < profile.size(); ++k) {
+    const Vec3 piece = bed(k + 1) - bed(k);
+    const double length = piece.norm();
+    const Vec3 u = piece / length;
+    const auto levels = grid_levels(length, es);
+    const Vec3 right = bed(k) - half_width * lateral;
+    builder.grid(right, u, levels, lateral, across, Vec3::UnitZ());
+    if (shape.wall_height > 0) {
+      builder.grid(right, u, levels, Vec3::UnitZ(), side_up, lateral);
+      builder.grid(bed(k) + half_width * lateral, u, levels, Vec3::UnitZ(), side_up, -lateral);
+    }
+  }
+  if (shape.start_wall_height > 0) {
+    builder.grid(bed(0) - half_width * lateral, lateral, across, Vec3::UnitZ(),
+                 levels_with(shape.start_wall_height, side_up, es), downstream);
+  }
+  if (shape.end_wall_height > 0) {
+    builder.grid(bed(profile.size() - 1) - half_width * lateral, lateral, across, Vec3::UnitZ(),
+                 levels_with(shape.end_wall_height, side_up, es), -downstream);
   }
   return builder.finish(part);
 }
@@ -209,9 +284,10 @@ SurfaceMesh triangulate(const scene::Shape& shape, const std::string& part_name,
     case scene::Shape::Type::plane: return plane(shape, part_name, origin);
     case scene::Shape::Type::box: return box(shape, part_name, origin);
     case scene::Shape::Type::chute: return chute(shape, part_name, origin);
+    case scene::Shape::Type::channel: return channel(shape, part_name, origin);
     case scene::Shape::Type::mesh: return mesh(shape, part_name, origin);
   }
-  shape_error(origin, part_name, "unknown shape type", "use plane, box, chute or mesh");
+  shape_error(origin, part_name, "unknown shape type", "use plane, box, chute, channel or mesh");
 }
 
 }  // namespace sabo::geometry

@@ -18,6 +18,7 @@ namespace sabo::geometry {
 // plane: a length x width rectangle, normal `shape.normal`;
 // box: its closed surface, normals outward;
 // chute: floor and side walls (and end wall), normals into the channel;
+// channel: floor along the profile, vertical side and end walls, normals into the channel;
 // mesh: the STL file, scaled about the origin, then translated.
 // Throws SceneError (naming `origin` when given) for shapes that cannot be
 // built, FileError for unreadable mesh files.

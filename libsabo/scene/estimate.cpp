@@ -109,6 +109,16 @@ Surface structure_surface(const Structure& structure) {
         if (shape.wall_height > 0) face(shape.length, shape.wall_height), face(shape.length, shape.wall_height);
         if (shape.end_wall_height > 0) face(shape.width, shape.end_wall_height);
         break;
+      case Shape::Type::channel:
+        for (std::size_t k = 0; k + 1 < shape.profile.size(); ++k) {
+          const double length =
+              std::hypot(shape.profile[k + 1][0] - shape.profile[k][0], shape.profile[k + 1][1] - shape.profile[k][1]);
+          face(length, shape.width);
+          if (shape.wall_height > 0) face(length, shape.wall_height), face(length, shape.wall_height);
+        }
+        if (shape.start_wall_height > 0) face(shape.width, shape.start_wall_height);
+        if (shape.end_wall_height > 0) face(shape.width, shape.end_wall_height);
+        break;
       case Shape::Type::mesh: break;
     }
     s.shells = deformable;

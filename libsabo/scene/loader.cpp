@@ -59,6 +59,7 @@ Scene Builder::build() {
   check_sph_dem();
   read_recording(root);
   read_gauges(root);
+  read_fronts(root);
   read_sensors(root);
   check_overlaps();
   if (diag_.count() == 0) check_costs();

@@ -121,6 +121,21 @@ Aabb FluidBody::bounds() const {
   return bounds;
 }
 
+Vec3 Front::path_point(double s) const {
+  if (kind == Kind::axis || bed.empty()) return start + s * direction;
+  double z = bed.front()[1];
+  if (s >= bed.back()[0]) {
+    z = bed.back()[1];
+  } else if (s > bed.front()[0]) {
+    const auto after = std::upper_bound(bed.begin(), bed.end(), s,
+                                        [](double value, const std::array<double, 2>& p) { return value < p[0]; });
+    const auto& a = *(after - 1);
+    const auto& b = *after;
+    z = a[1] + (b[1] - a[1]) * (s - a[0]) / (b[0] - a[0]);
+  }
+  return Vec3(start.x(), start.y(), 0) + s * direction + z * Vec3::UnitZ();
+}
+
 const DemContactLaw& DemContact::law(const std::string& material_a, const std::string& material_b) const {
   for (const auto& pair : pairs) {
     if ((pair.material_a == material_a && pair.material_b == material_b) ||

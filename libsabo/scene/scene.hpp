@@ -229,7 +229,7 @@ struct MeshSize {
 
 // The geometry of one structure part (FEM).
 struct Shape {
-  enum class Type { plane, box, chute, mesh };
+  enum class Type { plane, box, chute, channel, mesh };
   Type type = Type::plane;
   // plane: a finite rectangle centred at `origin`, normal `normal`, sides
   // `length` (along `direction` projected on the plane) and `width`.
@@ -246,6 +246,12 @@ struct Shape {
   double slope_deg = 0;
   double wall_height = 0;
   double end_wall_height = 0;
+  // channel: a floor `width` wide along the longitudinal profile (s, z), s (m) the horizontal distance
+  // along `direction` from `origin` (whose z is ignored), z (m) the bed's absolute elevation; vertical
+  // side walls `wall_height` above the bed, `start_wall_height` > 0 and `end_wall_height` > 0 close the
+  // first and last ends. s strictly increasing (checked), at least two points.
+  std::vector<std::array<double, 2>> profile;
+  double start_wall_height = 0;
   // mesh: STL file (ASCII or binary), resolved to an absolute path; scaled
   // then translated.
   std::filesystem::path file;
@@ -471,6 +477,34 @@ struct Gauge {
   }
 };
 
+// A front tracker of the sph_solver (fronts.csv, front_stations.csv, summary.json `results.sph_solver.fronts`;
+// docs/scene.md [[fronts]]): the flow's leading edge along a straight path over time, and the flow depth
+// at named stations along it.
+struct Front {
+  enum class Kind { axis, channel };
+  struct Station {
+    std::string name;
+    double at = 0;  // m, the distance along the path
+  };
+  std::string name;
+  Origin origin;
+  Kind kind = Kind::axis;
+  // axis: distance s = (x - start) . direction (unit); the station's depth is measured vertically up from
+  // start + s direction. channel: the path is the channel structure's centre line (its direction and the
+  // profile's distance); the depth is measured vertically up from the bed.
+  Vec3 start = Vec3::Zero();
+  Vec3 direction{1, 0, 0};
+  std::string channel;                          // a channel structure (checked)
+  std::vector<std::array<double, 2>> bed;       // channel: its profile (s, z); empty for an axis
+  std::size_t ahead = 0;                        // particles allowed ahead of the front (spray)
+  double interval = 0;                          // s between two samples; 0: the run's output_interval
+  double depth_height = 0;                      // m, the height of a station's vertical line
+  static constexpr double kDepthHeight = 50.0;  // m, without a depth_height or an SPH domain
+  std::vector<Station> stations;
+  // The point of the path at distance s, m: on the axis, or on the channel's bed.
+  [[nodiscard]] Vec3 path_point(double s) const;
+};
+
 // A force sensor of the coupler (sensors.csv, docs/scene.md [[sensors]]): the part of structure `part`'s
 // surface inside `box` (the whole part when absent), with the force each source puts on it.
 struct Sensor {
@@ -516,6 +550,7 @@ struct Scene {
   }();
   std::vector<FemFemInteraction> fem_fem_interactions;  // per pair of structures
   std::vector<Gauge> gauges;                            // the sph_solver's, in file order
+  std::vector<Front> fronts;                            // the sph_solver's, in file order
   std::vector<Sensor> sensors;                          // the coupler's, in file order
   Recording recording;
 

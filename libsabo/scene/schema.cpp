@@ -26,6 +26,7 @@ Schema::Schema() {
   build_interactions();
   build_recording();
   build_gauges();
+  build_fronts();
   build_sensors();
 }
 
@@ -33,7 +34,7 @@ std::vector<const Table*> Schema::ordered() const {
   return {&root,        &run,       &solvers,   &solver,     &materials,      &material, &particles,
           &sphere,      &fill,      &structure, &constraint, &constraint_box, &sph,      &fluid,
           &contact,     &dem_dem,   &dem_pair,  &dem_fem,    &sph_fem,        &sph_dem,  &fem_fem,
-          &interaction, &recording, &gauge,     &sensor};
+          &interaction, &recording, &gauge,     &front,      &front_station,  &sensor};
 }
 
 void Schema::build_root() {
@@ -71,6 +72,11 @@ void Schema::build_root() {
           .inside(gauge)
           .absent("no gauges")
           .doc("Points and lines where the sph_solver measures pressure, velocity and flow depth (`gauges.csv`)."),
+      K("fronts", Type::table_list)
+          .inside(front)
+          .absent("no fronts")
+          .doc("Paths along which the sph_solver tracks the flow's front and the depth at stations "
+               "(`fronts.csv`)."),
       K("sensors", Type::table_list)
           .inside(sensor)
           .absent("no sensors")
@@ -239,8 +245,10 @@ const std::vector<std::string>& cross_checks() {
       "A fluid body holds at least one particle; a "
       "box has min < max on every axis; a profile has at least 3 points, no zero-length edge, no crossing "
       "edges; `direction` is horizontal and not zero.",
-      "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's `direction` "
-      "is horizontal and not zero; a box has `min` < `max` on every axis; a mesh `file` exists, is a regular "
+      "Shapes: a plane's `normal` is not zero and its `direction` not along the normal; a chute's and a channel's "
+      "`direction` is horizontal and not zero; a channel has exactly one of `profile` and `profile_file`, at least "
+      "two points, the distance strictly increasing (a CSV file's errors name its line); a box has `min` < `max` on "
+      "every axis; a mesh `file` exists, is a regular "
       "file and ends in `.stl` (`.msh` for `rigid = false`), and it is read by the solvers' own readers "
       "(truncated, malformed, non-finite or degenerate meshes are refused with the mesh file's line). Keys of "
       "other shapes are errors. `rigid = false` needs `shape = \"box\"`, "

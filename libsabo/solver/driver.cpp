@@ -279,7 +279,14 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   goodbye.set_compute_seconds(compute_seconds);
   goodbye.set_checkpoint_seconds(checkpoint_seconds);
   goodbye.set_wait_seconds(link.wait_seconds());
-  if (exit_code != 1) link.send_goodbye(goodbye);
+  if (exit_code != 1) {
+    try {
+      goodbye.set_results_json(solver.results());
+    } catch (const std::exception& error) {
+      spdlog::error("while gathering the results for summary.json: {}", error.what());
+    }
+    link.send_goodbye(goodbye);
+  }
   spdlog::info("compute {:.3f} s, waiting for the coupler {:.3f} s", compute_seconds, link.wait_seconds());
   return exit_code;
 }

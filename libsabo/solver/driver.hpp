@@ -80,6 +80,9 @@ class CoupledSolver {
   [[nodiscard]] virtual bool can_checkpoint() const { return false; }
   virtual void save_checkpoint(io::hdf5::Group& /*group*/) const {}
   virtual void load_checkpoint(const io::hdf5::Group& /*group*/) {}
+  // The solver's own results at the end of a run, a JSON object for summary.json's results.ROLE (Goodbye
+  // results_json); empty: none.
+  [[nodiscard]] virtual std::string results() const { return {}; }
   // Called once at the end, also after errors: close files.
   virtual void finish() = 0;
 };

@@ -145,6 +145,7 @@ class PlotTest(RealRunTestCase):
         self.assertEqual(code, 0, stderr)
         self.assertFigures(plots, RUN_FIGURES)
         self.assertIn("skipped: fem_energy.png (no fem_energy.csv), gauges.png (no gauges.csv), "
+                      "fronts.png (no fronts.csv), front_stations.png (no front_stations.csv), "
                       "sensors.png (no sensors.csv)", stdout)
 
         second = os.path.join(self.tmp, "tank_again")

@@ -7,7 +7,7 @@ import math
 import os
 import unittest
 
-from e2e_support import RealRunTestCase, load_scene, read_json
+from e2e_support import S1_T, S1_Z, RealRunTestCase, interpolate, load_scene, read_json
 
 PENALTY = "configs/tests/sph_tank_penalty.toml"
 BOUNDARY = "configs/tests/sph_tank_boundary.toml"
@@ -209,17 +209,6 @@ class TankTest(RealRunTestCase):
             self.assertGreater(answered, 0)
             fem = traffic["fem_solver/forces"]
             self.assertEqual(fem["boundary_volume_count"][:len(fem["step"][()])].sum(), 0)
-
-# Martin & Moyce 1952, n^2 = 2: the front Z = z / a at T = t sqrt(2 g / a) (docs/benchmarks.md S1).
-S1_T = [0.41, 0.84, 1.19, 1.43, 1.63, 1.83, 1.98, 2.20, 2.32, 2.51, 2.65, 2.83, 2.98, 3.11, 3.33]
-S1_Z = [1.11, 1.22, 1.44, 1.67, 1.89, 2.11, 2.33, 2.56, 2.78, 3.00, 3.22, 3.44, 3.67, 3.89, 4.11]
-
-
-def interpolate(x, xs, ys):
-    for k in range(1, len(xs)):
-        if x <= xs[k]:
-            return ys[k - 1] + (ys[k] - ys[k - 1]) * (x - xs[k - 1]) / (xs[k] - xs[k - 1])
-    return ys[-1] + (ys[-1] - ys[-2]) * (x - xs[-1]) / (xs[-1] - xs[-2])
 
 
 class DamBreakGaugesTest(RealRunTestCase):

@@ -37,6 +37,7 @@
 #include "libsabo/geometry/sphere_fill.hpp"
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
+#include "libsabo/io/profile_csv.hpp"
 #include "libsabo/io/stl.hpp"
 #include "libsabo/physics/stable_step.hpp"
 #include "libsabo/scene/detail/reader.hpp"
@@ -117,6 +118,11 @@ class Builder {
   void read_structure(const toml::table& table, std::size_t index);
   fs::path resolve_mesh(Reader& r, const std::string& file, bool rigid = true);
   void read_mesh(Reader& r, const std::string& file, Structure& structure);
+  void read_channel_profile(Reader& r, Shape& shape);
+  // A file reader's error ("FILE[:LINE]: problem. Fix: fix") as a problem of key `key`, its problem after
+  // `what`, its fix (or `fallback_fix` where it names none) as the fix.
+  void add_file_error(Reader& r, const std::string& key, const std::string& value, const std::string& what,
+                      const Error& error, const std::string& fallback_fix);
   void read_solvers(Reader& root);
   void check_command(Reader& r, SolverSettings& solver);
   void read_surface_contact_law(Reader& r, SurfaceContact& contact, const char* model_fix);
@@ -133,6 +139,8 @@ class Builder {
   void read_recording(Reader& root);
   void register_instrument(Reader& r, const std::string& name, std::map<std::string, int>& names, const char* kind);
   void read_gauges(Reader& root);
+  void read_fronts(Reader& root);
+  void read_front_stations(Reader& front_reader, const toml::array& list, Front& front);
   void read_sensors(Reader& root);
   void check_sensor_box(Reader& r, const Sensor& sensor);
   void check_overlaps();

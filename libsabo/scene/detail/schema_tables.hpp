@@ -127,7 +127,8 @@ class K {
 class Schema {
  public:
   Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, constraint, constraint_box,
-      sph, fluid, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording, gauge, sensor;
+      sph, fluid, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording, gauge, front,
+      front_station, sensor;
 
   Schema(const Schema&) = delete;
   Schema& operator=(const Schema&) = delete;
@@ -150,6 +151,7 @@ class Schema {
   void build_interactions();
   void build_recording();
   void build_gauges();
+  void build_fronts();
   void build_sensors();
 };
 

@@ -1,4 +1,4 @@
-// [[gauges]] and [[sensors]]: the schema of the section and its reader.
+// [[gauges]], [[fronts]] and [[sensors]]: the schemas of the sections and their readers.
 
 #include "libsabo/scene/detail/builder.hpp"
 #include "libsabo/scene/detail/schema_tables.hpp"
@@ -49,6 +49,83 @@ void Schema::build_gauges() {
           .unit("s")
           .gt(0)
           .doc("Simulated time between two samples."),
+  };
+}
+
+void Schema::build_fronts() {
+  front.title = "[[fronts]]";
+  front.anchor = "fronts";
+  front.selector = "kind";
+  front.description =
+      "A front tracker of the sph_solver: where the flow's leading edge is along a straight path, how fast it "
+      "moves, when it passes named stations and how deep the flow stands there. Needs `[[fluids]]`. At every "
+      "sample it appends to `fronts.csv` (time, front, position, speed, flow_speed, x, y, z) and, for each "
+      "station, to `front_stations.csv` (time, front, station, at, depth); `summary.json` carries the history, "
+      "the fastest speed and, per station, the arrival time and the largest and final depths "
+      "(`results.sph_solver.fronts.NAME`).\n\n"
+      "* `axis`: the distance of a point x is s = (x - `start`) . `direction` (unit), a station's depth is "
+      "measured vertically up from `start` + s `direction` (an axis along a floor: the depth above the floor).\n"
+      "* `channel`: the path is the centre line of a `[[structures]]` of shape `channel`: s is the distance of "
+      "its profile, a station's depth is measured vertically up from the bed.\n\n"
+      "The front is the largest s of the fluid particles in the domain, leaving out the `ahead` most advanced ones "
+      "(spray, a splash over a wall); `x, y, z` is that particle's position. `speed` is the front's advance since "
+      "the previous sample divided by the time between them (0 at the first); `flow_speed` is the mean velocity "
+      "along the path of the particles within one kernel support (2 h) behind the front. A station's depth is the "
+      "height above its path point where the kernel sum falls through 1/2 (the free surface, as a line gauge's "
+      "depth), 0 where the flow has not come.";
+  front.keys = {
+      K("name", Type::string)
+          .required("\"slurry_front\"")
+          .allowed("letters, digits, `_`, `-`")
+          .doc("Name of the front, unique among the fronts."),
+      K("kind", Type::string).required("\"axis\"").choices({"axis", "channel"}).doc("A straight axis or a channel."),
+      K("start", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").only_for({"axis"}).doc("Where s = 0."),
+      K("direction", Type::vec3)
+          .required("[1.0, 0.0, 0.0]")
+          .only_for({"axis"})
+          .doc("The direction of increasing s, not zero (normalised by the loader)."),
+      K("channel", Type::string)
+          .required("\"gully\"")
+          .only_for({"channel"})
+          .allowed("a `[[structures]]` name of shape `channel`")
+          .doc("The channel whose centre line is the path."),
+      K("ahead", Type::integer)
+          .def(static_cast<std::int64_t>(Front{}.ahead))
+          .ge(0)
+          .doc("Fluid particles allowed ahead of the front: spray that left the flow."),
+      K("interval", Type::number)
+          .absent("`run.output_interval`")
+          .example("0.5")
+          .unit("s")
+          .gt(0)
+          .doc("Simulated time between two samples."),
+      K("depth_height", Type::number)
+          .absent("to `sph.domain_max`'s z, else 50 m")
+          .example("30.0")
+          .unit("m")
+          .gt(0)
+          .doc("Height of the vertical line above a station's path point along which its depth is found."),
+      K("stations", Type::table_list)
+          .inside(front_station)
+          .absent("none")
+          .example("[ { name = \"mouth\", at = 870.0 } ]")
+          .doc("Named distances along the path (inline tables, see below)."),
+  };
+  front_station.title = "[[fronts]] stations = [ { ... } ]";
+  front_station.anchor = "fronts-stations";
+  front_station.description =
+      "A station of a front: the time the front first passes it and the flow depth there at every sample "
+      "(`front_stations.csv`), the largest and the final depth in `summary.json` (a deposit height at the end of a "
+      "run that stops the flow).";
+  front_station.keys = {
+      K("name", Type::string)
+          .required("\"mouth\"")
+          .allowed("letters, digits, `_`, `-`")
+          .doc("Name, unique among the front's stations."),
+      K("at", Type::number)
+          .required("870.0")
+          .unit("m")
+          .doc("Distance along the path; on a channel, within its profile."),
   };
 }
 
@@ -159,6 +236,106 @@ void Builder::read_gauges(Reader& root) {
       }
     }
     scene_.gauges.push_back(std::move(gauge));
+  }
+}
+
+void Builder::read_fronts(Reader& root) {
+  const toml::array* fronts = root.table_list("fronts");
+  if (fronts == nullptr || fronts->empty()) return;
+  if (!has_fluids_) {
+    diag_.add(root.line("fronts"), "fronts", std::nullopt, "fronts follow the fluid, but the scene has no [[fluids]]",
+              "remove the [[fronts]] or add a fluid");
+    return;
+  }
+  std::vector<std::string> channels;
+  for (const Structure& structure : scene_.structures) {
+    if (structure.shape.type == Shape::Type::channel) channels.push_back(structure.name);
+  }
+  std::map<std::string, int> names;
+  for (std::size_t k = 0; k < fronts->size(); ++k) {
+    const std::string path = fmt::format("fronts[{}]", k);
+    Reader r(diag_, spec("fronts"), *fronts->get(k)->as_table(), path);
+    Front front;
+    front.origin = origin(r.line(), path);
+    if (auto v = r.string("name")) {
+      front.name = *v;
+      register_instrument(r, front.name, names, "front");
+    }
+    if (auto v = r.integer("ahead")) front.ahead = static_cast<std::size_t>(*v);
+    if (auto v = r.number("interval")) front.interval = *v;
+    front.depth_height = scene_.sph.domain ? 0.0 : Front::kDepthHeight;
+    if (auto v = r.number("depth_height")) front.depth_height = *v;
+    const auto kind = r.string("kind");
+    if (!kind) continue;
+    r.select(*kind);
+    bool have_path = false;
+    if (*kind == "axis") {
+      front.kind = Front::Kind::axis;
+      const auto start = r.vec3("start"), direction = r.vec3("direction");
+      if (start) front.start = *start;
+      if (direction && direction->norm() == 0.0) {
+        diag_.add(r.line("direction"), r.key_path("direction"), value_text(*r.node("direction")),
+                  "the direction is zero", "give the direction the front moves in, e.g. [1.0, 0.0, 0.0]");
+      } else if (direction) {
+        front.direction = direction->normalized();
+        have_path = start.has_value();
+      }
+    } else if (auto name = r.string("channel")) {
+      front.kind = Front::Kind::channel;
+      front.channel = *name;
+      const auto structure = std::find_if(scene_.structures.begin(), scene_.structures.end(),
+                                          [&](const Structure& s) { return s.name == *name; });
+      if (structure == scene_.structures.end() || structure->shape.type != Shape::Type::channel) {
+        const auto suggestion = closest_match(*name, channels);
+        std::string problem =
+            structure == scene_.structures.end() ? "no structure of that name" : "that structure is not a channel";
+        if (suggestion) problem += fmt::format(". Did you mean '{}'?", *suggestion);
+        diag_.add(r.line("channel"), r.key_path("channel"), quote_text(*name), problem,
+                  channels.empty() ? std::string("add a [[structures]] of shape = \"channel\", or use kind = \"axis\"")
+                                   : fmt::format("use one of: {}", join(channels)));
+      } else if (!structure->shape.profile.empty()) {
+        front.start = structure->shape.origin;
+        front.direction = structure->shape.direction;
+        front.bed = structure->shape.profile;
+        have_path = true;
+      }
+    }
+    if (const toml::array* stations = r.table_list("stations")) read_front_stations(r, *stations, front);
+    if (have_path && scene_.sph.domain && !r.has("depth_height")) {
+      double lowest = std::numeric_limits<double>::infinity();
+      for (const Front::Station& station : front.stations) lowest = std::min(lowest, front.path_point(station.at).z());
+      front.depth_height = std::isfinite(lowest) ? std::max(scene_.sph.domain->max.z() - lowest, 0.0) : 0.0;
+      if (!front.stations.empty() && !(front.depth_height > 0)) {
+        diag_.add(r.line("stations"), r.key_path("stations"), value_text(*r.node("stations")),
+                  fmt::format("a station's path point lies above the SPH domain's top z = {}",
+                              number_literal(scene_.sph.domain->max.z())),
+                  "move the station or raise sph.domain_max");
+      }
+    }
+    scene_.fronts.push_back(std::move(front));
+  }
+}
+
+void Builder::read_front_stations(Reader& front_reader, const toml::array& list, Front& front) {
+  std::map<std::string, int> names;
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const std::string path = front_reader.key_path(fmt::format("stations[{}]", k));
+    Reader r(diag_, spec("fronts-stations"), *list.get(k)->as_table(), path);
+    Front::Station station;
+    if (auto v = r.string("name")) {
+      station.name = *v;
+      register_instrument(r, station.name, names, "station");
+    }
+    if (auto v = r.number("at")) {
+      station.at = *v;
+      if (!front.bed.empty() && (*v < front.bed.front()[0] || *v > front.bed.back()[0])) {
+        diag_.add(r.line("at"), r.key_path("at"), value_text(*r.node("at")),
+                  fmt::format("outside the profile of channel '{}', which runs from {} to {} m", front.channel,
+                              number_literal(front.bed.front()[0]), number_literal(front.bed.back()[0])),
+                  "give a distance within the profile");
+      }
+    }
+    front.stations.push_back(std::move(station));
   }
 }
 

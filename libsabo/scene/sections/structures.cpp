@@ -20,11 +20,19 @@ void Schema::build_structures() {
       "floor) in the horizontal `direction`, descending at `slope_deg`, `width` wide, with side walls "
       "`wall_height` high along both long edges and, when `end_wall_height` > 0, a wall closing the lower "
       "end.\n"
+      "* `channel`: a floor `width` wide that follows a longitudinal profile, the points (s, z) of `profile` or "
+      "of the CSV file `profile_file`: s the horizontal distance along `direction` from `origin` (its z is "
+      "ignored), z the bed's absolute elevation, s strictly increasing. Vertical side walls stand `wall_height` "
+      "above the bed; `start_wall_height` and `end_wall_height` > 0 close the first and the last end. Each "
+      "straight piece of the profile is meshed on its own, so every point of the profile is a row of nodes. The "
+      "Wenjia scenes draw the gully this way (docs/wenjia.md).\n"
       "* `mesh`: a triangulated surface read from an STL file (ASCII or binary), scaled by `scale` and then "
       "translated by `translate`.\n\n"
       "The loader normalises `normal` and `direction` (the plane's `direction` is first projected onto the "
       "plane) and makes the mesh path absolute.";
   const std::vector<std::string> plane_chute{"plane", "chute"};
+  const std::vector<std::string> plane_chute_channel{"plane", "chute", "channel"};
+  const std::vector<std::string> chute_channel{"chute", "channel"};
   structure.keys = {
       K("name", Type::string)
           .required("\"chute\"")
@@ -113,26 +121,32 @@ void Schema::build_structures() {
           .doc("Shell thickness: contact acts at half of it from the surface (paper eq. 3); 0 for a solid face."),
       K("shape", Type::string)
           .required("\"plane\"")
-          .choices({"plane", "box", "chute", "mesh"})
+          .choices({"plane", "box", "chute", "channel", "mesh"})
           .doc("Kind of geometry."),
       K("origin", Type::vec3)
           .required("[0.0, 0.0, 0.0]")
           .unit("m")
-          .only_for(plane_chute)
-          .doc("Plane: centre. Chute: centre of the floor's upper edge."),
+          .only_for(plane_chute_channel)
+          .doc("Plane: centre. Chute: centre of the floor's upper edge. Channel: the point on the channel's "
+               "centre line where s = 0 (its z is ignored: the profile's elevations are absolute)."),
       K("normal", Type::vec3).def(Shape{}.normal).only_for({"plane"}).doc("Normal, not zero."),
       K("direction", Type::vec3)
           .def(Shape{}.direction)
-          .only_for(plane_chute)
+          .only_for(plane_chute_channel)
           .doc("Plane: direction of `length`, not along the normal. Chute: horizontal downhill direction "
-               "(z = 0)."),
+               "(z = 0). Channel: the horizontal direction of increasing s (z = 0)."),
       K("length", Type::number)
           .required("20.0")
           .unit("m")
           .gt(0)
           .only_for(plane_chute)
           .doc("Plane: side along `direction`. Chute: floor length along the slope."),
-      K("width", Type::number).required("8.0").unit("m").gt(0).only_for(plane_chute).doc("Side across."),
+      K("width", Type::number)
+          .required("8.0")
+          .unit("m")
+          .gt(0)
+          .only_for(plane_chute_channel)
+          .doc("Side across (a channel: between its side walls)."),
       K("slope_deg", Type::number)
           .required("20.0")
           .unit("degree")
@@ -144,14 +158,34 @@ void Schema::build_structures() {
           .def(Shape{}.wall_height)
           .unit("m")
           .ge(0)
-          .only_for({"chute"})
-          .doc("Height of the side walls (0: none)."),
+          .only_for(chute_channel)
+          .doc("Height of the side walls (0: none); a channel's measured vertically from the bed."),
       K("end_wall_height", Type::number)
           .def(Shape{}.end_wall_height)
           .unit("m")
           .ge(0)
-          .only_for({"chute"})
-          .doc("Height of the wall closing the lower end (0: open end)."),
+          .only_for(chute_channel)
+          .doc("Height of the wall closing the lower end (a channel: its last point; 0: open end)."),
+      K("start_wall_height", Type::number)
+          .def(Shape{}.start_wall_height)
+          .unit("m")
+          .ge(0)
+          .only_for({"channel"})
+          .doc("Height of the vertical wall closing the channel at its first point (0: open end)."),
+      K("profile", Type::pair_list)
+          .absent("use `profile_file`")
+          .example("[[0.0, 1300.0], [400.0, 1150.0], [900.0, 985.0]]")
+          .unit("m")
+          .only_for({"channel"})
+          .doc("The longitudinal profile: points (s, z), s strictly increasing, at least two. Give exactly one of "
+               "`profile` and `profile_file`."),
+      K("profile_file", Type::string)
+          .absent("use `profile`")
+          .example("\"wenjia_profile.csv\"")
+          .only_for({"channel"})
+          .allowed("a CSV file, relative to the scene file's folder")
+          .doc("The longitudinal profile as a CSV file: one point per line, distance and elevation (m) separated by "
+               "a comma, a semicolon or blanks; `#` starts a comment line; the first line may be a header."),
       K("min", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").only_for({"box"}).doc("Lower corner."),
       K("max", Type::vec3)
           .required("[1.0, 1.0, 1.0]")
@@ -162,7 +196,7 @@ void Schema::build_structures() {
           .def(Shape{}.element_size)
           .unit("m")
           .ge(0)
-          .only_for({"plane", "box", "chute"})
+          .only_for({"plane", "box", "chute", "channel"})
           .doc("Target edge length of the generated triangles (0: the coarsest mesh)."),
       K("file", Type::string)
           .required("\"meshes/dam.stl\"")
@@ -582,20 +616,27 @@ void Builder::read_structure(const toml::table& table, std::size_t index) {
       }
     }
     if (min && max && ((*max).array() > (*min).array()).all()) check_slits(r, structure);
-  } else if (*shape == "chute") {
-    s.type = Shape::Type::chute;
+  } else if (*shape == "chute" || *shape == "channel") {
+    const bool chute = *shape == "chute";
+    s.type = chute ? Shape::Type::chute : Shape::Type::channel;
     if (auto v = r.vec3("origin")) s.origin = *v;
-    if (auto v = r.number("length")) s.length = *v;
     if (auto v = r.number("width")) s.width = *v;
-    if (auto v = r.number("slope_deg")) s.slope_deg = *v;
     if (auto v = r.number("wall_height")) s.wall_height = *v;
     if (auto v = r.number("end_wall_height")) s.end_wall_height = *v;
+    if (chute) {
+      if (auto v = r.number("length")) s.length = *v;
+      if (auto v = r.number("slope_deg")) s.slope_deg = *v;
+    } else {
+      if (auto v = r.number("start_wall_height")) s.start_wall_height = *v;
+      read_channel_profile(r, s);
+    }
     if (auto direction = r.vec3("direction")) {
       const double horizontal = std::hypot(direction->x(), direction->y());
       if (horizontal == 0.0 || std::abs(direction->z()) > 1e-9 * horizontal) {
         diag_.add(r.line("direction"), r.key_path("direction"),
                   r.has("direction") ? value_text(*r.node("direction")) : std::string("[1.0, 0.0, 0.0]"),
-                  "a chute's direction must be horizontal (z = 0) and not zero; slope_deg sets the descent",
+                  fmt::format("a {}'s direction must be horizontal (z = 0) and not zero; {} sets the descent", *shape,
+                              chute ? "slope_deg" : "the profile"),
                   fmt::format("write direction = [{}, {}, 0.0]", number_literal(direction->x()),
                               number_literal(direction->y())));
       } else {
@@ -617,6 +658,66 @@ void Builder::read_structure(const toml::table& table, std::size_t index) {
   }
   check_constraints(structure, shape);
   scene_.structures.push_back(std::move(structure));
+}
+
+// A channel's profile, inline or from its CSV file (io/profile_csv.hpp): exactly one of the two, at least
+// two points, the distance strictly increasing.
+void Builder::read_channel_profile(Reader& r, Shape& shape) {
+  const bool inline_profile = r.has("profile"), file_profile = r.has("profile_file");
+  if (inline_profile == file_profile) {
+    diag_.add(r.line(), r.key_path(inline_profile ? "profile" : "profile_file"),
+              inline_profile ? std::optional(value_text(*r.node("profile"))) : std::nullopt,
+              inline_profile ? "gives both profile and profile_file: a channel has one profile"
+                             : "a channel needs its longitudinal profile",
+              inline_profile ? "keep one of profile and profile_file"
+                             : "add profile = [[0.0, 100.0], [50.0, 90.0]] (distance, elevation in m) or "
+                               "profile_file = \"profile.csv\"");
+    return;
+  }
+  if (inline_profile) {
+    const auto points = r.pairs("profile");
+    if (!points) return;
+    const std::string value = value_text(*r.node("profile"));
+    if (points->size() < 2) {
+      diag_.add(r.line("profile"), r.key_path("profile"), value,
+                fmt::format("a profile needs at least 2 points, not {}", points->size()),
+                "list the points (distance, elevation) in order of distance, e.g. [[0.0, 100.0], [50.0, 90.0]]");
+      return;
+    }
+    for (std::size_t k = 1; k < points->size(); ++k) {
+      if (!((*points)[k][0] > (*points)[k - 1][0])) {
+        diag_.add(r.line("profile"), r.key_path("profile"), value,
+                  fmt::format("point {} has distance {} after {} at point {}: a profile is not monotone in distance", k,
+                              number_literal((*points)[k][0]), number_literal((*points)[k - 1][0]), k - 1),
+                  "sort the points by distance and drop repeated ones");
+        return;
+      }
+    }
+    shape.profile = *points;
+    return;
+  }
+  const auto file = r.string("profile_file");
+  if (!file) return;
+  const fs::path given(*file);
+  const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+  try {
+    for (const io::ProfilePoint& point : io::read_profile_csv(full)) {
+      shape.profile.push_back({point.distance, point.elevation});
+    }
+  } catch (const FileError& error) {
+    add_file_error(r, "profile_file", quote_text(*file), "the profile cannot be read", error,
+                   "correct the path; it is relative to the scene file's folder");
+  }
+}
+
+void Builder::add_file_error(Reader& r, const std::string& key, const std::string& value, const std::string& what,
+                             const Error& error, const std::string& fallback_fix) {
+  const std::string text = error.what();
+  const auto fix = text.rfind(". Fix: ");
+  diag_.add(r.line(key), r.key_path(key), value,
+            fmt::format("{}: {}", what, fix == std::string::npos ? text : text.substr(0, fix)),
+            fix == std::string::npos ? fallback_fix
+                                     : text.substr(fix + 7, text.ends_with('.') ? text.size() - fix - 8 : text.npos));
 }
 
 // Rigid structures take STL surfaces; deformable ones Gmsh .msh volume or shell meshes.
@@ -690,13 +791,7 @@ void Builder::read_mesh(Reader& r, const std::string& file, Structure& structure
       }
     }
   } catch (const Error& error) {
-    // The reader's message is "FILE[:LINE]: problem. Fix: fix".
-    const std::string text = error.what();
-    const auto fix = text.rfind(". Fix: ");
-    diag_.add(line, key, quote_text(file),
-              fmt::format("the mesh cannot be read: {}", fix == std::string::npos ? text : text.substr(0, fix)),
-              fix == std::string::npos ? std::string("export the mesh again")
-                                       : text.substr(fix + 7, text.ends_with('.') ? text.size() - fix - 8 : text.npos));
+    add_file_error(r, "file", quote_text(file), "the mesh cannot be read", error, "export the mesh again");
     return;
   }
   structure.shape.mesh_size = size;

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <map>
 #include <numbers>
 
@@ -200,6 +202,99 @@ TEST(Primitives, ChuteWallsShareNodesWithTheFloor) {
     if (!on_rim) ++open_inside;
   }
   EXPECT_EQ(open_inside, 0);
+}
+
+// A profile with a steep piece, a flat piece and a gentle one along -x (lateral: -y), walls of three heights.
+Shape channel_shape(double element_size) {
+  Shape shape;
+  shape.type = Shape::Type::channel;
+  shape.origin = Vec3(3, 1, -50);  // its z is ignored
+  shape.direction = Vec3(-1, 0, 0);
+  shape.profile = {{0, 10}, {4, 7}, {6, 7}, {10, 6}};
+  shape.width = 2;
+  shape.wall_height = 1.5;
+  shape.start_wall_height = 2;
+  shape.end_wall_height = 1;
+  shape.element_size = element_size;
+  return shape;
+}
+
+// The bed's elevation at distance s of the channel_shape's profile.
+double channel_bed(const Shape& shape, double s) {
+  const auto& p = shape.profile;
+  for (std::size_t k = 0; k + 1 < p.size(); ++k) {
+    if (s <= p[k + 1][0]) return p[k][1] + (p[k + 1][1] - p[k][1]) * (s - p[k][0]) / (p[k + 1][0] - p[k][0]);
+  }
+  return p.back()[1];
+}
+
+TEST(Primitives, ChannelFollowsItsProfileWithInwardNormals) {
+  for (double element_size : {0.0, 0.4}) {
+    const Shape shape = channel_shape(element_size);
+    const SurfaceMesh mesh = sabo::geometry::triangulate(shape, "gully");
+    EXPECT_NO_THROW(mesh.validate("channel"));
+    // The floor: the width times the profile's length; each side wall a parallelogram of the piece's
+    // horizontal run times the wall's height; the end walls.
+    const double profile_length = 5 + 2 + std::sqrt(17.0);
+    const double expected = 2 * profile_length + 2 * 1.5 * 10 + 2 * 2 + 2 * 1;
+    std::cout << "channel (element size " << element_size << "): area measured " << total_area(mesh) << " expected "
+              << expected << ", " << mesh.face_count() << " faces\n";
+    EXPECT_NEAR(total_area(mesh), expected, 1e-10);
+    EXPECT_EQ(duplicate_positions(mesh, 1e-9), 0u);
+    if (element_size > 0) {
+      EXPECT_LE(longest_edge(mesh), 2 * element_size);
+    }
+    const Vec3 downstream(-1, 0, 0), lateral(0, -1, 0);
+    int open_inside = 0;
+    for (const auto& [edge, count] : edge_use(mesh)) {
+      ASSERT_LE(count, 2);
+      if (count != 1) continue;
+      // Edges used once lie on the rim: the walls' tops, and the side walls' ends above the lower end wall.
+      const Vec3 middle = 0.5 * (mesh.node_position[edge.first] + mesh.node_position[edge.second]);
+      const double s = (middle - shape.origin).dot(downstream);
+      const double up = middle.z() - channel_bed(shape, s);
+      const bool side = std::abs(std::abs((middle - shape.origin).dot(lateral)) - 1) < 1e-9;
+      const bool on_rim = (side && std::abs(up - 1.5) < 1e-9) || (std::abs(s) < 1e-9 && std::abs(up - 2) < 1e-9) ||
+                          (std::abs(s - 10) < 1e-9 && std::abs(up - 1) < 1e-9) ||
+                          (side && std::abs(s) < 1e-9 && up > 1.5 - 1e-9) ||
+                          (side && std::abs(s - 10) < 1e-9 && up > 1 - 1e-9);
+      if (!on_rim) ++open_inside;
+    }
+    EXPECT_EQ(open_inside, 0) << "edges used once inside the surface (T-junctions or gaps)";
+    // Every face looks into the channel: toward a point of the centre line half a metre above the bed.
+    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+      const Vec3 c = centroid(mesh, f);
+      const double s = std::clamp((c - shape.origin).dot(downstream), 0.1, 9.9);
+      const Vec3 inside =
+          Vec3(shape.origin.x(), shape.origin.y(), 0) + s * downstream + (channel_bed(shape, s) + 0.5) * Vec3::UnitZ();
+      EXPECT_GT((inside - c).dot(mesh.face_normal(f)), 0) << "face " << f;
+    }
+    // Every point of the profile is a row of nodes across the floor.
+    for (const auto& [s, z] : shape.profile) {
+      const Vec3 centre = Vec3(3, 1, 0) + s * downstream + z * Vec3::UnitZ();
+      int on_row = 0;
+      for (const Vec3& x : mesh.node_position) {
+        if (std::abs((x - centre).dot(downstream)) < 1e-9 && std::abs(x.z() - z) < 1e-9) ++on_row;
+      }
+      EXPECT_GE(on_row, 2) << "profile point " << s;
+    }
+  }
+}
+
+TEST(Primitives, ChannelRefusesAProfileThatIsNotMonotone) {
+  Shape shape = channel_shape(0);
+  shape.profile = {{0, 10}, {4, 7}, {4, 6}};
+  const sabo::scene::Origin origin{"/scenes/w.toml", 30, "structures[2]"};
+  try {
+    (void)sabo::geometry::triangulate(shape, "gully", origin);
+    ADD_FAILURE() << "no exception";
+  } catch (const sabo::SceneError& error) {
+    const std::string text = error.what();
+    EXPECT_NE(text.find("/scenes/w.toml:30"), std::string::npos) << text;
+    EXPECT_NE(text.find("distance 4 at point 2 after 4"), std::string::npos) << text;
+  }
+  shape.profile = {{0, 10}};
+  EXPECT_THROW((void)sabo::geometry::triangulate(shape, "gully"), sabo::SceneError);
 }
 
 TEST(Primitives, RejectsImpossibleShapes) {

@@ -208,6 +208,71 @@ slope_deg = 10
   EXPECT_EQ(filled.structures[0].shape.direction, shape_defaults.direction);
 }
 
+TEST(SceneLoader, ReadsAChannelProfileInlineAndFromItsCsvFile) {
+  TempFolder folder;
+  folder.write("profiles/gully.csv",
+               "# Branch 2, assumed\ndistance_m,elevation_m\n0,1300\n\n 250.5 ; 1180\n900\t985.25\n");
+  const auto file = folder.write("scene.toml", std::string(kSceneHead) + kOneSphere + R"(
+[[structures]]
+name = "gully"
+material = "concrete"
+shape = "channel"
+origin = [10, 5, 99]
+direction = [0, 3, 0]
+profile_file = "profiles/gully.csv"
+width = 7
+wall_height = 12
+start_wall_height = 20
+element_size = 2
+[[structures]]
+name = "flume"
+material = "concrete"
+shape = "channel"
+origin = [0, 0, 0]
+profile = [[0.0, 1.0], [2.0, 0.5]]
+width = 1
+)");
+  const Scene scene = load_scene(file);
+  const Shape& gully = scene.structures.at(0).shape;
+  EXPECT_EQ(gully.type, Shape::Type::channel);
+  EXPECT_EQ(gully.direction, Vec3(0, 1, 0));
+  const std::vector<std::array<double, 2>> expected{{0, 1300}, {250.5, 1180}, {900, 985.25}};
+  EXPECT_EQ(gully.profile, expected);
+  EXPECT_DOUBLE_EQ(gully.width, 7.0);
+  EXPECT_DOUBLE_EQ(gully.wall_height, 12.0);
+  EXPECT_DOUBLE_EQ(gully.start_wall_height, 20.0);
+  EXPECT_DOUBLE_EQ(gully.end_wall_height, 0.0);
+  const Shape& flume = scene.structures.at(1).shape;
+  EXPECT_EQ(flume.profile.size(), 2u);
+  EXPECT_DOUBLE_EQ(flume.profile[1][1], 0.5);
+}
+
+TEST(SceneLoader, RefusesChannelProfilesItCannotUse) {
+  const std::string head = std::string(kSceneHead) + kOneSphere + R"(
+[[structures]]
+name = "gully"
+material = "concrete"
+shape = "channel"
+origin = [0.0, 0.0, 0.0]
+width = 7
+)";
+  const std::string neither = error_of(head);
+  EXPECT_NE(neither.find("a channel needs its longitudinal profile"), std::string::npos) << neither;
+  const std::string both = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\nprofile_file = \"p.csv\"\n");
+  EXPECT_NE(both.find("gives both profile and profile_file"), std::string::npos) << both;
+  const std::string one_point = error_of(head + "profile = [[0.0, 1.0]]\n");
+  EXPECT_NE(one_point.find("at least 2 points, not 1"), std::string::npos) << one_point;
+  const std::string missing = error_of(head + "profile_file = \"no_such.csv\"\n");
+  EXPECT_NE(missing.find("key 'structures[0].profile_file'"), std::string::npos) << missing;
+  EXPECT_NE(missing.find("cannot open the profile"), std::string::npos) << missing;
+  const std::string sloped = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\ndirection = [1.0, 0.0, 1.0]\n");
+  EXPECT_NE(sloped.find("a channel's direction must be horizontal"), std::string::npos) << sloped;
+  const std::string length = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\nlength = 3.0\n");
+  EXPECT_NE(length.find("structures[0].length"), std::string::npos) << length;
+  const std::string deformable = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\nrigid = false\n");
+  EXPECT_NE(deformable.find("not shape = \"channel\""), std::string::npos) << deformable;
+}
+
 TEST(SceneLoader, ReadsEveryShapeAndNormalisesDirections) {
   TempFolder folder;
   // The check reads the mesh (issue 18): one triangle.
