@@ -198,6 +198,9 @@ SurfaceMesh channel(const scene::Shape& shape, const std::string& part, const sc
                   "sort the points by distance and drop repeated ones");
     }
   }
+  if (!shape.floor && !(shape.wall_height > 0) && !(shape.start_wall_height > 0) && !(shape.end_wall_height > 0)) {
+    shape_error(origin, part, "a channel without its floor and without walls", "give a wall height, or floor = true");
+  }
   if (!(shape.wall_height >= 0) || !(shape.start_wall_height >= 0) || !(shape.end_wall_height >= 0)) {
     shape_error(origin, part,
                 fmt::format("channel wall heights {}, {} and {}", shape.wall_height, shape.start_wall_height,
@@ -227,7 +230,7 @@ SurfaceMesh channel(const scene::Shape& shape, const std::string& part, const sc
     const Vec3 u = piece / length;
     const auto levels = grid_levels(length, es);
     const Vec3 right = bed(k) - half_width * lateral;
-    builder.grid(right, u, levels, lateral, across, Vec3::UnitZ());
+    if (shape.floor) builder.grid(right, u, levels, lateral, across, Vec3::UnitZ());
     if (shape.wall_height > 0) {
       builder.grid(right, u, levels, Vec3::UnitZ(), side_up, lateral);
       builder.grid(bed(k) + half_width * lateral, u, levels, Vec3::UnitZ(), side_up, -lateral);

@@ -113,7 +113,7 @@ Surface structure_surface(const Structure& structure) {
         for (std::size_t k = 0; k + 1 < shape.profile.size(); ++k) {
           const double length =
               std::hypot(shape.profile[k + 1][0] - shape.profile[k][0], shape.profile[k + 1][1] - shape.profile[k][1]);
-          face(length, shape.width);
+          if (shape.floor) face(length, shape.width);
           if (shape.wall_height > 0) face(length, shape.wall_height), face(length, shape.wall_height);
         }
         if (shape.start_wall_height > 0) face(shape.width, shape.start_wall_height);

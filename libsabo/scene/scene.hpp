@@ -252,6 +252,7 @@ struct Shape {
   // first and last ends. s strictly increasing (checked), at least two points.
   std::vector<std::array<double, 2>> profile;
   double start_wall_height = 0;
+  bool floor = true;  // channel: false leaves the floor out (its walls as a part of their own)
   // mesh: STL file (ASCII or binary), resolved to an absolute path; scaled
   // then translated.
   std::filesystem::path file;

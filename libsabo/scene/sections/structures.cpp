@@ -172,6 +172,11 @@ void Schema::build_structures() {
           .ge(0)
           .only_for({"channel"})
           .doc("Height of the vertical wall closing the channel at its first point (0: open end)."),
+      K("floor", Type::boolean)
+          .def(Shape{}.floor)
+          .only_for({"channel"})
+          .doc("`false`: the channel's walls without its floor, a part of their own (another friction on the walls "
+               "than on the bed: a channel of the same profile with `wall_height = 0` is the bed)."),
       K("profile", Type::pair_list)
           .absent("use `profile_file`")
           .example("[[0.0, 1300.0], [400.0, 1150.0], [900.0, 985.0]]")
@@ -628,6 +633,12 @@ void Builder::read_structure(const toml::table& table, std::size_t index) {
       if (auto v = r.number("slope_deg")) s.slope_deg = *v;
     } else {
       if (auto v = r.number("start_wall_height")) s.start_wall_height = *v;
+      if (auto v = r.boolean("floor")) s.floor = *v;
+      if (!s.floor && !(s.wall_height > 0) && !(s.start_wall_height > 0) && !(s.end_wall_height > 0)) {
+        diag_.add(r.line("floor"), r.key_path("floor"), "false",
+                  "a channel without its floor needs walls, but its wall heights are all 0",
+                  "give wall_height (or start_wall_height, end_wall_height) > 0, or remove floor = false");
+      }
       read_channel_profile(r, s);
     }
     if (auto direction = r.vec3("direction")) {

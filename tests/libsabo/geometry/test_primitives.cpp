@@ -297,6 +297,18 @@ TEST(Primitives, ChannelRefusesAProfileThatIsNotMonotone) {
   EXPECT_THROW((void)sabo::geometry::triangulate(shape, "gully"), sabo::SceneError);
 }
 
+TEST(Primitives, AChannelWithoutItsFloorIsItsWalls) {
+  Shape walls = channel_shape(0.4);
+  walls.floor = false;
+  const SurfaceMesh mesh = sabo::geometry::triangulate(walls, "walls");
+  const double expected = 2 * 1.5 * 10 + 2 * 2 + 2 * 1;  // side walls and end walls, no floor
+  std::cout << "channel walls: area measured " << total_area(mesh) << " expected " << expected << "\n";
+  EXPECT_NEAR(total_area(mesh), expected, 1e-10);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) EXPECT_NEAR(mesh.face_normal(f).z(), 0.0, 1e-12);
+  walls.wall_height = walls.start_wall_height = walls.end_wall_height = 0;
+  EXPECT_THROW((void)sabo::geometry::triangulate(walls, "walls"), sabo::SceneError);
+}
+
 TEST(Primitives, RejectsImpossibleShapes) {
   Shape shape = chute_shape(0, 0);
   shape.slope_deg = 95;

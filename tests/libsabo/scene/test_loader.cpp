@@ -231,6 +231,8 @@ shape = "channel"
 origin = [0, 0, 0]
 profile = [[0.0, 1.0], [2.0, 0.5]]
 width = 1
+wall_height = 0.5
+floor = false
 )");
   const Scene scene = load_scene(file);
   const Shape& gully = scene.structures.at(0).shape;
@@ -245,6 +247,8 @@ width = 1
   const Shape& flume = scene.structures.at(1).shape;
   EXPECT_EQ(flume.profile.size(), 2u);
   EXPECT_DOUBLE_EQ(flume.profile[1][1], 0.5);
+  EXPECT_TRUE(gully.floor);
+  EXPECT_FALSE(flume.floor);
 }
 
 TEST(SceneLoader, RefusesChannelProfilesItCannotUse) {
@@ -269,6 +273,8 @@ width = 7
   EXPECT_NE(sloped.find("a channel's direction must be horizontal"), std::string::npos) << sloped;
   const std::string length = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\nlength = 3.0\n");
   EXPECT_NE(length.find("structures[0].length"), std::string::npos) << length;
+  const std::string nothing = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\nfloor = false\n");
+  EXPECT_NE(nothing.find("a channel without its floor needs walls"), std::string::npos) << nothing;
   const std::string deformable = error_of(head + "profile = [[0.0, 1.0], [2.0, 0.5]]\nrigid = false\n");
   EXPECT_NE(deformable.find("not shape = \"channel\""), std::string::npos) << deformable;
 }

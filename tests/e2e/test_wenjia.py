@@ -1,0 +1,95 @@
+"""The Wenjia scenes (issue 23), reduced: configs/tests/wenjia_{original,treated}_reduced.toml, the scenes of
+configs/wenjia_*.toml at 3.5 m spacing for the first second, through the real processes. Each loads and
+completes, keeps every particle in the domain and every boulder in the channel, and closes the energy balance
+within 3 % of the potential energy released; the front starts at the deposit's toe. And the committed scenes
+are what scripts/make_wenjia.py writes. Each check prints measured beside expected."""
+import csv
+import os
+import subprocess
+import sys
+
+from e2e_support import ROOT, RealRunTestCase, interpolate, load_scene, read_csv, read_json, read_vtk, vtp_series
+
+LAYOUTS = ("original", "treated")
+BALANCE_TOLERANCE = 0.03  # of the potential energy released
+
+
+def read_profile(path):
+    distance, elevation = [], []
+    with open(path) as handle:
+        for line in handle:
+            if line.startswith("#") or line.startswith("distance"):
+                continue
+            s, z = line.split(",")
+            distance.append(float(s))
+            elevation.append(float(z))
+    return distance, elevation
+
+
+class WenjiaReducedTest(RealRunTestCase):
+    def test_the_scenes_are_what_the_generator_writes(self):
+        result = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "make_wenjia.py"), "--check"],
+                                capture_output=True, text=True)
+        print(result.stdout.strip())
+        self.assertEqual(result.returncode, 0, result.stdout + result.stderr)
+
+    def check_layout(self, layout):
+        relative = "configs/tests/wenjia_{}_reduced.toml".format(layout)
+        out = os.path.join(self.tmp, layout)
+        sabo = self.run_sabo(self.scene_path(relative), out)
+        self.assertEqual(sabo.wait(180), 0, sabo.output())
+        scene = load_scene(self.scene_path(relative))
+        summary = read_json(os.path.join(out, "summary.json"))
+        self.assertEqual(summary["status"], "completed")
+        print("{}: {} steps to t = {} s in {:.1f} s of wall time".format(layout, summary["steps"],
+                                                                        summary["simulated_time"],
+                                                                        summary["wall_seconds"]))
+
+        # Every fluid particle still in the domain; every boulder between the walls and above the bed.
+        sph = read_vtk(vtp_series(out, "sph")[-1][1])
+        self.assertEqual(int(sph["active"].min()), 1, "fluid particles left the domain")
+        distance, elevation = read_profile(os.path.join(ROOT, "configs", "wenjia", "profile_{}.csv".format(layout)))
+        half_width = scene["structures"][0]["width"] / 2
+        dem = read_vtk(vtp_series(out, "dem")[-1][1])
+        worst_side, worst_bed = 0.0, float("inf")
+        for (x, y, z), radius in zip(dem["Points"], dem["radius"]):
+            worst_side = max(worst_side, abs(y) + radius - half_width)
+            worst_bed = min(worst_bed, z - radius - interpolate(x, distance, elevation))
+        print("{}: {} boulders, deepest into a side wall {:.3f} m, lowest above the bed {:.3f} m (tolerance 0.1 "
+              "m each way: the penalty's overlap)".format(layout, len(dem["radius"]), worst_side, worst_bed))
+        self.assertLessEqual(worst_side, 0.1)
+        self.assertGreaterEqual(worst_bed, -0.1)
+
+        # The energy balance against the potential energy the flow released.
+        rows = read_csv(os.path.join(out, "energy.csv"))
+        first, last = rows[0], rows[-1]
+        released = float(first["potential"]) - float(last["potential"])
+        residual = ((float(last["total"]) + float(last["dissipated"]))
+                    - (float(first["total"]) + float(first["dissipated"])))
+        print("{}: potential energy released {:.4g} J, kinetic {:.4g} J, dissipated {:.4g} J; balance residual "
+              "{:.4g} J = {:.2%} of the release (tolerance {:.0%})".format(
+                  layout, released, float(last["kinetic"]), float(last["dissipated"]), residual,
+                  residual / released, BALANCE_TOLERANCE))
+        self.assertGreater(released, 0.0)
+        self.assertLess(abs(residual), BALANCE_TOLERANCE * released)
+
+        # The front starts at the toe of the deposit and moves down the gully.
+        front = summary["results"]["sph_solver"]["fronts"]["debris_front"]
+        toe = front["stations"]["source_toe"]["at"]
+        dx = scene["sph"]["particle_spacing"]
+        positions = front["history"]["position"]
+        # The deposit's last metres toward its toe are thinner than the lattice's rows, and the front leaves out
+        # the `ahead` most advanced particles: it starts up to 5 spacings behind the toe.
+        print("{}: front from {:.2f} m to {:.2f} m (the toe at {:.2f} m: the front starts within 5 spacings, "
+              "{} m, behind it)".format(layout, positions[0], positions[-1], toe, 5 * dx))
+        self.assertLessEqual(positions[0], toe)
+        self.assertGreaterEqual(positions[0], toe - 5 * dx)
+        self.assertGreater(positions[-1], positions[0])
+        with open(os.path.join(out, "fronts.csv"), newline="") as handle:
+            self.assertEqual(len(list(csv.DictReader(handle))), front["samples"])
+
+    def test_original_reduced(self):
+        self.check_layout("original")
+
+    def test_treated_reduced(self):
+        self.check_layout("treated")
