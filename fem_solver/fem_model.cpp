@@ -86,7 +86,9 @@ ShellMesh structure_shells(const scene::Structure& structure) {
   const Vec3 lo = shape.box.min, hi = shape.box.max;
   const Vec3 extent = hi - lo;
   const double slab = structure.roof_thickness > 0 ? structure.roof_thickness : structure.thickness;
-  const std::size_t nz = divisions(extent.z());
+  // Whole elements per storey: every slab meets a row of the walls' nodes, to which it is welded.
+  const std::size_t floors = std::max<std::size_t>(structure.floors, 1);
+  const std::size_t nz = floors * divisions(extent.z() / static_cast<double>(floors));
   add_panel(mesh, lo, Vec3(extent.x(), 0, 0), Vec3(0, 0, extent.z()), divisions(extent.x()), nz, structure.thickness,
             0);
   add_panel(mesh, Vec3(hi.x(), lo.y(), lo.z()), Vec3(0, extent.y(), 0), Vec3(0, 0, extent.z()), divisions(extent.y()),

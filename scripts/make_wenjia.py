@@ -134,11 +134,12 @@ class Scene:
         return "\n".join(self.parts)
 
 
-def box_on_bed(name, points, s_upstream, length, height, material, extra):
-    """A deformable box from s_upstream, `length` along the flow, across the strip, standing on the bed at its
-    downstream face (its upstream part sits in the bed, which is rigid and does not touch it)."""
+def box_on_bed(name, points, s_upstream, length, height, material, extra, across=WIDTH):
+    """A deformable box from s_upstream, `length` along the flow, `across` wide about the centre line, standing
+    on the bed at its downstream face (its upstream part sits in the bed, which is rigid and does not touch
+    it)."""
     base = profile_elevation(points, s_upstream + length)
-    half = 0.5 * WIDTH
+    half = 0.5 * across
     return """
 [[structures]]
 name = "{name}"
@@ -314,7 +315,7 @@ thickness = 0.24
 floors = {floors}
 roof_thickness = 0.1
 roof_material = "slab"
-element_size = 2.0""".format(floors=FLOORS)))
+element_size = 1.8                   # half a storey""".format(floors=FLOORS), across=HOUSE_WIDTH))
     stations = [("source_toe", source_polygon()[1][0]), ("mouth", MOUTH_S)]
     if treated:
         stations += [("step_pools_top", gully_s(STEPS_TOP))] + [
