@@ -26,6 +26,9 @@ constexpr std::uint64_t kNoNode = std::numeric_limits<std::uint64_t>::max();
 // A face whose area is below this fraction of its longest edge squared has no
 // usable normal: it takes no part in the contact.
 constexpr double kDegenerateAreaRatio = 1e-12;
+// A node update refreshes only the faces around the moved nodes while they are fewer than 1 in this many
+// (a deformable dam in a rigid channel); more, and the whole surface is refreshed.
+constexpr double kPartialRefreshShare = 4.0;
 // Below this many particles a parallel region costs more than it saves.
 constexpr std::int64_t kParallelThreshold = 64;
 // Relative slack when comparing distances of the same point computed from different triangles.
@@ -218,36 +221,9 @@ void SurfaceContact::refresh_geometry() {
   std::vector<double> sizes;
   sizes.reserve(faces);
   for (std::size_t f = 0; f < faces; ++f) {
-    const auto& tri = surface_.triangle[f];
-    const Vec3& a = surface_.node_position[tri[0]];
-    const Vec3& b = surface_.node_position[tri[1]];
-    const Vec3& c = surface_.node_position[tri[2]];
-    const bool merged = canonical_[tri[0]] == canonical_[tri[1]] || canonical_[tri[1]] == canonical_[tri[2]] ||
-                        canonical_[tri[2]] == canonical_[tri[0]];
-    const Vec3 cross = (b - a).cross(c - a);
-    const double twice_area = cross.norm();
-    const auto [shortest2, longest2] =
-        std::minmax({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
-    const double longest = std::sqrt(longest2);
-    face_shortest_edge_[f] = std::sqrt(shortest2);
-    const bool degenerate = merged || !(twice_area > kDegenerateAreaRatio * longest * longest);
-    degenerate_[f] = degenerate ? 1 : 0;
-    face_box_[f] = Aabb{};
-    if (degenerate) {
-      face_normal_[f] = Vec3::UnitZ();
-      face_stiffness_factor_[f] = 0;
-      continue;
-    }
-    face_normal_[f] = cross / twice_area;
-    const double area = 0.5 * twice_area;
-    const double bulk_modulus = surface_.face_bulk_modulus[f];
-    const double volume = surface_.face_element_volume[f];
-    // Eq. 6 without k1. A triangle's longest edge stands for the segment's "max diagonal".
-    face_stiffness_factor_[f] = volume > 0 ? bulk_modulus * area * area / volume : bulk_modulus * area / longest;
-    face_box_[f].extend(a);
-    face_box_[f].extend(b);
-    face_box_[f].extend(c);
-    sizes.push_back((face_box_[f].max - face_box_[f].min).maxCoeff());
+    const double size = refresh_face(f);
+    if (degenerate_[f]) continue;
+    sizes.push_back(size);
     max_thickness_ = std::max(max_thickness_, surface_.face_thickness[f]);
   }
   if (sizes.empty()) {
@@ -257,7 +233,67 @@ void SurfaceContact::refresh_geometry() {
     std::nth_element(sizes.begin(), middle, sizes.end());
     median_face_size_ = *middle;
   }
+  moving_.assign(faces, 0);
+  moving_faces_.clear();
   grid_valid_ = false;
+  moving_grid_valid_ = false;
+}
+
+double SurfaceContact::refresh_face(std::size_t f) {
+  const auto& tri = surface_.triangle[f];
+  const Vec3& a = surface_.node_position[tri[0]];
+  const Vec3& b = surface_.node_position[tri[1]];
+  const Vec3& c = surface_.node_position[tri[2]];
+  const bool merged = canonical_[tri[0]] == canonical_[tri[1]] || canonical_[tri[1]] == canonical_[tri[2]] ||
+                      canonical_[tri[2]] == canonical_[tri[0]];
+  const Vec3 cross = (b - a).cross(c - a);
+  const double twice_area = cross.norm();
+  const auto [shortest2, longest2] = std::minmax({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+  const double longest = std::sqrt(longest2);
+  face_shortest_edge_[f] = std::sqrt(shortest2);
+  const bool degenerate = merged || !(twice_area > kDegenerateAreaRatio * longest * longest);
+  degenerate_[f] = degenerate ? 1 : 0;
+  face_box_[f] = Aabb{};
+  if (degenerate) {
+    face_normal_[f] = Vec3::UnitZ();
+    face_stiffness_factor_[f] = 0;
+    return 0;
+  }
+  face_normal_[f] = cross / twice_area;
+  const double area = 0.5 * twice_area;
+  const double bulk_modulus = surface_.face_bulk_modulus[f];
+  const double volume = surface_.face_element_volume[f];
+  // Eq. 6 without k1. A triangle's longest edge stands for the segment's "max diagonal".
+  face_stiffness_factor_[f] = volume > 0 ? bulk_modulus * area * area / volume : bulk_modulus * area / longest;
+  face_box_[f].extend(a);
+  face_box_[f].extend(b);
+  face_box_[f].extend(c);
+  return (face_box_[f].max - face_box_[f].min).maxCoeff();
+}
+
+void SurfaceContact::refresh_moved_faces(const std::vector<std::uint32_t>& faces) {
+  bool new_moving = false;
+  for (std::uint32_t f : faces) {
+    refresh_face(f);
+    if (!moving_[f]) {
+      moving_[f] = 1;
+      new_moving = true;
+    }
+    // The interest regions stay valid while every moved face lies inside them.
+    if (cover_ && !degenerate_[f] && std::none_of(cover_->begin(), cover_->end(), [&](const Aabb& box) {
+          return box.contains(face_box_[f].min) && box.contains(face_box_[f].max);
+        })) {
+      cover_.reset();
+    }
+  }
+  if (new_moving) {
+    moving_faces_.clear();
+    for (std::size_t f = 0; f < moving_.size(); ++f) {
+      if (moving_[f]) moving_faces_.push_back(static_cast<std::uint32_t>(f));
+    }
+    grid_valid_ = false;  // a face left the static grid
+  }
+  moving_grid_valid_ = false;
 }
 
 void SurfaceContact::resolve_pairs() {
@@ -331,17 +367,38 @@ void SurfaceContact::update_nodes(std::span<const double> position, std::span<co
         "solver's StepState",
         position.size(), velocity.size(), nodes));
   }
-  bool moved = false;
+  std::vector<std::uint32_t> moved_nodes;
   for (std::size_t i = 0; i < nodes; ++i) {
     const Vec3 p = vec3_at(position, i);
     if (!p.allFinite()) throw ProtocolError(fmt::format("surface node update: node {} has a non-finite position", i));
     if (p != surface_.node_position[i]) {
       surface_.node_position[i] = p;
-      moved = true;
+      moved_nodes.push_back(static_cast<std::uint32_t>(i));
     }
     node_velocity_[i] = velocity.empty() ? Vec3::Zero() : vec3_at(velocity, i);
   }
-  if (moved) {
+  if (moved_nodes.empty()) return;
+  // The faces around the moved nodes (a node at the same place as another shares its faces: canonical_).
+  std::vector<std::uint32_t> moved_faces;
+  for (std::uint32_t i : moved_nodes) {
+    const std::uint32_t c = canonical_[i];
+    moved_faces.insert(moved_faces.end(), node_faces_.begin() + node_face_start_[c],
+                       node_faces_.begin() + node_face_start_[c + 1]);
+  }
+  std::sort(moved_faces.begin(), moved_faces.end());
+  moved_faces.erase(std::unique(moved_faces.begin(), moved_faces.end()), moved_faces.end());
+  if (kPartialRefreshShare * static_cast<double>(moved_faces.size()) < static_cast<double>(surface_.triangle.size())) {
+    // Eq. 6's stiffness stays that of the surface as set (as below).
+    std::vector<double> stiffness(moved_faces.size());
+    for (std::size_t k = 0; k < moved_faces.size(); ++k) stiffness[k] = face_stiffness_factor_[moved_faces[k]];
+    refresh_moved_faces(moved_faces);
+    for (std::size_t k = 0; k < moved_faces.size(); ++k) {
+      const std::uint32_t f = moved_faces[k];
+      if (!degenerate_[f] && stiffness[k] > 0) face_stiffness_factor_[f] = stiffness[k];
+    }
+    return;
+  }
+  {
     // Eq. 6's stiffness stays that of the surface as set: a stiffness following the
     // deformed face area is not the gradient of a penalty energy (it created energy).
     const std::vector<double> stiffness = face_stiffness_factor_;
@@ -357,9 +414,23 @@ void SurfaceContact::build_grid(double query_reach, bool points) {
   // far: their queries visit more cells, rather than every node's query visiting every face).
   double cell = points && median_face_size_ > 0 ? median_face_size_ : std::max(median_face_size_, query_reach);
   if (!(cell > 0)) cell = 1.0;
-  grid_.build_boxes(face_box_, cell);
+  if (!grid_valid_ || query_reach > grid_reach_) {
+    if (moving_faces_.empty()) {
+      grid_.build_boxes(face_box_, cell);
+    } else {
+      std::vector<Aabb> still(face_box_);
+      for (std::uint32_t f : moving_faces_) still[f] = Aabb{};  // left out: binned in moving_grid_
+      grid_.build_boxes(still, cell);
+    }
+    grid_valid_ = true;
+    moving_grid_valid_ = false;
+  }
+  std::vector<Aabb> moving_boxes;
+  moving_boxes.reserve(moving_faces_.size());
+  for (std::uint32_t f : moving_faces_) moving_boxes.push_back(face_box_[f]);
+  moving_grid_.build_boxes(moving_boxes, cell);
+  moving_grid_valid_ = true;
   grid_reach_ = query_reach;
-  grid_valid_ = true;
 }
 
 std::vector<Aabb> SurfaceContact::interest_regions(double max_radius) const {
@@ -495,6 +566,12 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     grid_.for_each_in(query, [&](std::uint32_t face) {
       if (face_box_[face].overlaps(query)) scratch.candidates.push_back(face);
     });
+    if (!moving_faces_.empty()) {
+      moving_grid_.for_each_in(query, [&](std::uint32_t k) {
+        const std::uint32_t face = moving_faces_[k];
+        if (face_box_[face].overlaps(query)) scratch.candidates.push_back(face);
+      });
+    }
     std::sort(scratch.candidates.begin(), scratch.candidates.end());
     scratch.candidates.erase(std::unique(scratch.candidates.begin(), scratch.candidates.end()),
                              scratch.candidates.end());
@@ -832,7 +909,7 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
 
   const double query_reach =
       (points ? max_potential_reach : max_radius * (1.0 + options_.potential_margin)) + 0.5 * max_thickness_;
-  if (!grid_valid_ || query_reach > grid_reach_) build_grid(query_reach, points);
+  if (!grid_valid_ || !moving_grid_valid_ || query_reach > grid_reach_) build_grid(query_reach, points);
 
   if (results_.size() < n) results_.resize(n);
   const auto count = static_cast<std::int64_t>(n);

@@ -307,6 +307,12 @@ class SurfaceContact {
   };
 
   void refresh_geometry();
+  // Normal, stiffness factor, shortest edge, degeneracy and box of face f from its nodes; returns the size of
+  // its box (0 for a degenerate face).
+  double refresh_face(std::size_t f);
+  // After only `faces` moved: their geometry, the moving faces' grid, and the static grid when a face moved
+  // for the first time (the rigid parts' faces never do).
+  void refresh_moved_faces(const std::vector<std::uint32_t>& faces);
   void resolve_pairs();
   void build_grid(double query_reach, bool points);
   [[nodiscard]] const Pair& pair(std::uint32_t source, std::size_t face) const {
@@ -350,8 +356,16 @@ class SurfaceContact {
   double max_thickness_ = 0;
   std::vector<Pair> pairs_;  // [source * parts + part]
 
+  // The faces' grid, in two: the faces that never moved since the surface was set or last refreshed whole
+  // (grid_), and those that did (moving_grid_, over moving_faces_: a deformable part's, rebuilt each step it
+  // moves, while the rigid parts' stay binned). Queries visit both; their candidates are sorted, so which
+  // grid holds a face changes no result.
   physics::CellList grid_;
+  physics::CellList moving_grid_;
+  std::vector<std::uint32_t> moving_faces_;  // sorted; moving_grid_'s item k is face moving_faces_[k]
+  std::vector<char> moving_;                 // per face
   bool grid_valid_ = false;
+  bool moving_grid_valid_ = false;
   double grid_reach_ = 0;  // the per-particle query reach the grid was sized for, m
 
   std::vector<HistoryEntry> history_;  // sorted by particle id; per particle in contact order
