@@ -11,8 +11,9 @@ front's position and speed), forces.png (the force on each dam from the slurry a
 deposit.png (the flow depth along the gully at the end) and final_<layout>.png (scripts/render_snapshot.py's
 side view of the last output). Prints the table.
 
-How each number is read: the front speed at t is the front's advance over the samples on either side of t
-(fronts.csv); a slit dam is full when the flow stands its height at the station 1 m upstream of it
+How each number is read: the front passes the step pools and reaches slit dam 1 when it passes the stations
+step_pools_top and slit_dam_1 (summary.json), and its speed there is its advance over the samples on either
+side of that time (fronts.csv); a slit dam is full when the flow stands its height at the station 1 m upstream of it
 (front_stations.csv); peak forces are summary.json's peak_force (the largest instantaneous force, fluid and
 boulders apart); a dam is destroyed when at least half of its elements eroded, a house is buried when the
 final depth at its station reaches its height, spared when the flow never reached it.
@@ -42,8 +43,10 @@ PAPER = [
     ("original", "check dam", "destroyed", ""),
     ("original", "houses", "buried", ""),
     ("original", "deposit at the gully mouth", 17.0, "m"),
-    ("treated", "front speed at 26 s", 31.0, "m/s"),
-    ("treated", "front speed at 34 s", 34.0, "m/s"),
+    ("treated", "front passing the step pools: time", 26.0, "s"),
+    ("treated", "front passing the step pools: speed", 31.0, "m/s"),
+    ("treated", "front at slit dam 1: time", 34.0, "s"),
+    ("treated", "front at slit dam 1: speed", 34.0, "m/s"),
     ("treated", "slit dam 1 full", 46.0, "s"),
     ("treated", "peak fluid force on slit dam 1", 65.7, "MN"),
     ("treated", "peak fluid force on slit dam 3", 12.5, "MN"),
@@ -158,10 +161,15 @@ def measure(layout, quantity, run):
     if quantity == "deposit at the gully mouth":
         depth = run.front["stations"]["mouth"]["final_depth"]
         return depth, "{:.1f} m".format(depth)
-    if quantity.startswith("front speed at "):
-        time = float(quantity.split()[-2])
-        speed = run.front_speed(time)
-        return speed, "not reached" if speed is None else "{:.1f} m/s".format(speed)
+    if quantity.startswith("front "):
+        station = "step_pools_top" if "step pools" in quantity else "slit_dam_1"
+        arrival = run.front["stations"].get(station, {}).get("arrival_time")
+        if arrival is None:
+            return None, "not reached"
+        if quantity.endswith("time"):
+            return arrival, "{:.1f} s".format(arrival)
+        speed = run.front_speed(arrival)
+        return speed, "not sampled around it" if speed is None else "{:.1f} m/s".format(speed)
     if quantity == "slit dam 1 full":
         time = run.full_time("slit_dam_1", run.height("slit_dam_1"))
         return time, "not full" if time is None else "{:.1f} s".format(time)

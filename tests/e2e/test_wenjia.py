@@ -101,7 +101,7 @@ class WenjiaReducedTest(RealRunTestCase):
         self.assertEqual(result.returncode, 0, result.stderr)
         with open(os.path.join(out, "comparison.md")) as handle:
             table = handle.read()
-        for quantity in ("check dam", "houses", "deposit at the gully mouth", "front speed at 26 s",
+        for quantity in ("check dam", "houses", "deposit at the gully mouth", "front passing the step pools: speed",
                          "slit dam 1 full", "peak fluid force on slit dam 1", "peak boulder force on slit dam 3"):
             self.assertIn("| {} |".format(quantity), table)
         peak = runs["treated"][1]["peak_force"]["slit_dam_1"]["fluid"] / 1e6
