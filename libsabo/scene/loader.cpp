@@ -103,7 +103,7 @@ std::string syntax_message(const std::string& file, const std::string& text, con
   return fmt::format(
       "{}:{}:{}:{} TOML syntax error: {}. Fix: correct the TOML at line {}, column {} (strings in \"quotes\", "
       "arrays in [ ], inline tables {{ ... }} on one line; see https://toml.io).",
-      file, line, column, where, error.description(), line, column);
+      file, line, column, detail::printable_text(where), detail::printable_text(error.description()), line, column);
 }
 
 // Where `text` stops being UTF-8 text: a NUL byte (TOML allows none), a UTF-16 or UTF-32 file, or a byte

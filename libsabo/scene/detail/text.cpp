@@ -31,6 +31,18 @@ std::string quote_text(std::string_view text) {
   return out + "\"";
 }
 
+std::string printable_text(std::string_view text) {
+  std::string out;
+  for (char c : text) {
+    if (static_cast<unsigned char>(c) < 0x20) {
+      out += fmt::format("\\u{:04x}", static_cast<int>(c));
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 std::string value_text(const toml::node& node, std::size_t limit) {
   std::string text;
   if (const auto* s = node.as_string()) {

@@ -20,6 +20,8 @@ using schema::Type;
 
 std::string number_literal(double value);
 std::string quote_text(std::string_view text);
+// `text` with its control characters written as \uXXXX: one line of a message, whatever a file held.
+std::string printable_text(std::string_view text);
 // A node as TOML-like text for messages, shortened to about `limit` characters.
 std::string value_text(const toml::node& node, std::size_t limit = 80);
 std::string_view kind_of(const toml::node& node);
