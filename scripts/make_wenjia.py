@@ -10,6 +10,7 @@
 Standard library only. The real profile of Branch 2 is not public: the one drawn here passes through the
 elevations the paper gives (docs/wenjia.md says which, and what is assumed)."""
 import argparse
+import math
 import os
 import sys
 
@@ -254,7 +255,7 @@ direction = [1.0, 0.0, 0.0]
 width = {width}
 profile = [{polygon}]
 """.format(area=polygon_area(polygon), volume=polygon_area(polygon) * WIDTH, width=number(WIDTH),
-           polygon=", ".join(vec(offset_inward(polygon, k, dx / 2)) for k in range(len(polygon)))))
+           polygon=", ".join(vec(corner) for corner in inset(polygon, dx / 2))))
     s.add("""
 # The boulders (0.5 % of the flow): in the deposit's upper part, which they sink through.
 [[particles]]
@@ -385,13 +386,21 @@ every = 100
     return s.text()
 
 
-def offset_inward(polygon, k, distance):
-    """Corner k of the polygon moved `distance` toward its centroid along each axis: the particles' lattice
-    keeps half a spacing off the bed and the back wall."""
-    cx = sum(p[0] for p in polygon) / len(polygon)
-    cz = sum(p[1] for p in polygon) / len(polygon)
-    x, z = polygon[k]
-    return (x + (distance if cx > x else -distance), z + (distance if cz > z else -distance))
+def inset(polygon, distance):
+    """The counterclockwise convex polygon with every edge moved `distance` inward (its corners where the moved
+    edges meet): the particles' lattice then keeps half a spacing off the bed, the back wall and the face."""
+    lines = []
+    for (x0, z0), (x1, z1) in zip(polygon, polygon[1:] + polygon[:1]):
+        length = math.hypot(x1 - x0, z1 - z0)
+        nx, nz = -(z1 - z0) / length, (x1 - x0) / length  # inward (left of the edge) for a counterclockwise polygon
+        lines.append(((x0 + distance * nx, z0 + distance * nz), (x1 - x0, z1 - z0)))
+    corners = []
+    for k in range(len(lines)):
+        (px, pz), (dx, dz) = lines[k - 1]
+        (qx, qz), (ex, ez) = lines[k]
+        t = ((qx - px) * ez - (qz - pz) * ex) / (dx * ez - dz * ex)
+        corners.append((px + t * dx, pz + t * dz))
+    return corners
 
 
 def profile_csv(layout):

@@ -15,6 +15,10 @@ LAYOUTS = ("original", "treated")
 BALANCE_TOLERANCE = 0.03  # of the potential energy released
 
 
+def front_ahead(scene):
+    return scene["fronts"][0].get("ahead", 0)
+
+
 def read_profile(path):
     distance, elevation = [], []
     with open(path) as handle:
@@ -79,12 +83,17 @@ class WenjiaReducedTest(RealRunTestCase):
         toe = front["stations"]["source_toe"]["at"]
         dx = scene["sph"]["particle_spacing"]
         positions = front["history"]["position"]
-        # The deposit's last metres toward its toe are thinner than the lattice's rows, and the front leaves out
-        # the `ahead` most advanced particles: it starts up to 5 spacings behind the toe.
-        print("{}: front from {:.2f} m to {:.2f} m (the toe at {:.2f} m: the front starts within 5 spacings, "
-              "{} m, behind it)".format(layout, positions[0], positions[-1], toe, 5 * dx))
-        self.assertLessEqual(positions[0], toe)
-        self.assertGreaterEqual(positions[0], toe - 5 * dx)
+        # The particles fill the deposit's outline inset by half a spacing (the fluid's profile: its toe corner
+        # stands back from the bed's toe); toward that corner the wedge is thinner than a lattice row, and the
+        # front leaves out the `ahead` most advanced particles (two abreast): it starts within
+        # ahead / 2 + 1 spacings behind the inset toe.
+        inset_toe = scene["fluids"][0]["profile"][1][0]
+        behind = (front_ahead(scene) / 2 + 1) * dx
+        print("{}: front from {:.2f} m to {:.2f} m (the deposit's toe at {:.2f} m, the particles' outline's at "
+              "{:.2f} m: the front starts within {} m behind it)".format(layout, positions[0], positions[-1], toe,
+                                                                        inset_toe, behind))
+        self.assertLessEqual(positions[0], inset_toe)
+        self.assertGreaterEqual(positions[0], inset_toe - behind)
         self.assertGreater(positions[-1], positions[0])
         with open(os.path.join(out, "fronts.csv"), newline="") as handle:
             self.assertEqual(len(list(csv.DictReader(handle))), front["samples"])
