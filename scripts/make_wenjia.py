@@ -154,6 +154,18 @@ fixed = ["z-"]
                    hi=vec((s_upstream + length, half, base + height)), extra=extra.strip("\n"))
 
 
+def channel_part(name, profile_file):
+    """The keys a rigid channel part along the profile file starts with."""
+    return """[[structures]]
+name = "{name}"
+material = "concrete"
+shape = "channel"
+origin = [0.0, 0.0, 0.0]
+direction = [1.0, 0.0, 0.0]
+profile_file = "{profile}"
+width = {width}""".format(name=name, profile=profile_file, width=number(WIDTH))
+
+
 def scene_text(layout, reduced):
     treated = layout == "treated"
     points = profile(treated)
@@ -264,33 +276,21 @@ material = "granite"
 fill = {{ min = {lo}, max = {hi}, count = {count}, diameter = [1.0, 2.0], seed = 2010 }}
 """.format(lo=vec((20.0, -0.5 * WIDTH + 1.1, PLATFORM - 40.0)), hi=vec((PLATEAU_END - 20.0, 0.5 * WIDTH - 1.1,
                                                                       PLATFORM - 2.0)), count=boulders))
+    profile_file = ("../" if reduced else "") + "wenjia/profile_{}.csv".format(layout)
     s.add("""
 # The channel: its bed with the wall behind the source, and its side walls as a part of their own, smooth
 # (the strip stands for a 2-D profile: its walls are planes of symmetry, not the gully's banks).
-[[structures]]
-name = "gully"
-material = "concrete"
-shape = "channel"
-origin = [0.0, 0.0, 0.0]
-direction = [1.0, 0.0, 0.0]
-profile_file = "{profile}"
-width = {width}
+{bed}
 start_wall_height = {start_wall}
 element_size = {element}   # m (the paper's: 2 m); flat rigid walls need no finer
 
-[[structures]]
-name = "gully_walls"
-material = "concrete"
-shape = "channel"
-origin = [0.0, 0.0, 0.0]
-direction = [1.0, 0.0, 0.0]
-profile_file = "{profile}"
-width = {width}
+{walls}
 floor = false
 wall_height = {wall}
 element_size = {element}
-""".format(element=number(CHANNEL_ELEMENT), profile=("../" if reduced else "") + "wenjia/profile_{}.csv".format(
-        layout), width=number(WIDTH), wall=number(WALL_HEIGHT), start_wall=number(PLATFORM + 20.0 - BED_START[1])))
+""".format(bed=channel_part("gully", profile_file), walls=channel_part("gully_walls", profile_file),
+           element=number(CHANNEL_ELEMENT), wall=number(WALL_HEIGHT),
+           start_wall=number(PLATFORM + 20.0 - BED_START[1])))
     if treated:
         for k, elevation in enumerate(SLIT_DAM_ELEVATIONS):
             s.add(box_on_bed("slit_dam_{}".format(k + 1), points, gully_s(elevation), SLIT_DAM_THICKNESS,

@@ -33,6 +33,7 @@ class FrontRecorder {
   // At t_n (s), with the model between compute_internal_forces() and integrate(), as GaugeRecorder::sample().
   void sample(const SphModel& model, double time);
 
+  [[nodiscard]] bool empty() const { return fronts_.empty(); }
   // summary.json's results.sph_solver.fronts: per front its history, fastest speed and stations.
   [[nodiscard]] nlohmann::json results() const;
 

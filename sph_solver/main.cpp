@@ -51,7 +51,6 @@ class SphSolver final : public solver::CoupledSolver {
         limits_(solver::stability_limits(scene, Role::sph)) {
     for (const scene::Material& material : scene.materials) rest_density_.push_back(material.density);
     scene_max_speed_ = scene.run.max_speed.has_value();
-    has_fronts_ = !scene.fronts.empty();
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
@@ -173,7 +172,7 @@ class SphSolver final : public solver::CoupledSolver {
     have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
   }
   [[nodiscard]] std::string results() const override {
-    if (!has_fronts_) return {};
+    if (fronts_.empty()) return {};
     return nlohmann::json{{"fronts", fronts_.results()}}.dump();
   }
   void finish() override {}
@@ -184,7 +183,6 @@ class SphSolver final : public solver::CoupledSolver {
   SphOutput output_;
   GaugeRecorder gauges_;
   FrontRecorder fronts_;
-  bool has_fronts_ = false;
   bool boundary_walls_;
   bool have_boundary_forces_ = false;
   double dt_previous_ = 0;

@@ -16,13 +16,14 @@ def format_duration(seconds: float) -> str:
     return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
 
 
-def _is_number(value: Any) -> bool:
+def is_number(value: Any) -> bool:
+    """A finite int or float (not a bool)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _time_decimals(end_time: Any) -> int:
     """Enough decimals to see simulated time advance: 2 for end times of 1 s and more."""
-    if not _is_number(end_time) or end_time <= 0:
+    if not is_number(end_time) or end_time <= 0:
         return 3
     return max(2, 2 - int(math.floor(math.log10(end_time))))
 
@@ -33,19 +34,19 @@ def format_progress(event: dict, end_time: float | None = None) -> str:
     decimals = _time_decimals(end)
     parts = [f'step {event.get("step", "?")}']
     t = event.get("time")
-    if _is_number(t):
-        if _is_number(end):
+    if is_number(t):
+        if is_number(end):
             parts.append(f"t = {t:.{decimals}f} / {end:.{decimals}f} s")
         else:
             parts.append(f"t = {t:.{decimals}f} s")
     dt = event.get("dt")
-    if _is_number(dt):
+    if is_number(dt):
         parts.append(f"dt = {dt:.1e} s")
     rate = event.get("steps_per_second")
-    if _is_number(rate):
+    if is_number(rate):
         parts.append(f"{rate:.0f} steps/s" if rate >= 10 else f"{rate:.1f} steps/s")
     eta = event.get("eta_seconds")
-    parts.append("ETA " + (format_duration(eta) if _is_number(eta) and eta >= 0 else "--"))
+    parts.append("ETA " + (format_duration(eta) if is_number(eta) and eta >= 0 else "--"))
     return "  ".join(parts)
 
 

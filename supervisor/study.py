@@ -44,7 +44,7 @@ import sys
 import time
 from typing import Any
 
-from .display import format_duration
+from .display import format_duration, is_number
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
 from .plan import check_scene
 from .scene_text import absolute_file_keys, apply_overrides
@@ -147,10 +147,6 @@ class Study:
         return {p.key: p.values[-1] for p in self.parameters}
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
 def load_study(path: str) -> Study:
     """The study in `path`, every key checked; SaboError (exit 2) naming the file, line, key and the fix."""
     source = StudyFile(path)
@@ -200,7 +196,7 @@ def load_study(path: str) -> Study:
                                f"write e.g. {key} = {max(least, 1)}", source.line_of(key, "study"))
         settings[key] = value
     timeout = study.get("timeout", 3600.0)
-    if not _is_number(timeout) or timeout <= 0:
+    if not is_number(timeout) or timeout <= 0:
         raise source.error("study.timeout", timeout, "must be a positive number of seconds",
                            "write e.g. timeout = 3600.0 (each run's limit)", source.line_of("timeout", "study"))
     study_name = study.get("name", os.path.splitext(os.path.basename(path))[0])
@@ -238,7 +234,7 @@ def load_study(path: str) -> Study:
         else:
             low, high, count = entry.get("from"), entry.get("to"), entry.get("count")
             spacing = entry.get("spacing", "linear")
-            if not (_is_number(low) and _is_number(high)):
+            if not (is_number(low) and is_number(high)):
                 raise source.error(f"{where}.from", low, "a parameter needs values = [...], or from and to",
                                    "write values = [...], or from = A, to = B, count = N", line("from") or line("key"))
             if not isinstance(count, int) or isinstance(count, bool) or count < 2:
@@ -288,7 +284,7 @@ def load_study(path: str) -> Study:
             if entry.get("reduce", "max") not in REDUCTIONS:
                 raise source.error(f"{where}.reduce", entry.get("reduce"), f'must be one of {", ".join(REDUCTIONS)}',
                                    'write e.g. reduce = "max"', line("reduce"))
-            if entry.get("reduce") == "at" and not _is_number(entry.get("time")):
+            if entry.get("reduce") == "at" and not is_number(entry.get("time")):
                 raise source.error(f"{where}.time", entry.get("time"), 'reduce = "at" needs the time (s)',
                                    "add time = 0.3", line("reduce"))
             if not isinstance(entry.get("where", {}), dict):
@@ -301,7 +297,7 @@ def load_study(path: str) -> Study:
                                    'write e.g. command = ["/usr/bin/python3", "measures/front.py"] (the run folder '
                                    "is appended; the script prints one number)", line("command"))
         reference = entry.get("reference")
-        if reference is not None and not (_is_number(reference) or reference == "finest"):
+        if reference is not None and not (is_number(reference) or reference == "finest"):
             raise source.error(f"{where}.reference", reference, 'must be a number or "finest"',
                                'write the reference value, or reference = "finest" (the run at every parameter\'s '
                                "last value)", line("reference"))
@@ -313,7 +309,7 @@ def load_study(path: str) -> Study:
 # -------------------------------------------------------------------------------------------------- the runs
 
 def format_value(value: Any) -> str:
-    return f"{value:g}" if _is_number(value) else str(value)
+    return f"{value:g}" if is_number(value) else str(value)
 
 
 def run_id(index: int, combination: dict) -> str:
@@ -481,7 +477,7 @@ def measure_value(measure: Measure, run_dir: str) -> float:
                 node = node[int(part)]
             else:
                 raise ValueError(f"summary.json has no {measure.field} (no '{part}')")
-        if not _is_number(node):
+        if not is_number(node):
             raise ValueError(f"summary.json {measure.field} is {node!r}, not a number")
         return float(node)
     if measure.source == "csv":
@@ -668,7 +664,7 @@ def write_outputs(root: str, study: Study, rows: list[dict], out: str) -> None:
               "accurate).", ""]
     fronts = {}
     for m in study.measures:
-        usable = [k for k, r in enumerate(rows) if _is_number(r["wall_s"]) and r["errors"].get(m.name) is not None]
+        usable = [k for k, r in enumerate(rows) if is_number(r["wall_s"]) and r["errors"].get(m.name) is not None]
         front = pareto_front([(rows[k]["wall_s"], rows[k]["errors"][m.name]) for k in usable])
         fronts[m.name] = {usable[k] for k in front}
     head = "| run | " + " | ".join(keys) + " | wall, s | CPU, s | steps | " + " | ".join(
@@ -708,7 +704,7 @@ def _cell(value: Any, spec: str = "g") -> str:
     """`spec` "r": every digit (study.csv), else a format spec (study.md)."""
     if value is None:
         return ""
-    if not _is_number(value):
+    if not is_number(value):
         return str(value)
     return repr(value) if spec == "r" else format(value, spec)
 

@@ -205,11 +205,11 @@ void SurfaceContact::set_surface(const geometry::SurfaceMesh& surface) {
     const auto& t = surface_.triangle[f];
     face_mass_[f] = std::min({surface_.mass_of(t[0]), surface_.mass_of(t[1]), surface_.mass_of(t[2])});
   }
-  refresh_geometry();
+  refresh_geometry(/*keep_stiffness=*/false);
   resolve_pairs();
 }
 
-void SurfaceContact::refresh_geometry() {
+void SurfaceContact::refresh_geometry(bool keep_stiffness) {
   const std::size_t faces = surface_.triangle.size();
   face_normal_.resize(faces);
   face_stiffness_factor_.resize(faces);
@@ -221,7 +221,7 @@ void SurfaceContact::refresh_geometry() {
   std::vector<double> sizes;
   sizes.reserve(faces);
   for (std::size_t f = 0; f < faces; ++f) {
-    const double size = refresh_face(f);
+    const double size = refresh_face(f, keep_stiffness);
     if (degenerate_[f]) continue;
     sizes.push_back(size);
     max_thickness_ = std::max(max_thickness_, surface_.face_thickness[f]);
@@ -239,7 +239,7 @@ void SurfaceContact::refresh_geometry() {
   moving_grid_valid_ = false;
 }
 
-double SurfaceContact::refresh_face(std::size_t f) {
+double SurfaceContact::refresh_face(std::size_t f, bool keep_stiffness) {
   const auto& tri = surface_.triangle[f];
   const Vec3& a = surface_.node_position[tri[0]];
   const Vec3& b = surface_.node_position[tri[1]];
@@ -260,11 +260,15 @@ double SurfaceContact::refresh_face(std::size_t f) {
     return 0;
   }
   face_normal_[f] = cross / twice_area;
-  const double area = 0.5 * twice_area;
-  const double bulk_modulus = surface_.face_bulk_modulus[f];
-  const double volume = surface_.face_element_volume[f];
-  // Eq. 6 without k1. A triangle's longest edge stands for the segment's "max diagonal".
-  face_stiffness_factor_[f] = volume > 0 ? bulk_modulus * area * area / volume : bulk_modulus * area / longest;
+  // Eq. 6's stiffness stays that of the surface as set: a stiffness following the deformed face area is not
+  // the gradient of a penalty energy (it created energy).
+  if (!keep_stiffness || !(face_stiffness_factor_[f] > 0)) {
+    const double area = 0.5 * twice_area;
+    const double bulk_modulus = surface_.face_bulk_modulus[f];
+    const double volume = surface_.face_element_volume[f];
+    // Eq. 6 without k1. A triangle's longest edge stands for the segment's "max diagonal".
+    face_stiffness_factor_[f] = volume > 0 ? bulk_modulus * area * area / volume : bulk_modulus * area / longest;
+  }
   face_box_[f].extend(a);
   face_box_[f].extend(b);
   face_box_[f].extend(c);
@@ -274,7 +278,7 @@ double SurfaceContact::refresh_face(std::size_t f) {
 void SurfaceContact::refresh_moved_faces(const std::vector<std::uint32_t>& faces) {
   bool new_moving = false;
   for (std::uint32_t f : faces) {
-    refresh_face(f);
+    refresh_face(f, /*keep_stiffness=*/true);
     if (!moving_[f]) {
       moving_[f] = 1;
       new_moving = true;
@@ -388,24 +392,9 @@ void SurfaceContact::update_nodes(std::span<const double> position, std::span<co
   std::sort(moved_faces.begin(), moved_faces.end());
   moved_faces.erase(std::unique(moved_faces.begin(), moved_faces.end()), moved_faces.end());
   if (kPartialRefreshShare * static_cast<double>(moved_faces.size()) < static_cast<double>(surface_.triangle.size())) {
-    // Eq. 6's stiffness stays that of the surface as set (as below).
-    std::vector<double> stiffness(moved_faces.size());
-    for (std::size_t k = 0; k < moved_faces.size(); ++k) stiffness[k] = face_stiffness_factor_[moved_faces[k]];
     refresh_moved_faces(moved_faces);
-    for (std::size_t k = 0; k < moved_faces.size(); ++k) {
-      const std::uint32_t f = moved_faces[k];
-      if (!degenerate_[f] && stiffness[k] > 0) face_stiffness_factor_[f] = stiffness[k];
-    }
-    return;
-  }
-  {
-    // Eq. 6's stiffness stays that of the surface as set: a stiffness following the
-    // deformed face area is not the gradient of a penalty energy (it created energy).
-    const std::vector<double> stiffness = face_stiffness_factor_;
-    refresh_geometry();
-    for (std::size_t f = 0; f < stiffness.size(); ++f) {
-      if (!degenerate_[f] && stiffness[f] > 0) face_stiffness_factor_[f] = stiffness[f];
-    }
+  } else {
+    refresh_geometry(/*keep_stiffness=*/true);
   }
 }
 

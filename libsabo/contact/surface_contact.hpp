@@ -306,10 +306,11 @@ class SurfaceContact {
     double stable_dt = std::numeric_limits<double>::infinity();
   };
 
-  void refresh_geometry();
-  // Normal, stiffness factor, shortest edge, degeneracy and box of face f from its nodes; returns the size of
-  // its box (0 for a degenerate face).
-  double refresh_face(std::size_t f);
+  // keep_stiffness: the faces keep the eq. 6 stiffness they were set with (a degenerate face's is 0).
+  void refresh_geometry(bool keep_stiffness);
+  // Normal, stiffness factor (kept, with keep_stiffness, when it is > 0), shortest edge, degeneracy and box of
+  // face f from its nodes; returns the size of its box (0 for a degenerate face).
+  double refresh_face(std::size_t f, bool keep_stiffness);
   // After only `faces` moved: their geometry, the moving faces' grid, and the static grid when a face moved
   // for the first time (the rigid parts' faces never do).
   void refresh_moved_faces(const std::vector<std::uint32_t>& faces);
