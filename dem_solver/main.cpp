@@ -55,6 +55,13 @@ class DemSolver final : public solver::CoupledSolver {
                                {forces.torque().data(), static_cast<std::size_t>(forces.torque_size())});
   }
 
+  [[nodiscard]] bool can_take_state() const override { return true; }
+  void take_state(const sabo::v1::StepState& recorded) override {
+    std::vector<Vec3> positions(model_.positions().begin(), model_.positions().end());
+    solver::take_particle_states(recorded, positions, model_.velocities(), model_.angular_velocities());
+    if (!recorded.position().empty()) model_.set_positions(positions);  // the neighbour list notices the move
+  }
+
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
   void integrate(double dt_previous, double dt) override { model_.integrate(dt_previous, dt); }
   [[nodiscard]] std::optional<solver::Instability> check_stability() const override {

@@ -320,6 +320,14 @@ Vec3 DeformablePart::velocity(std::size_t node) const {
   return with_body([&](const auto& body) { return body.velocities()[node]; });
 }
 
+void DeformablePart::take_node(std::size_t node, const Vec3* position, const Vec3* velocity) {
+  with_body([&](auto& body) { body.take_node(node, position, velocity); });
+}
+
+std::size_t DeformablePart::node_count() const {
+  return with_body([](const auto& body) { return body.node_count(); });
+}
+
 BodyState DeformablePart::save_state() const {
   BodyState state = with_body([](const auto& body) { return body.save_state(); });
   state.real.push_back(dt_previous_);
@@ -614,6 +622,31 @@ bool FemModel::moved() const {
     if (part->moved()) return true;
   }
   return false;
+}
+
+void FemModel::take_node_states(std::span<const std::uint64_t> node_id, std::span<const double> position,
+                                std::span<const double> velocity) {
+  for (const auto& [values, field] : {std::pair{position, "node_position"}, std::pair{velocity, "node_velocity"}}) {
+    if (!values.empty() && values.size() != 3 * node_id.size()) {
+      throw ProtocolError(fmt::format("StepForces.taken: {} {} values for {} surface node ids, expected 3 each",
+                                      values.size(), field, node_id.size()));
+    }
+  }
+  const auto vector = [](std::span<const double> values, std::size_t k) {
+    return Vec3(values[3 * k], values[3 * k + 1], values[3 * k + 2]);
+  };
+  for (std::size_t k = 0; k < node_id.size(); ++k) {
+    const std::uint64_t id = node_id[k];
+    if (id < kDeformableIdBase) continue;  // a rigid part's node
+    const std::uint64_t index = id / kDeformableIdBase - 1, node = id % kDeformableIdBase;
+    auto* part = index < parts_.size() ? dynamic_cast<DeformablePart*>(parts_[index].get()) : nullptr;
+    if (part == nullptr || node >= part->node_count()) {
+      throw ProtocolError(fmt::format("StepForces.taken: surface node id {} is no node of this model", id));
+    }
+    const Vec3 x = position.empty() ? Vec3::Zero() : vector(position, k);
+    const Vec3 v = velocity.empty() ? Vec3::Zero() : vector(velocity, k);
+    part->take_node(node, position.empty() ? nullptr : &x, velocity.empty() ? nullptr : &v);
+  }
 }
 
 void FemModel::apply_node_forces(std::span<const double> node_force) {

@@ -84,6 +84,8 @@ class DeformablePart final : public Part {
   bool refresh_surface();
   [[nodiscard]] Vec3 position(std::size_t node) const;
   [[nodiscard]] Vec3 velocity(std::size_t node) const;
+  [[nodiscard]] std::size_t node_count() const;
+  void take_node(std::size_t node, const Vec3* position, const Vec3* velocity);
   [[nodiscard]] bool is_shell() const { return shell_ != nullptr; }
   [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
   [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
@@ -188,6 +190,11 @@ class FemModel {
   // node_force: 3 per surface node (N, x0 y0 z0 x1 ...); empty means zero.
   // Throws ModelInputError for a wrong size or a non-finite value.
   void apply_node_forces(std::span<const double> node_force);
+  // Replay (--take): recorded positions and/or velocities (3 per id; either may be empty) of the surface nodes
+  // `node_id` in place of the deformable parts' own (rigid parts' nodes never move and are skipped);
+  // ProtocolError for an array of another size or an id that is no node of this model.
+  void take_node_states(std::span<const std::uint64_t> node_id, std::span<const double> position,
+                        std::span<const double> velocity);
   [[nodiscard]] std::span<const Vec3> node_forces() const { return node_force_; }  // last applied, N
 
   void step(double dt);  // s; see the step contract above

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "fem_solver/fem_model.hpp"
+#include "libsabo/core/error.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
 #include "libsabo/solver/driver.hpp"
 
@@ -74,6 +75,18 @@ class FemSolver final : public solver::CoupledSolver {
 
   void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
     model_.apply_node_forces({forces.node_force().data(), static_cast<std::size_t>(forces.node_force_size())});
+  }
+
+  [[nodiscard]] bool can_take_state() const override { return true; }
+  void take_state(const sabo::v1::StepState& recorded) override {
+    if (!recorded.index().empty() || !recorded.position().empty() || !recorded.velocity().empty() ||
+        !recorded.angular_velocity().empty()) {
+      throw ProtocolError("StepForces.taken: particle fields for the fem_solver, which has surface nodes only");
+    }
+    const auto& ids = recorded.topology().node_id();
+    model_.take_node_states({ids.data(), static_cast<std::size_t>(ids.size())},
+                            {recorded.node_position().data(), static_cast<std::size_t>(recorded.node_position_size())},
+                            {recorded.node_velocity().data(), static_cast<std::size_t>(recorded.node_velocity_size())});
   }
 
   void write_output(std::uint64_t step, double time) override { model_.write_output(out_dir_, step, time); }

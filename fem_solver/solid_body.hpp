@@ -62,6 +62,11 @@ class SolidBody {
   // small meshes the threads' start and barrier cost more than the work.
   void set_parallel_minimum(std::ptrdiff_t count) { parallel_minimum_ = count; }
 
+  // Replay (--take): a node's recorded position (m) and/or velocity (m/s) in place of its own; nullptr: kept.
+  void take_node(std::size_t node, const Vec3* position, const Vec3* velocity) {
+    if (position != nullptr) position_.at(node) = *position;
+    if (velocity != nullptr) velocity_.at(node) = *velocity;
+  }
   [[nodiscard]] std::span<const Vec3> positions() const { return position_; }
   [[nodiscard]] std::span<const Vec3> reference_positions() const { return mesh_.node; }
   [[nodiscard]] std::span<const Vec3> velocities() const { return velocity_; }  // v_{n-1/2} (v_{n+1/2} after integrate)

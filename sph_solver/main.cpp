@@ -120,6 +120,11 @@ class SphSolver final : public solver::CoupledSolver {
     fronts_.sample(model_, model_.time());
   }
 
+  [[nodiscard]] bool can_take_state() const override { return true; }
+  void take_state(const sabo::v1::StepState& recorded) override {
+    solver::take_particle_states(recorded, model_.positions(), model_.velocities());
+  }
+
   void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
 
   void integrate(double dt_previous, double dt) override {

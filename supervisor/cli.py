@@ -134,9 +134,12 @@ def build_parser() -> argparse.ArgumentParser:
     replay_parser.add_argument("--resume", metavar="CHECKPOINT",
                                help="start the solver from this checkpoint (RUN_DIR/checkpoints/<role>_<step>.h5) "
                                     "and replay from its step")
-    replay_parser.add_argument("--take", metavar="SOLVER", nargs="+",
-                               help="ROLE = coupler: play only these solvers (sph, dem, fem) from the recording; "
-                                    "the others run live against the replayed coupler")
+    replay_parser.add_argument("--take", metavar="NAME", nargs="+",
+                               help="ROLE sph, dem or fem: feed these fields of the solver's state from the "
+                                    "recording at every step in place of its own (position, velocity, "
+                                    "angular_velocity; node_position, node_velocity), to isolate the field that "
+                                    "drifts. ROLE coupler: play only these solvers (sph, dem, fem) from the "
+                                    "recording; the others run live against the replayed coupler")
     replay_parser.add_argument("--steps", metavar="A:B",
                                help="replay the window of steps A to B: a solver starts from its newest checkpoint "
                                     "at or before A (from step 0 when none is kept), and the replay ends at B")

@@ -85,7 +85,7 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     recorded_scene = run_folder.run_scene(run_dir)
     resume = os.path.abspath(args.resume) if args.resume else None
     window = _parse_steps(args.steps) if args.steps else None
-    taken = _taken_roles(args.take, role) if args.take else None
+    taken = _taken_roles(args.take) if args.take and role == "coupler" else None
     if window is not None:
         if resume:
             raise SaboError("--steps and --resume: --steps picks the newest checkpoint at or before its first step "
@@ -148,6 +148,8 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
                 for spec in plan.solvers if spec.role not in taken]
     if role != "coupler":
         tool_command += ["--role", role]
+        if args.take:  # state fields fed to the solver from the recording (sabo_replay checks the names)
+            tool_command += ["--take"] + args.take
         process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", os.path.join(folder, "out")]
         if resume:
             tool_command += ["--resume", resume]
@@ -160,6 +162,7 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     replay_log = os.path.join(folder, "replay.log")
     process_log = os.path.join(folder, f"{role}.log")
     started = []
+    code = None
     try:
         # The side that binds the endpoint starts first: the replay for a solver, the coupler for ROLE coupler.
         if role != "coupler":
@@ -178,8 +181,11 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
         report, _ = tool_process.popen.communicate()
         code = tool_process.returncode
     finally:
+        # A replay that ended its comparison lets the process finish on its own (it got stop); one that could
+        # not run leaves it waiting for a coupler that will not answer.
+        grace = 10 if code in (0, 1) else 1
         for process in started:
-            if not _wait(process, 10):
+            if not _wait(process, grace):
                 _stop(process)
             process.sweep()
     sys.stdout.write(report.decode("utf-8", "replace") if isinstance(report, bytes) else (report or ""))
@@ -195,17 +201,14 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     return code
 
 
-def _taken_roles(names: list[str], role: str) -> list[str]:
-    """The solver roles of `--take NAME...` (ROLE = coupler: played from the recording, the others live)."""
-    if role != "coupler":
-        raise SaboError(f"--take with the {role}: feeding recorded fields into a live solver is not built; with ROLE = "
-                        "coupler, --take names the solvers played from the recording while the others run "
-                        "live", EXIT_BAD_INPUT)
+def _taken_roles(names: list[str]) -> list[str]:
+    """The solver roles of `--take NAME...` with ROLE = coupler: played from the recording, the others live."""
     taken = []
     for name in names:
         solver = ROLES.get(name, name)
         if solver not in ("sph_solver", "dem_solver", "fem_solver"):
-            raise SaboError(f"--take {name}: expected solvers to play from the recording (sph, dem, fem)",
+            raise SaboError(f"--take {name}: with ROLE = coupler, --take names the solvers to play from the "
+                            "recording (sph, dem, fem); with a solver's role, the fields of its state to feed it",
                             EXIT_BAD_INPUT)
         taken.append(solver)
     return taken

@@ -3,8 +3,10 @@
 // with the process to check; it can also be run by hand:
 //   sabo_replay scene  --traffic FILE                   the recorded scene's text on stdout
 //   sabo_replay solver --traffic FILE --role ROLE --endpoint E [--tolerance FIELD=RTOL[:ATOL]]... [--json FILE]
+//                      [--take FIELD...]
 //       plays the coupler for one solver: the solver registers at E, gets the recorded StepForces of every
-//       step in order, and each StepState it sends is compared with the recorded one
+//       step in order, and each StepState it sends is compared with the recorded one; --take also sends the
+//       recorded values of those state fields (StepForces.taken), which the solver puts in place of its own
 //   sabo_replay coupler --traffic FILE --endpoint E [--tolerance ...] [--json FILE]
 //       plays every solver for a coupler bound at E: the recorded registrations and StepStates go in, each
 //       StepForces that comes back is compared with the recorded one
@@ -134,9 +136,67 @@ std::vector<std::uint64_t> up_to(std::vector<std::uint64_t> steps, std::optional
   return steps;
 }
 
+// The state fields `--take` can feed to a solver of `role`: what it moves (the rest of a StepState is computed
+// from those: energies, stable_dt, boundary forces).
+std::vector<std::string> takeable_fields(Role role) {
+  switch (role) {
+    case Role::dem: return {"position", "velocity", "angular_velocity"};
+    case Role::fem: return {"node_position", "node_velocity"};
+    default: return {"position", "velocity"};
+  }
+}
+
+void check_taken_fields(const io::TrafficReader& traffic, Role role, const std::set<std::string>& taken) {
+  const auto takeable = takeable_fields(role);
+  for (const auto& field : taken) {
+    if (std::find(takeable.begin(), takeable.end(), field) == takeable.end()) {
+      throw Error(
+          fmt::format("--take {}: the {} takes {} (the fields of its state that it moves; the others are "
+                      "computed from them)",
+                      field, role_name(role), fmt::join(takeable, ", ")));
+    }
+  }
+  require_fields(traffic, {taken.begin(), taken.end()}, "--take feeds to the solver");
+}
+
+// The surface node ids of the recorded topology in force at `step`: the registration's, or the last one a
+// state up to `step` carried.
+std::vector<std::uint64_t> recorded_node_ids(const io::TrafficReader& traffic, const std::string& role,
+                                             const sabo::v1::Register& registration, std::uint64_t step) {
+  std::vector<std::uint64_t> ids(registration.surface().node_id().begin(), registration.surface().node_id().end());
+  for (std::uint64_t s = 0; s <= step; ++s) {
+    const sabo::v1::StepState state = traffic.state(role, s);
+    if (state.has_topology()) ids.assign(state.topology().node_id().begin(), state.topology().node_id().end());
+  }
+  return ids;
+}
+
+// StepForces.taken for the exchange that leads to the recorded state `next`: its fields named in `taken`.
+sabo::v1::StepState taken_state(const sabo::v1::StepState& next, const std::set<std::string>& taken,
+                                const std::vector<std::uint64_t>& node_ids) {
+  sabo::v1::StepState out;
+  out.set_step(next.step());
+  out.set_time(next.time());
+  const auto has = [&](const char* field) { return taken.count(field) != 0; };
+  if (has("position") || has("velocity") || has("angular_velocity")) {
+    *out.mutable_index() = next.index();
+    if (has("position")) *out.mutable_position() = next.position();
+    if (has("velocity")) *out.mutable_velocity() = next.velocity();
+    if (has("angular_velocity")) *out.mutable_angular_velocity() = next.angular_velocity();
+  }
+  const bool nodes_sent = next.node_position_size() > 0;  // empty: unchanged (rigid parts only)
+  if (nodes_sent && (has("node_position") || has("node_velocity"))) {
+    out.mutable_topology()->mutable_node_id()->Assign(node_ids.begin(), node_ids.end());
+    if (has("node_position")) *out.mutable_node_position() = next.node_position();
+    if (has("node_velocity")) *out.mutable_node_velocity() = next.node_velocity();
+  }
+  return out;
+}
+
 int replay_solver(const io::TrafficReader& traffic, const std::string& role, const std::string& endpoint,
                   protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s,
-                  std::optional<std::uint64_t> resume_step, std::optional<std::uint64_t> until) {
+                  std::optional<std::uint64_t> resume_step, std::optional<std::uint64_t> until,
+                  const std::set<std::string>& taken) {
   auto steps = up_to(contiguous_steps(traffic, role), until);
   if (resume_step) {
     // A solver restarted from its checkpoint of step n: the recording from step n on, as a coupler's catch-up.
@@ -154,6 +214,14 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
                  "drive the solver");
   const sabo::v1::Register recorded_registration = traffic.registration(role);
   comparison.skip(unrecorded_state_fields(traffic, recorded_registration));
+  std::vector<std::uint64_t> node_ids;
+  if (!taken.empty()) {
+    check_taken_fields(traffic, solver_role.value_or(Role::sph), taken);
+    comparison.set_taken(taken);
+    if (taken.count("node_position") || taken.count("node_velocity")) {
+      node_ids = recorded_node_ids(traffic, role, recorded_registration, steps.front());
+    }
+  }
   zmq::context_t context(1);
   protocol::Socket socket(context, zmq::socket_type::router);
   socket.bind(endpoint);
@@ -202,14 +270,30 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
     reply.set_accepted(true);
     reply.set_protocol_version(protocol::kProtocolVersion);
     reply.set_interest_all(true);
+    if (!taken.empty() && !registration.takes_state()) {
+      throw Error(
+          fmt::format("--take: the {} cannot take recorded fields (its registration says takes_state = "
+                      "false; docs/protocol.md, \"Replay\", says what a solver implements for it)",
+                      role));
+    }
     socket.send(reply, peer);
-    for (const std::uint64_t step : steps) {
+    sabo::v1::StepState recorded = traffic.state(role, steps.front());
+    for (std::size_t k = 0; k < steps.size(); ++k) {
+      const std::uint64_t step = steps[k];
       wait(sabo::v1::MESSAGE_TYPE_STEP_STATE, fmt::format("the state of step {}", step));
       sabo::v1::StepState state;
       inbound.parse(state);
-      comparison.compare_states(recorded_registration, traffic.state(role, step), state);
+      comparison.compare_states(recorded_registration, recorded, state);
       sabo::v1::StepForces forces = traffic.forces(role, step);
       if (step == steps.back()) forces.set_stop(true);  // a recording (or a window) that ends before the run did
+      if (k + 1 < steps.size()) {
+        sabo::v1::StepState next = traffic.state(role, steps[k + 1]);
+        if (!taken.empty()) {
+          if (next.has_topology()) node_ids.assign(next.topology().node_id().begin(), next.topology().node_id().end());
+          *forces.mutable_taken() = taken_state(next, taken, node_ids);
+        }
+        recorded = std::move(next);
+      }
       socket.send(forces, peer);
     }
     wait(sabo::v1::MESSAGE_TYPE_GOODBYE, "its Goodbye");
@@ -328,6 +412,10 @@ int main(int argc, char** argv) {
     sub->add_option("--until", until, "the last step to replay (the end of a --steps window)");
   }
   solver->add_option("--role", role, "sph_solver, dem_solver or fem_solver")->required();
+  std::vector<std::string> taken;
+  solver->add_option("--take", taken,
+                     "state fields fed to the solver from the recording at every step in place of its own "
+                     "(position, velocity, angular_velocity; node_position, node_velocity)");
   std::vector<std::string> played;
   coupler->add_option("--play", played,
                       "the roles to play from the recording (default: every one; the others run live)");
@@ -361,7 +449,8 @@ int main(int argc, char** argv) {
       }
     }
     if (solver->parsed()) {
-      return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step, until);
+      return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step, until,
+                           {taken.begin(), taken.end()});
     }
     return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s, until, played);
   } catch (const StopRequested& stop) {

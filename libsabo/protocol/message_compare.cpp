@@ -282,6 +282,10 @@ std::string MessageComparison::report() const {
                        s.max_absolute, s.max_relative);
   }
   if (!skipped_.empty()) out += fmt::format("not compared (not recorded): {}\n", fmt::join(skipped_, ", "));
+  if (!taken_.empty()) {
+    out += fmt::format("taken from the recording at every step (the solver's own values replaced): {}\n",
+                       fmt::join(taken_, ", "));
+  }
   return out;
 }
 
@@ -312,11 +316,10 @@ nlohmann::json MessageComparison::json() const {
              {"atol", d.tolerance.atol},
              {"note", d.note}};
   }
-  return {{"matches", matches()},
-          {"steps", steps_},
-          {"first_divergence", first},
-          {"fields", fields},
-          {"not_compared", skipped_}};
+  return {
+      {"matches", matches()}, {"steps", steps_},          {"first_divergence", first},
+      {"fields", fields},     {"not_compared", skipped_}, {"taken", taken_},
+  };
 }
 
 }  // namespace sabo::protocol

@@ -55,6 +55,9 @@ class MessageComparison {
 
   // Fields left out of the comparison (a recording that did not keep them); the report lists them.
   void skip(std::set<std::string> fields) { skipped_ = std::move(fields); }
+  // Fields fed to the solver from the recording (replay --take): still compared, they match from step 1 on
+  // by construction; the report names them.
+  void set_taken(std::set<std::string> fields) { taken_ = std::move(fields); }
 
   // `registration`: of the solver the messages are about (it names the particles; surface nodes come from
   // its surface, or from the last topology seen).
@@ -92,7 +95,7 @@ class MessageComparison {
   [[nodiscard]] bool skipped(const std::string& field) const { return skipped_.count(field) != 0; }
 
   std::map<std::string, Tolerance> tolerances_;
-  std::set<std::string> skipped_;
+  std::set<std::string> skipped_, taken_;
   std::optional<Divergence> first_;
   std::map<std::string, FieldSummary> fields_;
   std::uint64_t steps_ = 0, last_step_ = 0;

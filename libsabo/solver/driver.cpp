@@ -105,6 +105,29 @@ void add_particle_states(const Interest& interest, const ParticleStates& particl
   }
 }
 
+void take_particle_states(const sabo::v1::StepState& recorded, std::span<Vec3> position, std::span<Vec3> velocity,
+                          std::span<Vec3> angular_velocity) {
+  const auto count = static_cast<std::size_t>(recorded.index_size());
+  const auto take = [&](const google::protobuf::RepeatedField<double>& values, std::span<Vec3> into,
+                        const char* field) {
+    if (values.empty()) return;
+    if (into.empty() || static_cast<std::size_t>(values.size()) != 3 * count) {
+      throw ProtocolError(fmt::format("StepForces.taken: {} {} values for {} particles{}", values.size(), field, count,
+                                      into.empty() ? " (this solver has no such field)" : ", expected 3 each"));
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::uint32_t i = recorded.index(static_cast<int>(k));
+      if (i >= into.size()) {
+        throw ProtocolError(fmt::format("StepForces.taken: particle index {} of {} particles", i, into.size()));
+      }
+      for (int c = 0; c < 3; ++c) into[i][c] = values[static_cast<int>(3 * k) + c];
+    }
+  };
+  take(recorded.position(), position, "position");
+  take(recorded.velocity(), velocity, "velocity");
+  take(recorded.angular_velocity(), angular_velocity, "angular_velocity");
+}
+
 std::optional<SolverOptions> parse_solver_command_line(int argc, char** argv, const std::string& program) {
   SolverOptions options;
   CLI::App app{fmt::format("{}: a Sabo solver process. Normally started by './sabo run SCENE'.", program), program};
@@ -147,6 +170,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   solver.describe(registration);
   registration.set_checkpoints(solver.can_checkpoint());
   registration.set_max_substeps(solver.max_substeps());
+  registration.set_takes_state(solver.can_take_state());
 
   const std::string role_text = role_name(role);
   const io::CheckpointStore checkpoints(options.out_dir / "checkpoints", role_text, io::file_digest(options.scene),
@@ -244,6 +268,15 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         }
       }
       substeps_taken += substeps;
+      if (forces.has_taken()) {
+        if (!registration.takes_state()) {
+          throw ProtocolError(
+              fmt::format("StepForces of step {} holds recorded state to take; this solver cannot "
+                          "take it (it registered takes_state = false)",
+                          step));
+        }
+        solver.take_state(forces.taken());
+      }
       if (forces.checkpoint() && solver.can_checkpoint()) {
         const auto checkpoint_start = Clock::now();
         checkpoints.write(step + 1, time, [&](io::hdf5::File& file) {

@@ -46,6 +46,8 @@ class Interest {
 //   5. integrate(dt_{n-1}, dt_n): v_{n+1/2}, x_{n+1} (skipped on the last step), then
 //      check_stability(): the state it reached, judged against the scene's limits (stability.hpp); a
 //      finding stops the solver with InstabilityError after write_instability() wrote the culprits.
+//   5b. take_state() when StepForces carries `taken` (replay with --take only, never in a run): the
+//      recorded values of the named fields replace the solver's own, as the state of step n + 1;
 //   6. save_checkpoint() when StepForces.checkpoint is set (after integrate:
 //      the state a restart resumes from at step n + 1, docs/restart.md). The
 //      driver writes step, time, dt_n and the interest regions beside it.
@@ -80,6 +82,11 @@ class CoupledSolver {
   [[nodiscard]] virtual bool can_checkpoint() const { return false; }
   virtual void save_checkpoint(io::hdf5::Group& /*group*/) const {}
   virtual void load_checkpoint(const io::hdf5::Group& /*group*/) {}
+  // Replay (`./sabo replay --take FIELD`): a solver that can put recorded values in place of its own state
+  // says so; take_state overwrites the fields `recorded` holds (StepForces.taken of sabo.proto says which
+  // entities they are), ProtocolError for values that do not fit its entities.
+  [[nodiscard]] virtual bool can_take_state() const { return false; }
+  virtual void take_state(const sabo::v1::StepState& /*recorded*/) {}
   // The solver's own results at the end of a run, a JSON object for summary.json's results.ROLE (Goodbye
   // results_json); empty: none.
   [[nodiscard]] virtual std::string results() const { return {}; }
@@ -104,6 +111,11 @@ struct ParticleStates {
 // Appends index, position, velocity (and angular velocity) of the active
 // particles inside `interest` to `state`.
 void add_particle_states(const Interest& interest, const ParticleStates& particles, sabo::v1::StepState& state);
+// take_state of a particle solver: writes the fields `recorded` holds (position, velocity, angular_velocity:
+// each empty or 3 per index) into the spans, by index; ProtocolError when an index or an array does not fit
+// (a field the solver has no span for, empty here, is one that does not fit).
+void take_particle_states(const sabo::v1::StepState& recorded, std::span<Vec3> position, std::span<Vec3> velocity,
+                          std::span<Vec3> angular_velocity = {});
 
 struct SolverOptions {
   std::filesystem::path scene;

@@ -85,9 +85,87 @@ class ReplayTest(RealRunTestCase):
         print(out.splitlines()[0] if out else err)
         self.assertEqual(code, 1, out + err)
         self.assertIn("first divergence", out)
-        code, out, err = self.replay(run, "dem", ["--take", "position"])
+        code, out, err = self.replay(run, "coupler", ["--take", "position"])
         self.assertEqual(code, 2)
-        self.assertIn("--take with the dem_solver: feeding recorded fields into a live solver is not built", err)
+        self.assertIn("--take position: with ROLE = coupler, --take names the solvers to play", err)
+        self.assertNoProcessLeft(run, pids_file=False)
+
+    def test_a_solver_fed_recorded_fields_shows_which_field_drifts(self):
+        """--take FIELD with a solver's role: the recorded values of those fields replace the solver's own at every
+        step, so what still diverges is what the change does beyond them."""
+        run = self.recorded_run()
+        code, out, err = self.replay(run, "dem", ["--take", "position", "velocity", "angular_velocity"])
+        print("replay dem --take position velocity angular_velocity: exit {}; {}".format(code, out.splitlines()[0]))
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("every field matches over 85 steps", out)
+        self.assertIn("taken from the recording at every step (the solver's own values replaced): angular_velocity, "
+                      "position, velocity", out)
+        # A heavier stone: its velocity diverges from step 2 (test_a_changed_parameter_...). With its positions
+        # fed from the recording they match at every step while its own velocities still drift; with the whole
+        # motion fed, only the energies (which the mass enters) diverge.
+        heavier = ["--set", "materials.granite.density=2700.0"]
+        code, out, err = self.replay(run, "dem", heavier + ["--take", "position"])
+        self.assertEqual(code, 1, out + err)
+        with open(self.report_of(run, "dem"), encoding="utf-8") as handle:
+            report = json.load(handle)
+        print("--take position: position diverges from {}, velocity from {} (expected: never, 2)".format(
+            report["fields"]["position"]["first_step"], report["fields"]["velocity"]["first_step"]))
+        self.assertEqual(report["taken"], ["position"])
+        self.assertIsNone(report["fields"]["position"]["first_step"])
+        self.assertGreater(report["fields"]["position"]["compared"], 0)
+        self.assertEqual(report["fields"]["velocity"]["first_step"], 2)
+        code, out, err = self.replay(run, "dem", heavier + ["--take", "position", "velocity", "angular_velocity"])
+        self.assertEqual(code, 1, out + err)
+        with open(self.report_of(run, "dem"), encoding="utf-8") as handle:
+            report = json.load(handle)
+        diverged = sorted(field for field, summary in report["fields"].items() if summary["first_step"] is not None)
+        print("--take the whole motion: diverged {} (expected ['energies'])".format(diverged))
+        self.assertEqual(diverged, ["energies"])
+        # The sph_solver takes its particles' motion; fields a solver does not move are refused with the list.
+        code, out, err = self.replay(run, "sph", ["--take", "position", "velocity"])
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("every field matches over 85 steps", out)
+        for role, field, takes in (("dem", "energies", "position, velocity, angular_velocity"),
+                                   ("fem", "position", "node_position, node_velocity"),
+                                   ("sph", "angular_velocity", "position, velocity")):
+            code, out, err = self.replay(run, role, ["--take", field])
+            self.assertEqual(code, 2, out + err)
+            self.assertIn("--take {}: the {}_solver takes {}".format(field, role, takes), err)
+        self.assertNoProcessLeft(run, pids_file=False)
+
+    def test_a_structure_fed_its_recorded_surface_motion(self):
+        """The fem_solver takes its surface nodes' motion: a stiffer block fed the recorded one diverges in its
+        stable step and energies only."""
+        with open(self.scene_path("configs/tests/sphere_on_block.toml"), encoding="utf-8") as handle:
+            text = handle.read()
+        recorded_fields = 'fields = ["position", "velocity", "force", "node_position", "node_force", "energies"]'
+        self.assertIn(recorded_fields, text)
+        scene = os.path.join(self.tmp, "block.toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text.replace(recorded_fields, ""))
+        run = os.path.join(self.tmp, "block")
+        sabo = self.run_sabo(scene, run)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        code, out, err = self.replay(run, "fem", ["--take", "node_position", "node_velocity"])
+        self.assertEqual(code, 0, out + err)
+        stiffer = ["--set", "materials.soft_concrete.youngs_modulus=2e9"]
+        code, out, err = self.replay(run, "fem", stiffer)
+        self.assertEqual(code, 1, out + err)
+        with open(self.report_of(run, "fem"), encoding="utf-8") as handle:
+            alone = json.load(handle)
+        code, out, err = self.replay(run, "fem", stiffer + ["--take", "node_position", "node_velocity"])
+        self.assertEqual(code, 1, out + err)
+        with open(self.report_of(run, "fem"), encoding="utf-8") as handle:
+            fed = json.load(handle)
+        print("stiffer block: node_position diverges from step {} on its own, from {} when fed (expected: "
+              "never); stable_dt from {}".format(alone["fields"]["node_position"]["first_step"],
+                                                 fed["fields"]["node_position"]["first_step"],
+                                                 fed["fields"]["stable_dt"]["first_step"]))
+        self.assertIsNotNone(alone["fields"]["node_position"]["first_step"])
+        for field in ("node_position", "node_velocity"):
+            self.assertIsNone(fed["fields"][field]["first_step"])
+            self.assertGreater(fed["fields"][field]["compared"], 0)
+        self.assertEqual(fed["fields"]["stable_dt"]["first_step"], 0)
         self.assertNoProcessLeft(run, pids_file=False)
 
     def test_a_changed_parameter_is_reported_where_it_first_diverges(self):
