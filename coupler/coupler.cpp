@@ -714,7 +714,7 @@ int Coupler::run() {
     if (!options_.resume.empty()) open_resume();
     const bool resuming = resume_step_.has_value();
     current_step_ = resume_step_.value_or(0);
-    if (scene_.recording.enabled) {
+    if (scene_.recording.enabled && options_.record) {
       std::ifstream scene_file(scene_.file);
       const std::string scene_text((std::istreambuf_iterator<char>(scene_file)), std::istreambuf_iterator<char>());
       const auto traffic = options_.out_dir / "traffic.h5";

@@ -45,6 +45,9 @@ struct CouplerOptions {
   // The run's key set (libsabo/protocol/security.hpp): over tcp CURVE with these keys, over ipc the run's token.
   // Empty: no authentication (ipc only; over tcp the scene must say tcp_security = "none").
   std::filesystem::path keys;
+  // false: no traffic.h5 whatever the scene's [recording] says (./sabo replay of the coupler, which would only
+  // record what it compares, and may resume from a checkpoint that names the unchanged scene file).
+  bool record = true;
 };
 
 // Exit codes of the coupler process (the supervisor reads them).

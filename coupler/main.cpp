@@ -1,5 +1,6 @@
 // coupler: the central process of a Sabo run (docs/design.md).
 //   coupler --scene FILE --endpoint ENDPOINT --out DIR [--resume RUN_DIR/checkpoints/coupler_<step>.h5]
+//           [--no-recording]
 // stdout carries the JSON event stream for the supervisor; logs go to stderr.
 #include <fmt/format.h>
 #include <sys/resource.h>
@@ -45,6 +46,9 @@ int main(int argc, char** argv) {
                  "the run's key set (./sabo keys DIR writes one): over tcp only its roles' CURVE keys join, over ipc "
                  "only its token");
   app.add_option("--resume-reason", options.resume_reason, "why the run is resumed (for summary.json)");
+  bool no_recording = false;
+  app.add_flag("--no-recording", no_recording,
+               "write no traffic.h5 whatever the scene's [recording] says (./sabo replay of the coupler)");
   try {
     app.parse(argc, argv);
     setup_logging("coupler", log_level);
@@ -57,6 +61,7 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "coupler: {}\n", error.what());
     return coupler::kBadInput;
   }
+  options.record = !no_recording;
   install_stop_handlers();
   coupler::EventStream events;
   options.connections.window = std::chrono::milliseconds(static_cast<long>(1000 * connection_window));

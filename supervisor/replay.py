@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 import time
@@ -83,43 +84,35 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     if scene_text.returncode != 0:
         raise SaboError(scene_text.stderr.strip() or f"sabo_replay could not read {traffic}", EXIT_BAD_INPUT)
     recorded_scene = run_folder.run_scene(run_dir)
-    resume = os.path.abspath(args.resume) if args.resume else None
     window = _parse_steps(args.steps) if args.steps else None
     taken = _taken_roles(args.take) if args.take and role == "coupler" else None
-    if window is not None:
-        if resume:
-            raise SaboError("--steps and --resume: --steps picks the newest checkpoint at or before its first step "
-                            "itself; give one of them", EXIT_BAD_INPUT)
-        resume = _window_checkpoint(run_dir, role, window[0], bool(args.set))
-    if resume:
-        # A checkpoint belongs to the scene file it was written with (its digest): replay with that file.
-        if role == "coupler":
-            raise SaboError("--resume: the coupler is replayed from step 0 (a replay of it does not resume); "
-                            "give --resume with sph, dem or fem", EXIT_BAD_INPUT)
-        if args.set:
-            raise SaboError("--resume with --set: a checkpoint continues the scene it was written with, unchanged; "
-                            "replay from step 0 to try a changed scene", EXIT_BAD_INPUT)
-        if not os.path.isfile(resume):
-            raise SaboError(f"--resume {resume}: no such file (checkpoints are in RUN_DIR/checkpoints)",
-                            EXIT_BAD_INPUT)
-        if not recorded_scene or not os.path.isfile(recorded_scene):
-            raise SaboError(f'--resume: the run\'s scene file {recorded_scene or "(unknown: no summary.json)"} is gone; '
-                            "a checkpoint needs the scene it was written with", EXIT_BAD_INPUT)
-        scene = recorded_scene
-    else:
-        text = absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
-        text = apply_overrides(text, args.set or [])
-        if role == "coupler":
-            # The replayed coupler's own recording would only repeat what the replay compares, at the cost of
-            # writing it (as much as the live run's recording cost).
-            text = _without_recording(text)
-        scene = os.path.join(folder, "scene.toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(text)
+    if window is not None and args.resume:
+        raise SaboError("--steps and --resume: --steps picks the newest checkpoint at or before its first step "
+                        "itself; give one of them", EXIT_BAD_INPUT)
+    if args.resume and args.set:
+        raise SaboError("--resume with --set: a checkpoint continues the scene it was written with, unchanged; "
+                        "replay from step 0 to try a changed scene", EXIT_BAD_INPUT)
+    # The recorded scene (with --set overrides) says which processes run; a replay from checkpoints runs the
+    # run's own scene file, which the checkpoints name (their digest).
+    text = absolute_file_keys(scene_text.stdout, os.path.dirname(recorded_scene) if recorded_scene else run_dir)
+    scene = os.path.join(folder, "scene.toml")
+    with open(scene, "w", encoding="utf-8") as handle:
+        handle.write(apply_overrides(text, args.set or []))
     plan = check_scene(scene, bin_dir)
     spec = next((p for p in plan.processes if p.role == role), None)
     if spec is None:
         raise SaboError(f"the recorded scene has no {role}", EXIT_BAD_INPUT)
+    live_specs = [s for s in plan.solvers if s.role not in taken] if taken is not None else []
+    resumes = {}  # process role: the checkpoint it starts from
+    if window is not None:
+        resumes = _window_checkpoints(run_dir, role, [s.role for s in live_specs], window[0], bool(args.set))
+    elif args.resume:
+        resumes = _given_checkpoints(run_dir, role, [s.role for s in live_specs], os.path.abspath(args.resume))
+    if resumes:
+        if not recorded_scene or not os.path.isfile(recorded_scene):
+            raise SaboError(f'--resume: the run\'s scene file {recorded_scene or "(unknown: no summary.json)"} is gone; '
+                            "a checkpoint needs the scene it was written with", EXIT_BAD_INPUT)
+        scene = recorded_scene
     command = shlex.split(args.program) if args.program else list(spec.command)
 
     endpoint = "ipc://" + os.path.join(folder, "replay.sock")
@@ -141,22 +134,29 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     if window is not None and window[1] is not None:
         tool_command += ["--until", str(window[1])]
     live = []
+    out = os.path.join(folder, "out")
     if taken is not None:
         tool_command += ["--play"] + taken
-        live = [(spec, list(spec.command) + ["--scene", scene, "--coupler", endpoint, "--out",
-                                             os.path.join(folder, "out")])
-                for spec in plan.solvers if spec.role not in taken]
+        live = [(live_spec, list(live_spec.command) + ["--scene", scene, "--coupler", endpoint, "--out", out] +
+                 (["--resume", resumes[live_spec.role]] if resumes else [])) for live_spec in live_specs]
     if role != "coupler":
         tool_command += ["--role", role]
         if args.take:  # state fields fed to the solver from the recording (sabo_replay checks the names)
             tool_command += ["--take"] + args.take
-        process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", os.path.join(folder, "out")]
-        if resume:
-            tool_command += ["--resume", resume]
-            process_command += ["--resume", resume]
+        process_command = command + ["--scene", scene, "--coupler", endpoint, "--out", out]
     else:
-        process_command = command + ["--scene", scene, "--endpoint", endpoint, "--out", os.path.join(folder, "out")]
-    os.makedirs(os.path.join(folder, "out"), exist_ok=True)
+        # The replayed coupler's own recording would only repeat what the replay compares, at the cost of
+        # writing it (as much as the live run's recording cost).
+        process_command = command + ["--scene", scene, "--endpoint", endpoint, "--out", out, "--no-recording"]
+    os.makedirs(out, exist_ok=True)
+    if resumes:
+        tool_command += ["--resume", resumes[role]]
+        process_command += ["--resume", resumes[role]]
+        if role == "coupler":
+            # A resumed coupler continues the run's histories from its checkpoint: copies of them.
+            for name in ("forces.csv", "energy.csv", "sensors.csv"):
+                if os.path.isfile(os.path.join(run_dir, name)):
+                    shutil.copyfile(os.path.join(run_dir, name), os.path.join(out, name))
 
     print(f"sabo: replaying the {role} of {run_dir} ({folder})", file=sys.stderr)
     replay_log = os.path.join(folder, "replay.log")
@@ -214,13 +214,6 @@ def _taken_roles(names: list[str]) -> list[str]:
     return taken
 
 
-def _without_recording(text: str) -> str:
-    """The scene text with [recording] enabled = false (the table added when the scene has none)."""
-    if re.search(r"^\s*\[\s*recording\s*\]\s*(#.*)?$", text, flags=re.MULTILINE):
-        return apply_overrides(text, ["recording.enabled=false"])
-    return text.rstrip("\n") + "\n\n[recording]\nenabled = false\n"
-
-
 def _parse_steps(text: str) -> tuple[int, int | None]:
     """(first, last or None) of `--steps A:B` (A: and :B allowed); SaboError (exit 2) when malformed."""
     first, colon, last = text.partition(":")
@@ -234,23 +227,47 @@ def _parse_steps(text: str) -> tuple[int, int | None]:
     return window
 
 
-def _window_checkpoint(run_dir: str, role: str, first: int, changed_scene: bool) -> str | None:
-    """The checkpoint a window starting at step `first` replays from: `role`'s newest at or before it, or None
-    (from step 0), said on stderr."""
-    if role == "coupler":
-        print("sabo: --steps: the coupler is replayed from step 0 (a replay of it does not resume)", file=sys.stderr)
-        return None
-    found = run_folder.checkpoints(run_dir, role)
-    usable = [step for step in found if step <= first]
+def _window_checkpoints(run_dir: str, role: str, live: list[str], first: int, changed_scene: bool) -> dict[str, str]:
+    """{process role: checkpoint} a window starting at step `first` replays from: the newest step at or before it
+    that `role` (and the solvers that run `live` beside a replayed coupler) have a checkpoint of, said on stderr;
+    empty: from step 0."""
+    roles = [role] + live
+    found = {r: run_folder.checkpoints(run_dir, r) for r in roles}
+    usable = [step for step in set.intersection(*(set(paths) for paths in found.values())) if step <= first]
+    who = role + "".join(f" and the live {r}" for r in live)
     if not usable:
-        kept = ", ".join(str(step) for step in sorted(found)) or "none"
-        print(f"sabo: --steps: no checkpoint of the {role} at or before step {first} is kept (kept: {kept}): "
+        kept = ", ".join(str(step) for step in sorted(found[role])) or "none"
+        print(f"sabo: --steps: no checkpoint of the {who} at or before step {first} is kept (kept: {kept}): "
               "the replay starts at step 0", file=sys.stderr)
-        return None
+        return {}
     if changed_scene:
         print("sabo: --steps with --set: a checkpoint continues the scene it was written with: the replay starts "
               "at step 0", file=sys.stderr)
-        return None
+        return {}
     step = max(usable)
-    print(f"sabo: --steps: the {role} resumes from its checkpoint of step {step}", file=sys.stderr)
-    return found[step]
+    print(f"sabo: --steps: the {who} resume{'s' if not live else ''} from {'its' if not live else 'their'} "
+          f"checkpoint of step {step}", file=sys.stderr)
+    return {r: found[r][step] for r in roles}
+
+
+def _given_checkpoints(run_dir: str, role: str, live: list[str], checkpoint: str) -> dict[str, str]:
+    """{process role: checkpoint} of `--resume CHECKPOINT`: the file for `role`, and for the solvers that run live
+    beside a replayed coupler their checkpoints of its step."""
+    if not os.path.isfile(checkpoint):
+        raise SaboError(f"--resume {checkpoint}: no such file (checkpoints are in RUN_DIR/checkpoints)",
+                        EXIT_BAD_INPUT)
+    resumes = {role: checkpoint}
+    if live:
+        match = re.search(r"_([0-9]{10})\.h5$", checkpoint)
+        if not match:
+            raise SaboError(f"--resume {checkpoint}: not named <role>_<step>.h5, so the step the live solvers resume "
+                            "at is unknown: give a checkpoint of RUN_DIR/checkpoints", EXIT_BAD_INPUT)
+        step = int(match.group(1))
+        for solver in live:
+            path = run_folder.checkpoints(run_dir, solver).get(step)
+            if path is None:
+                raise SaboError(f"--resume {checkpoint}: the {solver}, which runs live, has no checkpoint of step "
+                                f"{step} in {os.path.join(run_dir, 'checkpoints')}: take it from the recording too, "
+                                "or resume from a step every live solver has", EXIT_BAD_INPUT)
+            resumes[solver] = path
+    return resumes

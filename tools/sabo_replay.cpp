@@ -7,9 +7,10 @@
 //       plays the coupler for one solver: the solver registers at E, gets the recorded StepForces of every
 //       step in order, and each StepState it sends is compared with the recorded one; --take also sends the
 //       recorded values of those state fields (StepForces.taken), which the solver puts in place of its own
-//   sabo_replay coupler --traffic FILE --endpoint E [--tolerance ...] [--json FILE]
+//   sabo_replay coupler --traffic FILE --endpoint E [--tolerance ...] [--json FILE] [--resume CHECKPOINT]
 //       plays every solver for a coupler bound at E: the recorded registrations and StepStates go in, each
-//       StepForces that comes back is compared with the recorded one
+//       StepForces that comes back is compared with the recorded one (from the checkpoint's step with --resume,
+//       the coupler started from that checkpoint)
 // Exit status: 0 everything matches, 1 a divergence (the first is printed, then a table per field), 2 bad
 // input (a recording that lacks what replay needs, a command line error), 3 the process failed or went silent.
 #include <fmt/format.h>
@@ -308,7 +309,8 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
 // Plays every solver for a coupler.
 int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint,
                    protocol::MessageComparison& comparison, const std::string& json_file, double timeout_s,
-                   std::optional<std::uint64_t> until, const std::vector<std::string>& played) {
+                   std::optional<std::uint64_t> resume_step, std::optional<std::uint64_t> until,
+                   const std::vector<std::string>& played) {
   // The solvers played from the recording: all, or those named (the others run live against the coupler).
   std::vector<std::string> roles = traffic.roles();
   if (!played.empty()) {
@@ -327,6 +329,14 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
     steps = steps.empty() ? s : (s.size() < steps.size() ? s : steps);
   }
   steps = up_to(std::move(steps), until);
+  if (resume_step) {
+    // A coupler resumed from its checkpoint of step n: the solvers register resumed there and send from step n.
+    if (*resume_step > steps.back()) {
+      throw FileError(fmt::format("the checkpoint is of step {}, the replay of the coupler ends at step {}",
+                                  *resume_step, steps.back()));
+    }
+    steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
+  }
   zmq::context_t context(1);
   struct Solver {
     std::string role;
@@ -336,6 +346,10 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
   std::vector<Solver> solvers;
   for (const auto& role : roles) {
     Solver s{role, traffic.registration(role), std::make_unique<protocol::Socket>(context, zmq::socket_type::dealer)};
+    if (resume_step) {
+      s.registration.set_resumed(true);
+      s.registration.set_resume_step(*resume_step);
+    }
     s.socket->connect(endpoint);
     solvers.push_back(std::move(s));
   }
@@ -422,6 +436,9 @@ int main(int argc, char** argv) {
   std::string resume_file;
   solver->add_option("--resume", resume_file,
                      "the checkpoint the solver was started from (--resume of the solver): replay from its step");
+  coupler->add_option("--resume", resume_file,
+                      "the checkpoint the coupler was started from (--resume of the coupler): the played solvers "
+                      "register resumed at its step and the replay runs from there");
   app.require_subcommand(1);
   try {
     app.parse(argc, argv);
@@ -452,7 +469,7 @@ int main(int argc, char** argv) {
       return replay_solver(traffic, role, endpoint, comparison, json_file, timeout_s, resume_step, until,
                            {taken.begin(), taken.end()});
     }
-    return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s, until, played);
+    return replay_coupler(traffic, endpoint, comparison, json_file, timeout_s, resume_step, until, played);
   } catch (const StopRequested& stop) {
     fmt::print(stderr, "sabo_replay: {}\n", stop.what());
     return 130;

@@ -55,7 +55,19 @@ class ReplayTest(RealRunTestCase):
             self.assertEqual(code, 0, out + err)
             self.assertIn("resumes from its checkpoint of step {}".format(kept[-1]), err)
             self.assertIn("every field matches over {} steps".format(last - kept[-1] + 1), out)
-        # Before every kept checkpoint: from step 0. The coupler's window always starts there.
+        # The coupler from its own checkpoint, the solvers played from the recording; with one solver played and
+        # the others live, those resume from their checkpoints of the same step.
+        code, out, err = self.replay(run, "coupler", ["--steps", "{}:{}".format(first, last)])
+        print("replay coupler --steps {}:{}: exit {}; {}".format(first, last, code, out.splitlines()[0]))
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("the coupler resumes from its checkpoint of step {}".format(kept[-1]), err)
+        self.assertIn("every field matches over {} steps".format(last - kept[-1] + 1), out)
+        code, out, err = self.replay(run, "coupler", ["--steps", "{}:".format(first), "--take", "dem"])
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("the coupler and the live sph_solver and the live fem_solver resume from their checkpoint of "
+                      "step {}".format(kept[-1]), err)
+        self.assertIn("every field matches over {} steps".format(85 - kept[-1]), out)
+        # Before every kept checkpoint: from step 0.
         code, out, err = self.replay(run, "dem", ["--steps", "3:7"])
         self.assertEqual(code, 0, out + err)
         self.assertIn("no checkpoint of the dem_solver at or before step 3 is kept", err)
