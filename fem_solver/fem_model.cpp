@@ -285,6 +285,21 @@ std::size_t DeformablePart::eroded_count() const {
   return with_body([](const auto& body) { return body.eroded_count(); });
 }
 
+const MaterialPoint& DeformablePart::reported_point(std::size_t element) const {
+  if (solid_) return solid_->element_state(element).point;
+  const auto& points = shell_->element_state(element).point;
+  return von_mises(points.front().stress) >= von_mises(points.back().stress) ? points.front() : points.back();
+}
+
+void DeformablePart::note_peak_stress(double time) {
+  const std::size_t elements = with_body([](const auto& body) { return body.element_count(); });
+  for (std::size_t e = 0; e < elements; ++e) {
+    if (with_body([e](const auto& body) { return body.eroded(e); })) continue;
+    const double stress = von_mises(reported_point(e).stress);
+    if (stress > peak_stress_.von_mises) peak_stress_ = {stress, time, e};
+  }
+}
+
 SolidEnergies DeformablePart::solid_energies() const {
   return with_body([](const auto& body) { return body.energies(); });
 }
@@ -421,16 +436,12 @@ void DeformablePart::write_volume(const std::filesystem::path& file, const io::v
   std::vector<double> stress(6 * elements), mises(elements), plastic(elements);
   std::vector<std::uint8_t> eroded(elements);
   for (std::size_t e = 0; e < elements; ++e) {
-    const MaterialPoint* point = nullptr;
+    const MaterialPoint* point = &reported_point(e);
     if (solid_) {
       for (auto n : solid_->mesh().element[e]) connectivity.push_back(n);
-      point = &solid_->element_state(e).point;
       eroded[e] = solid_->eroded(e) ? 1 : 0;
     } else {
       for (auto n : shell_->mesh().element[e]) connectivity.push_back(n);
-      // The outer fibre (largest von Mises stress of the two surfaces).
-      const auto& points = shell_->element_state(e).point;
-      point = von_mises(points.front().stress) >= von_mises(points.back().stress) ? &points.front() : &points.back();
       eroded[e] = shell_->eroded(e) ? 1 : 0;
     }
     offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
@@ -693,6 +704,9 @@ void FemModel::step(double dt) {
     parts_[p]->step(dt, force.subspan(info.node_begin, info.node_end - info.node_begin));
   }
   time_ += dt;
+  for (auto& part : parts_) {
+    if (auto* deformable = dynamic_cast<DeformablePart*>(part.get())) deformable->note_peak_stress(time_);
+  }
 }
 
 void FemModel::save_state(io::hdf5::Group& group) const {
@@ -707,6 +721,9 @@ void FemModel::save_state(io::hdf5::Group& group) const {
     io::write_array(part_group, "real", state.real);
     io::write_array(part_group, "active", state.active);
     io::write_array(part_group, "counters", state.counters);
+    const DeformablePart::StressPeak& peak = part->peak_stress();
+    io::write_array(part_group, "peak_stress",
+                    std::vector<double>{peak.von_mises, peak.time, static_cast<double>(peak.element)});
   }
   if (structure_contact_) {
     // The springs between structures and the contact's energy accounts.
@@ -736,6 +753,15 @@ void FemModel::load_state(const io::hdf5::Group& group) {
     state.active = io::read_array<std::uint8_t>(part_group, "active");
     state.counters = io::read_array<std::uint64_t>(part_group, "counters");
     part->restore_state(state, what);
+    if (!part_group.exists("peak_stress")) {
+      throw FileError(
+          fmt::format("{}: no peak_stress (a checkpoint of an older Sabo). Fix: run the scene again "
+                      "from the start",
+                      what));
+    }
+    const auto peak = io::read_array<double>(part_group, "peak_stress");
+    if (peak.size() != 3) throw FileError(fmt::format("{}: peak_stress holds {} values, not 3", what, peak.size()));
+    part->set_peak_stress({peak[0], peak[1], static_cast<std::uint64_t>(peak[2])});
   }
   time_ = group.double_attribute("time");
   rebuild_surface();

@@ -90,6 +90,19 @@ class DeformablePart final : public Part {
   [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
   [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
   [[nodiscard]] std::size_t eroded_count() const;
+  // The stress that reports an element: a solid's one point, a shell's outer fibre (the larger von Mises
+  // stress of its two surfaces).
+  [[nodiscard]] const MaterialPoint& reported_point(std::size_t element) const;
+  // The largest von Mises stress (Pa) of an active element so far, when and where: updated by
+  // note_peak_stress() after every step (summary.json results.fem_solver; a checkpoint keeps it).
+  struct StressPeak {
+    double von_mises = 0;  // Pa
+    double time = 0;       // s
+    std::uint64_t element = 0;
+  };
+  void note_peak_stress(double time);
+  [[nodiscard]] const StressPeak& peak_stress() const { return peak_stress_; }
+  void set_peak_stress(const StressPeak& peak) { peak_stress_ = peak; }
   // Checkpoint and restart: the body's evolving state with the part's last
   // step dt appended; restore_state also rebuilds the surface of the active elements.
   [[nodiscard]] BodyState save_state() const;
@@ -122,6 +135,7 @@ class DeformablePart final : public Part {
   bool surface_built_ = false;
   double dt_previous_ = 0;
   std::vector<Vec3> external_;
+  StressPeak peak_stress_;
 };
 
 // A structure fixed in space (the paper's MAT_RIGID channel, all DOFs fixed).

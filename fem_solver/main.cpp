@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 
 #include "fem_solver/fem_model.hpp"
 #include "libsabo/core/error.hpp"
@@ -102,6 +103,19 @@ class FemSolver final : public solver::CoupledSolver {
   void load_checkpoint(const io::hdf5::Group& group) override {
     model_.load_state(group.group("model"));
     model_.load_output_state(group.group("output"), out_dir_);
+  }
+  // Each deformable part's largest von Mises stress of the run: summary.json results.fem_solver.parts.
+  [[nodiscard]] std::string results() const override {
+    nlohmann::json parts = nlohmann::json::object();
+    for (std::size_t index = 0; index < model_.part_count(); ++index) {
+      const DeformablePart* part = model_.deformable(index);
+      if (part == nullptr) continue;
+      const DeformablePart::StressPeak& peak = part->peak_stress();
+      parts[model_.part(index).name] = {{"peak_von_mises", peak.von_mises},
+                                        {"peak_von_mises_time", peak.time},
+                                        {"peak_von_mises_element", peak.element}};
+    }
+    return parts.empty() ? std::string() : nlohmann::json{{"parts", parts}}.dump();
   }
   void finish() override {
     for (std::size_t index = 0; index < model_.part_count(); ++index) {
