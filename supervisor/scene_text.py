@@ -23,7 +23,7 @@ def absolute_file_keys(text: str, scene_folder: str) -> str:
 
 def apply_overrides(text: str, overrides: list[str]) -> str:
     """`text` with each KEY=VALUE of `overrides` set: KEY is TABLE.KEY (e.g. materials.granite.density or
-    run.end_time), VALUE a TOML value. The key's line in the table is replaced, or added under the table's
+    run.end_time; structures[1].element_size for a key of the second [[structures]] table), VALUE a TOML value. The key's line in the table is replaced, or added under the table's
     header; a table the scene does not write as a header ([solvers.dem] of a scene that leaves the dem_solver
     at its defaults) is added at the end (the scene check then says whether it may be there). SaboError (exit 2)
     for a malformed override."""
@@ -35,8 +35,18 @@ def apply_overrides(text: str, overrides: list[str]) -> str:
             raise SaboError(f"--set {override}: expected TABLE.KEY=VALUE, e.g. --set materials.granite.density=3100",
                             EXIT_BAD_INPUT)
         table, name = key.rsplit(".", 1)
-        header = re.compile(rf"^\s*\[\s*{re.escape(table)}\s*\]\s*(#.*)?$")
-        start = next((k for k, line in enumerate(lines) if header.match(line)), None)
+        element = re.fullmatch(r"([A-Za-z0-9_.]+)\[([0-9]+)\]", table)
+        if element:  # structures[2]: the third [[structures]] table, as the scene check names it
+            array, index = element.group(1), int(element.group(2))
+            header = re.compile(rf"^\s*\[\[\s*{re.escape(array)}\s*\]\]\s*(#.*)?$")
+            starts = [k for k, line in enumerate(lines) if header.match(line)]
+            if index >= len(starts):
+                raise SaboError(f"--set {override}: the scene has {len(starts)} [[{array}]] table(s), so "
+                                f"{array}[{index}] is none of them; count from 0", EXIT_BAD_INPUT)
+            start = starts[index]
+        else:
+            header = re.compile(rf"^\s*\[\s*{re.escape(table)}\s*\]\s*(#.*)?$")
+            start = next((k for k, line in enumerate(lines) if header.match(line)), None)
         if start is None:
             lines += ["", f"[{table}]"]
             start = len(lines) - 1

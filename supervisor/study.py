@@ -214,9 +214,10 @@ def load_study(path: str) -> Study:
         line = lambda key: source.line_of(key, "parameters", index)  # noqa: E731
         unknown(entry, PARAMETER_KEYS, where, "parameters", index)
         key = entry.get("key")
-        if not isinstance(key, str) or not re.fullmatch(r"[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)+", key):
+        if not isinstance(key, str) or not re.fullmatch(r"[A-Za-z0-9_]+(\[[0-9]+\])?(\.[A-Za-z0-9_]+)+", key):
             raise source.error(f"{where}.key", key, "must be a scene key TABLE.KEY",
-                               'write e.g. key = "sph.particle_spacing" or "solvers.dem.beta"', line("key"))
+                               'write e.g. key = "sph.particle_spacing", "solvers.dem.beta" or '
+                               '"structures[0].element_size"', line("key"))
         if any(p.key == key for p in parameters):
             raise source.error(f"{where}.key", key, "swept twice", "give each key one [[parameters]] table",
                                line("key"))

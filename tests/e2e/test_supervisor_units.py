@@ -174,3 +174,13 @@ class StudyUnitsTest(unittest.TestCase):
         self.assertIn("[sph]\nsound_speed = 40.0\ncfl = 0.25", out)
         self.assertTrue(out.rstrip().endswith("[solvers.dem]\nbeta = 0.5"))
 
+    def test_an_override_of_one_table_of_an_array_counts_from_zero(self):
+        text = ('[[structures]]\nname = "floor"\nelement_size = 1.0\n\n[[structures]]\nname = "dam"\n'
+                'element_size = 1.0\n[structures.extra]\n')
+        out = apply_overrides(text, ["structures[1].element_size=0.5", 'structures[0].material="steel"'])
+        self.assertIn('[[structures]]\nmaterial = "steel"\nname = "floor"\nelement_size = 1.0\n', out)
+        self.assertIn('name = "dam"\nelement_size = 0.5\n', out)
+        with self.assertRaises(SaboError) as raised:
+            apply_overrides(text, ["structures[2].element_size=0.5"])
+        self.assertIn("the scene has 2 [[structures]] table(s), so structures[2] is none of them", str(raised.exception))
+
