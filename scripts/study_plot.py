@@ -14,6 +14,7 @@ Needs Debian's python3-numpy and python3-matplotlib (Agg backend). Exit status: 
 import json
 import math
 import os
+import re
 import sys
 
 try:
@@ -121,7 +122,7 @@ def main():
             axes.grid(True, which="both", alpha=0.3)
             axes.legend(fontsize=8)
             figure.tight_layout()
-            name = "convergence_{}.png".format(key.replace(".", "_"))
+            name = "convergence_{}.png".format(re.sub(r"[^A-Za-z0-9]+", "_", key).strip("_"))
             figure.savefig(os.path.join(folder, name), dpi=120)
             written.append(name)
         plt.close(figure)
