@@ -324,21 +324,22 @@ class DemPile(Case):
 class WholeRun(Case):
     """`./sabo run SCENE` in a temporary run folder: wall time and the run's summary.json."""
 
-    def __init__(self, scene, goal_seconds):
+    def __init__(self, scene, goal_seconds, name="chute", timeout_s=900):
         super().__init__(
-            "chute",
-            "chute",
+            name,
+            name.split(".")[0],
             "./sabo run {}".format(scene),
             "wall_seconds",
             "s",
-            timeout_s=900,
+            timeout_s=timeout_s,
         )
         self.scene = scene
         if goal_seconds is not None:
             self.goal = {"max": goal_seconds, "text": "< {:g} s (the issue)".format(goal_seconds)}
 
     def binaries(self, bin_dir):
-        return [os.path.join(bin_dir, name) for name in ("sabo_scene", "coupler", "dem_solver", "fem_solver")]
+        return [os.path.join(bin_dir, name) for name in ("sabo_scene", "coupler", "dem_solver", "fem_solver",
+                                                         "sph_solver")]
 
     def command(self, bin_dir, out_dir="RUN_DIR"):
         return [os.path.join(ROOT, "sabo"), "run", self.scene, "--out", out_dir, "--no-setup", "--quiet"]
@@ -365,7 +366,11 @@ class WholeRun(Case):
                 "steps_per_second": summary["steps_per_second"],
                 "coupler_wall_seconds": summary["wall_seconds"],
                 "coupling_overhead_us_per_step": summary["coupling_overhead"]["microseconds_per_step"],
+                "coupling_share": summary["coupling_overhead"]["fraction_of_wall"],
                 "bytes_per_step": summary["bytes_exchanged"]["per_step"],
+                **{"{}_compute_seconds".format(role): process["compute_seconds"]
+                   for role, process in summary["processes"].items() if "compute_seconds" in process},
+                "coupler_contact_seconds": summary["processes"]["coupler"]["contact_seconds"],
             }
         finally:
             shutil.rmtree(parent, ignore_errors=True)
@@ -544,7 +549,16 @@ def all_cases(quick, cores):
                                 ("wendland_c2", 1.5, False)):
         cases.append(SphThroughput(kernel, ratio, spacing, sph_steps, 2, goal and not quick))
     cases.append(chute)
+    # The first three-solver scene (issue 16: the coupling's share of the wall time, goal at most 5 %) and the
+    # Wenjia scenes at the paper's resolution (issue 23: the treated layout's 160 s within an hour; hours here).
+    cases.append(WholeRun("configs/tests/debris_flow_dam_small.toml" if quick else "configs/debris_flow_dam.toml",
+                          None, "debris_flow_dam", timeout_s=1800))
+    if not quick:
+        cases.append(WholeRun("configs/wenjia_treated.toml", 3600.0, "wenjia.treated", timeout_s=6 * 3600))
+        cases.append(WholeRun("configs/wenjia_original.toml", None, "wenjia.original", timeout_s=6 * 3600))
     cases.append(ReplaySpeed(chute.scene, ("dem", "fem", "coupler")))
+    # A solver-bound scene (the sph_solver computes most of the step): where the coupler's replay can gain.
+    cases.append(ReplaySpeed("configs/tests/sph_boulders_tank.toml", ("sph", "dem", "fem", "coupler")))
     return cases
 
 
