@@ -17,25 +17,95 @@ import sys
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 WIDTH = 7.0                  # m, the paper's strip
-WALL_HEIGHT = 160.0          # m, the side walls above the bed: the source stands up to 148 m deep
+WALL_HEIGHT = 60.0           # m, the side walls above the bed: the source lies 40 m deep
 BED_FRICTION = 0.1           # the slurry on the bed (Coulomb): see the scenes' [[interactions]]
 CHANNEL_ELEMENT = 8.0        # m: the walls are flat and rigid; every profile point is a row of nodes
 
-# The bed, (horizontal distance, elevation) in m, before the structures' seats: the source reach under the
-# deposit at 1:10, the gully at 1:5 from the source's toe to the mouth (950 m), the fan at 6:100 to the
-# Mianyuan river.
-SOURCE_REACH_END = (520.0, 1128.0)
+# The source (Deposition Area II, "the 1300 m platform and downstream"): a layer LAYER_DEPTH m deep (vertically)
+# lying on the upper gully at UPPER_GRADIENT, its surface at PLATFORM at the back, ending in a face at 37
+# degrees (0.75); as long as it takes to hold the paper's 40 712 particles at its 2 m spacing (the same mass).
+# Released from rest, as in the paper. A column standing 148 m deep (the paper's "up to 150 m") collapsed
+# like a dam break with twice the paper's front speeds (docs/wenjia.md).
+PLATFORM = 1300.0
+LAYER_DEPTH = 40.0
+UPPER_GRADIENT = 0.125
+FACE_GRADIENT = 0.75
+PAPER_PARTICLES, PAPER_SPACING = 40712, 2.0
+FACE_RUN = LAYER_DEPTH / (FACE_GRADIENT - UPPER_GRADIENT)  # horizontal run of the face
+BED_START = (0.0, PLATFORM - LAYER_DEPTH)
+
+
+def inset(polygon, distance):
+    """The counterclockwise convex polygon with every edge moved `distance` inward (its corners where the moved
+    edges meet): the particles' lattice then keeps half a spacing off the bed, the back wall and the face."""
+    lines = []
+    for (x0, z0), (x1, z1) in zip(polygon, polygon[1:] + polygon[:1]):
+        length = math.hypot(x1 - x0, z1 - z0)
+        nx, nz = -(z1 - z0) / length, (x1 - x0) / length  # inward (left of the edge) for a counterclockwise polygon
+        lines.append(((x0 + distance * nx, z0 + distance * nz), (x1 - x0, z1 - z0)))
+    corners = []
+    for k in range(len(lines)):
+        (px, pz), (dx, dz) = lines[k - 1]
+        (qx, qz), (ex, ez) = lines[k]
+        t = ((qx - px) * ez - (qz - pz) * ex) / (dx * ez - dz * ex)
+        corners.append((px + t * dx, pz + t * dz))
+    return corners
+
+
+def layer_polygon(face_top):
+    """The deposit's outline (s, z) counterclockwise, its surface ending at s = face_top: along the bed, up the
+    face, back along the surface."""
+    toe = face_top + FACE_RUN
+    return [BED_START, (toe, BED_START[1] - UPPER_GRADIENT * toe), (face_top, PLATFORM - UPPER_GRADIENT * face_top),
+            (0.0, PLATFORM)]
+
+
+def particle_count(polygon, dx):
+    """The particles the sph_solver puts in the strip: cell centres of a dx lattice from the corner of the
+    outline inset by dx/2 (written to the scene), inside it, times the rows across WIDTH."""
+    outline = inset(polygon, dx / 2)
+    s_min, z_min = min(s for s, _ in outline), min(z for _, z in outline)
+    z_max = max(z for _, z in outline)
+    rows = int(math.floor(WIDTH / dx * (1 + 1e-6)))
+    count = 0
+    for k in range(int(math.floor((z_max - z_min) / dx * (1 + 1e-6)))):
+        z = z_min + (k + 0.5) * dx
+        crossings = sorted(s0 + (z - z0) * (s1 - s0) / (z1 - z0) for (s0, z0), (s1, z1) in
+                           zip(outline, outline[1:] + outline[:1]) if (z0 <= z) != (z1 <= z))
+        for left, right in zip(crossings[::2], crossings[1::2]):
+            first = math.ceil((left - s_min) / dx - 0.5)
+            last = math.floor((right - s_min) / dx - 0.5)
+            count += max(0, last - first + 1)
+    return count * rows
+
+
+def paper_face_top():
+    """The shortest surface (to 0.1 m) at which the layer holds the paper's particles at its spacing."""
+    low, high = 10.0, 5000.0
+    for _ in range(40):
+        middle = 0.5 * (low + high)
+        if particle_count(layer_polygon(middle), PAPER_SPACING) < PAPER_PARTICLES:
+            low = middle
+        else:
+            high = middle
+    # The lattice moves with the toe, so the count is not quite monotonic: from there up in steps of 0.1 m.
+    face_top = math.floor(low * 10) / 10
+    while particle_count(layer_polygon(face_top), PAPER_SPACING) < PAPER_PARTICLES:
+        face_top = round(face_top + 0.1, 1)
+    return face_top
+
+
+# The bed, (horizontal distance, elevation) in m, before the structures' seats: the upper gully under the
+# source at UPPER_GRADIENT to the source's toe, the gully at 1:5 from there to the mouth (950 m), the fan at
+# 6:100 to the Mianyuan river.
+FACE_TOP = paper_face_top()
+SOURCE_REACH_END = layer_polygon(FACE_TOP)[1]  # the source's toe
+# The boulders: the 200 m of the deposit behind its face (a debris flow carries its boulders in its front).
+BOULDERS_FROM, BOULDERS_TO = FACE_TOP - 220.0, FACE_TOP - 20.0
 GULLY_GRADIENT = 0.2
 MOUTH_ELEVATION = 950.0
 FAN_GRADIENT = 0.06
-PROFILE_END = 2200.0
-BED_START = (0.0, 1180.0)
-
-# The source (Deposition Area II below the 1300 m platform): its top flat at 1300 m up to PLATEAU_END,
-# then a face at 37 degrees (0.75) down to the bed. Released from rest, as in the paper.
-PLATFORM = 1300.0
-PLATEAU_END = 280.0
-FACE_GRADIENT = 0.75
+FAN_LENGTH = 790.0
 
 # Structures, by elevation of the bed as the paper places them.
 SILL_TOP, SILL_BOTTOM, SILL_SPACING, SILL_HEIGHT, SILL_THICKNESS = 1075.0, 985.0, 20.0, 2.0, 2.0
@@ -44,6 +114,9 @@ STEPS_TOP, STEPS_BOTTOM, STEP_COUNT, STEP_RISER = 1035.0, 980.0, 9, 1.0  # riser
 SLIT_DAM_ELEVATIONS, SLIT_DAM_HEIGHT, SLIT_DAM_THICKNESS = (979.0, 965.0, 951.0), 10.0, 3.0
 SLIT_WIDTH = 1.5             # m, one slit through each dam to the ground (assumed: the paper gives no number)
 HOUSES_AFTER_CHECK_DAM, HOUSE_SPACING, HOUSE_LENGTH, HOUSE_WIDTH = 300.0, 20.0, 4.0, 6.0
+# Dams and sills span the gully and are keyed into its banks: held on their base and on both sides (the strip's
+# side walls). The houses stand on the fan, held on their base only.
+KEYED_INTO_BANKS = ("z-", "y-", "y+")
 FLOOR_HEIGHT, FLOORS = 3.6, 3
 
 
@@ -53,6 +126,7 @@ def gully_s(elevation):
 
 
 MOUTH_S = gully_s(MOUTH_ELEVATION)
+PROFILE_END = MOUTH_S + FAN_LENGTH
 
 
 def bed(s):
@@ -97,16 +171,8 @@ def profile_elevation(points, s):
 
 
 def source_polygon():
-    """The deposit's outline (s, z) counterclockwise: along the bed, up the face, back over the plateau."""
-    low, high = PLATEAU_END, PROFILE_END  # the face meets the bed: bisection on face - bed
-    for _ in range(100):
-        middle = 0.5 * (low + high)
-        if PLATFORM - FACE_GRADIENT * (middle - PLATEAU_END) > bed(middle):
-            low = middle
-        else:
-            high = middle
-    toe = 0.5 * (low + high)
-    return [(0.0, bed(0.0)), (toe, bed(toe)), (PLATEAU_END, PLATFORM), (0.0, PLATFORM)]
+    """The deposit's outline (s, z) counterclockwise: along the bed, up the face, back along the surface."""
+    return layer_polygon(FACE_TOP)
 
 
 def polygon_area(points):
@@ -135,10 +201,10 @@ class Scene:
         return "\n".join(self.parts)
 
 
-def box_on_bed(name, points, s_upstream, length, height, material, extra, across=WIDTH):
+def box_on_bed(name, points, s_upstream, length, height, material, extra, across=WIDTH, fixed=("z-",)):
     """A deformable box from s_upstream, `length` along the flow, `across` wide about the centre line, standing
     on the bed at its downstream face (its upstream part sits in the bed, which is rigid and does not touch
-    it)."""
+    it), its faces `fixed` held."""
     base = profile_elevation(points, s_upstream + length)
     half = 0.5 * across
     return """
@@ -149,9 +215,10 @@ rigid = false
 shape = "box"
 min = {lo}
 max = {hi}
-fixed = ["z-"]
+fixed = [{fixed}]
 {extra}""".format(name=name, material=material, lo=vec((s_upstream, -half, base)),
-                   hi=vec((s_upstream + length, half, base + height)), extra=extra.strip("\n"))
+                   hi=vec((s_upstream + length, half, base + height)), extra=extra.strip("\n"),
+                   fixed=", ".join('"{}"'.format(face) for face in fixed))
 
 
 def channel_part(name, profile_file):
@@ -269,13 +336,13 @@ profile = [{polygon}]
 """.format(area=polygon_area(polygon), volume=polygon_area(polygon) * WIDTH, width=number(WIDTH),
            polygon=", ".join(vec(corner) for corner in inset(polygon, dx / 2))))
     s.add("""
-# The boulders (0.5 % of the flow): in the deposit's upper part, which they sink through.
+# The boulders (0.5 % of the flow): behind the deposit's face, in a box that fits inside the sloping layer.
 [[particles]]
 name = "boulders"
 material = "granite"
 fill = {{ min = {lo}, max = {hi}, count = {count}, diameter = [1.0, 2.0], seed = 2010 }}
-""".format(lo=vec((20.0, -0.5 * WIDTH + 1.1, PLATFORM - 40.0)), hi=vec((PLATEAU_END - 20.0, 0.5 * WIDTH - 1.1,
-                                                                      PLATFORM - 2.0)), count=boulders))
+""".format(lo=vec((BOULDERS_FROM, -0.5 * WIDTH + 1.1, bed(BOULDERS_FROM) + 1.5)),
+           hi=vec((BOULDERS_TO, 0.5 * WIDTH - 1.1, PLATFORM - UPPER_GRADIENT * BOULDERS_TO - 1.5)), count=boulders))
     profile_file = ("../" if reduced else "") + "wenjia/profile_{}.csv".format(layout)
     s.add("""
 # The channel: its bed with the wall behind the source, and its side walls as a part of their own, smooth
@@ -299,16 +366,16 @@ slit_count = 1
 slit_width = {w}
 slit_depth = {d}
 slit_axis = "x"
-element_size = 1.0""".format(w=number(SLIT_WIDTH), d=number(SLIT_DAM_HEIGHT))))
+element_size = 1.0""".format(w=number(SLIT_WIDTH), d=number(SLIT_DAM_HEIGHT)), fixed=KEYED_INTO_BANKS))
     else:
         s.add(box_on_bed("check_dam", points, check_dam_s - CHECK_DAM_THICKNESS, CHECK_DAM_THICKNESS,
-                         CHECK_DAM_HEIGHT, "masonry", "element_size = 1.0"))
+                         CHECK_DAM_HEIGHT, "masonry", "element_size = 1.0", fixed=KEYED_INTO_BANKS))
         sill = gully_s(SILL_TOP)
         k = 0
         while bed(sill) >= SILL_BOTTOM - 1e-9:
             k += 1
             s.add(box_on_bed("sill_{:02d}".format(k), points, sill, SILL_THICKNESS, SILL_HEIGHT, "masonry",
-                             "element_size = 1.0"))
+                             "element_size = 1.0", fixed=KEYED_INTO_BANKS))
             sill += SILL_SPACING
     for k, house_s in enumerate(houses_s):
         s.add(box_on_bed("house_{}".format(k + 1), points, house_s, HOUSE_LENGTH, FLOORS * FLOOR_HEIGHT, "brick", """
@@ -384,23 +451,6 @@ fields = ["energies"]
 every = 100
 """.format(mass=2000.0 * dx ** 3, bed_friction=number(BED_FRICTION)))
     return s.text()
-
-
-def inset(polygon, distance):
-    """The counterclockwise convex polygon with every edge moved `distance` inward (its corners where the moved
-    edges meet): the particles' lattice then keeps half a spacing off the bed, the back wall and the face."""
-    lines = []
-    for (x0, z0), (x1, z1) in zip(polygon, polygon[1:] + polygon[:1]):
-        length = math.hypot(x1 - x0, z1 - z0)
-        nx, nz = -(z1 - z0) / length, (x1 - x0) / length  # inward (left of the edge) for a counterclockwise polygon
-        lines.append(((x0 + distance * nx, z0 + distance * nz), (x1 - x0, z1 - z0)))
-    corners = []
-    for k in range(len(lines)):
-        (px, pz), (dx, dz) = lines[k - 1]
-        (qx, qz), (ex, ez) = lines[k]
-        t = ((qx - px) * ez - (qz - pz) * ex) / (dx * ez - dz * ex)
-        corners.append((px + t * dx, pz + t * dz))
-    return corners
 
 
 def profile_csv(layout):

@@ -16,7 +16,9 @@ step_pools_top and slit_dam_1 (summary.json), and its speed there is its advance
 side of that time (fronts.csv); a slit dam is full when the flow stands its height at the station 1 m upstream of it
 (front_stations.csv); peak forces are summary.json's peak_force (the largest instantaneous force, fluid and
 boulders apart); a dam is destroyed when at least half of its elements eroded, a house is buried when the
-final depth at its station reaches its height, spared when the flow never reached it.
+final depth at its station reaches its height, spared when the flow never reached it; a house's or the mouth's
+final depth is judged only in a run as long as the paper's (120 s original, 160 s treated): before, it is the
+flow still passing.
 Exit status: 0 written, 2 bad input (a folder that is not a run of these scenes: the message names what is
 missing)."""
 import argparse
@@ -37,6 +39,9 @@ TARGET = 0.30
 DEPOSIT_TARGET = 0.25
 FIELD_DEPOSIT = 15.0  # m, at the gully mouth
 DESTROYED_FRACTION = 0.5
+# s: how long the paper ran each layout, to rest; a final depth read before it is the flow passing, not a deposit
+PAPER_END_TIME = {"original": 120.0, "treated": 160.0}
+FINAL_STATE = ("houses", "deposit at the gully mouth")
 
 # (layout, quantity, paper's value or text, unit)
 PAPER = [
@@ -136,8 +141,8 @@ def verdict(measured, paper):
     return "yes" if abs(measured - paper) <= TARGET * abs(paper) else "no"
 
 
-def measure(quantity, run):
-    """(value, text) of one quantity in one run."""
+def measure(quantity, run, layout):
+    """(value, text) of one quantity in one run of `layout`."""
     if quantity == "check dam":
         fraction = run.eroded_fraction("check_dam")
         if fraction is None:
@@ -149,7 +154,8 @@ def measure(quantity, run):
         for house in run.houses():
             station = run.front["stations"][house]
             depth, reached = station["final_depth"], station["arrival_time"] is not None
-            state = "buried" if depth >= run.height(house) else ("spared" if not reached else "reached")
+            covered = "buried" if run.summary["simulated_time"] >= PAPER_END_TIME[layout] - 1e-9 else "under the flow"
+            state = covered if depth >= run.height(house) else ("spared" if not reached else "reached")
             states.append(state)
             texts.append("{} {} ({:.1f} m deep)".format(house, state, depth))
         common = states[0] if states and all(s == states[0] for s in states) else "mixed"
@@ -187,7 +193,7 @@ def table(runs):
         run = runs.get(layout)
         if run is None:
             continue
-        value, text = measure(quantity, run)
+        value, text = measure(quantity, run, layout)
         if quantity == "deposit at the gully mouth":
             # Against the field's 15 m within 25 %, as the issue asks.
             ok = "yes" if value is not None and abs(value - FIELD_DEPOSIT) <= DEPOSIT_TARGET * FIELD_DEPOSIT else "no"
@@ -195,6 +201,11 @@ def table(runs):
         else:
             ok = verdict(value, paper)
             paper_shown = paper_text(paper, unit)
+        simulated = run.summary["simulated_time"]
+        if quantity in FINAL_STATE and simulated < PAPER_END_TIME[layout] - 1e-9 and value is not None:
+            text += " at t = {:.0f} s, still flowing (the paper's {:.0f} s not run)".format(simulated,
+                                                                                       PAPER_END_TIME[layout])
+            ok = "not judged"
         lines.append("| {} | {} | {} | {} | {} |".format(layout, quantity, paper_shown, text, ok))
     for layout, run in sorted(runs.items()):
         summary = run.summary

@@ -115,8 +115,11 @@ class WenjiaReducedTest(RealRunTestCase):
             self.assertIn("| {} |".format(quantity), table)
         peak = runs["treated"][1]["peak_force"]["slit_dam_1"]["fluid"] / 1e6
         self.assertIn("| peak fluid force on slit dam 1 | 65.7 MN | {:.1f} MN |".format(peak), table)
-        # One second of flow reaches no structure: the houses are not yet spared (the run ended early is not
-        # the run completed: they would be), the check dam stands.
+        # One second of flow reaches no structure: the check dam stands, and the final depths at the houses and
+        # the mouth are not judged before the paper's 120 and 160 s.
         self.assertIn("| original | check dam | destroyed | standing (0% of its elements eroded) | no |", table)
+        for layout, end in (("original", 120), ("treated", 160)):
+            self.assertRegex(table, r"\| {} \| houses \| .* at t = 1 s, still flowing \(the paper's {} s not run\) "
+                                    r"\| not judged \|".format(layout, end))
         for figure in ("front.png", "forces.png", "deposit.png", "final_original.png", "final_treated.png"):
             self.assertTrue(os.path.getsize(os.path.join(out, figure)) > 10000, figure)
