@@ -274,7 +274,7 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
     if (!taken.empty() && !registration.takes_state()) {
       throw Error(
           fmt::format("--take: the {} cannot take recorded fields (its registration says takes_state = "
-                      "false; docs/protocol.md, \"Replay\", says what a solver implements for it)",
+                      "false; docs/adding-a-solver.md says what a solver implements for it)",
                       role));
     }
     socket.send(reply, peer);

@@ -87,6 +87,12 @@ class PythonSolverTest(RealRunTestCase):
         print("the C++ dem_solver's recording replayed against the Python solver: exit {}; {}".format(
             code, stdout.splitlines()[0] if stdout else stderr))
         self.assertEqual(code, 0, stdout + stderr)
+        # It registers takes_state = false: --take is refused with the reason and where to read the fix.
+        code, stdout, stderr = self.replay(reference, ["--command", " ".join(self.solver_command()), "--take",
+                                                       "position"])
+        self.assertEqual(code, 2, stdout + stderr)
+        self.assertIn("--take: the dem_solver cannot take recorded fields (its registration says takes_state = "
+                      "false; docs/adding-a-solver.md", stderr)
         self.assertNoProcessLeft(out, pids_file=False)
 
     def test_a_scene_it_cannot_run_is_refused_with_the_fix(self):
