@@ -285,19 +285,24 @@ std::size_t DeformablePart::eroded_count() const {
   return with_body([](const auto& body) { return body.eroded_count(); });
 }
 
-const MaterialPoint& DeformablePart::reported_point(std::size_t element) const {
-  if (solid_) return solid_->element_state(element).point;
+DeformablePart::ReportedStress DeformablePart::reported_stress(std::size_t element) const {
+  if (solid_) {
+    const MaterialPoint& point = solid_->element_state(element).point;
+    return {&point, von_mises(point.stress)};
+  }
   const auto& points = shell_->element_state(element).point;
-  return von_mises(points.front().stress) >= von_mises(points.back().stress) ? points.front() : points.back();
+  const double front = von_mises(points.front().stress), back = von_mises(points.back().stress);
+  return front >= back ? ReportedStress{&points.front(), front} : ReportedStress{&points.back(), back};
 }
 
 void DeformablePart::note_peak_stress(double time) {
-  const std::size_t elements = with_body([](const auto& body) { return body.element_count(); });
-  for (std::size_t e = 0; e < elements; ++e) {
-    if (with_body([e](const auto& body) { return body.eroded(e); })) continue;
-    const double stress = von_mises(reported_point(e).stress);
-    if (stress > peak_stress_.von_mises) peak_stress_ = {stress, time, e};
-  }
+  with_body([&](const auto& body) {
+    for (std::size_t e = 0; e < body.element_count(); ++e) {
+      if (body.eroded(e)) continue;
+      const double stress = reported_stress(e).von_mises;
+      if (stress > peak_stress_.von_mises) peak_stress_ = {stress, time, e};
+    }
+  });
 }
 
 SolidEnergies DeformablePart::solid_energies() const {
@@ -436,7 +441,7 @@ void DeformablePart::write_volume(const std::filesystem::path& file, const io::v
   std::vector<double> stress(6 * elements), mises(elements), plastic(elements);
   std::vector<std::uint8_t> eroded(elements);
   for (std::size_t e = 0; e < elements; ++e) {
-    const MaterialPoint* point = &reported_point(e);
+    const ReportedStress reported = reported_stress(e);
     if (solid_) {
       for (auto n : solid_->mesh().element[e]) connectivity.push_back(n);
       eroded[e] = solid_->eroded(e) ? 1 : 0;
@@ -445,11 +450,11 @@ void DeformablePart::write_volume(const std::filesystem::path& file, const io::v
       eroded[e] = shell_->eroded(e) ? 1 : 0;
     }
     offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
-    const Mat3& sigma = point->stress;
+    const Mat3& sigma = reported.point->stress;
     const double values[6] = {sigma(0, 0), sigma(1, 1), sigma(2, 2), sigma(0, 1), sigma(1, 2), sigma(0, 2)};
     for (std::size_t k = 0; k < 6; ++k) stress[6 * e + k] = values[k];
-    mises[e] = von_mises(sigma);
-    plastic[e] = point->plastic_strain;
+    mises[e] = reported.von_mises;
+    plastic[e] = reported.point->plastic_strain;
   }
   std::vector<Vec3> displacement(positions.size());
   for (std::size_t i = 0; i < positions.size(); ++i) displacement[i] = positions[i] - reference[i];

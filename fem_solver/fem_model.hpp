@@ -90,9 +90,13 @@ class DeformablePart final : public Part {
   [[nodiscard]] const SolidBody* solid() const { return solid_.get(); }
   [[nodiscard]] const ShellBody* shell() const { return shell_.get(); }
   [[nodiscard]] std::size_t eroded_count() const;
-  // The stress that reports an element: a solid's one point, a shell's outer fibre (the larger von Mises
-  // stress of its two surfaces).
-  [[nodiscard]] const MaterialPoint& reported_point(std::size_t element) const;
+  // The stress that reports an element, with its von Mises stress (Pa): a solid's one point, a shell's outer
+  // fibre (the larger von Mises stress of its two surfaces).
+  struct ReportedStress {
+    const MaterialPoint* point;
+    double von_mises;
+  };
+  [[nodiscard]] ReportedStress reported_stress(std::size_t element) const;
   // The largest von Mises stress (Pa) of an active element so far, when and where: updated by
   // note_peak_stress() after every step (summary.json results.fem_solver; a checkpoint keeps it).
   struct StressPeak {

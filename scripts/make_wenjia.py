@@ -60,15 +60,19 @@ def layer_polygon(face_top):
             (0.0, PLATFORM)]
 
 
+def lattice_count(extent, dx):
+    """Layers of spacing dx in `extent`, as the sph_solver counts them (to a relative 1e-6)."""
+    return int(math.floor(extent / dx * (1 + 1e-6)))
+
+
 def particle_count(polygon, dx):
     """The particles the sph_solver puts in the strip: cell centres of a dx lattice from the corner of the
     outline inset by dx/2 (written to the scene), inside it, times the rows across WIDTH."""
     outline = inset(polygon, dx / 2)
     s_min, z_min = min(s for s, _ in outline), min(z for _, z in outline)
     z_max = max(z for _, z in outline)
-    rows = int(math.floor(WIDTH / dx * (1 + 1e-6)))
     count = 0
-    for k in range(int(math.floor((z_max - z_min) / dx * (1 + 1e-6)))):
+    for k in range(lattice_count(z_max - z_min, dx)):
         z = z_min + (k + 0.5) * dx
         crossings = sorted(s0 + (z - z0) * (s1 - s0) / (z1 - z0) for (s0, z0), (s1, z1) in
                            zip(outline, outline[1:] + outline[:1]) if (z0 <= z) != (z1 <= z))
@@ -76,7 +80,7 @@ def particle_count(polygon, dx):
             first = math.ceil((left - s_min) / dx - 0.5)
             last = math.floor((right - s_min) / dx - 0.5)
             count += max(0, last - first + 1)
-    return count * rows
+    return count * lattice_count(WIDTH, dx)
 
 
 def paper_face_top():

@@ -123,6 +123,10 @@ class Run:
         eroded = arrays.get("eroded")
         return None if eroded is None or len(eroded) == 0 else float(np.mean(eroded > 0))
 
+    def as_long_as_the_paper(self, layout):
+        """Whether the run reached the time the paper ran `layout` to, when its flow had come to rest."""
+        return self.summary["simulated_time"] >= PAPER_END_TIME[layout] - 1e-9
+
     def houses(self):
         return sorted(name for name in self.structures if name.startswith("house_"))
 
@@ -154,7 +158,7 @@ def measure(quantity, run, layout):
         for house in run.houses():
             station = run.front["stations"][house]
             depth, reached = station["final_depth"], station["arrival_time"] is not None
-            covered = "buried" if run.summary["simulated_time"] >= PAPER_END_TIME[layout] - 1e-9 else "under the flow"
+            covered = "buried" if run.as_long_as_the_paper(layout) else "under the flow"
             state = covered if depth >= run.height(house) else ("spared" if not reached else "reached")
             states.append(state)
             texts.append("{} {} ({:.1f} m deep)".format(house, state, depth))
@@ -201,10 +205,9 @@ def table(runs):
         else:
             ok = verdict(value, paper)
             paper_shown = paper_text(paper, unit)
-        simulated = run.summary["simulated_time"]
-        if quantity in FINAL_STATE and simulated < PAPER_END_TIME[layout] - 1e-9 and value is not None:
-            text += " at t = {:.0f} s, still flowing (the paper's {:.0f} s not run)".format(simulated,
-                                                                                       PAPER_END_TIME[layout])
+        if quantity in FINAL_STATE and not run.as_long_as_the_paper(layout) and value is not None:
+            text += " at t = {:.0f} s, still flowing (the paper's {:.0f} s not run)".format(
+                run.summary["simulated_time"], PAPER_END_TIME[layout])
             ok = "not judged"
         lines.append("| {} | {} | {} | {} | {} |".format(layout, quantity, paper_shown, text, ok))
     for layout, run in sorted(runs.items()):

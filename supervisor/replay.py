@@ -15,7 +15,6 @@ Exit status: 0 every field matches, 1 a divergence (the first is printed, then a
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import shutil
 import subprocess
@@ -258,11 +257,10 @@ def _given_checkpoints(run_dir: str, role: str, live: list[str], checkpoint: str
                         EXIT_BAD_INPUT)
     resumes = {role: checkpoint}
     if live:
-        match = re.search(r"_([0-9]{10})\.h5$", checkpoint)
-        if not match:
+        step = run_folder.checkpoint_step(checkpoint)
+        if step is None:
             raise SaboError(f"--resume {checkpoint}: not named <role>_<step>.h5, so the step the live solvers resume "
                             "at is unknown: give a checkpoint of RUN_DIR/checkpoints", EXIT_BAD_INPUT)
-        step = int(match.group(1))
         for solver in live:
             path = run_folder.checkpoints(run_dir, solver).get(step)
             if path is None:

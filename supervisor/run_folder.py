@@ -236,15 +236,21 @@ def run_scene(run_dir: str) -> str | None:
     return None
 
 
+def checkpoint_step(path: str, role: str = r"[a-z_]+") -> int | None:
+    """The step of a checkpoint file named <role>_<step>.h5 (as the processes name them), or None."""
+    match = re.fullmatch(rf"{role}_([0-9]{{10}})\.h5", os.path.basename(path))
+    return int(match.group(1)) if match else None
+
+
 def checkpoints(run_dir: str, role: str) -> dict[int, str]:
     """{step: path} of the complete checkpoints of `role` ("coupler", "dem_solver", ...) in RUN_DIR/checkpoints."""
     folder = os.path.join(run_dir, "checkpoints")
-    pattern = re.compile(rf"{re.escape(role)}_([0-9]{{10}})\.h5$")
     try:
         names = os.listdir(folder)
     except OSError:
         return {}
-    return {int(m.group(1)): os.path.join(folder, name) for name in names for m in [pattern.match(name)] if m}
+    return {step: os.path.join(folder, name) for name in names
+            for step in [checkpoint_step(name, re.escape(role))] if step is not None}
 
 
 def common_checkpoint(run_dir: str, roles: list[str]) -> tuple[int, dict[str, str]] | None:

@@ -23,10 +23,10 @@ def absolute_file_keys(text: str, scene_folder: str) -> str:
 
 def apply_overrides(text: str, overrides: list[str]) -> str:
     """`text` with each KEY=VALUE of `overrides` set: KEY is TABLE.KEY (e.g. materials.granite.density or
-    run.end_time; structures[1].element_size for a key of the second [[structures]] table), VALUE a TOML value. The key's line in the table is replaced, or added under the table's
-    header; a table the scene does not write as a header ([solvers.dem] of a scene that leaves the dem_solver
-    at its defaults) is added at the end (the scene check then says whether it may be there). SaboError (exit 2)
-    for a malformed override."""
+    run.end_time; structures[1].element_size for a key of the second [[structures]] table), VALUE a TOML value.
+    The key's line in the table is replaced, or added under the table's header; a table the scene does not write
+    as a header ([solvers.dem] of a scene that leaves the dem_solver at its defaults) is added at the end (the
+    scene check then says whether it may be there). SaboError (exit 2) for a malformed override."""
     lines = text.splitlines()
     for override in overrides:
         key, equals, value = override.partition("=")

@@ -137,6 +137,19 @@ std::vector<std::uint64_t> up_to(std::vector<std::uint64_t> steps, std::optional
   return steps;
 }
 
+// The steps (every one from 0, contiguous_steps) from a checkpoint's step on, or all; FileError when the replay
+// of `who` ends before it.
+std::vector<std::uint64_t> from_step(std::vector<std::uint64_t> steps, std::optional<std::uint64_t> resume_step,
+                                     const std::string& who) {
+  if (!resume_step) return steps;
+  if (*resume_step > steps.back()) {
+    throw FileError(
+        fmt::format("the checkpoint is of step {}, the replay of {} ends at step {}", *resume_step, who, steps.back()));
+  }
+  steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
+  return steps;
+}
+
 // The state fields `--take` can feed to a solver of `role`: what it moves (the rest of a StepState is computed
 // from those: energies, stable_dt, boundary forces).
 std::vector<std::string> takeable_fields(Role role) {
@@ -199,14 +212,8 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
                   std::optional<std::uint64_t> resume_step, std::optional<std::uint64_t> until,
                   const std::set<std::string>& taken) {
   auto steps = up_to(contiguous_steps(traffic, role), until);
-  if (resume_step) {
-    // A solver restarted from its checkpoint of step n: the recording from step n on, as a coupler's catch-up.
-    if (*resume_step > steps.back()) {
-      throw FileError(fmt::format("the checkpoint is of step {}, the replay of {} ends at step {}", *resume_step, role,
-                                  steps.back()));
-    }
-    steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
-  }
+  // A solver restarted from its checkpoint of step n: the recording from step n on, as a coupler's catch-up.
+  steps = from_step(std::move(steps), resume_step, role);
   const std::optional<Role> solver_role = role_from_name(role);
   require_fields(traffic,
                  solver_role == Role::fem   ? std::vector<std::string>{"node_force"}
@@ -329,14 +336,8 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
     steps = steps.empty() ? s : (s.size() < steps.size() ? s : steps);
   }
   steps = up_to(std::move(steps), until);
-  if (resume_step) {
-    // A coupler resumed from its checkpoint of step n: the solvers register resumed there and send from step n.
-    if (*resume_step > steps.back()) {
-      throw FileError(fmt::format("the checkpoint is of step {}, the replay of the coupler ends at step {}",
-                                  *resume_step, steps.back()));
-    }
-    steps.erase(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(*resume_step));
-  }
+  // A coupler resumed from its checkpoint of step n: the solvers register resumed there and send from step n.
+  steps = from_step(std::move(steps), resume_step, "the coupler");
   zmq::context_t context(1);
   struct Solver {
     std::string role;

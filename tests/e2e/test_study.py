@@ -5,9 +5,14 @@ the fitted order) are in test_supervisor_units.py."""
 import csv
 import os
 import struct
+import subprocess
+import sys
 import time
 
 from e2e_support import BUILD_DIR, ROOT, RealRunTestCase
+
+sys.path.insert(0, ROOT)
+from supervisor.scene_text import apply_overrides  # noqa: E402
 
 SCENE = "configs/tests/hertz_wall_impact.toml"
 
@@ -115,10 +120,6 @@ field = "multirate.solvers.dem_solver.exchanges"
         element through the depth; 20 elements, about a second): the middle of the tip's swing against
         q L^4 / (8 E I) and its frequency against the first bending mode, within 1 % (measured 0.31 % and
         0.043 %)."""
-        import subprocess
-        import sys
-        sys.path.insert(0, ROOT)
-        from supervisor.scene_text import apply_overrides
         with open(self.scene_path("configs/tests/cantilever_self_weight.toml"), encoding="utf-8") as handle:
             text = apply_overrides(handle.read(), ['structures[0].element_formulation="one_point"',
                                                    "structures[0].element_size=0.05"])
