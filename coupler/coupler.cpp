@@ -525,6 +525,19 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
         auto* volume = f.mutable_boundary_volume();
         volume->Reserve(static_cast<int>(b.size()));
         for (const P* part : b.parts()) volume->Add(part->volume.begin(), part->volume.end());
+        const bool slips =
+            std::any_of(b.parts().begin(), b.parts().end(), [](const P* p) { return !p->free_slip.empty(); });
+        if (slips) {
+          auto* free_slip = f.mutable_boundary_free_slip();
+          free_slip->Reserve(static_cast<int>(b.size()));
+          for (const P* part : b.parts()) {
+            if (part->free_slip.empty()) {
+              free_slip->Resize(free_slip->size() + static_cast<int>(part->size()), 0u);
+            } else {
+              free_slip->Add(part->free_slip.begin(), part->free_slip.end());
+            }
+          }
+        }
       }
     } else if (peer->registration.exposes_surface()) {
       if (replies_.has_node_forces()) {

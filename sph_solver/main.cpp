@@ -108,6 +108,7 @@ class SphSolver final : public solver::CoupledSolver {
       walls.normal = unpack_vectors(forces.boundary_normal(), count, "boundary_normal");
       walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
       walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
+      walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
       model_.set_boundary(std::move(walls));
       model_.compute_internal_forces(dt_previous_);
       have_boundary_forces_ = true;

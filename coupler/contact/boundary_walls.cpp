@@ -10,11 +10,13 @@
 
 namespace sabo::coupler {
 
-BoundaryWalls::BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic)
+BoundaryWalls::BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic,
+                             std::vector<std::string> free_slip_parts)
     : spacing_(spacing),
       support_(support),
       layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support / spacing - 1e-9)))),
-      periodic_(std::move(periodic)) {}
+      periodic_(std::move(periodic)),
+      free_slip_parts_(std::move(free_slip_parts)) {}
 
 void BoundaryWalls::set_surface(const geometry::SurfaceMesh& surface) {
   surface_ = surface;
@@ -28,6 +30,17 @@ void BoundaryWalls::set_surface(const geometry::SurfaceMesh& surface) {
       }
     }
     geometry::keep_particles(sampling_, keep);
+  }
+  free_slip_.clear();
+  if (!free_slip_parts_.empty()) {
+    std::vector<std::uint8_t> part_slips(surface_.part_name.size(), 0);
+    for (std::size_t part = 0; part < part_slips.size(); ++part) {
+      const auto& name = surface_.part_name[part];
+      part_slips[part] = std::find(free_slip_parts_.begin(), free_slip_parts_.end(), name) != free_slip_parts_.end();
+    }
+    free_slip_.resize(sampling_.size());
+    for (std::size_t k = 0; k < sampling_.size(); ++k)
+      free_slip_[k] = part_slips[surface_.face_part[sampling_.face[k]]];
   }
   node_velocity_.assign(surface_.node_count(), Vec3::Zero());
   previous_node_velocity_ = node_velocity_;
@@ -122,7 +135,15 @@ void BoundaryWalls::select_near(std::span<const double> fluid_position) {
   for (std::size_t k = 0; k < near_.size(); ++k) {
     if (near_[k]) selection_.push_back(static_cast<std::uint32_t>(k));
   }
+  place_selected();
+}
+
+void BoundaryWalls::place_selected() {
   geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
+  selected_.free_slip.clear();
+  if (free_slip_.empty()) return;
+  selected_.free_slip.reserve(selection_.size());
+  for (const std::uint32_t k : selection_) selected_.free_slip.push_back(free_slip_[k]);
 }
 
 void BoundaryWalls::restore(History history) {
@@ -138,7 +159,7 @@ void BoundaryWalls::restore(History history) {
   selection_ = std::move(history.selection);
   previous_selection_ = std::move(history.previous_selection);
   node_velocity_ = std::move(history.node_velocity);
-  geometry::place_boundary_particles(surface_, sampling_, node_velocity_, node_acceleration_, selection_, selected_);
+  place_selected();
 }
 
 std::vector<Aabb> BoundaryWalls::interest_regions() const {

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "coupler/contact/point_load.hpp"
@@ -30,7 +31,10 @@ class BoundaryWalls {
   // get ceil(support / dx) layers. Along a periodic axis the walls keep only the
   // particles inside the span: beyond a seam, the fluid sees the images of the
   // particles of the other end (a corner fill that spilled past it would double them).
-  BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic = {});
+  // free_slip_parts: the structure parts whose particles are free-slip for the fluid's viscous terms
+  // (scene sph.free_slip_walls); the others are no-slip.
+  BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic = {},
+                std::vector<std::string> free_slip_parts = {});
 
   // (Re)samples the surface at its current node positions.
   void set_surface(const geometry::SurfaceMesh& surface);
@@ -78,11 +82,15 @@ class BoundaryWalls {
 
  private:
   void place_all();
+  // Places the particles of selection_ into selected_, their free-slip flags included.
+  void place_selected();
 
   double spacing_;
   double support_;
   std::size_t layers_;
   std::vector<PeriodicSpan> periodic_;
+  std::vector<std::string> free_slip_parts_;
+  std::vector<std::uint8_t> free_slip_;  // per sampled particle: 1 when its part is free-slip; empty: none is
   geometry::SurfaceMesh surface_;
   geometry::SurfaceSampling sampling_;
   std::vector<Vec3> node_velocity_, previous_node_velocity_, node_acceleration_;

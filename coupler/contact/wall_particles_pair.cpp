@@ -34,7 +34,8 @@ std::vector<BoundaryWalls::PeriodicSpan> periodic_spans(const scene::SphSettings
 }  // namespace
 
 WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
-    : walls_(scene.sph.particle_spacing, scene.sph.kernel_support(), periodic_spans(scene.sph)),
+    : walls_(scene.sph.particle_spacing, scene.sph.kernel_support(), periodic_spans(scene.sph),
+             scene.sph.free_slip_walls),
       spacing_(scene.sph.particle_spacing) {}
 
 void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {

@@ -295,6 +295,7 @@ struct ForcesStream {
     emplace_if(walls, boundary_normal, group, "boundary_normal", stages);
     emplace_if(walls, boundary_acceleration, group, "boundary_acceleration", stages);
     emplace_if(walls, boundary_volume, group, "boundary_volume", stages);
+    emplace_if(walls, boundary_free_slip, group, "boundary_free_slip", stages);
   }
 
   void record(const sabo::v1::StepForces& message, std::vector<double>& scratch) {
@@ -319,6 +320,7 @@ struct ForcesStream {
       boundary_normal->push(span_of(message.boundary_normal()));
       boundary_acceleration->push(span_of(message.boundary_acceleration()));
       boundary_volume->push(span_of(message.boundary_volume()));
+      boundary_free_slip->push(span_of(message.boundary_free_slip()));
     }
     scratch.clear();
     for (const auto& box : message.interest()) {
@@ -334,6 +336,7 @@ struct ForcesStream {
                          &boundary_acceleration, &boundary_volume}) {
       bytes += carry_if(*column, old, n);
     }
+    bytes += carry_if(boundary_free_slip, old, n);
     bytes += interest.carry(old, n);
     return bytes + step.carry(old, n);
   }
@@ -345,6 +348,7 @@ struct ForcesStream {
   OptionalArray<std::uint32_t> index;
   OptionalArray<double> force, torque, node_force;
   OptionalArray<double> boundary_position, boundary_velocity, boundary_normal, boundary_acceleration, boundary_volume;
+  OptionalArray<std::uint32_t> boundary_free_slip;
   ArrayColumn<double> interest;
 };
 

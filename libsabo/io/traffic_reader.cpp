@@ -302,6 +302,7 @@ sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_
   stream.array<double>("boundary_normal", entry, message.mutable_boundary_normal());
   stream.array<double>("boundary_acceleration", entry, message.mutable_boundary_acceleration());
   stream.array<double>("boundary_volume", entry, message.mutable_boundary_volume());
+  stream.array<std::uint32_t>("boundary_free_slip", entry, message.mutable_boundary_free_slip());
   google::protobuf::RepeatedField<double> boxes;
   stream.array<double>("interest", entry, &boxes);
   for (int i = 0; i + 6 <= boxes.size(); i += 6) {

@@ -42,7 +42,8 @@ const std::vector<std::string>& compared_forces_fields() {
                                                "boundary_velocity",
                                                "boundary_normal",
                                                "boundary_acceleration",
-                                               "boundary_volume"};
+                                               "boundary_volume",
+                                               "boundary_free_slip"};
   return fields;
 }
 
@@ -255,6 +256,8 @@ void MessageComparison::compare_forces(const sabo::v1::Register& registration, c
   compare_values(step, time, "boundary_acceleration", recorded.boundary_acceleration(),
                  replayed.boundary_acceleration(), 3, boundary);
   compare_values(step, time, "boundary_volume", recorded.boundary_volume(), replayed.boundary_volume(), 1, boundary);
+  compare_values(step, time, "boundary_free_slip", recorded.boundary_free_slip(), replayed.boundary_free_slip(), 1,
+                 boundary);
 }
 
 std::string MessageComparison::report() const {

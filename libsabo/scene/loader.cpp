@@ -57,6 +57,7 @@ Scene Builder::build() {
   read_contact(root);
   read_interactions(root);
   check_sph_dem();
+  check_free_slip_walls();
   read_recording(root);
   read_gauges(root);
   read_fronts(root);

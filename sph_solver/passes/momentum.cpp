@@ -72,6 +72,9 @@ void SphModel::fluid_forces(T) {
   const float* bwx = bwx_.data();
   const float* bwy = bwy_.data();
   const float* bwz = bwz_.data();
+  const float* bsx = bsx_.data();
+  const float* bsy = bsy_.data();
+  const float* bsz = bsz_.data();
   const float* bvx = bvx_.data();
   const float* bvy = bvy_.data();
   const float* bvz = bvz_.data();
@@ -176,7 +179,8 @@ void SphModel::fluid_forces(T) {
           const bool inside = (l < valid) & (r2 < support2);
           const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
           const float rho_b = brho[j], m_b = rho_b * bvol[j];
-          const float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+          const float vr = wall_approach((vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz, vx - bwx[j],
+                                         vy - bwy[j], vz - bwz[j], rx, ry, rz, bsx[j], bsy[j], bsz[j]);
           const float inverse_r2 = 1.0f / (r2 + eta2);
           const float mu = h * vr * inverse_r2;
           mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);

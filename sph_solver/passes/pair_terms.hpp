@@ -179,6 +179,17 @@ inline void add_sum_dot(const Mat9& a, const Mat9& b, float c, float rx, float r
   tz += (a.zx + b.zx) * gx + (a.zy + b.zy) * gy + (a.zz + b.zz) * gz;
 }
 
+// The approach of fluid particle i and a wall particle for the artificial viscosity: `full` = (v_i - v_w).r,
+// d = v_i - v_w; against a free-slip wall particle (s its unit normal; zero for a no-slip one) the normal part
+// only, (d.s)(s.r): the wall takes no tangential friction from the artificial viscosity, as none from the
+// viscous terms (a uniform flow along it keeps its speed).
+inline float wall_approach(float full, float dx, float dy, float dz, float rx, float ry, float rz, float sx, float sy,
+                           float sz) {
+  // |s|^2 is 1 or 0: for a no-slip particle full + (0 - 0), full to the bit.
+  const float normal = (dx * sx + dy * sy + dz * sz) * (rx * sx + ry * sy + rz * sz);
+  return full + (normal - full * (sx * sx + sy * sy + sz * sz));
+}
+
 // Acceleration t of fluid particle i (density rho_i, p_i / rho_i^2 = pr_i, viscosity
 // eta_i, stress s_i) from wall particle b (mass m_b, density rho_b, pr_b), r = x_i - x_b,
 // vr = (v_i - v_wall).r, u = v_i - v_b (no-slip wall velocity), s_b the wall's stress

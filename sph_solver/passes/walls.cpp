@@ -351,6 +351,7 @@ void SphModel::boundary_forces(T) {
       Sym6 s_b;
       if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, b);
       const float wx = bwx_[b], wy = bwy_[b], wz = bwz_[b];
+      const float sx = bsx_[b], sy = bsy_[b], sz = bsz_[b];
       float vx_b = 0, vy_b = 0, vz_b = 0;
       if constexpr (T::viscous) {
         vx_b = bvx_[b];
@@ -368,7 +369,8 @@ void SphModel::boundary_forces(T) {
           const bool inside = (l < valid) & (r2 < support2);
           const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
           const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
-          const float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
+          const float vr = wall_approach((vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz, vx - wx, vy - wy, vz - wz,
+                                         rx, ry, rz, sx, sy, sz);
           const float inverse_r2 = 1.0f / (r2 + eta2);
           float ux = 0, uy = 0, uz = 0, eta_i = 0;
           Sym6 s_i;

@@ -138,3 +138,34 @@ TEST(BoundaryWalls, PeriodicSpanKeepsTheCornerFillInsideTheSeams) {
   }
   EXPECT_EQ(floor_layer, 10u);
 }
+
+TEST(BoundaryWalls, MarkTheParticlesOfFreeSlipPartsOnly) {
+  // A floor and a raised plate of another name: only the floor's particles slip (sph.free_slip_walls).
+  geometry::SurfaceMesh surface = floor_mesh();
+  geometry::SurfaceMesh plate = floor_mesh();
+  plate.make_single_part("plate");
+  for (auto& p : plate.node_position) p.z() += 1.0;
+  for (auto& id : plate.node_id) id += surface.node_count();  // ids unique over the surface
+  surface.append(plate);
+  coupler::BoundaryWalls walls(0.1, 0.26, {}, {"floor"});
+  walls.set_surface(surface);
+  walls.select_near(std::vector<double>{0.0, 0.0, 0.05, 0.0, 0.0, 0.95});
+  const auto& selected = walls.selected();
+  ASSERT_EQ(selected.free_slip.size(), selected.size());
+  std::size_t slipping = 0, below = 0;
+  for (std::size_t i = 0; i < selected.size(); ++i) {
+    const bool on_floor = selected.position[i].z() < 0.5;
+    below += on_floor ? 1 : 0;
+    slipping += selected.free_slip[i];
+    EXPECT_EQ(selected.free_slip[i], on_floor ? 1 : 0) << "particle " << i;
+  }
+  std::cout << "free-slip particles: measured " << slipping << ", expected " << below << " (the floor's of "
+            << selected.size() << ")\n";
+  EXPECT_GT(below, 0u);
+  EXPECT_LT(below, selected.size());
+
+  coupler::BoundaryWalls no_slip(0.1, 0.26);
+  no_slip.set_surface(surface);
+  no_slip.select_near(std::vector<double>{0.0, 0.0, 0.05});
+  EXPECT_TRUE(no_slip.selected().free_slip.empty()) << "no free-slip part: the flags stay empty (all no-slip)";
+}

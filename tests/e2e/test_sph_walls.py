@@ -293,5 +293,54 @@ class PeriodicChannelTest(RealRunTestCase):
         self.assertEqual(summary["status"], "completed")
 
 
+SLIDING = "configs/tests/sph_sliding_layer.toml"
+
+
+class SlidingLayerTest(RealRunTestCase):
+    """A viscous layer sliding at U over a floor of boundary particles (configs/tests/sph_sliding_layer.toml,
+    periodic along x and y): Stokes' first problem. A no-slip floor drags it into u(z, t) = U erf(z / (2
+    sqrt(nu t))); a free-slip one ([sph] free_slip_walls) leaves it at U, the artificial viscosity included
+    (it acts on the approach normal to a free-slip wall only)."""
+
+    def profile(self, name, free_slip):
+        with open(self.scene_path(SLIDING), encoding="utf-8") as handle:
+            text = handle.read()
+        if free_slip:
+            text = text.replace('periodic_y = [0.0, 0.04]\n', 'periodic_y = [0.0, 0.04]\nfree_slip_walls = ["floor"]\n')
+        scene_file = os.path.join(self.tmp, name + ".toml")
+        with open(scene_file, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        out = os.path.join(self.tmp, name)
+        sabo = self.run_sabo(scene_file, out)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        with open(os.path.join(out, "gauges.csv"), newline="") as handle:
+            rows = [row for row in csv.DictReader(handle) if row["gauge"] == "profile"]
+        last = max(float(row["time"]) for row in rows)
+        return last, [(float(row["z"]), float(row["velocity_x"])) for row in rows if float(row["time"]) == last]
+
+    def test_no_slip_floor_against_stokes_and_free_slip_floor_keeps_the_speed(self):
+        scene = load_scene(self.scene_path(SLIDING))
+        speed = scene["fluids"][0]["velocity"][0]
+        nu = scene["materials"]["oil"]["viscosity"] / scene["materials"]["oil"]["density"]
+        # Measured (dx = 5 mm, t = 0.3 s): within 1.1 % of U at every height.
+        t, no_slip = self.profile("no_slip", False)
+        worst = 0.0
+        for z, u in no_slip:
+            expected = speed * math.erf(z / (2.0 * math.sqrt(nu * t)))
+            worst = max(worst, abs(u - expected) / speed)
+            print("no-slip floor, t = {:.3f} s, z = {:.4f} m: u measured {:.4f} m/s, Stokes {:.4f} m/s ({:+.2%} of "
+                  "U)".format(t, z, u, expected, (u - expected) / speed))
+        print("no-slip floor: largest difference {:.2%} of U, tolerance 2 %".format(worst))
+        self.assertLess(worst, 0.02)
+        # Measured: within 1e-4 of U.
+        t, free_slip = self.profile("free_slip", True)
+        drift = max(abs(u - speed) for _, u in free_slip) / speed
+        print("free-slip floor, t = {:.3f} s: u measured {:.5f}..{:.5f} m/s over z = {:.3f}..{:.3f} m, expected U = {} "
+              "m/s everywhere; largest difference {:.2e} of U, tolerance 1e-3".format(
+                  t, min(u for _, u in free_slip), max(u for _, u in free_slip), free_slip[0][0], free_slip[-1][0],
+                  speed, drift))
+        self.assertLess(drift, 1e-3)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -40,6 +40,15 @@ void Schema::build_sph() {
                "as without storing (2.2 % RMS, shift -0.15 T) and the reduced S8 deposit too (9.9 %). The held "
                "energy is the SPH process's `dissipated` in energy.csv. Not applied against elastic-plastic "
                "fluid."),
+      K("free_slip_walls", Type::string_list)
+          .absent("none: every wall is no-slip")
+          .example("[\"floor\"]")
+          .allowed("`[[structures]]` names")
+          .doc("Boundary-particle walls: the structures whose wall particles are free-slip in the viscous "
+               "terms (the fluid keeps its velocity along the wall, so the wall puts no shear on it: a smooth "
+               "wall, or a symmetry plane); every other structure is no-slip (Adami et al. 2012). Pressure acts "
+               "on both alike. Not with `wall_model = \"penalty\"`, whose walls slip by `[contact.sph_fem]` "
+               "friction."),
       K("sound_speed", Type::number)
           .required("30.0")
           .unit("m/s")
@@ -219,6 +228,10 @@ void Builder::read_sph(Reader& root) {
   if (auto v = r.string("kernel")) sph.kernel = value_named<SphSettings::Kernel>(*v);
   if (auto v = r.string("wall_model")) sph.wall_model = value_named<SphSettings::WallModel>(*v);
   if (auto v = r.string("wall_work")) sph.wall_work = value_named<SphSettings::WallWork>(*v);
+  if (auto v = r.strings("free_slip_walls")) {
+    sph.free_slip_walls = *v;
+    free_slip_where_ = {r.line("free_slip_walls"), r.key_path("free_slip_walls")};
+  }
   if (auto v = r.number("sound_speed")) sph.sound_speed = *v;
   if (auto v = r.number("cfl")) sph.cfl = *v;
   if (auto v = r.number("artificial_viscosity")) sph.artificial_viscosity = *v;
@@ -252,6 +265,40 @@ void Builder::read_sph(Reader& root) {
   }
   read_periodic(r, "periodic_x", sph.periodic_x, periodic_line_[0]);
   read_periodic(r, "periodic_y", sph.periodic_y, periodic_line_[1]);
+}
+
+void Builder::check_free_slip_walls() {
+  const auto& walls = scene_.sph.free_slip_walls;
+  if (walls.empty()) return;
+  const Where& where = free_slip_where_;
+  const std::string value = value_of_key(where.key).value_or(join(walls));
+  if (scene_.sph.wall_model != SphSettings::WallModel::boundary_particles) {
+    diag_.add(where.line, where.key, value,
+              "free-slip walls are boundary-particle walls, but wall_model = \"penalty\" here: penalty walls slip "
+              "by their friction",
+              "remove free_slip_walls, and set friction = 0.0 in [contact.sph_fem] (or in the structure's "
+              "[[interactions]] with the fluid) for a wall without friction; or use wall_model = "
+              "\"boundary_particles\"");
+    return;
+  }
+  std::vector<std::string> structure_names;
+  for (const Structure& structure : scene_.structures) structure_names.push_back(structure.name);
+  std::vector<std::string> seen;
+  for (const std::string& name : walls) {
+    if (std::find(seen.begin(), seen.end(), name) != seen.end()) {
+      diag_.add(where.line, where.key, value, fmt::format("names {} twice", quote_text(name)),
+                "name each structure once");
+      continue;
+    }
+    seen.push_back(name);
+    if (std::find(structure_names.begin(), structure_names.end(), name) != structure_names.end()) continue;
+    const auto suggestion = closest_match(name, structure_names);
+    diag_.add(where.line, where.key, value,
+              fmt::format("no structure is named {}{}", quote_text(name),
+                          suggestion ? fmt::format(". Did you mean '{}'?", *suggestion) : std::string()),
+              structure_names.empty() ? std::string("add the [[structures]] whose walls slip, or remove the key")
+                                      : fmt::format("use the names of [[structures]]: {}", join(structure_names)));
+  }
 }
 
 // [min, max) of a periodic axis: a period of at least two kernel supports plus one spacing,

@@ -302,6 +302,8 @@ sabo::v1::StepForces make_wall_forces(std::uint64_t step) {
       forces.add_boundary_acceleration(0.5 * value);
     }
     forces.add_boundary_volume(1e-6 * (1 + i % 3));
+    // Free-slip flags at odd steps only (a scene without free-slip walls sends none).
+    if (step % 2 == 1) forces.add_boundary_free_slip(i % 2);
   }
   return forces;
 }
@@ -360,8 +362,8 @@ TEST(Traffic, RoundTripOfSphWallFields) {
     for (const char* name : {"boundary_force", "boundary_step"}) {
       EXPECT_FALSE(file.group("sph_solver").group("state").exists(name)) << name;
     }
-    for (const char* name :
-         {"boundary_position", "boundary_velocity", "boundary_normal", "boundary_acceleration", "boundary_volume"}) {
+    for (const char* name : {"boundary_position", "boundary_velocity", "boundary_normal", "boundary_acceleration",
+                             "boundary_volume", "boundary_free_slip"}) {
       EXPECT_FALSE(file.group("sph_solver").group("forces").exists(name)) << name;
     }
   }
