@@ -126,15 +126,22 @@ class SphSolver final : public solver::CoupledSolver {
     solver::take_particle_states(recorded, model_.positions(), model_.velocities());
   }
 
-  void write_output(std::uint64_t step, double time) override { output_.write(step, time); }
+  void write_output(std::uint64_t step, double time) override {
+    output_.write(step, time);
+    report_losses("since the last output");
+  }
 
   void integrate(double dt_previous, double dt) override {
-    const std::size_t lost_before = model_.lost_count();
     model_.integrate(dt_previous, dt);
     audit_.after_integrate(model_, dt_previous, dt);
-    if (model_.lost_count() != lost_before) {
-      spdlog::warn("{} SPH particles left the domain and were taken out ({} in all)", model_.lost_count() - lost_before,
-                   model_.lost_count());
+    if (lost_reported_ == 0 && model_.lost_count() > 0) {
+      // The first loss at once; later ones summed up at each output time (a flow leaving through an open end
+      // loses particles at most steps).
+      spdlog::warn(
+          "{} SPH particles left the domain and were taken out at t = {:.6g} s; further losses are "
+          "reported at each output time",
+          model_.lost_count(), model_.time());
+      lost_reported_ = model_.lost_count();
     }
   }
 
@@ -181,9 +188,16 @@ class SphSolver final : public solver::CoupledSolver {
     if (fronts_.empty()) return {};
     return nlohmann::json{{"fronts", fronts_.results()}}.dump();
   }
-  void finish() override {}
+  void finish() override { report_losses("since the last output, to the end"); }
 
  private:
+  void report_losses(const char* when) {
+    if (model_.lost_count() == lost_reported_) return;
+    spdlog::warn("{} more SPH particles left the domain and were taken out {} ({} in all)",
+                 model_.lost_count() - lost_reported_, when, model_.lost_count());
+    lost_reported_ = model_.lost_count();
+  }
+
   SphModel model_;
   EnergyAudit audit_;
   SphOutput output_;
@@ -195,6 +209,7 @@ class SphSolver final : public solver::CoupledSolver {
   solver::StabilityLimits limits_;
   bool scene_max_speed_ = false;
   std::vector<double> rest_density_;  // kg/m^3, by scene material index
+  std::size_t lost_reported_ = 0;     // particles taken out that the log has named
 };
 
 }  // namespace
