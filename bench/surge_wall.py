@@ -59,9 +59,11 @@ class Surge:
     """One case: its geometry, the plateau window and the scene, in SI units. x runs towards the wall
     (at x = 0), z up, y across the periodic width."""
 
-    def __init__(self, froude, spacings=8, depth=0.04, window=8.0, length=None, alpha_viscosity=0.005):
+    def __init__(self, froude, spacings=8, depth=0.04, window=8.0, length=None, alpha_viscosity=0.005,
+                 free_slip=False):
         self.froude = froude
         self.artificial_viscosity = alpha_viscosity
+        self.free_slip = free_slip  # floor and wall free-slip ([sph] free_slip_walls): the bore theory's walls
         self.depth = depth
         self.spacing = depth / spacings
         self.celerity = math.sqrt(GRAVITY * depth)
@@ -124,6 +126,7 @@ class Surge:
             'wall_model = "boundary_particles"',
             "artificial_viscosity = {:g}".format(self.artificial_viscosity),
             "periodic_y = [0.0, {:.9g}]".format(W),
+            'free_slip_walls = ["floor", "wall"]' if self.free_slip else "# no-slip floor and wall",
             "domain_min = [{:.9g}, {:.9g}, {:.9g}]".format(-floor_length - 2 * h, -W, -2 * h),
             "domain_max = [{:.9g}, {:.9g}, {:.9g}]".format(2 * h, 2 * W, self.wall_height + 4 * h),
             "",
@@ -263,6 +266,8 @@ def main():
     parser.add_argument("--window", type=float, default=8.0, help="plateau length in T = h / sqrt(g h)")
     parser.add_argument("--artificial-viscosity", type=float, default=0.005,
                         help="sph.artificial_viscosity (it also acts as a friction of the floor)")
+    parser.add_argument("--free-slip", action="store_true",
+                        help="free-slip floor and wall ([sph] free_slip_walls), as the bore theory's; default no-slip")
     parser.add_argument("--keep", help="folder for the scenes and run folders (default: a temporary one)")
     parser.add_argument("--json", help="also write the figures here")
     parser.add_argument("--plot", help="draw alpha(Fr) into this PNG")
@@ -272,8 +277,10 @@ def main():
     results = []
     for spacings in args.spacings:
         for froude in args.froude:
-            surge = Surge(froude, spacings, args.depth, args.window, alpha_viscosity=args.artificial_viscosity)
-            name = "fr{:g}_n{}_av{:g}".format(froude, spacings, args.artificial_viscosity)
+            surge = Surge(froude, spacings, args.depth, args.window, alpha_viscosity=args.artificial_viscosity,
+                          free_slip=args.free_slip)
+            name = "fr{:g}_n{}_av{:g}{}".format(froude, spacings, args.artificial_viscosity,
+                                                 "_free_slip" if args.free_slip else "")
             figures = run_case(surge, work, name)
             figures.update({"froude": froude, "spacings": spacings, "length": surge.length,
                             "expected": surge.expected_force(), "alpha_theory": surge.alpha,
