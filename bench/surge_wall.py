@@ -244,10 +244,11 @@ def plot_alpha(results, path):
     ax.plot(list(ALPHA_TABLE), list(ALPHA_TABLE.values()), "ks", mfc="none", label="docs/benchmarks.md table")
     ax.fill_between(froudes, [(1 - TOLERANCE) * alpha_theory(fr) for fr in froudes],
                     [(1 + TOLERANCE) * alpha_theory(fr) for fr in froudes], color="0.85", label="±10 %")
-    for spacings in sorted({r["spacings"] for r in results}):
-        chosen = [r for r in results if r["spacings"] == spacings]
+    for spacings, free_slip in sorted({(r["spacings"], r.get("free_slip", False)) for r in results}):
+        chosen = [r for r in results if r["spacings"] == spacings and r.get("free_slip", False) == free_slip]
         ax.plot([r["froude"] for r in chosen], [r["alpha"] for r in chosen], "o",
-                label="Sabo, h = {} dx (force plateau)".format(spacings))
+                label="Sabo, h = {} dx, {} walls (force plateau)".format(spacings,
+                                                                        "free-slip" if free_slip else "no-slip"))
     ax.set_xlabel("Froude number Fr = v / sqrt(g h)")
     ax.set_ylabel("alpha = F / (rho v² h) per unit width")
     ax.set_title("B1: surge on a rigid wall")
@@ -282,7 +283,7 @@ def main():
             name = "fr{:g}_n{}_av{:g}{}".format(froude, spacings, args.artificial_viscosity,
                                                  "_free_slip" if args.free_slip else "")
             figures = run_case(surge, work, name)
-            figures.update({"froude": froude, "spacings": spacings, "length": surge.length,
+            figures.update({"froude": froude, "spacings": spacings, "free_slip": args.free_slip, "length": surge.length,
                             "expected": surge.expected_force(), "alpha_theory": surge.alpha,
                             "bore_expected": surge.ratio * surge.depth, "window": [surge.settled, surge.plateau_end]})
             results.append(figures)
