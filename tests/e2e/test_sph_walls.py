@@ -303,13 +303,9 @@ class SlidingLayerTest(RealRunTestCase):
     (it acts on the approach normal to a free-slip wall only)."""
 
     def profile(self, name, free_slip):
-        with open(self.scene_path(SLIDING), encoding="utf-8") as handle:
-            text = handle.read()
-        if free_slip:
-            text = text.replace('periodic_y = [0.0, 0.04]\n', 'periodic_y = [0.0, 0.04]\nfree_slip_walls = ["floor"]\n')
-        scene_file = os.path.join(self.tmp, name + ".toml")
-        with open(scene_file, "w", encoding="utf-8") as handle:
-            handle.write(text)
+        slip = 'periodic_y = [0.0, 0.04]\n'
+        scene_file = self.scene_variant(SLIDING, name,
+                                        [(slip, slip + 'free_slip_walls = ["floor"]\n')] if free_slip else [])
         out = os.path.join(self.tmp, name)
         sabo = self.run_sabo(scene_file, out)
         self.assertEqual(sabo.wait(300), 0, sabo.output())
