@@ -31,8 +31,8 @@ class BoundaryWalls {
   // get ceil(support / dx) layers. Along a periodic axis the walls keep only the
   // particles inside the span: beyond a seam, the fluid sees the images of the
   // particles of the other end (a corner fill that spilled past it would double them).
-  // free_slip_parts: the structure parts whose particles are free-slip for the fluid's viscous terms
-  // (scene sph.free_slip_walls); the others are no-slip.
+  // free_slip_parts: the structure parts whose particles are free-slip for the fluid (scene
+  // sph.free_slip_walls); the others are no-slip.
   BoundaryWalls(double spacing, double support, std::vector<PeriodicSpan> periodic = {},
                 std::vector<std::string> free_slip_parts = {});
 

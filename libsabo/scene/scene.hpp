@@ -402,8 +402,8 @@ struct SphSettings {
   // the energy (bounded: a per-particle account of the work held back).
   enum class WallWork { bounded, stored, unstored };
   WallWork wall_work = WallWork::bounded;
-  // Boundary particles: the structures whose wall particles are free-slip for the viscous terms (the fluid
-  // keeps its tangential velocity there: no shear from that wall); the others are no-slip.
+  // Boundary particles: the structures whose wall particles are free-slip (the fluid keeps its tangential
+  // velocity there: no shear from that wall, viscous or artificial); the others are no-slip.
   std::vector<std::string> free_slip_walls;
   double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
   double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))

@@ -44,11 +44,11 @@ void Schema::build_sph() {
           .absent("none: every wall is no-slip")
           .example("[\"floor\"]")
           .allowed("`[[structures]]` names")
-          .doc("Boundary-particle walls: the structures whose wall particles are free-slip in the viscous "
-               "terms (the fluid keeps its velocity along the wall, so the wall puts no shear on it: a smooth "
-               "wall, or a symmetry plane); every other structure is no-slip (Adami et al. 2012). Pressure acts "
-               "on both alike. Not with `wall_model = \"penalty\"`, whose walls slip by `[contact.sph_fem]` "
-               "friction."),
+          .doc("Boundary-particle walls: the structures whose wall particles are free-slip (the fluid keeps its "
+               "velocity along the wall: neither the viscous terms nor the artificial viscosity put shear on it; "
+               "a smooth wall, or a symmetry plane); every other structure is no-slip (Adami et al. 2012). "
+               "Pressure acts on both alike. Not with `wall_model = \"penalty\"`, whose walls slip by "
+               "`[contact.sph_fem]` friction."),
       K("sound_speed", Type::number)
           .required("30.0")
           .unit("m/s")
