@@ -349,7 +349,10 @@ class SphModel {
   std::vector<float> fpr_;                        // p / rho^2, Pa m^6/kg^2
   std::vector<std::uint32_t> fmat_;
   std::vector<float> bx_, by_, bz_, bwx_, bwy_, bwz_, bvol_, bpr_, brho_;  // bw: prescribed wall velocity
-  std::vector<float> bsx_, bsy_, bsz_;  // a free-slip wall particle's unit normal, zero for a no-slip one
+  // A free-slip wall particle's unit normal, zero for a no-slip one; empty, and the wall loops on the
+  // plain approach (v_i - v_w).r, when no wall particle is free-slip (any_free_slip_).
+  std::vector<float> bsx_, bsy_, bsz_;
+  bool any_free_slip_ = false;
   std::vector<float> bvx_, bvy_, bvz_;  // wall velocity for the viscous terms (only with gradients)
   // Per sorted wall slot, only with credits_wall_work(): 1 / sum W (0: no credit) from
   // boundary_state(), then wall_compression()'s credit (one array: 4 bytes a wall slot).

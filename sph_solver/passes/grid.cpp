@@ -181,7 +181,14 @@ void SphModel::gather() {
   resize_padded(bx_, nb, kFarAway);
   resize_padded(by_, nb, kFarAway);
   resize_padded(bz_, nb, kFarAway);
-  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_, &bsx_, &bsy_, &bsz_}) resize_padded(*v, nb, 0.0f);
+  for (auto* v : {&bwx_, &bwy_, &bwz_, &bvol_, &bpr_}) resize_padded(*v, nb, 0.0f);
+  for (auto* v : {&bsx_, &bsy_, &bsz_}) {
+    if (any_free_slip_) {
+      resize_padded(*v, nb, 0.0f);
+    } else {
+      std::vector<float>().swap(*v);
+    }
+  }
   if (credits_wall_work()) resize_padded(bcredit_, nb, 0.0f);
   resize_padded(brho_, nb, 1.0f);
   if (has_stress_) bstress_.assign(6 * (nb + kLanes), 0.0f);  // component-major, stride nb + kLanes
@@ -200,11 +207,12 @@ void SphModel::gather() {
     bwy_[s] = static_cast<float>(boundary_.velocity[b].y());
     bwz_[s] = static_cast<float>(boundary_.velocity[b].z());
     bvol_[s] = static_cast<float>(boundary_.volume[b]);
-    const bool slips = !boundary_.free_slip.empty() && boundary_.free_slip[b] != 0;
-    const Vec3 slip_normal = slips ? boundary_.normal[b] : Vec3::Zero();
-    bsx_[s] = static_cast<float>(slip_normal.x());
-    bsy_[s] = static_cast<float>(slip_normal.y());
-    bsz_[s] = static_cast<float>(slip_normal.z());
+    if (any_free_slip_) {
+      const Vec3 slip_normal = boundary_.free_slip[b] != 0 ? boundary_.normal[b] : Vec3::Zero();
+      bsx_[s] = static_cast<float>(slip_normal.x());
+      bsy_[s] = static_cast<float>(slip_normal.y());
+      bsz_[s] = static_cast<float>(slip_normal.z());
+    }
   }
   if (!periodic_.empty()) {
     fm_wall_.assign(fm_.begin(), fm_.end());

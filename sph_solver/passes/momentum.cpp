@@ -75,6 +75,7 @@ void SphModel::fluid_forces(T) {
   const float* bsx = bsx_.data();
   const float* bsy = bsy_.data();
   const float* bsz = bsz_.data();
+  const bool free_slip = any_free_slip_;
   const float* bvx = bvx_.data();
   const float* bvy = bvy_.data();
   const float* bvz = bvz_.data();
@@ -170,37 +171,47 @@ void SphModel::fluid_forces(T) {
       });
       std::int64_t fluid_neighbours = 0;  // the diffusion's own support (walls come next)
       for (std::uint32_t l = 0; l < kLanes; ++l) fluid_neighbours += neighbours[l];
-      for_neighbour_blocks(position, b_cell_start_, bx, [&](std::uint32_t j0, std::int32_t valid) {
+      // Two copies of the wall loop: without a free-slip wall it reads no slip normal.
+      const auto wall_neighbours = [&]<bool FreeSlip>() {
+        for_neighbour_blocks(position, b_cell_start_, bx, [&](std::uint32_t j0, std::int32_t valid) {
 #pragma omp simd
-        for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-          const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-          const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
-          const float r2 = rx * rx + ry * ry + rz * rz;
-          const bool inside = (l < valid) & (r2 < support2);
-          const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-          const float rho_b = brho[j], m_b = rho_b * bvol[j];
-          const float vr = wall_approach((vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz, vx - bwx[j],
-                                         vy - bwy[j], vz - bwz[j], rx, ry, rz, bsx[j], bsy[j], bsz[j]);
-          const float inverse_r2 = 1.0f / (r2 + eta2);
-          const float mu = h * vr * inverse_r2;
-          mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
-          neighbours[l] += inside ? 1 : 0;
-          float ux = 0, uy = 0, uz = 0;
-          if constexpr (T::viscous) {
-            ux = vx - bvx[j];
-            uy = vy - bvy[j];
-            uz = vz - bvz[j];
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = x - bx[j], ry = y - by[j], rz = z - bz[j];
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float rho_b = brho[j], m_b = rho_b * bvol[j];
+            float vr = (vx - bwx[j]) * rx + (vy - bwy[j]) * ry + (vz - bwz[j]) * rz;
+            if constexpr (FreeSlip) {
+              vr = wall_approach(vr, vx - bwx[j], vy - bwy[j], vz - bwz[j], rx, ry, rz, bsx[j], bsy[j], bsz[j]);
+            }
+            const float inverse_r2 = 1.0f / (r2 + eta2);
+            const float mu = h * vr * inverse_r2;
+            mu_max[l] = std::max(mu_max[l], inside ? std::abs(mu) : 0.0f);
+            neighbours[l] += inside ? 1 : 0;
+            float ux = 0, uy = 0, uz = 0;
+            if constexpr (T::viscous) {
+              ux = vx - bvx[j];
+              uy = vy - bvy[j];
+              uz = vz - bvz[j];
+            }
+            Sym6 s_b;
+            if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, j);
+            float tx, ty, tz;
+            wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, s_b, t_i, f, rx, ry, rz, r2, vr, inverse_r2, ux,
+                         uy, uz, alpha_hc, tx, ty, tz);
+            ax[l] += tx;
+            ay[l] += ty;
+            az[l] += tz;
           }
-          Sym6 s_b;
-          if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, j);
-          float tx, ty, tz;
-          wall_pair<T>(m_b, rho_b, bpr[j], rho_i, pr_i, eta_i, s_i, s_b, t_i, f, rx, ry, rz, r2, vr, inverse_r2, ux, uy,
-                       uz, alpha_hc, tx, ty, tz);
-          ax[l] += tx;
-          ay[l] += ty;
-          az[l] += tz;
-        }
-      });
+        });
+      };
+      if (free_slip) {
+        wall_neighbours.template operator()<true>();
+      } else {
+        wall_neighbours.template operator()<false>();
+      }
       double sum_x = 0, sum_y = 0, sum_z = 0, sum_diffuse = 0;
       float lane_mu = 0;
       std::int64_t lane_neighbours = 0;

@@ -64,6 +64,7 @@ void SphModel::set_boundary(physics::BoundaryParticles boundary) {
       }
     }
   }
+  any_free_slip_ = std::ranges::any_of(boundary.free_slip, [](std::uint8_t flag) { return flag != 0; });
   boundary_ = std::move(boundary);
 }
 
@@ -351,7 +352,6 @@ void SphModel::boundary_forces(T) {
       Sym6 s_b;
       if constexpr (T::stress) s_b = load_sym6(bstress, bstress_stride, b);
       const float wx = bwx_[b], wy = bwy_[b], wz = bwz_[b];
-      const float sx = bsx_[b], sy = bsy_[b], sz = bsz_[b];
       float vx_b = 0, vy_b = 0, vz_b = 0;
       if constexpr (T::viscous) {
         vx_b = bvx_[b];
@@ -360,38 +360,52 @@ void SphModel::boundary_forces(T) {
       }
       alignas(64) double fbx[kLanes] = {}, fby[kLanes] = {}, fbz[kLanes] = {};
       const Vec3& position = b_position[id];
-      for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
-#pragma omp simd
-        for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
-          const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
-          const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
-          const float r2 = rx * rx + ry * ry + rz * rz;
-          const bool inside = (l < valid) & (r2 < support2);
-          const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
-          const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
-          const float vr = wall_approach((vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz, vx - wx, vy - wy, vz - wz,
-                                         rx, ry, rz, sx, sy, sz);
-          const float inverse_r2 = 1.0f / (r2 + eta2);
-          float ux = 0, uy = 0, uz = 0, eta_i = 0;
-          Sym6 s_i;
-          if constexpr (T::viscous) {
-            ux = vx - vx_b;
-            uy = vy - vy_b;
-            uz = vz - vz_b;
-            eta_i = feta[j];
-          }
-          if constexpr (T::stress) s_i = load_sym6(fstress, stress_stride, j);
-          Mat9 t_i;
-          if constexpr (T::transpose) t_i = load_mat9(ftr, stress_stride, j);
-          float tx, ty, tz;
-          wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, s_b, t_i, f, rx, ry, rz, r2, vr, inverse_r2, ux,
-                       uy, uz, alpha_hc, tx, ty, tz);
-          const double m_i = inside ? fm[j] : 0.0;
-          fbx[l] -= m_i * tx;
-          fby[l] -= m_i * ty;
-          fbz[l] -= m_i * tz;
+      // Two copies of the pair loop: without a free-slip wall it reads no slip normal.
+      const auto fluid_neighbours = [&]<bool FreeSlip>() {
+        float sx = 0, sy = 0, sz = 0;
+        if constexpr (FreeSlip) {
+          sx = bsx_[b];
+          sy = bsy_[b];
+          sz = bsz_[b];
         }
-      });
+        for_neighbour_blocks(position, f_cell_start_, fx, [&](std::uint32_t j0, std::int32_t valid) {
+#pragma omp simd
+          for (std::int32_t l = 0; l < static_cast<std::int32_t>(kLanes); ++l) {
+            const std::size_t j = std::size_t{j0} + static_cast<std::size_t>(l);
+            const float rx = fx[j] - x, ry = fy[j] - y, rz = fz[j] - z;  // r_ib, i the fluid particle
+            const float r2 = rx * rx + ry * ry + rz * rz;
+            const bool inside = (l < valid) & (r2 < support2);
+            const float f = inside ? gradient_factor<T::kernel>(r2, kernel) : 0.0f;
+            const float vx = fvx[j], vy = fvy[j], vz = fvz[j];
+            float vr = (vx - wx) * rx + (vy - wy) * ry + (vz - wz) * rz;
+            if constexpr (FreeSlip) vr = wall_approach(vr, vx - wx, vy - wy, vz - wz, rx, ry, rz, sx, sy, sz);
+            const float inverse_r2 = 1.0f / (r2 + eta2);
+            float ux = 0, uy = 0, uz = 0, eta_i = 0;
+            Sym6 s_i;
+            if constexpr (T::viscous) {
+              ux = vx - vx_b;
+              uy = vy - vy_b;
+              uz = vz - vz_b;
+              eta_i = feta[j];
+            }
+            if constexpr (T::stress) s_i = load_sym6(fstress, stress_stride, j);
+            Mat9 t_i;
+            if constexpr (T::transpose) t_i = load_mat9(ftr, stress_stride, j);
+            float tx, ty, tz;
+            wall_pair<T>(m_b, rho_b, pr_b, frho[j], fpr[j], eta_i, s_i, s_b, t_i, f, rx, ry, rz, r2, vr, inverse_r2, ux,
+                         uy, uz, alpha_hc, tx, ty, tz);
+            const double m_i = inside ? fm[j] : 0.0;
+            fbx[l] -= m_i * tx;
+            fby[l] -= m_i * ty;
+            fbz[l] -= m_i * tz;
+          }
+        });
+      };
+      if (any_free_slip_) {
+        fluid_neighbours.template operator()<true>();
+      } else {
+        fluid_neighbours.template operator()<false>();
+      }
       double sum_x = 0, sum_y = 0, sum_z = 0;
       for (std::uint32_t l = 0; l < kLanes; ++l) {
         sum_x += fbx[l];
