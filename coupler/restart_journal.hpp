@@ -58,6 +58,7 @@ class RestartJournal {
   std::uint64_t first_ = 0;
   std::vector<std::vector<std::uint64_t>> states_;
   std::vector<Span> forces_;
+  std::string scratch_;  // the serialized forces of the last step
 };
 
 }  // namespace sabo::coupler

@@ -71,6 +71,8 @@ TEST(RestartJournal, StartsAgainAtACheckpoint) {
     journal.add_state(state_of(step));
     journal.add_forces(forces_of(step));
   }
+  std::uintmax_t interval_bytes = 0;  // of the first interval, the largest
+  for (std::uint64_t step = 0; step < 3; ++step) interval_bytes += forces_of(step).SerializeAsString().size();
   journal.begin(3);
   EXPECT_FALSE(journal.covers(2));
   journal.add_state(state_of(3));
@@ -78,6 +80,16 @@ TEST(RestartJournal, StartsAgainAtACheckpoint) {
   journal.add_forces(forces_of(3));
   EXPECT_TRUE(journal.covers(3));
   EXPECT_EQ(journal.forces(3).SerializeAsString(), forces_of(3).SerializeAsString());
-  EXPECT_EQ(std::filesystem::file_size(journal.path()), forces_of(3).SerializeAsString().size())
-      << "the journal file holds the forces since the checkpoint only";
+  // The file is written again from its start (not truncated, which stalled large runs): it never grows past
+  // the largest interval.
+  for (std::uint64_t checkpoint = 4; checkpoint < 12; checkpoint += 2) {
+    journal.begin(checkpoint);
+    for (std::uint64_t step = checkpoint; step < checkpoint + 2; ++step) {
+      journal.add_state(state_of(step));
+      journal.add_forces(forces_of(step));
+    }
+    EXPECT_EQ(journal.forces(checkpoint + 1).SerializeAsString(), forces_of(checkpoint + 1).SerializeAsString());
+  }
+  EXPECT_EQ(std::filesystem::file_size(journal.path()), interval_bytes)
+      << "the journal file holds at most the largest interval since a checkpoint";
 }
