@@ -21,6 +21,11 @@ class FemSolver final : public solver::CoupledSolver {
       : model_(scene), out_dir_(options.out_dir), limits_(solver::stability_limits(scene, Role::fem)) {
     spdlog::info("{} parts, {} surface nodes, {} faces", model_.part_count(), model_.surface().node_count(),
                  model_.surface().face_count());
+    for (const scene::Structure& structure : scene.structures) {
+      if (structure.shape.type == scene::Shape::Type::terrain) {
+        spdlog::info("terrain '{}' from the raster {}", structure.name, structure.shape.raster);
+      }
+    }
   }
 
   void describe(sabo::v1::Register& registration) override {

@@ -6,10 +6,13 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
+#include <limits>
 #include <numbers>
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/node_welder.hpp"
+#include "libsabo/geometry/polygon.hpp"
+#include "libsabo/io/raster.hpp"
 #include "libsabo/io/stl.hpp"
 
 namespace sabo::geometry {
@@ -258,6 +261,116 @@ SurfaceMesh mesh(const scene::Shape& shape, const std::string& part, const scene
   return result;
 }
 
+// The ground of an elevation raster: a strip along a polyline, the inside of a polygon, or the whole
+// raster, on a grid of about element_size (the raster's cell without one), each node at the raster's
+// bilinear elevation, triangles facing up.
+SurfaceMesh terrain(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
+  const io::Raster raster = io::read_raster(shape.file);
+  const double es = shape.element_size > 0 ? shape.element_size : std::min(raster.cell_x, raster.cell_y);
+  NodeWelder welder(kWeldFraction * std::hypot(raster.x_max() - raster.x_min(), raster.y_max() - raster.y_min()));
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  const auto node = [&](double x, double y) {
+    const auto z = raster.elevation_at(x, y);
+    if (!z) {
+      shape_error(
+          origin, part,
+          fmt::format("the ground at (x, y) = ({:.9g}, {:.9g}) m is {} of {}", x, y,
+                      raster.covers(x, y) ? "next to a no-data cell" : "outside the cell centres", raster.describe()),
+          raster.covers(x, y) ? "keep the strip or the polygon off the raster's no-data cells (fill them, "
+                                "e.g. gdal_fillnodata)"
+                              : "keep the strip or the polygon inside the raster");
+    }
+    return welder.add(Vec3(x, y, *z) + shape.translate);
+  };
+  // Two triangles of the quad a b c d, counter-clockwise seen from above: they face up.
+  const auto quad = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
+    triangles.push_back({a, b, c});
+    triangles.push_back({a, c, d});
+  };
+  if (!shape.strip.empty()) {
+    const auto& p = shape.strip;
+    const std::size_t m = p.size() - 1;
+    std::vector<Eigen::Vector2d> left(m);  // unit normals of the segments, to their left
+    for (std::size_t k = 0; k < m; ++k) {
+      const Eigen::Vector2d d = Eigen::Vector2d(p[k + 1][0] - p[k][0], p[k + 1][1] - p[k][1]).normalized();
+      left[k] = Eigen::Vector2d(-d.y(), d.x());
+    }
+    // At a bend the cross-section follows the bisector, lengthened so that the strip keeps its width.
+    std::vector<Eigen::Vector2d> mitre(m + 1);
+    mitre[0] = left[0];
+    mitre[m] = left[m - 1];
+    for (std::size_t k = 1; k < m; ++k) {
+      const Eigen::Vector2d bisector = left[k - 1] + left[k];
+      const double along = bisector.norm() > 1e-12 ? bisector.normalized().dot(left[k]) : 0.0;
+      if (along < 0.2) {
+        shape_error(origin, part, fmt::format("the strip turns by more than 157 degrees at its point {}", k),
+                    "smooth the polyline (add points along the bend)");
+      }
+      mitre[k] = bisector.normalized() / along;
+    }
+    std::vector<double> across = grid_levels(shape.strip_width, es);
+    for (double& t : across) t -= 0.5 * shape.strip_width;
+    for (std::size_t k = 0; k < m; ++k) {
+      const Eigen::Vector2d a(p[k][0], p[k][1]), b(p[k + 1][0], p[k + 1][1]);
+      const auto along = grid_levels((b - a).norm(), es);
+      const double length = (b - a).norm();
+      std::vector<std::uint32_t> ids(along.size() * across.size());
+      for (std::size_t i = 0; i < along.size(); ++i) {
+        const double f = along[i] / length;
+        for (std::size_t j = 0; j < across.size(); ++j) {
+          const Eigen::Vector2d q = (1 - f) * (a + across[j] * mitre[k]) + f * (b + across[j] * mitre[k + 1]);
+          ids[i * across.size() + j] = node(q.x(), q.y());
+        }
+      }
+      // i runs along the segment, j to its left: (i, j), (i+1, j), (i+1, j+1), (i, j+1) turn counter-clockwise.
+      for (std::size_t i = 0; i + 1 < along.size(); ++i) {
+        for (std::size_t j = 0; j + 1 < across.size(); ++j) {
+          const std::size_t n = across.size();
+          quad(ids[i * n + j], ids[(i + 1) * n + j], ids[(i + 1) * n + j + 1], ids[i * n + j + 1]);
+        }
+      }
+    }
+  } else {
+    double x0 = raster.x_min(), x1 = raster.x_max(), y0 = raster.y_min(), y1 = raster.y_max();
+    if (!shape.clip_polygon.empty()) {
+      x0 = y0 = std::numeric_limits<double>::infinity();
+      x1 = y1 = -std::numeric_limits<double>::infinity();
+      for (const auto& v : shape.clip_polygon) {
+        x0 = std::min(x0, v[0]);
+        x1 = std::max(x1, v[0]);
+        y0 = std::min(y0, v[1]);
+        y1 = std::max(y1, v[1]);
+      }
+    }
+    const auto xs = grid_levels(x1 - x0, es), ys = grid_levels(y1 - y0, es);
+    const auto kept = [&](double x, double y) {
+      return shape.clip_polygon.empty() || polygon_contains(shape.clip_polygon, x, y);
+    };
+    std::vector<std::int64_t> ids(xs.size() * ys.size(), -1);
+    const auto id = [&](std::size_t i, std::size_t j) {
+      auto& slot = ids[j * xs.size() + i];
+      if (slot < 0) slot = node(x0 + xs[i], y0 + ys[j]);
+      return static_cast<std::uint32_t>(slot);
+    };
+    for (std::size_t j = 0; j + 1 < ys.size(); ++j) {
+      for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+        const bool all_in = kept(x0 + xs[i], y0 + ys[j]) && kept(x0 + xs[i + 1], y0 + ys[j]) &&
+                            kept(x0 + xs[i + 1], y0 + ys[j + 1]) && kept(x0 + xs[i], y0 + ys[j + 1]);
+        if (all_in) quad(id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+      }
+    }
+    if (triangles.empty()) {
+      shape_error(origin, part, fmt::format("clip_polygon holds no whole element of element_size {} m", es),
+                  "give a larger polygon or a smaller element_size");
+    }
+  }
+  SurfaceMesh mesh;
+  mesh.node_position = welder.take_positions();
+  mesh.triangle = std::move(triangles);
+  mesh.make_single_part(part);
+  return mesh;
+}
+
 }  // namespace
 
 std::vector<double> grid_levels(double length, double element_size) {
@@ -289,8 +402,9 @@ SurfaceMesh triangulate(const scene::Shape& shape, const std::string& part_name,
     case scene::Shape::Type::chute: return chute(shape, part_name, origin);
     case scene::Shape::Type::channel: return channel(shape, part_name, origin);
     case scene::Shape::Type::mesh: return mesh(shape, part_name, origin);
+    case scene::Shape::Type::terrain: return terrain(shape, part_name, origin);
   }
-  shape_error(origin, part_name, "unknown shape type", "use plane, box, chute, channel or mesh");
+  shape_error(origin, part_name, "unknown shape type", "use plane, box, chute, channel, mesh or terrain");
 }
 
 }  // namespace sabo::geometry

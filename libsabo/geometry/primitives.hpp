@@ -19,9 +19,11 @@ namespace sabo::geometry {
 // box: its closed surface, normals outward;
 // chute: floor and side walls (and end wall), normals into the channel;
 // channel: floor along the profile, vertical side and end walls, normals into the channel;
-// mesh: the STL file, scaled about the origin, then translated.
+// mesh: the STL file, scaled about the origin, then translated;
+// terrain: the raster's ground (a strip, a clipped polygon or all of it) on a grid of element_size,
+// translated, triangles facing up.
 // Throws SceneError (naming `origin` when given) for shapes that cannot be
-// built, FileError for unreadable mesh files.
+// built, FileError for unreadable mesh and raster files.
 [[nodiscard]] SurfaceMesh triangulate(const scene::Shape& shape, const std::string& part_name,
                                       const scene::Origin& origin = {});
 

@@ -5,6 +5,7 @@ target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/gmsh_groups.cpp
   ${CMAKE_CURRENT_LIST_DIR}/hdf5.cpp
   ${CMAKE_CURRENT_LIST_DIR}/profile_csv.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/raster.cpp
   ${CMAKE_CURRENT_LIST_DIR}/stl.cpp
   ${CMAKE_CURRENT_LIST_DIR}/traffic.cpp
   ${CMAKE_CURRENT_LIST_DIR}/traffic_reader.cpp

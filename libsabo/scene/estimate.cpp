@@ -56,7 +56,7 @@ Surface structure_surface(const Structure& structure) {
   const Shape& shape = structure.shape;
   Surface s;
   const double es = shape.element_size;
-  if (shape.type == Shape::Type::mesh) {
+  if (shape.type == Shape::Type::mesh || shape.type == Shape::Type::terrain) {
     const MeshSize& m = shape.mesh_size;
     const double scale = shape.scale;
     if (structure.rigid) {
@@ -119,7 +119,8 @@ Surface structure_surface(const Structure& structure) {
         if (shape.start_wall_height > 0) face(shape.width, shape.start_wall_height);
         if (shape.end_wall_height > 0) face(shape.width, shape.end_wall_height);
         break;
-      case Shape::Type::mesh: break;
+      case Shape::Type::mesh:
+      case Shape::Type::terrain: break;
     }
     s.shells = deformable;
   } else {

@@ -229,7 +229,7 @@ struct MeshSize {
 
 // The geometry of one structure part (FEM).
 struct Shape {
-  enum class Type { plane, box, chute, channel, mesh };
+  enum class Type { plane, box, chute, channel, mesh, terrain };
   Type type = Type::plane;
   // plane: a finite rectangle centred at `origin`, normal `normal`, sides
   // `length` (along `direction` projected on the plane) and `width`.
@@ -258,7 +258,14 @@ struct Shape {
   std::filesystem::path file;
   double scale = 1.0;
   Vec3 translate = Vec3::Zero();
-  MeshSize mesh_size;       // mesh: the file's, filled by the loader
+  MeshSize mesh_size;  // mesh: the file's, filled by the loader
+  // terrain: the elevation raster `file` (io/raster.hpp; resolved to an absolute path), in the raster's
+  // coordinates (x, y, elevation), then translated by `translate`. The ground kept is a `strip` along a
+  // polyline (x, y), `strip_width` wide, or the inside of `clip_polygon` (x, y), or the whole raster.
+  std::vector<std::array<double, 2>> strip;
+  double strip_width = 0;
+  std::vector<std::array<double, 2>> clip_polygon;
+  std::string raster;       // terrain: what the loader read (io::Raster::describe()), for the logs
   double element_size = 0;  // m: target triangle edge for generated shapes (0: coarsest)
 };
 

@@ -16,6 +16,7 @@ CHUTE_SMALL = "configs/tests/chute_small.toml"
 HERTZ_WALL = "configs/tests/hertz_wall_impact.toml"
 BOULDER_WALL = "configs/tests/boulder_wall_30ms.toml"
 ROLL = "configs/tests/sphere_roll.toml"
+TERRAIN_ROLL = "configs/tests/terrain_roll.toml"
 
 
 def particle_states(run_dir):
@@ -114,6 +115,36 @@ class RollingAgainstAStructureTest(RealRunTestCase):
             print("D4 {}: measured {:.4f}, expected {:.4f} ({:+.2%})".format(name, measured, expected,
                                                                              measured / expected - 1))
             self.assertLess(abs(measured / expected - 1), 0.02, name)
+
+
+class TerrainRollTest(RealRunTestCase):
+    """A sphere released on ground read from an elevation raster (an ESRI ASCII grid of a 10 degree
+    incline, a strip of it meshed at 1 m) rolls without slipping at a = 5/7 g sin(theta), and never leaves
+    the strip's centre line. Tolerance 1 %."""
+
+    def test_rolls_down_the_raster_incline_at_five_sevenths_g_sin_theta(self):
+        out = os.path.join(self.tmp, "terrain")
+        sabo = self.run_sabo(self.scene_path(TERRAIN_ROLL), out)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        with open(os.path.join(out, "fem_solver.log")) as log:
+            self.assertIn("terrain 'slope' from the raster", log.read())
+        scene = load_scene(self.scene_path(TERRAIN_ROLL))
+        g = -scene["run"]["gravity"][2]
+        theta = math.radians(10.0)
+        down = np.array([math.cos(theta), 0.0, -math.sin(theta)])
+        with h5py.File(os.path.join(out, "traffic.h5"), "r", swmr=True) as traffic:
+            state = traffic["dem_solver/state"]
+            time = state["time"][()]
+            velocity = state["velocity"][()].reshape(-1, 3)
+            position = state["position"][()].reshape(-1, 3)
+        later = time > 0.2
+        measured = np.polyfit(time[later], velocity[later] @ down, 1)[0]
+        expected = 5 / 7 * g * math.sin(theta)
+        print("terrain roll: acceleration down the raster incline measured {:.5f} m/s^2, expected {:.5f} "
+              "({:+.3%}); largest sideways drift {:.2e} m".format(measured, expected, measured / expected - 1,
+                                                                  np.abs(position[:, 1]).max()))
+        self.assertLess(abs(measured / expected - 1), 0.01)
+        self.assertLess(np.abs(position[:, 1]).max(), 1e-6)
 
 
 class HertzWallImpactTest(RealRunTestCase):

@@ -38,6 +38,7 @@
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
 #include "libsabo/io/profile_csv.hpp"
+#include "libsabo/io/raster.hpp"
 #include "libsabo/io/stl.hpp"
 #include "libsabo/physics/stable_step.hpp"
 #include "libsabo/scene/detail/reader.hpp"
@@ -119,6 +120,7 @@ class Builder {
   fs::path resolve_mesh(Reader& r, const std::string& file, bool rigid = true);
   void read_mesh(Reader& r, const std::string& file, Structure& structure);
   void read_channel_profile(Reader& r, Shape& shape);
+  void read_terrain(Reader& r, Structure& structure);
   // A file reader's error ("FILE[:LINE]: problem. Fix: fix") as a problem of key `key`, its problem after
   // `what`, its fix (or `fallback_fix` where it names none) as the fix.
   void add_file_error(Reader& r, const std::string& key, const std::string& value, const std::string& what,

@@ -27,7 +27,14 @@ void Schema::build_structures() {
       "straight piece of the profile is meshed on its own, so every point of the profile is a row of nodes. The "
       "Wenjia scenes draw the gully this way (docs/wenjia.md).\n"
       "* `mesh`: a triangulated surface read from an STL file (ASCII or binary), scaled by `scale` and then "
-      "translated by `translate`.\n\n"
+      "translated by `translate`.\n"
+      "* `terrain`: the ground of an elevation raster `raster_file` (a GeoTIFF, an ESRI ASCII grid or any raster "
+      "GDAL reads; band 1 the elevation in m, north-up), rigid: a `strip` `strip_width` wide along a polyline, "
+      "the inside of `clip_polygon`, or the whole raster, meshed at `element_size` (the raster's cell without it) "
+      "with each node at the raster's elevation there (bilinear between cell centres), then translated by "
+      "`translate` (a projected raster's coordinates are large: move the region near the origin). Coordinates "
+      "(x, y) of `strip` and `clip_polygon` are the raster's own. The fem_solver's log names the raster's "
+      "coordinate system.\n\n"
       "The loader normalises `normal` and `direction` (the plane's `direction` is first projected onto the "
       "plane) and makes the mesh path absolute.";
   const std::vector<std::string> plane_chute{"plane", "chute"};
@@ -121,7 +128,7 @@ void Schema::build_structures() {
           .doc("Shell thickness: contact acts at half of it from the surface (paper eq. 3); 0 for a solid face."),
       K("shape", Type::string)
           .required("\"plane\"")
-          .choices({"plane", "box", "chute", "channel", "mesh"})
+          .choices({"plane", "box", "chute", "channel", "mesh", "terrain"})
           .doc("Kind of geometry."),
       K("origin", Type::vec3)
           .required("[0.0, 0.0, 0.0]")
@@ -201,8 +208,9 @@ void Schema::build_structures() {
           .def(Shape{}.element_size)
           .unit("m")
           .ge(0)
-          .only_for({"plane", "box", "chute", "channel"})
-          .doc("Target edge length of the generated triangles (0: the coarsest mesh)."),
+          .only_for({"plane", "box", "chute", "channel", "terrain"})
+          .doc("Target edge length of the generated triangles (0: the coarsest mesh; a terrain: the raster's "
+               "cell)."),
       K("file", Type::string)
           .required("\"meshes/dam.stl\"")
           .only_for({"mesh"})
@@ -217,8 +225,34 @@ void Schema::build_structures() {
       K("translate", Type::vec3)
           .def(Shape{}.translate)
           .unit("m")
-          .only_for({"mesh"})
-          .doc("Translation applied after scaling."),
+          .only_for({"mesh", "terrain"})
+          .doc("Translation applied after scaling (a terrain: added to the raster's x, y and elevation)."),
+      K("raster_file", Type::string)
+          .required("\"terrain/gully.tif\"")
+          .only_for({"terrain"})
+          .allowed("a raster GDAL reads, relative to the scene file's folder")
+          .doc("The elevation raster: band 1 in m, north-up (a rotated raster: `gdalwarp` it first)."),
+      K("strip", Type::pair_list)
+          .absent("the whole raster, or `clip_polygon`")
+          .example("[[500.0, 300.0], [800.0, 420.0], [1200.0, 430.0]]")
+          .unit("m")
+          .only_for({"terrain"})
+          .doc("The centre line (x, y) of the strip kept, at least two points, in the raster's coordinates; at a "
+               "bend the cross-section follows the bisector. Needs `strip_width`."),
+      K("strip_width", Type::number)
+          .absent("no strip")
+          .example("40.0")
+          .unit("m")
+          .gt(0)
+          .only_for({"terrain"})
+          .doc("Width of the strip, across its centre line."),
+      K("clip_polygon", Type::pair_list)
+          .absent("the whole raster, or `strip`")
+          .example("[[500.0, 300.0], [900.0, 300.0], [900.0, 600.0]]")
+          .unit("m")
+          .only_for({"terrain"})
+          .doc("The polygon (x, y) whose inside is kept, at least three corners, in the raster's coordinates: the "
+               "elements of the grid that lie wholly inside."),
   };
   constraint.title = "[[structures]] constraints = [ { ... } ]";
   constraint.anchor = "structures-constraints";
@@ -654,6 +688,9 @@ void Builder::read_structure(const toml::table& table, std::size_t index) {
         s.direction = Vec3(direction->x(), direction->y(), 0.0) / horizontal;
       }
     }
+  } else if (*shape == "terrain") {
+    s.type = Shape::Type::terrain;
+    if (auto v = r.vec3("translate")) s.translate = *v;
   } else if (*shape == "mesh") {
     s.type = Shape::Type::mesh;
     if (auto v = r.number("scale")) s.scale = *v;
@@ -667,6 +704,7 @@ void Builder::read_structure(const toml::table& table, std::size_t index) {
   if (s.type != Shape::Type::mesh) {
     if (auto v = r.number("element_size")) s.element_size = *v;
   }
+  if (s.type == Shape::Type::terrain) read_terrain(r, structure);
   check_constraints(structure, shape);
   scene_.structures.push_back(std::move(structure));
 }
@@ -718,6 +756,85 @@ void Builder::read_channel_profile(Reader& r, Shape& shape) {
   } catch (const FileError& error) {
     add_file_error(r, "profile_file", quote_text(*file), "the profile cannot be read", error,
                    "correct the path; it is relative to the scene file's folder");
+  }
+}
+
+// A terrain's raster and the ground kept of it (a strip or a polygon), checked by building its surface
+// as the solvers will (geometry::triangulate), whose size goes into the scene's estimate.
+void Builder::read_terrain(Reader& r, Structure& structure) {
+  Shape& shape = structure.shape;
+  const bool has_strip = r.has("strip"), has_polygon = r.has("clip_polygon");
+  if (has_strip && has_polygon) {
+    diag_.add(r.line("clip_polygon"), r.key_path("clip_polygon"), value_text(*r.node("clip_polygon")),
+              "gives both strip and clip_polygon: a terrain keeps one region of its raster",
+              "keep one of strip (with strip_width) and clip_polygon");
+    return;
+  }
+  if (has_strip) {
+    const auto points = r.pairs("strip");
+    if (!points) return;
+    const std::string value = value_text(*r.node("strip"));
+    if (points->size() < 2) {
+      diag_.add(r.line("strip"), r.key_path("strip"), value,
+                fmt::format("a strip needs a polyline of at least 2 points, not {}", points->size()),
+                "list the points (x, y) of the strip's centre line in order, e.g. [[0.0, 0.0], [100.0, 20.0]]");
+      return;
+    }
+    for (std::size_t k = 1; k < points->size(); ++k) {
+      if ((*points)[k] == (*points)[k - 1]) {
+        diag_.add(r.line("strip"), r.key_path("strip"), value,
+                  fmt::format("points {} and {} are the same point", k - 1, k), "drop the repeated point");
+        return;
+      }
+    }
+    shape.strip = *points;
+    const auto width = r.number("strip_width");
+    if (!width) {
+      diag_.add(r.line("strip"), r.key_path("strip_width"), std::nullopt, "a strip needs its width",
+                "add strip_width = 20.0 (m, across the polyline)");
+      return;
+    }
+    shape.strip_width = *width;
+  } else if (r.has("strip_width")) {
+    diag_.add(r.line("strip_width"), r.key_path("strip_width"), value_text(*r.node("strip_width")),
+              "strip_width without a strip", "add strip = [[x, y], ...] (the strip's centre line) or remove it");
+    return;
+  }
+  if (has_polygon) {
+    const auto points = r.pairs("clip_polygon");
+    if (!points) return;
+    if (points->size() < 3) {
+      diag_.add(r.line("clip_polygon"), r.key_path("clip_polygon"), value_text(*r.node("clip_polygon")),
+                fmt::format("a polygon needs at least 3 points, not {}", points->size()),
+                "list the corners (x, y) in order");
+      return;
+    }
+    shape.clip_polygon = *points;
+  }
+  const auto file = r.string("raster_file");
+  if (!file) return;
+  const fs::path given(*file);
+  shape.file = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+  const std::string region_key = has_strip ? "strip" : has_polygon ? "clip_polygon" : "raster_file";
+  try {
+    shape.raster = io::read_raster(shape.file).describe();
+  } catch (const FileError& error) {
+    add_file_error(r, "raster_file", quote_text(*file), "the raster cannot be read", error,
+                   "correct the path; it is relative to the scene file's folder");
+    return;
+  }
+  try {
+    const geometry::SurfaceMesh surface = geometry::triangulate(shape, structure.name);  // the key is named here
+    MeshSize& size = shape.mesh_size;
+    size.nodes = surface.node_position.size();
+    size.triangles = surface.triangle.size();
+    for (const auto& t : surface.triangle) {
+      const auto& x = surface.node_position;
+      size.area += 0.5 * (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).norm();
+    }
+  } catch (const Error& error) {
+    add_file_error(r, region_key, r.has(region_key) ? value_text(*r.node(region_key)) : quote_text(*file),
+                   "the terrain cannot be built", error, "keep the region inside the raster");
   }
 }
 

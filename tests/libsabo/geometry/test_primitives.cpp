@@ -3,12 +3,16 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <numbers>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/geometry/polygon.hpp"
 #include "libsabo/geometry/primitives.hpp"
+#include "tests/support/scratch.hpp"
 
 using sabo::Vec3;
 using sabo::geometry::SurfaceMesh;
@@ -331,4 +335,109 @@ TEST(Primitives, RejectsImpossibleShapes) {
   plane.width = 1;
   plane.direction = Vec3(0, 0, 1);  // parallel to the default normal
   EXPECT_THROW((void)sabo::geometry::triangulate(plane, "p"), sabo::SceneError);
+}
+
+namespace {
+
+// An ESRI ASCII grid of z = 50 + 0.2 x - 0.1 y at its cell centres, 30 x 20 cells of 2 m from (0, 0).
+std::filesystem::path incline_grid() {
+  const auto path = sabo::testing::scratch("terrain_plane.asc");
+  std::ofstream out(path);
+  out << "ncols 30\nnrows 20\nxllcorner 0\nyllcorner 0\ncellsize 2\nNODATA_value -9999\n";
+  for (int r = 0; r < 20; ++r) {
+    for (int c = 0; c < 30; ++c) out << 50.0 + 0.2 * (2 * c + 1) - 0.1 * (40 - 2 * r - 1) << (c < 29 ? " " : "\n");
+  }
+  return path;
+}
+
+Shape terrain_shape() {
+  Shape shape;
+  shape.type = Shape::Type::terrain;
+  shape.file = incline_grid();
+  shape.translate = Vec3(-10.0, -20.0, -50.0);
+  return shape;
+}
+
+double projected_area(const SurfaceMesh& mesh) {
+  double area = 0;
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) area += mesh.face_area(f) * mesh.face_normal(f).z();
+  return area;
+}
+
+// Distance in (x, y) from p to the polyline.
+double distance_to_polyline(const std::vector<std::array<double, 2>>& line, double x, double y) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k + 1 < line.size(); ++k) {
+    const Eigen::Vector2d a(line[k][0], line[k][1]), b(line[k + 1][0], line[k + 1][1]), p(x, y);
+    const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (p - (a + t * (b - a))).norm());
+  }
+  return best;
+}
+
+}  // namespace
+
+TEST(Primitives, TerrainStripFollowsItsPolylineOnTheRastersGround) {
+  Shape shape = terrain_shape();
+  shape.strip = {{4.0, 10.0}, {30.0, 10.0}, {50.0, 30.0}};  // a 45 degree bend
+  shape.strip_width = 6.0;
+  shape.element_size = 1.5;
+  const SurfaceMesh mesh = sabo::geometry::triangulate(shape, "gully");
+  EXPECT_NO_THROW(mesh.validate("gully"));
+  EXPECT_EQ(duplicate_positions(mesh, 1e-9), 0u);
+  for (const auto& [edge, count] : edge_use(mesh)) ASSERT_LE(count, 2);
+  double worst_z = 0, widest = 0;
+  for (const Vec3& p : mesh.node_position) {
+    const double x = p.x() + 10.0, y = p.y() + 20.0;  // back in the raster's coordinates
+    worst_z = std::max(worst_z, std::abs(p.z() + 50.0 - (50.0 + 0.2 * x - 0.1 * y)));
+    widest = std::max(widest, distance_to_polyline(shape.strip, x, y));
+  }
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) ASSERT_GT(mesh.face_normal(f).z(), 0.9) << "face " << f;
+  // A mitred strip covers its width times its centre line's length.
+  const double length = 26.0 + std::hypot(20.0, 20.0);
+  std::cout << "terrain strip: projected area " << projected_area(mesh) << " m^2, expected " << 6.0 * length
+            << "; largest elevation error " << worst_z << " m; farthest node " << widest
+            << " m from the centre line (half width 3, 3.247 at the bend's outer corner)\n";
+  EXPECT_NEAR(projected_area(mesh), 6.0 * length, 1e-6 * 6.0 * length);
+  EXPECT_LT(worst_z, 1e-5);  // the raster holds floats
+  // The outer corner of the mitre at the bend is the farthest: half the width over cos(22.5 degrees).
+  EXPECT_NEAR(widest, 3.0 / std::cos(std::numbers::pi / 8), 1e-9);
+  EXPECT_LE(longest_edge(mesh), 2 * 1.5);
+}
+
+TEST(Primitives, TerrainClippedToAPolygonOrWhole) {
+  Shape shape = terrain_shape();
+  shape.element_size = 1.0;
+  const SurfaceMesh whole = sabo::geometry::triangulate(shape, "valley");
+  std::cout << "whole terrain: projected area " << projected_area(whole) << " m^2, expected " << 58.0 * 38.0 << "\n";
+  EXPECT_NEAR(projected_area(whole), 58.0 * 38.0, 1e-6);  // the cell centres' extent
+
+  shape.clip_polygon = {{10.0, 5.0}, {40.0, 8.0}, {25.0, 30.0}};
+  const SurfaceMesh clipped = sabo::geometry::triangulate(shape, "valley");
+  const double polygon = sabo::geometry::polygon_area(shape.clip_polygon);
+  std::cout << "clipped terrain: projected area " << projected_area(clipped) << " m^2 of the polygon's " << polygon
+            << "\n";
+  for (const Vec3& p : clipped.node_position) {
+    ASSERT_TRUE(sabo::geometry::polygon_contains(shape.clip_polygon, p.x() + 10.0, p.y() + 20.0)) << p.transpose();
+  }
+  EXPECT_LT(projected_area(clipped), polygon);
+  EXPECT_GT(projected_area(clipped), 0.8 * polygon);  // the staircase along its edges loses less than 20 %
+}
+
+TEST(Primitives, TerrainOutsideItsRasterIsRefusedNamingThePoint) {
+  Shape shape = terrain_shape();
+  shape.strip = {{4.0, 10.0}, {70.0, 10.0}};  // the raster's centres end at x = 59
+  shape.strip_width = 4.0;
+  try {
+    (void)sabo::geometry::triangulate(shape, "gully");
+    FAIL() << "a strip beyond its raster was built";
+  } catch (const sabo::SceneError& error) {
+    const std::string message = error.what();
+    std::cout << message << "\n";
+    EXPECT_NE(message.find("outside the cell centres"), std::string::npos);
+    EXPECT_NE(message.find("structure 'gully'"), std::string::npos);
+    EXPECT_NE(message.find("Fix:"), std::string::npos);
+  }
+  shape.strip = {{4.0, 10.0}, {30.0, 10.0}, {5.0, 11.0}};  // turns back on itself
+  EXPECT_THROW((void)sabo::geometry::triangulate(shape, "gully"), sabo::SceneError);
 }

@@ -54,6 +54,18 @@ const std::vector<BadScene>& bad_scenes() {
         "tests/scenes/bad/profiles/not_monotone.csv:5: distance 20 does not increase "
         "(line 4 has 30)",
         "sort the points by distance"}},
+      {"terrain_outside_raster.toml",
+       28,
+       "structures[0].strip",
+       "[[2.0, 6.0], [45.0, 6.0]]",
+       {"the terrain cannot be built: structure 'slope': the ground at (x, y) = (40, 4) m is outside the cell "
+        "centres",
+        "keep the strip or the polygon inside the raster"}},
+      {"terrain_not_a_raster.toml",
+       27,
+       "structures[0].raster_file",
+       "\"profiles/not_monotone.csv\"",
+       {"the raster cannot be read", "GDAL cannot open it as a raster", "give an elevation raster GDAL reads"}},
       {"missing_mesh.toml",
        27,
        "structures[0].file",

@@ -251,6 +251,82 @@ floor = false
   EXPECT_FALSE(flume.floor);
 }
 
+// A 10 x 8 grid of 5 m cells from (1000, 2000), the ground rising 0.1 m per m along x.
+constexpr const char* kRampGrid =
+    "ncols 10\nnrows 8\nxllcorner 1000\nyllcorner 2000\ncellsize 5\nNODATA_value -9999\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n"
+    "300.25 300.75 301.25 301.75 302.25 302.75 303.25 303.75 304.25 304.75\n";
+
+constexpr const char* kTerrainHead = R"(
+[[structures]]
+name = "gully"
+material = "concrete"
+shape = "terrain"
+raster_file = "dem/ramp.asc"
+translate = [-1000.0, -2000.0, -300.0]
+)";
+
+TEST(SceneLoader, ReadsATerrainFromItsRasterAndSizesIt) {
+  TempFolder folder;
+  folder.write("dem/ramp.asc", kRampGrid);
+  const auto file = folder.write("scene.toml", std::string(kSceneHead) + kOneSphere + kTerrainHead +
+                                                   "strip = [[1005.0, 2020.0], [1045.0, 2020.0]]\n"
+                                                   "strip_width = 10.0\nelement_size = 2.5\n");
+  const Scene scene = load_scene(file);
+  const Shape& gully = scene.structures.at(0).shape;
+  EXPECT_EQ(gully.type, Shape::Type::terrain);
+  EXPECT_EQ(gully.file, (folder.path() / "dem/ramp.asc").lexically_normal());
+  EXPECT_EQ(gully.translate, Vec3(-1000.0, -2000.0, -300.0));
+  EXPECT_DOUBLE_EQ(gully.strip_width, 10.0);
+  EXPECT_NE(gully.raster.find("AAIGrid, 10 x 8 cells of 5 x 5 m"), std::string::npos) << gully.raster;
+  // 40 m by 10 m at 2.5 m: 16 x 4 quads, on a ground sloping at 0.1.
+  EXPECT_EQ(gully.mesh_size.triangles, 2u * 16u * 4u);
+  EXPECT_EQ(gully.mesh_size.nodes, 17u * 5u);
+  EXPECT_NEAR(gully.mesh_size.area, 400.0 * std::sqrt(1.01), 1e-6);
+}
+
+TEST(SceneLoader, RefusesTerrainsItCannotBuild) {
+  const std::string head = std::string(kSceneHead) + kOneSphere + kTerrainHead;
+  const auto error_with_grid = [&](const std::string& text) {
+    TempFolder folder;
+    folder.write("dem/ramp.asc", kRampGrid);
+    folder.write("dem/profile.csv", "0,100\n10,90\n");
+    try {
+      (void)load_scene(folder.write("scene.toml", text));
+    } catch (const SceneError& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  };
+  const std::string both = error_with_grid(head +
+                                           "strip = [[1005.0, 2020.0], [1045.0, 2020.0]]\nstrip_width = 10.0\n"
+                                           "clip_polygon = [[1005.0, 2005.0], [1040.0, 2005.0], [1020.0, 2030.0]]\n");
+  EXPECT_NE(both.find("gives both strip and clip_polygon"), std::string::npos) << both;
+  const std::string no_width = error_with_grid(head + "strip = [[1005.0, 2020.0], [1045.0, 2020.0]]\n");
+  EXPECT_NE(no_width.find("structures[0].strip_width"), std::string::npos) << no_width;
+  EXPECT_NE(no_width.find("a strip needs its width"), std::string::npos) << no_width;
+  const std::string outside =
+      error_with_grid(head + "strip = [[1005.0, 2020.0], [1080.0, 2020.0]]\nstrip_width = 10.0\n");
+  EXPECT_NE(outside.find("key 'structures[0].strip'"), std::string::npos) << outside;
+  EXPECT_NE(outside.find("outside the cell centres"), std::string::npos) << outside;
+  EXPECT_NE(outside.find("keep the strip or the polygon inside the raster"), std::string::npos) << outside;
+  const std::string not_raster = error_with_grid(std::string(kSceneHead) + kOneSphere +
+                                                 "[[structures]]\nname = \"gully\"\nmaterial = \"concrete\"\n"
+                                                 "shape = \"terrain\"\nraster_file = \"dem/profile.csv\"\n");
+  EXPECT_NE(not_raster.find("key 'structures[0].raster_file'"), std::string::npos) << not_raster;
+  EXPECT_NE(not_raster.find("GDAL cannot open it"), std::string::npos) << not_raster;
+  const std::string deformable = error_with_grid(head + "rigid = false\n");
+  EXPECT_NE(deformable.find("not shape = \"terrain\""), std::string::npos) << deformable;
+  const std::string polygon = error_with_grid(head + "clip_polygon = [[1005.0, 2005.0], [1040.0, 2005.0]]\n");
+  EXPECT_NE(polygon.find("at least 3 points, not 2"), std::string::npos) << polygon;
+}
+
 TEST(SceneLoader, RefusesChannelProfilesItCannotUse) {
   const std::string head = std::string(kSceneHead) + kOneSphere + R"(
 [[structures]]

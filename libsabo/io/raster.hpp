@@ -1,0 +1,42 @@
+#pragma once
+// An elevation raster read through GDAL: a GeoTIFF, an ESRI ASCII grid or any other raster GDAL opens. Band 1
+// holds the elevation (m); the raster is north-up (no rotation terms in its geotransform). Elevations
+// between cell centres are bilinear, so a plane stored cell by cell is read back exactly.
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace sabo::io {
+
+struct Raster {
+  std::filesystem::path file;
+  std::string driver;  // GDAL's short name: "GTiff", "AAIGrid", ...
+  // The coordinate system's name and authority code, e.g. "WGS 84 / UTM zone 48N (EPSG:32648)"; empty when
+  // the file has none (an ESRI ASCII grid without its .prj).
+  std::string crs;
+  std::size_t columns = 0, rows = 0;
+  double left = 0, top = 0;       // m: the outer corner of the first cell (row 0 is the northernmost)
+  double cell_x = 0, cell_y = 0;  // m: cell size along x and along y (both > 0; rows run south)
+  std::optional<double> no_data;  // the band's no-data value, when it has one
+  std::vector<float> elevation;   // m, rows x columns, row-major
+
+  // The extent of the cell centres, where elevation_at() is defined, m.
+  [[nodiscard]] double x_min() const { return left + 0.5 * cell_x; }
+  [[nodiscard]] double x_max() const { return left + (static_cast<double>(columns) - 0.5) * cell_x; }
+  [[nodiscard]] double y_max() const { return top - 0.5 * cell_y; }
+  [[nodiscard]] double y_min() const { return top - (static_cast<double>(rows) - 0.5) * cell_y; }
+  [[nodiscard]] bool covers(double x, double y) const;
+  // The elevation at (x, y), m, bilinear between the four nearest cell centres; nullopt outside the centres'
+  // extent or where one of those cells is no-data.
+  [[nodiscard]] std::optional<double> elevation_at(double x, double y) const;
+  // One line for logs: file, driver, size, cell size, coordinate system.
+  [[nodiscard]] std::string describe() const;
+};
+
+// Throws FileError naming the file and GDAL's own message: a file GDAL cannot open, a raster without a band,
+// a rotated raster (the fix: gdalwarp it north-up), fewer than 2 x 2 cells, a band that does not read.
+[[nodiscard]] Raster read_raster(const std::filesystem::path& file);
+
+}  // namespace sabo::io
