@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/node_welder.hpp"
@@ -265,7 +266,47 @@ SurfaceMesh mesh(const scene::Shape& shape, const std::string& part, const scene
 // raster, on a grid of about element_size (the raster's cell without one), each node at the raster's
 // bilinear elevation, triangles facing up.
 SurfaceMesh terrain(const scene::Shape& shape, const std::string& part, const scene::Origin& origin) {
-  const io::Raster raster = io::read_raster(shape.file);
+  // A strip's cross-sections: at a bend along the bisector, lengthened so that the strip keeps its width.
+  std::vector<Eigen::Vector2d> mitre;
+  if (!shape.strip.empty()) {
+    const auto& p = shape.strip;
+    const std::size_t m = p.size() - 1;
+    std::vector<Eigen::Vector2d> left(m);  // unit normals of the segments, to their left
+    for (std::size_t k = 0; k < m; ++k) {
+      const Eigen::Vector2d d = Eigen::Vector2d(p[k + 1][0] - p[k][0], p[k + 1][1] - p[k][1]).normalized();
+      left[k] = Eigen::Vector2d(-d.y(), d.x());
+    }
+    mitre.resize(m + 1);
+    mitre[0] = left[0];
+    mitre[m] = left[m - 1];
+    for (std::size_t k = 1; k < m; ++k) {
+      const Eigen::Vector2d bisector = left[k - 1] + left[k];
+      const double along = bisector.norm() > 1e-12 ? bisector.normalized().dot(left[k]) : 0.0;
+      if (along < 0.2) {
+        shape_error(origin, part, fmt::format("the strip turns by more than 157 degrees at its point {}", k),
+                    "smooth the polyline (add points along the bend)");
+      }
+      mitre[k] = bisector.normalized() / along;
+    }
+  }
+  // Only the cells under the region are read: the corners of the strip's cross-sections, or the polygon.
+  std::optional<io::RasterWindow> window;
+  const auto widen = [&](double x, double y) {
+    if (!window) window = io::RasterWindow{x, y, x, y};
+    window->x_min = std::min(window->x_min, x);
+    window->y_min = std::min(window->y_min, y);
+    window->x_max = std::max(window->x_max, x);
+    window->y_max = std::max(window->y_max, y);
+  };
+  for (std::size_t k = 0; k < mitre.size(); ++k) {
+    for (const double side : {-0.5, 0.5}) {
+      const Eigen::Vector2d corner =
+          Eigen::Vector2d(shape.strip[k][0], shape.strip[k][1]) + side * shape.strip_width * mitre[k];
+      widen(corner.x(), corner.y());
+    }
+  }
+  for (const auto& v : shape.clip_polygon) widen(v[0], v[1]);
+  const io::Raster raster = io::read_raster(shape.file, window);
   const double es = shape.element_size > 0 ? shape.element_size : std::min(raster.cell_x, raster.cell_y);
   NodeWelder welder(kWeldFraction * std::hypot(raster.x_max() - raster.x_min(), raster.y_max() - raster.y_min()));
   std::vector<std::array<std::uint32_t, 3>> triangles;
@@ -290,24 +331,6 @@ SurfaceMesh terrain(const scene::Shape& shape, const std::string& part, const sc
   if (!shape.strip.empty()) {
     const auto& p = shape.strip;
     const std::size_t m = p.size() - 1;
-    std::vector<Eigen::Vector2d> left(m);  // unit normals of the segments, to their left
-    for (std::size_t k = 0; k < m; ++k) {
-      const Eigen::Vector2d d = Eigen::Vector2d(p[k + 1][0] - p[k][0], p[k + 1][1] - p[k][1]).normalized();
-      left[k] = Eigen::Vector2d(-d.y(), d.x());
-    }
-    // At a bend the cross-section follows the bisector, lengthened so that the strip keeps its width.
-    std::vector<Eigen::Vector2d> mitre(m + 1);
-    mitre[0] = left[0];
-    mitre[m] = left[m - 1];
-    for (std::size_t k = 1; k < m; ++k) {
-      const Eigen::Vector2d bisector = left[k - 1] + left[k];
-      const double along = bisector.norm() > 1e-12 ? bisector.normalized().dot(left[k]) : 0.0;
-      if (along < 0.2) {
-        shape_error(origin, part, fmt::format("the strip turns by more than 157 degrees at its point {}", k),
-                    "smooth the polyline (add points along the bend)");
-      }
-      mitre[k] = bisector.normalized() / along;
-    }
     std::vector<double> across = grid_levels(shape.strip_width, es);
     for (double& t : across) t -= 0.5 * shape.strip_width;
     for (std::size_t k = 0; k < m; ++k) {

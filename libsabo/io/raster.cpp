@@ -11,6 +11,7 @@
 #include <cmath>
 #include <memory>
 #include <mutex>
+#include <utility>
 
 #include "libsabo/core/error.hpp"
 
@@ -72,14 +73,7 @@ std::optional<double> Raster::elevation_at(double x, double y) const {
   return (1 - a) * (1 - b) * z[0] + a * (1 - b) * z[1] + (1 - a) * b * z[2] + a * b * z[3];
 }
 
-std::string Raster::describe() const {
-  return fmt::format("{} ({}, {} x {} cells of {} x {} m, x {} to {} m, y {} to {} m, coordinate system {})",
-                     file.string(), driver, columns, rows, cell_x, cell_y, left,
-                     left + static_cast<double>(columns) * cell_x, top - static_cast<double>(rows) * cell_y, top,
-                     crs.empty() ? std::string("not given") : crs);
-}
-
-Raster read_raster(const std::filesystem::path& file) {
+Raster read_raster(const std::filesystem::path& file, const std::optional<RasterWindow>& window) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });
   CPLErrorReset();
@@ -121,15 +115,44 @@ Raster read_raster(const std::filesystem::path& file) {
   raster.cell_x = transform[1];
   raster.cell_y = -transform[5];
   raster.crs = crs_of(handle);
+  raster.description =
+      fmt::format("{} ({}, {} x {} cells of {} x {} m, x {} to {} m, y {} to {} m, coordinate system {})",
+                  file.string(), raster.driver, raster.columns, raster.rows, raster.cell_x, raster.cell_y, raster.left,
+                  raster.left + static_cast<double>(raster.columns) * raster.cell_x,
+                  raster.top - static_cast<double>(raster.rows) * raster.cell_y, raster.top,
+                  raster.crs.empty() ? std::string("not given") : raster.crs);
+  // The window's cells: those whose centres bracket it, and one more on each side.
+  std::size_t first_column = 0, first_row = 0;
+  if (window) {
+    const auto span = [](double low, double high, double cell, std::size_t count) {
+      const double first = std::floor(low / cell - 0.5) - 1, last = std::ceil(high / cell - 0.5) + 1;
+      const double top_index = static_cast<double>(count - 1);
+      auto a = static_cast<std::size_t>(std::clamp(first, 0.0, top_index));
+      auto b = static_cast<std::size_t>(std::clamp(last, 0.0, top_index));
+      if (b < a + 1) {  // at least two cells: a window beyond the raster reads its edge, and is refused there
+        b = std::min(a + 1, count - 1);
+        a = b - 1;
+      }
+      return std::pair{a, b - a + 1};
+    };
+    const auto [c0, nc] = span(window->x_min - raster.left, window->x_max - raster.left, raster.cell_x, raster.columns);
+    const auto [r0, nr] = span(raster.top - window->y_max, raster.top - window->y_min, raster.cell_y, raster.rows);
+    first_column = c0;
+    first_row = r0;
+    raster.left += static_cast<double>(c0) * raster.cell_x;
+    raster.top -= static_cast<double>(r0) * raster.cell_y;
+    raster.columns = nc;
+    raster.rows = nr;
+  }
   GDALRasterBandH band = GDALGetRasterBand(handle, 1);
   int has_no_data = 0;
   const double no_data = GDALGetRasterNoDataValue(band, &has_no_data);
   if (has_no_data != 0) raster.no_data = no_data;
   raster.elevation.resize(raster.columns * raster.rows);
   CPLErrorReset();
-  if (GDALRasterIO(band, GF_Read, 0, 0, static_cast<int>(raster.columns), static_cast<int>(raster.rows),
-                   raster.elevation.data(), static_cast<int>(raster.columns), static_cast<int>(raster.rows),
-                   GDT_Float32, 0, 0) != CE_None) {
+  if (GDALRasterIO(band, GF_Read, static_cast<int>(first_column), static_cast<int>(first_row),
+                   static_cast<int>(raster.columns), static_cast<int>(raster.rows), raster.elevation.data(),
+                   static_cast<int>(raster.columns), static_cast<int>(raster.rows), GDT_Float32, 0, 0) != CE_None) {
     return fail(fmt::format("its band 1 does not read ({})", gdal_message()), "check the file is complete");
   }
   return raster;

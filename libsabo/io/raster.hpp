@@ -31,12 +31,22 @@ struct Raster {
   // The elevation at (x, y), m, bilinear between the four nearest cell centres; nullopt outside the centres'
   // extent or where one of those cells is no-data.
   [[nodiscard]] std::optional<double> elevation_at(double x, double y) const;
-  // One line for logs: file, driver, size, cell size, coordinate system.
-  [[nodiscard]] std::string describe() const;
+  // One line for logs: file, driver, size, cell size, extent and coordinate system of the whole raster (also
+  // when only a window of it was read).
+  [[nodiscard]] const std::string& describe() const { return description; }
+  std::string description;
 };
 
-// Throws FileError naming the file and GDAL's own message: a file GDAL cannot open, a raster without a band,
-// a rotated raster (the fix: gdalwarp it north-up), fewer than 2 x 2 cells, a band that does not read.
-[[nodiscard]] Raster read_raster(const std::filesystem::path& file);
+// A region of a raster, in its coordinates (m).
+struct RasterWindow {
+  double x_min = 0, y_min = 0, x_max = 0, y_max = 0;
+};
+
+// Reads the elevations of the cells that cover `window` (and one cell around it, clamped to the raster;
+// at least 2 x 2 cells), or of the whole raster: a large elevation model is never read whole for a strip
+// of it. Throws FileError naming the file and GDAL's own message: a file GDAL cannot open, a raster without
+// a band, a rotated raster (the fix: gdalwarp it north-up), fewer than 2 x 2 cells, a band that does not read.
+[[nodiscard]] Raster read_raster(const std::filesystem::path& file,
+                                 const std::optional<RasterWindow>& window = std::nullopt);
 
 }  // namespace sabo::io

@@ -817,7 +817,7 @@ void Builder::read_terrain(Reader& r, Structure& structure) {
   shape.file = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
   const std::string region_key = has_strip ? "strip" : has_polygon ? "clip_polygon" : "raster_file";
   try {
-    shape.raster = io::read_raster(shape.file).describe();
+    shape.raster = io::read_raster(shape.file, io::RasterWindow{}).describe();  // 2 x 2 cells: the header
   } catch (const FileError& error) {
     add_file_error(r, "raster_file", quote_text(*file), "the raster cannot be read", error,
                    "correct the path; it is relative to the scene file's folder");

@@ -71,6 +71,29 @@ TEST(Raster, EsriGridReadsBackThePlaneBetweenCellCentres) {
   EXPECT_NE(raster.describe().find("coordinate system not given"), std::string::npos);
 }
 
+TEST(Raster, AWindowReadsOnlyTheCellsAroundIt) {
+  const auto path = write_grid("large.asc", 40, 30, 8.0, 1000.0, 2000.0);
+  const auto window = read_raster(path, sabo::io::RasterWindow{1100.0, 2100.0, 1130.0, 2110.0});
+  std::cout << "window of a 40 x 30 grid: " << window.columns << " x " << window.rows << " cells read\n";
+  EXPECT_LE(window.columns, 7u);  // 30 m across 8 m cells, and one more on each side
+  EXPECT_LE(window.rows, 5u);
+  EXPECT_LE(window.x_min(), 1100.0);
+  EXPECT_GE(window.x_max(), 1130.0);
+  EXPECT_LE(window.y_min(), 2100.0);
+  EXPECT_GE(window.y_max(), 2110.0);
+  for (double x = 1100.0; x <= 1130.0; x += 2.5) {
+    for (double y = 2100.0; y <= 2110.0; y += 2.5) {
+      const auto z = window.elevation_at(x, y);
+      ASSERT_TRUE(z.has_value()) << x << ", " << y;
+      EXPECT_NEAR(*z, plane(x, y), 1e-9);
+    }
+  }
+  EXPECT_NE(window.describe().find("40 x 30 cells"), std::string::npos) << "the whole raster is described";
+  const auto edge = read_raster(path, sabo::io::RasterWindow{5000.0, 5000.0, 5001.0, 5001.0});
+  EXPECT_EQ(edge.columns, 2u) << "a window beyond the raster reads its edge";
+  EXPECT_FALSE(edge.elevation_at(5000.0, 5000.0).has_value());
+}
+
 TEST(Raster, NoDataCellsGiveNoElevationNearThem) {
   // Column 2 of row 1 is no-data: its centre is (1020, 2028).
   const auto raster = read_raster(write_grid("holed.asc", 6, 5, 8.0, 1000.0, 2000.0, 2));
