@@ -26,10 +26,10 @@ FrontReading read_front(const SphModel& model, const scene::Front& front) {
   const auto velocities = model.velocities();
   const auto active = model.active();
   const auto offsets = model.wrap_offsets();  // the periodic wrapping undone: a front moves on
-  const auto distance = [&](std::size_t i) {
-    const Vec3 x = offsets.empty() ? positions[i] : Vec3(positions[i] - offsets[i]);
-    return (x - front.start).dot(front.direction);
+  const auto projection = [&](std::size_t i) {
+    return front.project(offsets.empty() ? positions[i] : Vec3(positions[i] - offsets[i]));
   };
+  const auto distance = [&](std::size_t i) { return projection(i).s; };
   std::vector<std::pair<double, std::uint32_t>> ranked;
   ranked.reserve(positions.size());
   for (std::size_t i = 0; i < positions.size(); ++i) {
@@ -47,7 +47,7 @@ FrontReading read_front(const SphModel& model, const scene::Front& front) {
   std::size_t count = 0;
   for (const auto& [s, i] : ranked) {
     if (s <= reading.position && s >= reading.position - support) {
-      speed_sum += velocities[i].dot(front.direction);
+      speed_sum += velocities[i].dot(projection(i).tangent);
       ++count;
     }
   }
@@ -123,8 +123,10 @@ nlohmann::json FrontRecorder::results() const {
   for (std::size_t f = 0; f < fronts_.size(); ++f) {
     const scene::Front& front = fronts_[f];
     const Track& track = tracks_[f];
-    json entry = {{"path", front.kind == scene::Front::Kind::channel ? "channel " + front.channel : "axis"},
-                  {"samples", track.time.size()}};
+    const std::string path = front.kind == scene::Front::Kind::channel   ? "channel " + front.channel
+                             : front.kind == scene::Front::Kind::terrain ? "terrain " + front.structure
+                                                                         : std::string("axis");
+    json entry = {{"path", path}, {"samples", track.time.size()}};
     double farthest = -std::numeric_limits<double>::infinity(), fastest = 0, fastest_time = 0, fastest_flow = 0;
     for (std::size_t k = 0; k < track.time.size(); ++k) {
       if (std::isfinite(track.position[k])) farthest = std::max(farthest, track.position[k]);

@@ -408,6 +408,41 @@ std::vector<double> grid_levels(double length, double element_size) {
   return levels;
 }
 
+std::vector<Vec3> terrain_centre_line(const scene::Shape& shape, const std::string& part_name,
+                                      const scene::Origin& origin) {
+  const auto& p = shape.strip;
+  if (shape.type != scene::Shape::Type::terrain || p.size() < 2) {
+    shape_error(origin, part_name, "a terrain front follows a strip, and this structure keeps none",
+                "give the terrain a strip (a polyline and strip_width), or track the front along an axis");
+  }
+  io::RasterWindow window{p[0][0], p[0][1], p[0][0], p[0][1]};
+  for (const auto& v : p) {
+    window.x_min = std::min(window.x_min, v[0]);
+    window.y_min = std::min(window.y_min, v[1]);
+    window.x_max = std::max(window.x_max, v[0]);
+    window.y_max = std::max(window.y_max, v[1]);
+  }
+  const io::Raster raster = io::read_raster(shape.file, window);
+  const double es = shape.element_size > 0 ? shape.element_size : std::min(raster.cell_x, raster.cell_y);
+  std::vector<Vec3> line;
+  for (std::size_t k = 0; k + 1 < p.size(); ++k) {
+    const Eigen::Vector2d a(p[k][0], p[k][1]), b(p[k + 1][0], p[k + 1][1]);
+    const auto levels = grid_levels((b - a).norm(), es);
+    for (std::size_t i = k == 0 ? 0 : 1; i < levels.size(); ++i) {
+      const Eigen::Vector2d q = a + levels[i] / (b - a).norm() * (b - a);
+      const auto z = raster.elevation_at(q.x(), q.y());
+      if (!z) {
+        shape_error(origin, part_name,
+                    fmt::format("the strip's centre line at (x, y) = ({:.9g}, {:.9g}) m has no ground in {}", q.x(),
+                                q.y(), raster.describe()),
+                    "keep the strip inside the raster and off its no-data cells");
+      }
+      line.push_back(Vec3(q.x(), q.y(), *z) + shape.translate);
+    }
+  }
+  return line;
+}
+
 ChuteFrame chute_frame(const scene::Shape& shape) {
   const double slope = shape.slope_deg * std::numbers::pi / 180.0;
   const Vec3 horizontal = Vec3(shape.direction.x(), shape.direction.y(), 0).normalized();

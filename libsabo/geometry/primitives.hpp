@@ -27,6 +27,11 @@ namespace sabo::geometry {
 [[nodiscard]] SurfaceMesh triangulate(const scene::Shape& shape, const std::string& part_name,
                                       const scene::Origin& origin = {});
 
+// The centre line of a terrain's strip, sampled at its element size (the raster's cell without one), each
+// point at the ground's elevation, translated: the path of a terrain front. Throws as triangulate().
+[[nodiscard]] std::vector<Vec3> terrain_centre_line(const scene::Shape& shape, const std::string& part_name,
+                                                    const scene::Origin& origin = {});
+
 // The floor's unit vectors of a chute: down-slope direction, lateral
 // direction (to the left looking down-slope) and the normal into the channel.
 struct ChuteFrame {

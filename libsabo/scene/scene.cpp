@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "libsabo/geometry/polygon.hpp"
@@ -122,6 +123,12 @@ Aabb FluidBody::bounds() const {
 }
 
 Vec3 Front::path_point(double s) const {
+  if (kind == Kind::terrain && path.size() >= 2) {
+    const auto after = std::upper_bound(path_s.begin() + 1, path_s.end() - 1, s);
+    const auto k = static_cast<std::size_t>(after - path_s.begin()) - 1;
+    const double f = std::clamp((s - path_s[k]) / (path_s[k + 1] - path_s[k]), 0.0, 1.0);
+    return path[k] + f * (path[k + 1] - path[k]);
+  }
   if (kind == Kind::axis || bed.empty()) return start + s * direction;
   double z = bed.front()[1];
   if (s >= bed.back()[0]) {
@@ -134,6 +141,24 @@ Vec3 Front::path_point(double s) const {
     z = a[1] + (b[1] - a[1]) * (s - a[0]) / (b[0] - a[0]);
   }
   return Vec3(start.x(), start.y(), 0) + s * direction + z * Vec3::UnitZ();
+}
+
+Front::Projection Front::project(const Vec3& x) const {
+  if (kind != Kind::terrain || path.size() < 2) return {(x - start).dot(direction), direction};
+  Projection best;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+    const Eigen::Vector2d a = path[k].head<2>(), b = path[k + 1].head<2>(), p = x.head<2>();
+    const double length = path_s[k + 1] - path_s[k];
+    const double t = std::clamp((p - a).dot(b - a) / (length * length), 0.0, 1.0);
+    const double d = (p - (a + t * (b - a))).squaredNorm();
+    if (d < nearest) {
+      nearest = d;
+      best.s = path_s[k] + t * length;
+      best.tangent = (path[k + 1] - path[k]).normalized();
+    }
+  }
+  return best;
 }
 
 const DemContactLaw& DemContact::law(const std::string& material_a, const std::string& material_b) const {

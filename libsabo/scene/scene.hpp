@@ -492,7 +492,7 @@ struct Gauge {
 // docs/scene.md [[fronts]]): the flow's leading edge along a straight path over time, and the flow depth
 // at named stations along it.
 struct Front {
-  enum class Kind { axis, channel };
+  enum class Kind { axis, channel, terrain };
   struct Station {
     std::string name;
     double at = 0;  // m, the distance along the path
@@ -505,15 +505,27 @@ struct Front {
   // profile's distance); the depth is measured vertically up from the bed.
   Vec3 start = Vec3::Zero();
   Vec3 direction{1, 0, 0};
-  std::string channel;                          // a channel structure (checked)
-  std::vector<std::array<double, 2>> bed;       // channel: its profile (s, z); empty for an axis
+  std::string channel;                     // a channel structure (checked)
+  std::vector<std::array<double, 2>> bed;  // channel: its profile (s, z); empty for an axis
+  // terrain: the path is the centre line of a terrain structure's strip (`structure`, checked), each point at
+  // the ground's elevation (geometry::terrain_centre_line), s the horizontal distance along it from its first
+  // point (path_s); a particle's s is that of its nearest point of the line seen from above.
+  std::string structure;
+  std::vector<Vec3> path;
+  std::vector<double> path_s;
   std::size_t ahead = 0;                        // particles allowed ahead of the front (spray)
   double interval = 0;                          // s between two samples; 0: the run's output_interval
   double depth_height = 0;                      // m, the height of a station's vertical line
   static constexpr double kDepthHeight = 50.0;  // m, without a depth_height or an SPH domain
   std::vector<Station> stations;
-  // The point of the path at distance s, m: on the axis, or on the channel's bed.
+  // The point of the path at distance s, m: on the axis, on the channel's bed, or on the terrain's ground.
   [[nodiscard]] Vec3 path_point(double s) const;
+  // Where x is along the path: its distance s (m) and the path's unit direction there.
+  struct Projection {
+    double s = 0;
+    Vec3 tangent{1, 0, 0};
+  };
+  [[nodiscard]] Projection project(const Vec3& x) const;
 };
 
 // A force sensor of the coupler (sensors.csv, docs/scene.md [[sensors]]): the part of structure `part`'s

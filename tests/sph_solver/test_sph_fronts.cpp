@@ -80,6 +80,27 @@ TEST(SphFronts, TheFrontIsTheLeadingParticleLessThoseAllowedAhead) {
   EXPECT_TRUE(std::isnan(read_front(model, front).position)) << "no front with every particle ahead of it";
 }
 
+TEST(SphFronts, AlongABendingTerrainLineTheFrontIsTheFarthestAlongIt) {
+  const SphModel model = computed_model(block_scene(0.4));
+  scene::Front front = block_scene(0.4).fronts.front();
+  // Along y = 0.2 to x = 0.25, then along +y: the block's corner (0.375, 0.375) leads, at 0.45 + 0.175.
+  front.kind = scene::Front::Kind::terrain;
+  front.structure = "gully";
+  front.path = {Vec3(-0.2, 0.2, 0.0), Vec3(0.25, 0.2, 0.0), Vec3(0.25, 1.0, 0.0)};
+  front.path_s = {0.0, 0.45, 1.25};
+  const FrontReading reading = read_front(model, front);
+  std::cout << "bending line: front measured " << reading.position << " m, expected 0.625 m; flow speed "
+            << reading.flow_speed << " m/s, expected " << kVelocity.y() << " (along the second leg)\n";
+  EXPECT_NEAR(reading.position, 0.625, 1e-12);
+  EXPECT_NEAR(reading.point.y(), 0.375, 1e-12);
+  EXPECT_NEAR(reading.flow_speed, kVelocity.y(), 1e-12);
+  EXPECT_TRUE(front.path_point(0.5).isApprox(Vec3(0.25, 0.25, 0.0), 1e-12));
+  EXPECT_TRUE(front.path_point(0.2).isApprox(Vec3(0.0, 0.2, 0.0), 1e-12));
+  const auto projection = front.project(Vec3(0.1, 0.18, 3.0));
+  EXPECT_NEAR(projection.s, 0.3, 1e-12);
+  EXPECT_TRUE(projection.tangent.isApprox(Vec3(1, 0, 0), 1e-12));
+}
+
 TEST(SphFronts, SpeedArrivalAndDepthBetweenTwoSamples) {
   const auto folder = std::filesystem::temp_directory_path() / "sabo_test_fronts_speed";
   std::filesystem::remove_all(folder);

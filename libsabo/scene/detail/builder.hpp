@@ -121,6 +121,7 @@ class Builder {
   void read_mesh(Reader& r, const std::string& file, Structure& structure);
   void read_channel_profile(Reader& r, Shape& shape);
   void read_terrain(Reader& r, Structure& structure);
+  bool read_terrain_front(Reader& r, Front& front);
   // A file reader's error ("FILE[:LINE]: problem. Fix: fix") as a problem of key `key`, its problem after
   // `what`, its fix (or `fallback_fix` where it names none) as the fix.
   void add_file_error(Reader& r, const std::string& key, const std::string& value, const std::string& what,

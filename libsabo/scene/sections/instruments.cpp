@@ -57,7 +57,7 @@ void Schema::build_fronts() {
   front.anchor = "fronts";
   front.selector = "kind";
   front.description =
-      "A front tracker of the sph_solver: where the flow's leading edge is along a straight path, how fast it "
+      "A front tracker of the sph_solver: where the flow's leading edge is along a path, how fast it "
       "moves, when it passes named stations and how deep the flow stands there. Needs `[[fluids]]`. At every "
       "sample it appends to `fronts.csv` (time, front, position, speed, flow_speed, x, y, z) and, for each "
       "station, to `front_stations.csv` (time, front, station, at, depth); `summary.json` carries the history, "
@@ -66,7 +66,12 @@ void Schema::build_fronts() {
       "* `axis`: the distance of a point x is s = (x - `start`) . `direction` (unit), a station's depth is "
       "measured vertically up from `start` + s `direction` (an axis along a floor: the depth above the floor).\n"
       "* `channel`: the path is the centre line of a `[[structures]]` of shape `channel`: s is the distance of "
-      "its profile, a station's depth is measured vertically up from the bed.\n\n"
+      "its profile, a station's depth is measured vertically up from the bed.\n"
+      "* `terrain`: the path is the centre line of the `strip` of a `[[structures]]` of shape `terrain`, a "
+      "polyline that may bend: s is the horizontal distance along it from its first point (a point's s is that of "
+      "the nearest point of the line seen from above), a station's depth is measured vertically up from the "
+      "ground (the raster's elevation on the line, sampled at the terrain's `element_size`), and `flow_speed` is "
+      "along the line where the front is.\n\n"
       "The front is the largest s of the fluid particles in the domain, leaving out the `ahead` most advanced ones "
       "(spray, a splash over a wall); `x, y, z` is that particle's position. `speed` is the front's advance since "
       "the previous sample divided by the time between them (0 at the first); `flow_speed` is the mean velocity "
@@ -78,7 +83,10 @@ void Schema::build_fronts() {
           .required("\"slurry_front\"")
           .allowed("letters, digits, `_`, `-`")
           .doc("Name of the front, unique among the fronts."),
-      K("kind", Type::string).required("\"axis\"").choices({"axis", "channel"}).doc("A straight axis or a channel."),
+      K("kind", Type::string)
+          .required("\"axis\"")
+          .choices({"axis", "channel", "terrain"})
+          .doc("A straight axis, a channel, or a terrain's strip."),
       K("start", Type::vec3).required("[0.0, 0.0, 0.0]").unit("m").only_for({"axis"}).doc("Where s = 0."),
       K("direction", Type::vec3)
           .required("[1.0, 0.0, 0.0]")
@@ -89,6 +97,11 @@ void Schema::build_fronts() {
           .only_for({"channel"})
           .allowed("a `[[structures]]` name of shape `channel`")
           .doc("The channel whose centre line is the path."),
+      K("terrain", Type::string)
+          .required("\"gully\"")
+          .only_for({"terrain"})
+          .allowed("a `[[structures]]` name of shape `terrain` with a `strip`")
+          .doc("The terrain whose strip's centre line is the path."),
       K("ahead", Type::integer)
           .def(static_cast<std::int64_t>(Front{}.ahead))
           .ge(0)
@@ -280,6 +293,9 @@ void Builder::read_fronts(Reader& root) {
         front.direction = direction->normalized();
         have_path = start.has_value();
       }
+    } else if (*kind == "terrain") {
+      front.kind = Front::Kind::terrain;
+      have_path = read_terrain_front(r, front);
     } else if (auto name = r.string("channel")) {
       front.kind = Front::Kind::channel;
       front.channel = *name;
@@ -316,6 +332,45 @@ void Builder::read_fronts(Reader& root) {
   }
 }
 
+// A terrain front's path: the strip's centre line on the ground; false when the key is wrong.
+bool Builder::read_terrain_front(Reader& r, Front& front) {
+  const auto name = r.string("terrain");
+  if (!name) return false;
+  front.structure = *name;
+  std::vector<std::string> strips;
+  for (const Structure& s : scene_.structures) {
+    if (s.shape.type == Shape::Type::terrain && !s.shape.strip.empty()) strips.push_back(s.name);
+  }
+  const auto structure = std::find_if(scene_.structures.begin(), scene_.structures.end(),
+                                      [&](const Structure& s) { return s.name == *name; });
+  if (structure == scene_.structures.end() || structure->shape.type != Shape::Type::terrain ||
+      structure->shape.strip.empty()) {
+    std::string problem = structure == scene_.structures.end()            ? "no structure of that name"
+                          : structure->shape.type != Shape::Type::terrain ? "that structure is not a terrain"
+                                                                          : "that terrain keeps no strip";
+    if (const auto suggestion = closest_match(*name, strips))
+      problem += fmt::format(". Did you mean '{}'?", *suggestion);
+    diag_.add(r.line("terrain"), r.key_path("terrain"), quote_text(*name), problem,
+              strips.empty() ? std::string("add a [[structures]] of shape = \"terrain\" with a strip, or use kind = "
+                                           "\"axis\"")
+                             : fmt::format("use one of: {}", join(strips)));
+    return false;
+  }
+  if (structure->shape.file.empty() || structure->shape.raster.empty()) return false;  // its own error is out
+  try {
+    front.path = geometry::terrain_centre_line(structure->shape, structure->name);
+  } catch (const Error& error) {
+    add_file_error(r, "terrain", quote_text(*name), "the terrain's centre line cannot be followed", error,
+                   "keep the strip inside the raster");
+    return false;
+  }
+  front.path_s.assign(1, 0.0);
+  for (std::size_t k = 1; k < front.path.size(); ++k) {
+    front.path_s.push_back(front.path_s.back() + (front.path[k] - front.path[k - 1]).head<2>().norm());
+  }
+  return front.path.size() >= 2;
+}
+
 void Builder::read_front_stations(Reader& front_reader, const toml::array& list, Front& front) {
   std::map<std::string, int> names;
   for (std::size_t k = 0; k < list.size(); ++k) {
@@ -328,6 +383,12 @@ void Builder::read_front_stations(Reader& front_reader, const toml::array& list,
     }
     if (auto v = r.number("at")) {
       station.at = *v;
+      if (!front.path_s.empty() && (*v < 0 || *v > front.path_s.back())) {
+        diag_.add(r.line("at"), r.key_path("at"), value_text(*r.node("at")),
+                  fmt::format("outside the centre line of terrain '{}', which runs from 0 to {} m", front.structure,
+                              number_literal(front.path_s.back())),
+                  "give a distance along the strip's centre line");
+      }
       if (!front.bed.empty() && (*v < front.bed.front()[0] || *v > front.bed.back()[0])) {
         diag_.add(r.line("at"), r.key_path("at"), value_text(*r.node("at")),
                   fmt::format("outside the profile of channel '{}', which runs from {} to {} m", front.channel,

@@ -30,15 +30,20 @@ Scene load_text(const std::string& text) {
   return load_scene(folder.write("scene.toml", text));
 }
 
-// The SceneError message of loading `text` (empty if it loads).
-std::string error_of(const std::string& text) {
-  TempFolder folder;
+// The SceneError message of loading `text` written into `folder` (empty if it loads).
+std::string error_of_in(const TempFolder& folder, const std::string& text) {
   try {
     (void)load_scene(folder.write("scene.toml", text));
   } catch (const SceneError& error) {
     return error.what();
   }
   return {};
+}
+
+// The SceneError message of loading `text` (empty if it loads).
+std::string error_of(const std::string& text) {
+  TempFolder folder;
+  return error_of_in(folder, text);
 }
 
 std::size_t line_count(const std::string& text) {
@@ -291,18 +296,56 @@ TEST(SceneLoader, ReadsATerrainFromItsRasterAndSizesIt) {
   EXPECT_NEAR(gully.mesh_size.area, 400.0 * std::sqrt(1.01), 1e-6);
 }
 
+TEST(SceneLoader, ATerrainFrontFollowsTheStripOnTheGround) {
+  TempFolder folder;
+  folder.write("dem/ramp.asc", kRampGrid);
+  const std::string fluid = R"(
+[sph]
+particle_spacing = 0.5
+sound_speed = 20.0
+[[fluids]]
+name = "slurry"
+material = "concrete"
+shape = "box"
+min = [6.0, 16.0, 1.0]
+max = [8.0, 18.0, 2.0]
+)";
+  const std::string scene_text = std::string(kSceneHead) + kTerrainHead +
+                                 "strip = [[1005.0, 2020.0], [1025.0, 2020.0], [1035.0, 2030.0]]\n"
+                                 "strip_width = 6.0\nelement_size = 2.0\n" +
+                                 fluid;
+  const auto with_front = [&](const std::string& front) {
+    return folder.write("scene.toml", scene_text + "[[fronts]]\nname = \"front\"\nkind = \"terrain\"\n" + front);
+  };
+  const Scene scene = load_scene(with_front("terrain = \"gully\"\nstations = [ { name = \"bend\", at = 20.0 } ]\n"));
+  const Front& front = scene.fronts.at(0);
+  EXPECT_EQ(front.kind, Front::Kind::terrain);
+  ASSERT_GE(front.path.size(), 2u);
+  const double length = 20.0 + std::hypot(10.0, 10.0);
+  EXPECT_NEAR(front.path_s.back(), length, 1e-9);
+  double worst = 0;
+  for (const Vec3& p : front.path) worst = std::max(worst, std::abs(p.z() - 0.1 * (p.x() + 1000.0 - 1000.0)));
+  std::cout << "terrain front: path of " << front.path.size() << " points, " << front.path_s.back()
+            << " m long (expected " << length << "), ground elevation error " << worst << " m\n";
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_TRUE(front.path_point(20.0).isApprox(Vec3(25.0, 20.0, 2.5), 1e-9));
+  const std::string outside =
+      error_of_in(folder, scene_text +
+                              "[[fronts]]\nname = \"front\"\nkind = \"terrain\"\n"
+                              "terrain = \"gully\"\nstations = [ { name = \"far\", at = 40.0 } ]\n");
+  EXPECT_NE(outside.find("outside the centre line of terrain 'gully'"), std::string::npos) << outside;
+  const std::string misspelt =
+      error_of_in(folder, scene_text + "[[fronts]]\nname = \"front\"\nkind = \"terrain\"\nterrain = \"gulley\"\n");
+  EXPECT_NE(misspelt.find("Did you mean 'gully'?"), std::string::npos) << misspelt;
+}
+
 TEST(SceneLoader, RefusesTerrainsItCannotBuild) {
   const std::string head = std::string(kSceneHead) + kOneSphere + kTerrainHead;
   const auto error_with_grid = [&](const std::string& text) {
     TempFolder folder;
     folder.write("dem/ramp.asc", kRampGrid);
     folder.write("dem/profile.csv", "0,100\n10,90\n");
-    try {
-      (void)load_scene(folder.write("scene.toml", text));
-    } catch (const SceneError& error) {
-      return std::string(error.what());
-    }
-    return std::string();
+    return error_of_in(folder, text);
   };
   const std::string both = error_with_grid(head +
                                            "strip = [[1005.0, 2020.0], [1045.0, 2020.0]]\nstrip_width = 10.0\n"
