@@ -60,7 +60,7 @@ class Surge:
     (at x = 0), z up, y across the periodic width."""
 
     def __init__(self, froude, spacings=8, depth=0.04, window=8.0, length=None, alpha_viscosity=0.005,
-                 free_slip=False):
+                 free_slip=False, width=None):
         self.froude = froude
         self.artificial_viscosity = alpha_viscosity
         self.free_slip = free_slip  # floor and wall free-slip ([sph] free_slip_walls): the bore theory's walls
@@ -72,7 +72,7 @@ class Surge:
         self.ratio = bore_ratio(froude)
         self.alpha = alpha_theory(froude)
         self.bore_speed = self.speed / (self.ratio - 1.0)  # upstream, in the ground's frame
-        self.width = 8 * self.spacing
+        self.width = width if width is not None else 8 * self.spacing  # m, the periodic span across
         self.settled = (2.0 * froude + 3.0) * self.time_unit  # jet up and back, then a few T
         # The head of the rarefaction from the block's tail runs into the block at c relative to the water,
         # v + c towards the wall; it meets the bore after L / (v + c + w), and that news reaches the wall at the

@@ -134,6 +134,20 @@ field = "multirate.solvers.dem_solver.exchanges"
             print("{}: measured {:.6g}, expected {:.6g} (tolerance 1 %)".format(option, measured, expected))
             self.assertLess(abs(measured / expected - 1), 0.01)
 
+    def test_the_surge_measure_reads_b1_from_the_wall(self):
+        """configs/studies/b1_surge.toml's measure on its base scene, the coarsest run of the sweep (h = 4 dx;
+        about 10 s): alpha of the wall's force plateau against the bore theory's 2.355, within B1's 10 %
+        (measured 2.257, -4.2 %)."""
+        out = os.path.join(self.tmp, "b1")
+        sabo = self.run_sabo(self.scene_path("configs/tests/b1_surge_fr1.toml"), out)
+        self.assertEqual(sabo.wait(120), 0, sabo.output())
+        script = self.scene_path("configs/studies/measures/b1_alpha.py")
+        measured = float(subprocess.run(["/usr/bin/python3", script, out], check=True, capture_output=True,
+                                        text=True).stdout)
+        print("B1 alpha at h = 4 dx: measured {:.4f}, expected 2.355 ({:+.1%}; tolerance 10 %)".format(
+            measured, measured / 2.355 - 1))
+        self.assertLess(abs(measured / 2.355 - 1), 0.10)
+
     def test_bad_study_files_are_refused_with_the_line_key_and_fix(self):
         scene = self.scene_path(SCENE)
         head = 'format_version = 1\n[study]\nscene = "{}"\n'.format(scene)
