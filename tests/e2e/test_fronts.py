@@ -101,3 +101,34 @@ class ChannelFrontTest(RealRunTestCase):
         self.assertGreaterEqual(points[:, 0].min(), -dx)
         self.assertLessEqual(points[:, 0].max(), 0.6 + dx)
         self.assertGreaterEqual(points[:, 2].min(), -dx)
+
+
+class TerrainFrontTest(RealRunTestCase):
+    """The same dam break with its floor read from an elevation raster (a flat ESRI ASCII grid) and its front
+    tracked along the terrain's strip (configs/tests/terrain_dam_break.toml): the front and the stations'
+    arrivals follow the channel's run within half a spacing and one sample."""
+
+    def test_a_terrain_front_follows_the_channel_front(self):
+        runs = {}
+        for name, scene in (("channel", SCENE), ("terrain", "configs/tests/terrain_dam_break.toml")):
+            out = os.path.join(self.tmp, name)
+            sabo = self.run_sabo(self.scene_path(scene), out)
+            self.assertEqual(sabo.wait(240), 0, sabo.output())
+            runs[name] = (read_csv(os.path.join(out, "fronts.csv")),
+                          read_json(os.path.join(out, "summary.json"))["results"]["sph_solver"]["fronts"]["surge"])
+        scene = load_scene(self.scene_path(SCENE))
+        dx = scene["sph"]["particle_spacing"]
+        interval = scene["fronts"][0]["interval"]
+        self.assertEqual(runs["terrain"][1]["path"], "terrain flume")
+        channel_rows, terrain_rows = runs["channel"][0], runs["terrain"][0]
+        self.assertEqual(len(channel_rows), len(terrain_rows))
+        worst = max(abs(float(a["position"]) - float(b["position"])) for a, b in zip(channel_rows, terrain_rows))
+        print("terrain front against the channel front: largest difference {:.2e} m over {} samples (tolerance "
+              "dx / 2 = {} m)".format(worst, len(channel_rows), dx / 2))
+        self.assertLess(worst, dx / 2)
+        for station in scene["fronts"][0]["stations"]:
+            channel = runs["channel"][1]["stations"][station["name"]]["arrival_time"]
+            terrain = runs["terrain"][1]["stations"][station["name"]]["arrival_time"]
+            print("station {}: arrival along the terrain {:.4f} s, along the channel {:.4f} s".format(
+                station["name"], terrain, channel))
+            self.assertAlmostEqual(terrain, channel, delta=interval)
