@@ -56,6 +56,14 @@ nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& p
     }
     if (plastic) effects.push_back({{"effect", "fem_plasticity"}, {"process", "fem_solver"}});
     if (erosion) effects.push_back({{"effect", "fem_erosion"}, {"process", "fem_solver"}});
+    // Ground from elevation rasters: which raster, its size and its coordinate system, per structure.
+    json rasters = json::object();
+    for (const auto& s : scene.structures) {
+      if (s.shape.type == scene::Shape::Type::terrain) rasters[s.name] = s.shape.raster;
+    }
+    if (!rasters.empty()) {
+      effects.push_back({{"effect", "fem_terrain_from_raster"}, {"process", "fem_solver"}, {"rasters", rasters}});
+    }
   }
   return effects;
 }

@@ -128,6 +128,10 @@ class TerrainRollTest(RealRunTestCase):
         self.assertEqual(sabo.wait(120), 0, sabo.output())
         with open(os.path.join(out, "fem_solver.log")) as log:
             self.assertIn("terrain 'slope' from the raster", log.read())
+        effects = {e["effect"]: e for e in read_json(os.path.join(out, "summary.json"))["active_effects"]}
+        raster = effects["fem_terrain_from_raster"]["rasters"]["slope"]
+        self.assertIn("incline_10deg.asc (AAIGrid, 40 x 12 cells of 1 x 1 m", raster)
+        self.assertIn("coordinate system not given", raster)
         scene = load_scene(self.scene_path(TERRAIN_ROLL))
         g = -scene["run"]["gravity"][2]
         theta = math.radians(10.0)

@@ -33,7 +33,8 @@ void Schema::build_structures() {
       "the inside of `clip_polygon`, or the whole raster, meshed at `element_size` (the raster's cell without it) "
       "with each node at the raster's elevation there (bilinear between cell centres), then translated by "
       "`translate` (a projected raster's coordinates are large: move the region near the origin). Coordinates "
-      "(x, y) of `strip` and `clip_polygon` are the raster's own. The fem_solver's log names the raster's "
+      "(x, y) of `strip` and `clip_polygon` are the raster's own. The fem_solver's log and summary.json "
+      "(`active_effects`, `fem_terrain_from_raster`) name the raster and its "
       "coordinate system.\n\n"
       "The loader normalises `normal` and `direction` (the plane's `direction` is first projected onto the "
       "plane) and makes the mesh path absolute.";
