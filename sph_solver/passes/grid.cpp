@@ -203,9 +203,10 @@ void SphModel::gather() {
     bx_[s] = static_cast<float>(position.x() - origin.x());
     by_[s] = static_cast<float>(position.y() - origin.y());
     bz_[s] = static_cast<float>(position.z() - origin.z());
-    bwx_[s] = static_cast<float>(boundary_.velocity[b].x());
-    bwy_[s] = static_cast<float>(boundary_.velocity[b].y());
-    bwz_[s] = static_cast<float>(boundary_.velocity[b].z());
+    const Vec3 wall_velocity = boundary_.velocity_of(b);
+    bwx_[s] = static_cast<float>(wall_velocity.x());
+    bwy_[s] = static_cast<float>(wall_velocity.y());
+    bwz_[s] = static_cast<float>(wall_velocity.z());
     bvol_[s] = static_cast<float>(boundary_.volume[b]);
     if (any_free_slip_) {
       const Vec3 slip_normal = boundary_.free_slip[b] != 0 ? boundary_.normal[b] : Vec3::Zero();

@@ -43,14 +43,15 @@ inline void add_wall_shear(const Vec3& growth, const Vec3& n, double d_n, Sym6& 
 
 void SphModel::set_boundary(physics::BoundaryParticles boundary) {
   const std::size_t n = boundary.size();
-  if (boundary.velocity.size() != n || boundary.normal.size() != n || boundary.acceleration.size() != n ||
-      boundary.volume.size() != n || (!boundary.free_slip.empty() && boundary.free_slip.size() != n)) {
-    throw ModelInputError(fmt::format(
-        "boundary particles: {} positions but {} velocities, {} normals, {} "
-        "accelerations, {} volumes, {} free-slip flags; every array needs one entry per particle (the flags "
-        "may be empty)",
-        n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(), boundary.volume.size(),
-        boundary.free_slip.size()));
+  const auto sized = [n](const auto& values) { return values.empty() || values.size() == n; };
+  if (!sized(boundary.velocity) || boundary.normal.size() != n || !sized(boundary.acceleration) ||
+      boundary.volume.size() != n || !sized(boundary.free_slip)) {
+    throw ModelInputError(
+        fmt::format("boundary particles: {} positions but {} velocities, {} normals, {} "
+                    "accelerations, {} volumes, {} free-slip flags; every array needs one entry per particle (the "
+                    "velocities, accelerations and flags may be empty)",
+                    n, boundary.velocity.size(), boundary.normal.size(), boundary.acceleration.size(),
+                    boundary.volume.size(), boundary.free_slip.size()));
   }
   for (const PeriodicAxis& periodic : periodic_) {
     for (std::size_t b = 0; b < n; ++b) {
@@ -65,6 +66,10 @@ void SphModel::set_boundary(physics::BoundaryParticles boundary) {
     }
   }
   any_free_slip_ = std::ranges::any_of(boundary.free_slip, [](std::uint8_t flag) { return flag != 0; });
+  // Walls at rest (every rigid structure) keep no velocities and accelerations: 48 bytes a wall particle.
+  for (auto* values : {&boundary.velocity, &boundary.acceleration}) {
+    if (std::ranges::all_of(*values, [](const Vec3& v) { return v.isZero(0.0); })) std::vector<Vec3>().swap(*values);
+  }
   boundary_ = std::move(boundary);
 }
 
@@ -123,7 +128,7 @@ void SphModel::extrapolate_wall_stress() {
         }
         const Vec3 grad_p = inverse * pressure_covariance;
         const Vec3& n = boundary_.normal[id];
-        const Vec3 growth = double{brho_[s]} * (boundary_.acceleration[id] - gravity_) + grad_p;
+        const Vec3 growth = double{brho_[s]} * (boundary_.acceleration_of(id) - gravity_) + grad_p;
         add_wall_shear(growth, n, -mean_e.dot(n), s_w);
       }
       const float components[6] = {s_w.xx, s_w.yy, s_w.zz, s_w.xy, s_w.yz, s_w.zx};
@@ -160,7 +165,7 @@ void SphModel::boundary_state(T) {
       const auto s = static_cast<std::size_t>(k);
       const std::uint32_t id = b_order_[s];
       if (id >= walls) continue;  // an image: copy_wall_image_state()
-      const Vec3 g_minus_a = gravity_ - boundary_.acceleration[id];
+      const Vec3 g_minus_a = gravity_ - boundary_.acceleration_of(id);
       const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
                  gaz = static_cast<float>(g_minus_a.z());
       // Its part along the wall: the head that decides how far the wall particle stands
