@@ -519,9 +519,18 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
         const BoundaryChannel& b = replies_.boundary();
         using P = physics::BoundaryParticles;
         assign_vectors(*f.mutable_boundary_position(), b.parts(), b.size(), &P::position);
-        assign_vectors(*f.mutable_boundary_velocity(), b.parts(), b.size(), &P::velocity);
+        // Walls at rest (rigid structures only) send no velocities and accelerations: empty means zero.
+        const auto moving = [&](std::vector<Vec3> P::*member) {
+          return std::any_of(b.parts().begin(), b.parts().end(), [&](const P* part) {
+            return std::any_of((part->*member).begin(), (part->*member).end(),
+                               [](const Vec3& v) { return !v.isZero(0.0); });
+          });
+        };
+        if (moving(&P::velocity)) assign_vectors(*f.mutable_boundary_velocity(), b.parts(), b.size(), &P::velocity);
         assign_vectors(*f.mutable_boundary_normal(), b.parts(), b.size(), &P::normal);
-        assign_vectors(*f.mutable_boundary_acceleration(), b.parts(), b.size(), &P::acceleration);
+        if (moving(&P::acceleration)) {
+          assign_vectors(*f.mutable_boundary_acceleration(), b.parts(), b.size(), &P::acceleration);
+        }
         auto* volume = f.mutable_boundary_volume();
         volume->Reserve(static_cast<int>(b.size()));
         for (const P* part : b.parts()) volume->Add(part->volume.begin(), part->volume.end());

@@ -104,9 +104,14 @@ class SphSolver final : public solver::CoupledSolver {
       const auto count = static_cast<std::size_t>(forces.boundary_volume_size());
       physics::BoundaryParticles walls;
       walls.position = unpack_vectors(forces.boundary_position(), count, "boundary_position");
-      walls.velocity = unpack_vectors(forces.boundary_velocity(), count, "boundary_velocity");
+      // Empty: every wall particle at rest (BoundaryParticles keeps them empty then).
+      if (!forces.boundary_velocity().empty()) {
+        walls.velocity = unpack_vectors(forces.boundary_velocity(), count, "boundary_velocity");
+      }
       walls.normal = unpack_vectors(forces.boundary_normal(), count, "boundary_normal");
-      walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
+      if (!forces.boundary_acceleration().empty()) {
+        walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
+      }
       walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
       walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
       model_.set_boundary(std::move(walls));
