@@ -6,9 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
-#include <limits>
 #include <numbers>
-#include <optional>
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/geometry/node_welder.hpp"
@@ -262,6 +260,11 @@ SurfaceMesh mesh(const scene::Shape& shape, const std::string& part, const scene
   return result;
 }
 
+// A terrain's mesh and centre-line spacing: its element size, or the raster's cell without one.
+double terrain_element_size(const scene::Shape& shape, const io::Raster& raster) {
+  return shape.element_size > 0 ? shape.element_size : std::min(raster.cell_x, raster.cell_y);
+}
+
 // The ground of an elevation raster: a strip along a polyline, the inside of a polygon, or the whole
 // raster, on a grid of about element_size (the raster's cell without one), each node at the raster's
 // bilinear elevation, triangles facing up.
@@ -289,25 +292,19 @@ SurfaceMesh terrain(const scene::Shape& shape, const std::string& part, const sc
       mitre[k] = bisector.normalized() / along;
     }
   }
-  // Only the cells under the region are read: the corners of the strip's cross-sections, or the polygon.
-  std::optional<io::RasterWindow> window;
-  const auto widen = [&](double x, double y) {
-    if (!window) window = io::RasterWindow{x, y, x, y};
-    window->x_min = std::min(window->x_min, x);
-    window->y_min = std::min(window->y_min, y);
-    window->x_max = std::max(window->x_max, x);
-    window->y_max = std::max(window->y_max, y);
-  };
+  // Only the cells under the region are read: the corners of the strip's cross-sections, or the polygon
+  // (empty for the whole raster).
+  io::RasterWindow region;
   for (std::size_t k = 0; k < mitre.size(); ++k) {
     for (const double side : {-0.5, 0.5}) {
       const Eigen::Vector2d corner =
           Eigen::Vector2d(shape.strip[k][0], shape.strip[k][1]) + side * shape.strip_width * mitre[k];
-      widen(corner.x(), corner.y());
+      region.extend(corner.x(), corner.y());
     }
   }
-  for (const auto& v : shape.clip_polygon) widen(v[0], v[1]);
-  const io::Raster raster = io::read_raster(shape.file, window);
-  const double es = shape.element_size > 0 ? shape.element_size : std::min(raster.cell_x, raster.cell_y);
+  for (const auto& v : shape.clip_polygon) region.extend(v[0], v[1]);
+  const io::Raster raster = io::read_raster(shape.file, region);
+  const double es = terrain_element_size(shape, raster);
   NodeWelder welder(kWeldFraction * std::hypot(raster.x_max() - raster.x_min(), raster.y_max() - raster.y_min()));
   std::vector<std::array<std::uint32_t, 3>> triangles;
   const auto node = [&](double x, double y) {
@@ -354,17 +351,10 @@ SurfaceMesh terrain(const scene::Shape& shape, const std::string& part, const sc
       }
     }
   } else {
-    double x0 = raster.x_min(), x1 = raster.x_max(), y0 = raster.y_min(), y1 = raster.y_max();
-    if (!shape.clip_polygon.empty()) {
-      x0 = y0 = std::numeric_limits<double>::infinity();
-      x1 = y1 = -std::numeric_limits<double>::infinity();
-      for (const auto& v : shape.clip_polygon) {
-        x0 = std::min(x0, v[0]);
-        x1 = std::max(x1, v[0]);
-        y0 = std::min(y0, v[1]);
-        y1 = std::max(y1, v[1]);
-      }
-    }
+    // The polygon's bounds, or the cell centres' extent of the whole raster.
+    const bool clipped = !shape.clip_polygon.empty();
+    const double x0 = clipped ? region.x_min : raster.x_min(), x1 = clipped ? region.x_max : raster.x_max();
+    const double y0 = clipped ? region.y_min : raster.y_min(), y1 = clipped ? region.y_max : raster.y_max();
     const auto xs = grid_levels(x1 - x0, es), ys = grid_levels(y1 - y0, es);
     const auto kept = [&](double x, double y) {
       return shape.clip_polygon.empty() || polygon_contains(shape.clip_polygon, x, y);
@@ -415,15 +405,10 @@ std::vector<Vec3> terrain_centre_line(const scene::Shape& shape, const std::stri
     shape_error(origin, part_name, "a terrain front follows a strip, and this structure keeps none",
                 "give the terrain a strip (a polyline and strip_width), or track the front along an axis");
   }
-  io::RasterWindow window{p[0][0], p[0][1], p[0][0], p[0][1]};
-  for (const auto& v : p) {
-    window.x_min = std::min(window.x_min, v[0]);
-    window.y_min = std::min(window.y_min, v[1]);
-    window.x_max = std::max(window.x_max, v[0]);
-    window.y_max = std::max(window.y_max, v[1]);
-  }
+  io::RasterWindow window;
+  for (const auto& v : p) window.extend(v[0], v[1]);
   const io::Raster raster = io::read_raster(shape.file, window);
-  const double es = shape.element_size > 0 ? shape.element_size : std::min(raster.cell_x, raster.cell_y);
+  const double es = terrain_element_size(shape, raster);
   std::vector<Vec3> line;
   for (std::size_t k = 0; k + 1 < p.size(); ++k) {
     const Eigen::Vector2d a(p[k][0], p[k][1]), b(p[k + 1][0], p[k + 1][1]);

@@ -73,7 +73,15 @@ std::optional<double> Raster::elevation_at(double x, double y) const {
   return (1 - a) * (1 - b) * z[0] + a * (1 - b) * z[1] + (1 - a) * b * z[2] + a * b * z[3];
 }
 
-Raster read_raster(const std::filesystem::path& file, const std::optional<RasterWindow>& window) {
+namespace {
+
+[[noreturn]] void fail(const std::filesystem::path& file, const std::string& problem, const std::string& fix) {
+  throw FileError(fmt::format("{}: {}. Fix: {}", file.string(), problem, fix));
+}
+
+// Opens `file` and fills everything of `raster` but the elevations (the whole raster's header and
+// description); the dataset stays open for reading the band.
+Dataset open_raster(const std::filesystem::path& file, Raster& raster) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });
   CPLErrorReset();
@@ -81,34 +89,30 @@ Raster read_raster(const std::filesystem::path& file, const std::optional<Raster
   CPLPushErrorHandler(CPLQuietErrorHandler);
   Dataset dataset(GDALOpen(file.c_str(), GA_ReadOnly));
   CPLPopErrorHandler();
-  const auto fail = [&](const std::string& problem, const std::string& fix) -> Raster {
-    throw FileError(fmt::format("{}: {}. Fix: {}", file.string(), problem, fix));
-  };
   if (!dataset) {
-    return fail(fmt::format("GDAL cannot open it as a raster ({})", gdal_message()),
-                "give an elevation raster GDAL reads (a GeoTIFF .tif, an ESRI ASCII grid .asc), with the path "
-                "relative to the scene file's folder");
+    fail(file, fmt::format("GDAL cannot open it as a raster ({})", gdal_message()),
+         "give an elevation raster GDAL reads (a GeoTIFF .tif, an ESRI ASCII grid .asc), with the path "
+         "relative to the scene file's folder");
   }
   auto* handle = static_cast<GDALDatasetH>(dataset.get());
-  Raster raster;
   raster.file = file;
   raster.driver = GDALGetDriverShortName(GDALGetDatasetDriver(handle));
-  if (GDALGetRasterCount(handle) < 1) return fail("the raster has no band", "give a raster whose band 1 is elevation");
+  if (GDALGetRasterCount(handle) < 1) fail(file, "the raster has no band", "give a raster whose band 1 is elevation");
   raster.columns = static_cast<std::size_t>(GDALGetRasterXSize(handle));
   raster.rows = static_cast<std::size_t>(GDALGetRasterYSize(handle));
   if (raster.columns < 2 || raster.rows < 2) {
-    return fail(
-        fmt::format("{} x {} cells; elevations between cell centres need at least 2 x 2", raster.columns, raster.rows),
-        "give a larger raster");
+    fail(file,
+         fmt::format("{} x {} cells; elevations between cell centres need at least 2 x 2", raster.columns, raster.rows),
+         "give a larger raster");
   }
   std::array<double, 6> transform{};
   if (GDALGetGeoTransform(handle, transform.data()) != CE_None) {
-    return fail("the raster has no georeference (no geotransform)",
-                "give a georeferenced raster (a GeoTIFF with its georeference, an .asc grid with its header)");
+    fail(file, "the raster has no georeference (no geotransform)",
+         "give a georeferenced raster (a GeoTIFF with its georeference, an .asc grid with its header)");
   }
   if (transform[2] != 0.0 || transform[4] != 0.0 || !(transform[1] > 0) || !(transform[5] < 0)) {
-    return fail(fmt::format("the raster is rotated or flipped (geotransform {})", fmt::join(transform, ", ")),
-                "warp it north-up first: gdalwarp in.tif out.tif");
+    fail(file, fmt::format("the raster is rotated or flipped (geotransform {})", fmt::join(transform, ", ")),
+         "warp it north-up first: gdalwarp in.tif out.tif");
   }
   raster.left = transform[0];
   raster.top = transform[3];
@@ -121,9 +125,17 @@ Raster read_raster(const std::filesystem::path& file, const std::optional<Raster
                   raster.left + static_cast<double>(raster.columns) * raster.cell_x,
                   raster.top - static_cast<double>(raster.rows) * raster.cell_y, raster.top,
                   raster.crs.empty() ? std::string("not given") : raster.crs);
+  return dataset;
+}
+
+}  // namespace
+
+Raster read_raster(const std::filesystem::path& file, const std::optional<RasterWindow>& window) {
+  Raster raster;
+  const Dataset dataset = open_raster(file, raster);
   // The window's cells: those whose centres bracket it, and one more on each side.
   std::size_t first_column = 0, first_row = 0;
-  if (window) {
+  if (window && !window->empty()) {
     const auto span = [](double low, double high, double cell, std::size_t count) {
       const double first = std::floor(low / cell - 0.5) - 1, last = std::ceil(high / cell - 0.5) + 1;
       const double top_index = static_cast<double>(count - 1);
@@ -144,7 +156,7 @@ Raster read_raster(const std::filesystem::path& file, const std::optional<Raster
     raster.columns = nc;
     raster.rows = nr;
   }
-  GDALRasterBandH band = GDALGetRasterBand(handle, 1);
+  GDALRasterBandH band = GDALGetRasterBand(static_cast<GDALDatasetH>(dataset.get()), 1);
   int has_no_data = 0;
   const double no_data = GDALGetRasterNoDataValue(band, &has_no_data);
   if (has_no_data != 0) raster.no_data = no_data;
@@ -153,9 +165,15 @@ Raster read_raster(const std::filesystem::path& file, const std::optional<Raster
   if (GDALRasterIO(band, GF_Read, static_cast<int>(first_column), static_cast<int>(first_row),
                    static_cast<int>(raster.columns), static_cast<int>(raster.rows), raster.elevation.data(),
                    static_cast<int>(raster.columns), static_cast<int>(raster.rows), GDT_Float32, 0, 0) != CE_None) {
-    return fail(fmt::format("its band 1 does not read ({})", gdal_message()), "check the file is complete");
+    fail(file, fmt::format("its band 1 does not read ({})", gdal_message()), "check the file is complete");
   }
   return raster;
+}
+
+std::string describe_raster(const std::filesystem::path& file) {
+  Raster raster;
+  (void)open_raster(file, raster);
+  return raster.description;
 }
 
 }  // namespace sabo::io

@@ -2,8 +2,10 @@
 // An elevation raster read through GDAL: a GeoTIFF, an ESRI ASCII grid or any other raster GDAL opens. Band 1
 // holds the elevation (m); the raster is north-up (no rotation terms in its geotransform). Elevations
 // between cell centres are bilinear, so a plane stored cell by cell is read back exactly.
+#include <algorithm>
 #include <cstddef>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -37,16 +39,27 @@ struct Raster {
   std::string description;
 };
 
-// A region of a raster, in its coordinates (m).
+// A region of a raster, in its coordinates (m): empty until extended by a point.
 struct RasterWindow {
-  double x_min = 0, y_min = 0, x_max = 0, y_max = 0;
+  double x_min = std::numeric_limits<double>::infinity(), y_min = std::numeric_limits<double>::infinity();
+  double x_max = -std::numeric_limits<double>::infinity(), y_max = -std::numeric_limits<double>::infinity();
+  void extend(double x, double y) {
+    x_min = std::min(x_min, x);
+    y_min = std::min(y_min, y);
+    x_max = std::max(x_max, x);
+    y_max = std::max(y_max, y);
+  }
+  [[nodiscard]] bool empty() const { return !(x_min <= x_max && y_min <= y_max); }
 };
 
 // Reads the elevations of the cells that cover `window` (and one cell around it, clamped to the raster;
-// at least 2 x 2 cells), or of the whole raster: a large elevation model is never read whole for a strip
-// of it. Throws FileError naming the file and GDAL's own message: a file GDAL cannot open, a raster without
-// a band, a rotated raster (the fix: gdalwarp it north-up), fewer than 2 x 2 cells, a band that does not read.
+// at least 2 x 2 cells), or of the whole raster (no window, or an empty one): a large elevation model is never read
+// whole for a strip of it. Throws FileError naming the file and GDAL's own message: a file GDAL cannot open, a raster
+// without a band, a rotated raster (the fix: gdalwarp it north-up), fewer than 2 x 2 cells, a band that does not read.
 [[nodiscard]] Raster read_raster(const std::filesystem::path& file,
                                  const std::optional<RasterWindow>& window = std::nullopt);
+// The raster's description (Raster::describe()) from its header alone, no elevation read; throws as
+// read_raster().
+[[nodiscard]] std::string describe_raster(const std::filesystem::path& file);
 
 }  // namespace sabo::io

@@ -75,7 +75,6 @@ void SphModel::fluid_forces(T) {
   const float* bsx = bsx_.data();
   const float* bsy = bsy_.data();
   const float* bsz = bsz_.data();
-  const bool free_slip = any_free_slip_;
   const float* bvx = bvx_.data();
   const float* bvy = bvy_.data();
   const float* bvz = bvz_.data();
@@ -207,7 +206,7 @@ void SphModel::fluid_forces(T) {
           }
         });
       };
-      if (free_slip) {
+      if (any_free_slip_) {
         wall_neighbours.template operator()<true>();
       } else {
         wall_neighbours.template operator()<false>();

@@ -117,6 +117,11 @@ class Builder {
   void read_fill_region(Reader& f, ParticleSet& set);
   void read_fill_sizes(Reader& f, ParticleSet& set);
   void read_structure(const toml::table& table, std::size_t index);
+  // A file named in the scene: absolute, or relative to the scene file's folder.
+  [[nodiscard]] fs::path scene_relative(const std::string& file) const {
+    const fs::path given(file);
+    return (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+  }
   fs::path resolve_mesh(Reader& r, const std::string& file, bool rigid = true);
   void read_mesh(Reader& r, const std::string& file, Structure& structure);
   void read_channel_profile(Reader& r, Shape& shape);

@@ -316,7 +316,7 @@ void Builder::check_command(Reader& r, SolverSettings& solver) {
   const std::string& program = solver.command.front();
   if (program.find('/') != std::string::npos) {
     const fs::path given(program);
-    const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+    const fs::path full = scene_relative(program);
     if (!is_executable_file(full)) {
       diag_.add(line, r.key_path("command"), value,
                 given.is_absolute() ? fmt::format("program '{}' does not exist or is not executable", program)

@@ -748,8 +748,7 @@ void Builder::read_channel_profile(Reader& r, Shape& shape) {
   }
   const auto file = r.string("profile_file");
   if (!file) return;
-  const fs::path given(*file);
-  const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+  const fs::path full = scene_relative(*file);
   try {
     for (const io::ProfilePoint& point : io::read_profile_csv(full)) {
       shape.profile.push_back({point.distance, point.elevation});
@@ -759,6 +758,19 @@ void Builder::read_channel_profile(Reader& r, Shape& shape) {
                    "correct the path; it is relative to the scene file's folder");
   }
 }
+
+namespace {
+
+// Nodes, triangles and area of a rigid surface (an STL mesh, a terrain): its share of the scene's estimate.
+MeshSize surface_size(const geometry::SurfaceMesh& surface) {
+  MeshSize size;
+  size.nodes = surface.node_position.size();
+  size.triangles = surface.triangle.size();
+  for (std::size_t f = 0; f < surface.face_count(); ++f) size.area += surface.face_area(f);
+  return size;
+}
+
+}  // namespace
 
 // A terrain's raster and the ground kept of it (a strip or a polygon), checked by building its surface
 // as the solvers will (geometry::triangulate), whose size goes into the scene's estimate.
@@ -814,25 +826,17 @@ void Builder::read_terrain(Reader& r, Structure& structure) {
   }
   const auto file = r.string("raster_file");
   if (!file) return;
-  const fs::path given(*file);
-  shape.file = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+  shape.file = scene_relative(*file);
   const std::string region_key = has_strip ? "strip" : has_polygon ? "clip_polygon" : "raster_file";
   try {
-    shape.raster = io::read_raster(shape.file, io::RasterWindow{}).describe();  // 2 x 2 cells: the header
+    shape.raster = io::describe_raster(shape.file);
   } catch (const FileError& error) {
     add_file_error(r, "raster_file", quote_text(*file), "the raster cannot be read", error,
                    "correct the path; it is relative to the scene file's folder");
     return;
   }
   try {
-    const geometry::SurfaceMesh surface = geometry::triangulate(shape, structure.name);  // the key is named here
-    MeshSize& size = shape.mesh_size;
-    size.nodes = surface.node_position.size();
-    size.triangles = surface.triangle.size();
-    for (const auto& t : surface.triangle) {
-      const auto& x = surface.node_position;
-      size.area += 0.5 * (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).norm();
-    }
+    shape.mesh_size = surface_size(geometry::triangulate(shape, structure.name));  // the key is named here
   } catch (const Error& error) {
     add_file_error(r, region_key, r.has(region_key) ? value_text(*r.node(region_key)) : quote_text(*file),
                    "the terrain cannot be built", error, "keep the region inside the raster");
@@ -851,8 +855,7 @@ void Builder::add_file_error(Reader& r, const std::string& key, const std::strin
 
 // Rigid structures take STL surfaces; deformable ones Gmsh .msh volume or shell meshes.
 fs::path Builder::resolve_mesh(Reader& r, const std::string& file, bool rigid) {
-  const fs::path given(file);
-  const fs::path full = (given.is_absolute() ? given : scene_dir_ / given).lexically_normal();
+  const fs::path full = scene_relative(file);
   const int line = r.line("file");
   std::error_code ec;
   if (!fs::exists(full, ec)) {
@@ -887,13 +890,7 @@ void Builder::read_mesh(Reader& r, const std::string& file, Structure& structure
   MeshSize size;
   try {
     if (structure.rigid) {
-      const io::StlMesh stl = io::read_stl(structure.shape.file);
-      size.nodes = stl.mesh.node_position.size();
-      size.triangles = stl.mesh.triangle.size();
-      for (const auto& t : stl.mesh.triangle) {
-        const auto& x = stl.mesh.node_position;
-        size.area += 0.5 * (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).norm();
-      }
+      size = surface_size(io::read_stl(structure.shape.file).mesh);
     } else {
       const io::GmshMesh gmsh = io::read_gmsh(structure.shape.file);
       size.nodes = gmsh.node.size();
