@@ -152,12 +152,12 @@ void ForceHistory::close() {
 EnergyHistory::EnergyHistory(const std::filesystem::path& file) : EnergyHistory(open_for_writing(file)) {}
 
 EnergyHistory::EnergyHistory(std::FILE* file, bool header) : file_(file) {
-  if (header) std::fputs("time,kinetic,potential,solver_elastic,contact_elastic,total,dissipated\n", file_);
+  if (header) std::fputs("time,kinetic,potential,solver_elastic,contact_elastic,total,dissipated,inflow\n", file_);
 }
 
 namespace {
 std::vector<double> sample_values(const EnergySample& e) {
-  return {e.time, e.kinetic, e.potential, e.solver_elastic, e.contact_elastic, e.dissipated};
+  return {e.time, e.kinetic, e.potential, e.solver_elastic, e.contact_elastic, e.dissipated, e.inflow};
 }
 EnergySample sample_from(const std::vector<double>& v) {
   return {.time = v[0],
@@ -165,7 +165,8 @@ EnergySample sample_from(const std::vector<double>& v) {
           .potential = v[2],
           .solver_elastic = v[3],
           .contact_elastic = v[4],
-          .dissipated = v[5]};
+          .dissipated = v[5],
+          .inflow = v[6]};
 }
 }  // namespace
 
@@ -179,8 +180,8 @@ void EnergyHistory::save(io::hdf5::Group& group) const {
 void EnergyHistory::restore(const io::hdf5::Group& group) {
   first_ = group.int_attribute("observed") == 0;
   max_total_ = group.double_attribute("max_total");
-  initial_ = sample_from(io::read_array<double>(group, "initial", 6));
-  last_ = sample_from(io::read_array<double>(group, "last", 6));
+  initial_ = sample_from(io::read_array<double>(group, "initial", 7));
+  last_ = sample_from(io::read_array<double>(group, "last", 7));
 }
 
 EnergyHistory::~EnergyHistory() {
@@ -190,14 +191,15 @@ EnergyHistory::~EnergyHistory() {
 void EnergyHistory::observe(const EnergySample& sample, bool write) {
   if (first_) {
     initial_ = sample;
-    max_total_ = sample.total();
+    max_total_ = sample.own();
     first_ = false;
   }
   last_ = sample;
-  max_total_ = std::max(max_total_, sample.total());
+  max_total_ = std::max(max_total_, sample.own());
   if (write && file_ != nullptr) {
-    fmt::print(file_, "{:.9g},{:.12g},{:.12g},{:.12g},{:.12g},{:.12g},{:.12g}\n", sample.time, sample.kinetic,
-               sample.potential, sample.solver_elastic, sample.contact_elastic, sample.total(), sample.dissipated);
+    fmt::print(file_, "{:.9g},{:.12g},{:.12g},{:.12g},{:.12g},{:.12g},{:.12g},{:.12g}\n", sample.time, sample.kinetic,
+               sample.potential, sample.solver_elastic, sample.contact_elastic, sample.total(), sample.dissipated,
+               sample.inflow);
     std::fflush(file_);
   }
 }

@@ -81,10 +81,13 @@ struct EnergySample {
   double solver_elastic = 0;   // springs and strain inside the solvers
   double contact_elastic = 0;  // penalty springs of the coupler
   double dissipated = 0;       // reported by the solvers
+  double inflow = 0;           // reported by the solvers: brought in from outside the scene (inflows)
   [[nodiscard]] double total() const { return kinetic + potential + solver_elastic + contact_elastic; }
+  // What the scene's own energy is: the total less what the inflows brought in.
+  [[nodiscard]] double own() const { return total() - inflow; }
 };
 
-// energy.csv: time, kinetic, potential, solver_elastic, contact_elastic, total, dissipated.
+// energy.csv: time, kinetic, potential, solver_elastic, contact_elastic, total, dissipated, inflow.
 class EnergyHistory {
  public:
   explicit EnergyHistory(const std::filesystem::path& file);
@@ -93,14 +96,15 @@ class EnergyHistory {
   EnergyHistory(const EnergyHistory&) = delete;
   EnergyHistory& operator=(const EnergyHistory&) = delete;
 
-  // Every step: tracks the initial and the largest total. `write` appends a row.
+  // Every step: tracks the initial sample and the largest own() energy (the total less what inflows
+  // brought in: the total itself in a closed scene). `write` appends a row.
   void observe(const EnergySample& sample, bool write);
   void close();
   void save(io::hdf5::Group& group) const;
   void restore(const io::hdf5::Group& group);
   [[nodiscard]] const EnergySample& initial() const { return initial_; }
   [[nodiscard]] const EnergySample& last() const { return last_; }
-  [[nodiscard]] double max_total() const { return max_total_; }
+  [[nodiscard]] double max_total() const { return max_total_; }  // of own()
 
  private:
   std::FILE* file_ = nullptr;

@@ -618,6 +618,7 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
       sample.potential += e.potential();
       sample.solver_elastic += e.elastic();
       sample.dissipated += e.dissipated();
+      sample.inflow += e.inflow();
     }
     sample.contact_elastic = previous_contact_elastic_;
     sample.dissipated += contact_dissipated_;

@@ -64,12 +64,13 @@ void Coupler::write_summary(const std::string& status) {
                   {"solver_elastic", e.solver_elastic},
                   {"contact_elastic", e.contact_elastic},
                   {"dissipated", e.dissipated},
+                  {"inflow", e.inflow},
                   {"total", e.total()}};
     };
     energies = {{"initial", sample_json(energy_csv_->initial())},
                 {"final", sample_json(energy_csv_->last())},
                 {"max_total", energy_csv_->max_total()},
-                {"max_rise_over_initial", energy_csv_->max_total() - energy_csv_->initial().total()}};
+                {"max_rise_over_initial", energy_csv_->max_total() - energy_csv_->initial().own()}};
   }
   // Deformable FEM parts: the history of internal, kinetic, plastic work,
   // hourglass and eroded energy at the output times (columns), and the largest

@@ -364,13 +364,23 @@ def plot_forces(runs, tables, path):
 # ------------------------------------------------------------------------------------------- energy
 
 
+def balance(table):
+    """total + dissipated - inflow per row: what the run's energy is without what inflows brought in (the
+    inflow column is absent in files of older runs)."""
+    inflow = table["inflow"] if table.has("inflow") else 0.0
+    return table["total"] + table["dissipated"] - inflow
+
+
 def plot_energy(runs, tables, path):
     terms = ENERGY_COLUMNS[1:]
+    if any(table.has("inflow") and np.any(table["inflow"] != 0) for table in tables):
+        terms += ("inflow",)
+        tables = [table if table.has("inflow") else Table(dict(table.columns, inflow=0.0 * table["total"]),
+                                                           table.rows) for table in tables]
     fig, axes = new_figure(2, height=7.5)
     top, bottom = axes[0, 0], axes[1, 0]
     factor, unit = si_scale(largest_abs([table[t] for table in tables for t in terms]), "J")
-    residuals = [(table["total"] + table["dissipated"]) - (table["total"][0] + table["dissipated"][0])
-                 for table in tables]
+    residuals = [balance(table) - balance(table)[0] for table in tables]
     residual_factor, residual_unit = si_scale(largest_abs(residuals), "J")
     notes = []
     for run, table, residual, style in zip(runs, tables, residuals, RUN_LINESTYLES):
@@ -386,7 +396,7 @@ def plot_energy(runs, tables, path):
     bottom.set_ylabel("residual [{}]".format(residual_unit))
     bottom.set_xlabel("time [s]")
     bottom.axhline(0.0, color="black", linewidth=0.8)
-    bottom.set_title("residual = (total + dissipated) − (total + dissipated) at the first row\nat the end: " +
+    bottom.set_title("residual = (total + dissipated − inflow) − (its value at the first row)\nat the end: " +
                      ", ".join(notes), fontsize=9, loc="left")
     entries = [(Line2D([], [], color=colour(i), linewidth=2.0 if t == "total" else 1.3), t)
                for i, t in enumerate(terms)]

@@ -33,6 +33,8 @@ void EnergyAudit::after_integrate(const SphModel& model, double dt_previous, dou
     work += dt_avg * force_[k].dot(mean_velocity);
   }
   const double total = model.energies().total();
+  work += model.energies().inflow - previous_inflow_;
+  previous_inflow_ = model.energies().inflow;
   dissipated_ += previous_total_ - total + work;
   work_in_ += work;
   previous_total_ = total;

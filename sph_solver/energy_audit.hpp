@@ -14,7 +14,8 @@
 // What it holds: viscosity, artificial viscosity and density diffusion, the
 // settling phase's damping, the walls' work held back by sph.wall_work =
 // "bounded", the energy of particles that left the domain, the interface's own
-// work (fluid sliding past a wall) and the time integration's error. Summed over
+// work (fluid sliding past a wall) and the time integration's error. What the
+// inflows bring (Energies::inflow, inflow.hpp) counts as work done on the fluid. Summed over
 // the coupled run, every solver's energy plus its dissipated energy then differs
 // from the start only by what the coupling does not conserve (docs/physics.md,
 // "Energy balance").
@@ -28,7 +29,8 @@ namespace sabo::sph {
 
 class EnergyAudit {
  public:
-  explicit EnergyAudit(const SphModel& model) : previous_total_(model.energies().total()) {}
+  explicit EnergyAudit(const SphModel& model)
+      : previous_total_(model.energies().total()), previous_inflow_(model.energies().inflow) {}
 
   // After the step's forces (compute_internal_forces, add_external_forces), before integrate():
   // `index` and `force` are the external forces added this step (3 doubles each, N).
@@ -45,15 +47,18 @@ class EnergyAudit {
     group.set_attribute("audit_previous_total", previous_total_);
     group.set_attribute("audit_dissipated", dissipated_);
     group.set_attribute("audit_work_in", work_in_);
+    group.set_attribute("audit_previous_inflow", previous_inflow_);
   }
   void load(const io::hdf5::Group& group) {
     previous_total_ = group.double_attribute("audit_previous_total");
     dissipated_ = group.double_attribute("audit_dissipated");
     work_in_ = group.double_attribute("audit_work_in");
+    previous_inflow_ = group.double_attribute("audit_previous_inflow");
   }
 
  private:
   double previous_total_;
+  double previous_inflow_;
   double dissipated_ = 0, work_in_ = 0;
   double wall_power_ = 0;  // W, this step: the walls' power into the fluid
   std::vector<std::uint32_t> index_;

@@ -54,6 +54,16 @@ class SphSolver final : public solver::CoupledSolver {
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
+    for (const InflowState& inflow : model_.inflows()) {
+      const scene::FluidBody& body = scene.fluids[inflow.body];
+      spdlog::info(
+          "inflow '{}': a section of {} x {} particles ({:.4g} m^2), a buffer of {} layers, {} particles for the "
+          "{:.6g} m^3 of its hydrograph up to t = {:.6g} s (peak {:.6g} m^3/s, {:.4g} m/s)",
+          body.name, inflow.lattice.across, inflow.lattice.up, inflow.lattice.area, inflow.lattice.buffer_layers,
+          inflow.lattice.particles(), inflow.section.volume(0.0, scene.run.end_time), scene.run.end_time,
+          inflow.section.peak_discharge(), inflow.section.peak_discharge() / inflow.lattice.area);
+      inflow_names_.push_back(body.name);
+    }
     for (const scene::FluidBody& body : scene.fluids) {
       if (body.settle_time > 0) {
         spdlog::info("fluid body '{}' settles until t = {:.4g} s: its velocities are damped, then set to zero",
@@ -91,7 +101,7 @@ class SphSolver final : public solver::CoupledSolver {
     const Energies e = model_.energies();
     // Dissipated: the energy the fluid lost beyond the work done on it (energy_audit.hpp), its
     // viscosity and the walls' work held back among it.
-    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, audit_.dissipated()});
+    solver::set_energies(state, {e.kinetic, e.potential, e.elastic, audit_.dissipated(), e.inflow});
   }
 
   void compute_internal_forces(double dt_previous) override {
@@ -190,12 +200,37 @@ class SphSolver final : public solver::CoupledSolver {
     have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
   }
   [[nodiscard]] std::string results() const override {
-    if (fronts_.empty()) return {};
-    return nlohmann::json{{"fronts", fronts_.results()}}.dump();
+    nlohmann::json results = nlohmann::json::object();
+    if (!fronts_.empty()) results["fronts"] = fronts_.results();
+    if (!model_.inflows().empty()) results["inflows"] = inflow_results();
+    return results.empty() ? std::string() : results.dump();
   }
   void finish() override { report_losses("since the last output, to the end"); }
 
  private:
+  // Per inflow: the hydrograph's volume up to the model's time against the volume and mass released.
+  [[nodiscard]] nlohmann::json inflow_results() const {
+    nlohmann::json list = nlohmann::json::array();
+    for (std::size_t k = 0; k < model_.inflows().size(); ++k) {
+      const InflowState& inflow = model_.inflows()[k];
+      const double target = inflow.section.volume(0.0, model_.time());
+      double mass = 0;
+      for (std::size_t layer = 0; layer < inflow.released; ++layer) {
+        for (std::size_t p = 0; p < inflow.lattice.per_layer(); ++p) mass += model_.masses()[inflow.id(layer, p)];
+      }
+      list.push_back({{"name", inflow_names_[k]},
+                      {"time", model_.time()},
+                      {"hydrograph_volume", target},
+                      {"released_volume", inflow.released_volume()},
+                      {"relative_error", target > 0 ? inflow.released_volume() / target - 1.0 : 0.0},
+                      {"layer_volume", inflow.lattice.area * inflow.spacing},
+                      {"released_mass", mass},
+                      {"released_particles", inflow.released * inflow.lattice.per_layer()},
+                      {"buffer_ended", inflow.ended}});
+    }
+    return list;
+  }
+
   void report_losses(const char* when) {
     if (model_.lost_count() == lost_reported_) return;
     spdlog::warn("{} more SPH particles left the domain and were taken out {} ({} in all)",
@@ -213,8 +248,9 @@ class SphSolver final : public solver::CoupledSolver {
   double dt_previous_ = 0;
   solver::StabilityLimits limits_;
   bool scene_max_speed_ = false;
-  std::vector<double> rest_density_;  // kg/m^3, by scene material index
-  std::size_t lost_reported_ = 0;     // particles taken out that the log has named
+  std::vector<double> rest_density_;       // kg/m^3, by scene material index
+  std::size_t lost_reported_ = 0;          // particles taken out that the log has named
+  std::vector<std::string> inflow_names_;  // of model_.inflows()
 };
 
 }  // namespace

@@ -39,7 +39,18 @@ void SphModel::save_state(io::hdf5::Group& group) const {
   group.set_attribute("stable_dt", stable_dt_);
   group.set_attribute("mean_neighbours", mean_neighbours_);
   io::write_array(group, "energies",
-                  std::vector<double>{energies_.kinetic, energies_.potential, energies_.elastic, energies_.wall_held});
+                  std::vector<double>{energies_.kinetic, energies_.potential, energies_.elastic, energies_.wall_held,
+                                      energies_.inflow});
+  // The inflows' emission (inflow.hpp), kInflowValues per inflow; counts as doubles (exact).
+  std::vector<double> inflows;
+  for (const InflowState& inflow : inflows_) {
+    inflows.insert(inflows.end(),
+                   {inflow.advance, inflow.speed, inflow.previous_speed, static_cast<double>(inflow.entered),
+                    static_cast<double>(inflow.released), inflow.ended ? 1.0 : 0.0});
+  }
+  io::write_array(group, "inflows", inflows);
+  group.set_attribute("inflow_energy", inflow_energy_);
+  group.set_attribute("inflow_pending", inflow_pending_);
 }
 
 void SphModel::load_state(const io::hdf5::Group& group) {
@@ -75,8 +86,22 @@ void SphModel::load_state(const io::hdf5::Group& group) {
   min_viscous_dt_ = group.double_attribute("min_viscous_dt");
   stable_dt_ = group.double_attribute("stable_dt");
   mean_neighbours_ = group.double_attribute("mean_neighbours");
-  const auto energies = io::read_array<double>(group, "energies", 4);
-  energies_ = {energies[0], energies[1], energies[2], energies[3]};
+  const auto energies = io::read_array<double>(group, "energies", 5);
+  energies_ = {energies[0], energies[1], energies[2], energies[3], energies[4]};
+  constexpr std::size_t kInflowValues = 6;
+  const auto inflows = io::read_array<double>(group, "inflows", kInflowValues * inflows_.size());
+  for (std::size_t k = 0; k < inflows_.size(); ++k) {
+    const double* v = &inflows[kInflowValues * k];
+    InflowState& inflow = inflows_[k];
+    inflow.advance = v[0];
+    inflow.speed = v[1];
+    inflow.previous_speed = v[2];
+    inflow.entered = static_cast<std::size_t>(v[3]);
+    inflow.released = static_cast<std::size_t>(v[4]);
+    inflow.ended = v[5] != 0;
+  }
+  inflow_energy_ = group.double_attribute("inflow_energy");
+  inflow_pending_ = group.double_attribute("inflow_pending");
   forces_ready_ = false;
 }
 

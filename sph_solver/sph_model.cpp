@@ -94,7 +94,8 @@ SphModel::SphModel(const scene::Scene& scene)
     stress_ = std::move(fill.stress);
     stress_rate_.assign(6 * n, 0.0);
   }
-  active_.assign(n, 1);
+  active_.assign(n, kFree);
+  start_inflows(scene);
   for (const scene::FluidBody& body : scene.fluids) settle_time_.push_back(body.settle_time);
   const std::optional<std::array<double, 2>>* spans[2] = {&settings_.periodic_x, &settings_.periodic_y};
   for (int axis = 0; axis < 2; ++axis) {
@@ -117,6 +118,7 @@ SphModel::SphModel(const scene::Scene& scene)
   stable_dt_ = initial_stable_dt();
   energies_.kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
+    if (active_[i] != kFree) continue;  // an inflow's buffer enters the account at the first step
     energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm();
     energies_.potential -=
         mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i]));

@@ -60,6 +60,7 @@
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
+#include "sph_solver/inflow.hpp"
 #include "sph_solver/sph_kernel.hpp"
 
 namespace sabo::sph {
@@ -71,6 +72,10 @@ struct Energies {
   // J, >= 0: the walls' work held back by sph.wall_work = "bounded" (0 otherwise). The fluid's
   // total() plus this is what the walls' pressure conserves.
   double wall_held = 0;
+  // J, accumulated over the run: what the inflows brought in (inflow.hpp): the energy of each particle
+  // as it entered their buffers, the work that kept the buffers at the section's velocity and density,
+  // less the energy of the buffers taken out when their hydrographs ended. 0 without inflows.
+  double inflow = 0;
   [[nodiscard]] double total() const { return kinetic + potential + elastic; }
 };
 
@@ -148,8 +153,12 @@ class SphModel {
   // Deviatoric stress (Pa), xx yy zz xy yz zx per particle; empty unless has_stress().
   [[nodiscard]] std::span<const double> deviatoric_stress() const { return stress_; }
   [[nodiscard]] bool has_stress() const { return has_stress_; }
-  // 0 for particles that left the domain (taken out of the simulation).
+  // ParticleState per particle: 0 for those out of the simulation (taken out on leaving the domain, or an
+  // inflow's that have not entered or were taken out with its buffer), else in it (1 free, 2 and 3 in an
+  // inflow's buffer).
   [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }
+  // The inflows' emission, one per [[inflows]] body in scene order.
+  [[nodiscard]] std::span<const InflowState> inflows() const { return inflows_; }
   [[nodiscard]] std::size_t lost_count() const { return lost_; }
   // m, per particle: what the periodic wrapping added to its position so far (zero without
   // periodic boundaries, then empty); x - offset is the unwrapped position.
@@ -225,6 +234,14 @@ class SphModel {
   template <class Visit>
   void for_fluid_within_support(const Vec3& point, Visit&& visit) const;
   void wrap_positions();
+  // Inflows (passes/inflow.cpp): the pools and the first buffer layers, at construction; each buffer's
+  // velocity for the step to time_ + dt; after the position update, the buffers advanced (positions,
+  // densities), their front layers released and new layers added behind, and a buffer whose hydrograph
+  // has ended taken out.
+  void start_inflows(const scene::Scene& scene);
+  void set_inflow_velocities(double dt);
+  void advance_inflows(double dt);
+  void advance_inflows_to(InflowState& inflow);
   // settle_factor_ for the step from time_ to time_ + dt.
   void update_settle_factors(double dt);
   void make_images();
@@ -298,8 +315,13 @@ class SphModel {
   std::vector<double> density_, pressure_, mass_;
   std::vector<double> stress_, stress_rate_;  // 6 per particle; empty unless has_stress_
   std::vector<std::uint32_t> material_, body_;
-  std::vector<std::uint8_t> active_;
+  std::vector<std::uint8_t> active_;  // ParticleState
   std::size_t lost_ = 0;
+  std::vector<InflowState> inflows_;
+  std::vector<Vec3> buffer_velocity_;  // m/s, per body: an inflow buffer's v_{n+1/2} in integrate() (else zero)
+  // J: the inflows' account (Energies::inflow), and what the next integrate() adds to it (the energy of
+  // buffer densities reset and of buffers taken out, which the energies of the next step show).
+  double inflow_energy_ = 0, inflow_pending_ = 0;
   double time_ = 0;                  // s, t_n: the sum of the steps integrated
   std::vector<double> settle_time_;  // s, per body: its damped settling phase ends there (0: none)
   // Per body, this step's factor on v_{n+1/2}: exp(-dt / tau) while settling, 0 at the step

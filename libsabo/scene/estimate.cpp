@@ -207,10 +207,12 @@ SceneEstimate estimate_scene(const Scene& scene) {
       const Vec3 extent = b.empty() ? Vec3::Zero() : Vec3(b.max - b.min);
       if (body.shape == FluidBody::Shape::box) {
         count = lattice(extent, dx);
+      } else if (body.shape == FluidBody::Shape::inflow) {
+        count = static_cast<double>(body.inflow.lattice(sph, scene.run.end_time).particles());
       } else {
         count = std::floor(geometry::polygon_area(body.profile) / (dx * dx)) * sites(body.width, dx);
       }
-      bound = lattice_bound(extent, dx);
+      bound = body.shape == FluidBody::Shape::inflow ? count : lattice_bound(extent, dx);
     }
     out.fluid_particles.push_back(count);
     out.fluid_particles_bound += bound;

@@ -32,19 +32,23 @@ Scene Builder::build() {
   const toml::array* particles = root.table_list("particles");
   const toml::array* structures = root.table_list("structures");
   const toml::array* fluids = root.table_list("fluids");
+  const toml::array* inflows = root.table_list("inflows");
   has_particles_ = particles != nullptr && !particles->empty();
   has_structures_ = structures != nullptr && !structures->empty();
-  has_fluids_ = fluids != nullptr && !fluids->empty();
-  const bool lists_readable = (particles != nullptr || !root.has("particles")) &&
-                              (structures != nullptr || !root.has("structures")) &&
-                              (fluids != nullptr || !root.has("fluids"));
+  has_fluids_ = (fluids != nullptr && !fluids->empty()) || (inflows != nullptr && !inflows->empty());
+  const bool lists_readable =
+      (particles != nullptr || !root.has("particles")) && (structures != nullptr || !root.has("structures")) &&
+      (fluids != nullptr || !root.has("fluids")) && (inflows != nullptr || !root.has("inflows"));
   if (!has_particles_ && !has_structures_ && !has_fluids_ && lists_readable) {
     diag_.add_plain(1, "the scene has no bodies, so there is nothing to simulate",
-                    "add at least one [[fluids]], [[particles]] or [[structures]] table");
+                    "add at least one [[fluids]], [[inflows]], [[particles]] or [[structures]] table");
   }
   read_sph(root);
   if (fluids != nullptr) {
     for (std::size_t k = 0; k < fluids->size(); ++k) read_fluid(*fluids->get(k)->as_table(), k);
+  }
+  if (inflows != nullptr) {
+    for (std::size_t k = 0; k < inflows->size(); ++k) read_inflow(*inflows->get(k)->as_table(), k);
   }
   check_fluid_materials();
   if (particles != nullptr) {

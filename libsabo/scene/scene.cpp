@@ -108,8 +108,56 @@ bool ParticleSet::contains_sphere(const Vec3& center, double radius) const {
   return geometry::polygon_contains(polygon_xz, x, z);
 }
 
+double InflowSection::discharge(double t) const {
+  if (hydrograph.empty() || t < hydrograph.front()[0] || t > hydrograph.back()[0]) return 0.0;
+  const auto after = std::upper_bound(hydrograph.begin(), hydrograph.end(), t,
+                                      [](double time, const std::array<double, 2>& point) { return time < point[0]; });
+  if (after == hydrograph.end()) return hydrograph.back()[1];
+  const auto& [t1, q1] = *after;
+  const auto& [t0, q0] = *(after - 1);
+  return q0 + (q1 - q0) * (t - t0) / (t1 - t0);
+}
+
+double InflowSection::volume(double from, double to) const {
+  double sum = 0;
+  for (std::size_t k = 1; k < hydrograph.size(); ++k) {
+    const double a = std::max(from, hydrograph[k - 1][0]), b = std::min(to, hydrograph[k][0]);
+    if (b > a) sum += 0.5 * (discharge(a) + discharge(b)) * (b - a);  // exact: Q is linear on the segment
+  }
+  return sum;
+}
+
+InflowLattice InflowSection::lattice(const SphSettings& sph, double run_end) const {
+  InflowLattice out;
+  const double dx = sph.particle_spacing;
+  if (!(dx > 0)) return out;
+  out.across = static_cast<std::size_t>(std::max(1.0, std::round(width / dx)));
+  out.up = static_cast<std::size_t>(std::max(1.0, std::round(depth / dx)));
+  out.buffer_layers = sph.inflow_buffer_layers();
+  out.area = static_cast<double>(out.per_layer()) * dx * dx;
+  // Layer l enters the buffer once it has advanced X >= (l + 1/2 - buffer_layers) dx, X = volume / area: at
+  // most buffer_layers + X / dx + 1/2 layers; one more for the rounding of X's sum.
+  const double advance = volume(0.0, run_end) / out.area;
+  out.layers = out.buffer_layers + static_cast<std::size_t>(std::ceil(advance / dx)) + 1;
+  return out;
+}
+
+double InflowSection::peak_discharge() const {
+  double peak = 0;
+  for (const auto& point : hydrograph) peak = std::max(peak, point[1]);
+  return peak;
+}
+
 Aabb FluidBody::bounds() const {
   if (shape == Shape::box) return box;
+  if (shape == Shape::inflow) {
+    Aabb section;
+    for (const double a : {-0.5 * inflow.width, 0.5 * inflow.width}) {
+      for (const double u : {0.0, inflow.depth})
+        section.extend(inflow.position + a * inflow.across() + u * inflow.up());
+    }
+    return section;
+  }
   Aabb bounds;
   const Vec3 across(-direction.y(), direction.x(), 0.0);
   for (const auto& [s, z] : profile) {

@@ -4,6 +4,7 @@
 // (scene/loader.hpp) guarantees every invariant documented here; values are SI.
 // The TOML reference is docs/scene.md, generated from the schema (scene/schema.hpp).
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -433,6 +434,51 @@ struct SphSettings {
   ViscousOperator viscous_operator = ViscousOperator::strain_rate;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
   [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
+  // Layers of an inflow's buffer (InflowSection): enough that the fluid just past the section sees a full
+  // kernel support of them, ceil(2h / dx) + 1.
+  [[nodiscard]] std::size_t inflow_buffer_layers() const {
+    return static_cast<std::size_t>(std::ceil(kernel_support() / particle_spacing - 1e-9)) + 1;
+  }
+};
+
+// The particles of an inflow's section on the lattice of spacing dx (InflowSection::lattice).
+struct InflowLattice {
+  std::size_t across = 0;         // n_w = round(width / dx), at least 1
+  std::size_t up = 0;             // n_d = round(depth / dx), at least 1
+  std::size_t buffer_layers = 0;  // SphSettings::inflow_buffer_layers()
+  std::size_t layers = 0;         // every layer a run to its end time can need: the buffer's and those released
+  double area = 0;                // m^2, n_w n_d dx^2: the section's discharge is U * area
+  [[nodiscard]] std::size_t per_layer() const { return across * up; }
+  [[nodiscard]] std::size_t particles() const { return per_layer() * layers; }
+};
+
+// Where an inflow ([[inflows]], docs/scene.md) brings fluid in: a rectangular cross-section and its
+// hydrograph. The section's frame: `direction` (the flow, its normal), across() (horizontal) and up()
+// (perpendicular to both, upwards); the section spans [-width/2, width/2] across and [0, depth] up from
+// `position`. The sph_solver (sph_solver/inflow.hpp) moves a buffer of particle layers behind it at the
+// section's mean velocity Q(t) / A and releases each layer into the flow as it crosses the section.
+struct InflowSection {
+  Vec3 position = Vec3::Zero();  // m: the middle of the section's bottom edge
+  Vec3 direction{1, 0, 0};       // unit, not vertical
+  double width = 0;              // m, > 0
+  double depth = 0;              // m, > 0
+  // (t in s, Q in m^3/s): t strictly increasing from >= 0, Q >= 0, linear between the points, 0 before the
+  // first and after the last.
+  std::vector<std::array<double, 2>> hydrograph;
+
+  // z x direction, normalised (direction is not vertical).
+  [[nodiscard]] Vec3 across() const { return Vec3(-direction.y(), direction.x(), 0.0).normalized(); }
+  // direction x across().
+  [[nodiscard]] Vec3 up() const {
+    const Vec3 a = across(), d = direction;
+    return {d.y() * a.z() - d.z() * a.y(), d.z() * a.x() - d.x() * a.z(), d.x() * a.y() - d.y() * a.x()};
+  }
+  [[nodiscard]] double discharge(double t) const;             // m^3/s
+  [[nodiscard]] double volume(double from, double to) const;  // m^3: the integral of Q over [from, to]
+  [[nodiscard]] double peak_discharge() const;                // m^3/s
+  [[nodiscard]] double end_time() const { return hydrograph.empty() ? 0.0 : hydrograph.back()[0]; }
+  // The section's lattice for `sph` and a run that ends at `run_end` (s).
+  [[nodiscard]] InflowLattice lattice(const SphSettings& sph, double run_end) const;
 };
 
 // One body of slurry, filled with particles on a cubic lattice of spacing
@@ -445,7 +491,8 @@ struct SphSettings {
 // Initial state: `velocity`; with `hydrostatic`, the pressure of the fluid column
 // above each particle (density from the EOS), so that a body at rest starts at rest.
 struct FluidBody {
-  enum class Shape { box, extruded_polygon };
+  // inflow: a body of the [[inflows]] list, which fills through `inflow` during the run instead.
+  enum class Shape { box, extruded_polygon, inflow };
   std::string name;
   std::string material;  // a key of Scene::materials (checked)
   Origin origin;
@@ -462,8 +509,9 @@ struct FluidBody {
   // particles and walls rather than the continuum's hydrostatic fill (docs/physics.md, "Settling").
   // A settling body starts at rest (checked).
   double settle_time = 0;
+  InflowSection inflow;  // shape inflow
 
-  // The box around the body's shape, m.
+  // The box around the body's shape, m (an inflow: its section).
   [[nodiscard]] Aabb bounds() const;
 };
 
@@ -557,7 +605,7 @@ struct Scene {
   std::vector<Material> materials;         // sorted by name; index = material id
   std::vector<ParticleSet> particle_sets;  // DEM bodies, in file order
   std::vector<Structure> structures;       // FEM parts, in file order
-  std::vector<FluidBody> fluids;           // SPH bodies, in file order
+  std::vector<FluidBody> fluids;           // SPH bodies, in file order: [[fluids]], then [[inflows]]
   SphSettings sph;
   DemContact dem_contact;
   SurfaceContact dem_fem_default;

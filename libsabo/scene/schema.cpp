@@ -19,6 +19,7 @@ Schema::Schema() {
   build_particles();
   build_structures();
   build_sph();
+  build_inflows();
   build_contact();
   build_sph_fem();
   build_sph_dem();
@@ -31,10 +32,10 @@ Schema::Schema() {
 }
 
 std::vector<const Table*> Schema::ordered() const {
-  return {&root,        &run,       &solvers,   &solver,     &materials,      &material, &particles,
-          &sphere,      &fill,      &structure, &constraint, &constraint_box, &sph,      &fluid,
-          &contact,     &dem_dem,   &dem_pair,  &dem_fem,    &sph_fem,        &sph_dem,  &fem_fem,
-          &interaction, &recording, &gauge,     &front,      &front_station,  &sensor};
+  return {&root,    &run,         &solvers,   &solver,     &materials,      &material,      &particles,
+          &sphere,  &fill,        &structure, &constraint, &constraint_box, &sph,           &fluid,
+          &inflow,  &contact,     &dem_dem,   &dem_pair,   &dem_fem,        &sph_fem,       &sph_dem,
+          &fem_fem, &interaction, &recording, &gauge,      &front,          &front_station, &sensor};
 }
 
 void Schema::build_root() {
@@ -61,6 +62,10 @@ void Schema::build_root() {
           .absent("no fluids allowed")
           .doc("Settings of the SPH solver; required with `[[fluids]]`."),
       K("fluids", Type::table_list).inside(fluid).absent("no SPH bodies").doc("SPH bodies (debris slurry, water)."),
+      K("inflows", Type::table_list)
+          .inside(inflow)
+          .absent("no inflows")
+          .doc("Fluid bodies that enter through a cross-section at the rate of a discharge hydrograph."),
       K("contact", Type::table).inside(contact).absent("defaults").doc("Contact laws between kinds of bodies."),
       K("interactions", Type::table_list)
           .inside(interaction)

@@ -13,6 +13,7 @@ target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/sections/checks.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sections/contact.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sections/fluids.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/sections/inflows.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sections/instruments.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sections/interactions.cpp
   ${CMAKE_CURRENT_LIST_DIR}/sections/materials.cpp

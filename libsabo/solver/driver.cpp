@@ -81,6 +81,7 @@ void set_energies(sabo::v1::StepState& state, const EnergyReport& energies) {
   e->set_potential(energies.potential);
   e->set_elastic(energies.elastic);
   e->set_dissipated(energies.dissipated);
+  e->set_inflow(energies.inflow);
 }
 
 void add_particle_states(const Interest& interest, const ParticleStates& particles, sabo::v1::StepState& state) {

@@ -98,6 +98,7 @@ class CoupledSolver {
 // kinetic, gravitational potential, internal elastic, accumulated dissipation.
 struct EnergyReport {
   double kinetic = 0, potential = 0, elastic = 0, dissipated = 0;
+  double inflow = 0;  // J, accumulated: brought in from outside the scene (Energies.inflow)
 };
 void set_energies(sabo::v1::StepState& state, const EnergyReport& energies);
 

@@ -18,8 +18,8 @@ namespace {
 
 // Particles per block of the energy sums (fixed: the same bits on any number of threads).
 constexpr std::size_t kEnergyBlock = 4096;
-// Sums per block: kinetic, potential, elastic, wall work held back.
-constexpr std::size_t kEnergyTerms = 4;
+// Sums per block: kinetic, potential, elastic, wall work held back, inflow (inflow.hpp).
+constexpr std::size_t kEnergyTerms = 5;
 
 }  // namespace
 
@@ -95,29 +95,46 @@ void SphModel::integrate(double dt_previous, double dt) {
   const bool external = !external_force_.empty();
   const bool periodic = !periodic_.empty();
   update_settle_factors(dt);
+  if (!inflows_.empty()) set_inflow_velocities(dt);
   // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
   const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
   energy_block_.assign(kEnergyTerms * blocks, 0.0);
   particle_for<Compile::baseline>(n, parallel, kEnergyBlock, [&](std::int64_t begin, std::int64_t end) {
     const auto first = static_cast<std::size_t>(begin), last = static_cast<std::size_t>(end);
-    double kinetic = 0, potential = 0, elastic = 0, held = 0;
+    double kinetic = 0, potential = 0, elastic = 0, held = 0, inflow = 0;
     for (std::size_t i = first; i < last; ++i) {
       if (!active_[i]) {
         if (external) external_force_[i].setZero();
         continue;
       }
       const FluidMaterial& material = materials_[material_[i]];
-      potential += -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
-      elastic += mass_[i] * material.eos.specific_energy(density_[i]);
+      const double particle_potential =
+          -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
+      const double particle_elastic = mass_[i] * material.eos.specific_energy(density_[i]);
+      potential += particle_potential;
+      elastic += particle_elastic;
       if (!wall_work_held_.empty()) held += wall_work_held_[i];
       Vec3 a = acceleration_[i];
       if (external) {
         a += external_force_[i] / mass_[i];
         external_force_[i].setZero();
       }
-      Vec3 velocity = velocity_[i] + dt_update * a;
-      if (const double settle = settle_factor_[body_[i]]; settle != 1.0) velocity *= settle;
-      kinetic += first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
+      Vec3 velocity;
+      if (active_[i] == kFree) {
+        velocity = velocity_[i] + dt_update * a;
+        if (const double settle = settle_factor_[body_[i]]; settle != 1.0) velocity *= settle;
+      } else {
+        velocity = buffer_velocity_[body_[i]];  // an inflow's buffer (inflow.hpp)
+      }
+      const double particle_kinetic =
+          first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
+      kinetic += particle_kinetic;
+      if (active_[i] == kEntering) {
+        inflow += particle_kinetic + particle_potential + particle_elastic;
+      } else if (active_[i] == kBuffer) {
+        const Vec3 holding = mass_[i] * ((velocity - velocity_[i]) / dt_update - a);
+        inflow += 0.5 * dt_update * holding.dot(velocity_[i] + velocity);
+      }
       velocity_[i] = velocity;
     }
     double* sums = &energy_block_[kEnergyTerms * (first / kEnergyBlock)];
@@ -125,6 +142,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     sums[1] = potential;
     sums[2] = elastic;
     sums[3] = held;
+    sums[4] = inflow;
   });
   compute_velocity_divergence(dt);
   if (has_stress_) {
@@ -162,17 +180,23 @@ void SphModel::integrate(double dt_previous, double dt) {
       pressure_[i] = material.eos.pressure(density_[i]);
     }
   });
-  if (periodic) wrap_positions();
   Energies energies;
+  inflow_energy_ += inflow_pending_;
+  inflow_pending_ = 0;
   for (std::size_t block = 0; block < blocks; ++block) {
     const double* sums = &energy_block_[kEnergyTerms * block];
     energies.kinetic += sums[0];
     energies.potential += sums[1];
     energies.elastic += sums[2];
     energies.wall_held += sums[3];
+    inflow_energy_ += sums[4];
   }
+  if (!inflows_.empty()) advance_inflows(dt);
+  energies.inflow = inflow_energy_;
+  if (periodic) wrap_positions();
   for (std::size_t i = 0; i < n; ++i) {
-    if (!active_[i]) continue;
+    // A buffer's particles keep to the buffer's path (the scene holds it in the domain).
+    if (active_[i] != kFree) continue;
     // A position that is not finite is no particle leaving the domain: the solver's check_stability()
     // (libsabo/solver/stability.hpp) stops the run on it.
     const bool finite = std::isfinite(position_[i].x() + position_[i].y() + position_[i].z());

@@ -134,10 +134,14 @@ def read_vtk(path):
 
 
 def largest_energy_rise(run_dir):
-    """The largest rise of energy.csv's total over its first row, J, and that first total."""
+    """The largest rise of energy.csv's total less its inflow (what inflows brought in) over its first row, J,
+    and that first total."""
     rows = read_csv(os.path.join(run_dir, "energy.csv"))
-    initial = float(rows[0]["total"])
-    return max(float(row["total"]) for row in rows) - initial, initial
+
+    def own(row):
+        return float(row["total"]) - float(row.get("inflow", 0.0))
+    initial = own(rows[0])
+    return max(own(row) for row in rows) - initial, initial
 
 
 class Sabo:

@@ -2,7 +2,7 @@
 // The scene loader's Builder: reads a parsed scene file section by section into a Scene,
 // collecting every problem. Its members are defined beside the schema of their section:
 // sections/run.cpp ([run], [solvers], [recording]), materials.cpp, fluids.cpp ([sph],
-// [[fluids]]), particles.cpp, structures.cpp, contact.cpp ([contact]), interactions.cpp,
+// [[fluids]]), inflows.cpp, particles.cpp, structures.cpp, contact.cpp ([contact]), interactions.cpp,
 // instruments.cpp ([[gauges]], [[sensors]]), checks.cpp (what spans sections: names,
 // overlaps, cost and memory), and loader.cpp (the order of the sections).
 #include <fmt/format.h>
@@ -37,7 +37,7 @@
 #include "libsabo/geometry/sphere_fill.hpp"
 #include "libsabo/io/gmsh.hpp"
 #include "libsabo/io/gmsh_groups.hpp"
-#include "libsabo/io/profile_csv.hpp"
+#include "libsabo/io/pairs_csv.hpp"
 #include "libsabo/io/raster.hpp"
 #include "libsabo/io/stl.hpp"
 #include "libsabo/physics/stable_step.hpp"
@@ -90,6 +90,7 @@ class Builder {
   void read_sph(Reader& root);
   void read_periodic(Reader& r, const char* key, std::optional<std::array<double, 2>>& out, int& line);
   void read_fluid(const toml::table& table, std::size_t index);
+  void read_inflow(const toml::table& table, std::size_t index);
   void check_profile(Reader& r, const std::vector<std::array<double, 2>>& profile);
   void check_fluid_materials();
   void read_plasticity(Reader& r, Material& material);

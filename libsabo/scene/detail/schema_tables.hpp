@@ -127,7 +127,7 @@ class K {
 class Schema {
  public:
   Table root, run, solvers, solver, materials, material, particles, sphere, fill, structure, constraint, constraint_box,
-      sph, fluid, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording, gauge, front,
+      sph, fluid, inflow, contact, dem_dem, dem_pair, dem_fem, sph_fem, sph_dem, fem_fem, interaction, recording, gauge, front,
       front_station, sensor;
 
   Schema(const Schema&) = delete;
@@ -144,6 +144,7 @@ class Schema {
   void build_particles();
   void build_structures();
   void build_sph();
+  void build_inflows();
   void build_sph_fem();
   void build_sph_dem();
   void build_contact();

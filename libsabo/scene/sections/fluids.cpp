@@ -210,7 +210,8 @@ void Builder::read_sph(Reader& root) {
   const toml::table* table = root.table("sph");
   if (table == nullptr) {
     if (has_fluids_) {
-      diag_.add(root.line("fluids"), "sph", std::nullopt, "missing; the scene has [[fluids]]",
+      const char* bodies = root.has("fluids") ? "fluids" : "inflows";
+      diag_.add(root.line(bodies), "sph", std::nullopt, fmt::format("missing; the scene has [[{}]]", bodies),
                 "add an [sph] table with at least particle_spacing and sound_speed, e.g. [sph] particle_spacing = "
                 "0.02, sound_speed = 30.0");
     }

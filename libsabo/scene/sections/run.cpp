@@ -249,7 +249,7 @@ void Builder::read_solvers(Reader& root) {
     const char* bodies;
   };
   const RoleInfo roles[] = {
-      {Role::sph, "sph", has_fluids_, "[[fluids]]"},
+      {Role::sph, "sph", has_fluids_, "[[fluids]] or [[inflows]]"},
       {Role::dem, "dem", has_particles_, "[[particles]]"},
       {Role::fem, "fem", has_structures_, "[[structures]]"},
   };

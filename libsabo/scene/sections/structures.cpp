@@ -710,7 +710,7 @@ void Builder::read_structure(const toml::table& table, std::size_t index) {
   scene_.structures.push_back(std::move(structure));
 }
 
-// A channel's profile, inline or from its CSV file (io/profile_csv.hpp): exactly one of the two, at least
+// A channel's profile, inline or from its CSV file (io/pairs_csv.hpp): exactly one of the two, at least
 // two points, the distance strictly increasing.
 void Builder::read_channel_profile(Reader& r, Shape& shape) {
   const bool inline_profile = r.has("profile"), file_profile = r.has("profile_file");
@@ -750,8 +750,8 @@ void Builder::read_channel_profile(Reader& r, Shape& shape) {
   if (!file) return;
   const fs::path full = scene_relative(*file);
   try {
-    for (const io::ProfilePoint& point : io::read_profile_csv(full)) {
-      shape.profile.push_back({point.distance, point.elevation});
+    for (const io::CsvPair& point : io::read_pairs_csv(full, io::kProfileColumns)) {
+      shape.profile.push_back({point.first, point.second});
     }
   } catch (const FileError& error) {
     add_file_error(r, "profile_file", quote_text(*file), "the profile cannot be read", error,

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/scene/estimate.hpp"
 #include "libsabo/scene/loader.hpp"
 #include "libsabo/scene/suggest.hpp"
 #include "scene_test_support.hpp"
@@ -254,6 +255,100 @@ floor = false
   EXPECT_DOUBLE_EQ(flume.profile[1][1], 0.5);
   EXPECT_TRUE(gully.floor);
   EXPECT_FALSE(flume.floor);
+}
+
+TEST(SceneLoader, ReadsInflowsAfterTheFluidsWithTheirHydrographsInlineAndFromCsv) {
+  TempFolder folder;
+  folder.write("q.csv", "# design event\ntime_s,discharge_m3s\n0,0\n10 ; 1530\n60\t0\n");
+  const std::string text = R"(format_version = 1
+[run]
+end_time = 80.0
+output_interval = 1.0
+[materials.slurry]
+density = 2000.0
+youngs_modulus = 1e9
+poisson_ratio = 0.3
+rheology = "bingham"
+viscosity = 20.0
+yield_stress = 500.0
+[sph]
+particle_spacing = 1.0
+sound_speed = 400.0
+[[fluids]]
+name = "pool"
+material = "slurry"
+shape = "box"
+min = [0.0, 0.0, 0.0]
+max = [4.0, 4.0, 2.0]
+[[inflows]]
+name = "event"
+material = "slurry"
+position = [-10.0, 2.0, 5.0]
+direction = [3.0, 0.0, -1.0]
+width = 7.0
+depth = 3.2
+hydrograph_file = "q.csv"
+[[inflows]]
+name = "tributary"
+material = "slurry"
+position = [0.0, -20.0, 5.0]
+direction = [0.0, 1.0, 0.0]
+width = 2.0
+depth = 1.0
+hydrograph = [[5.0, 0.0], [6.0, 4.0]]
+hydrostatic = false
+)";
+  const Scene scene = load_scene(folder.write("scene.toml", text));
+  ASSERT_EQ(scene.fluids.size(), 3u);
+  EXPECT_EQ(scene.fluids[0].shape, FluidBody::Shape::box);
+  const FluidBody& event = scene.fluids[1];
+  EXPECT_EQ(event.name, "event");
+  EXPECT_EQ(event.shape, FluidBody::Shape::inflow);
+  EXPECT_TRUE(event.hydrostatic);
+  const std::vector<std::array<double, 2>> q{{0, 0}, {10, 1530}, {60, 0}};
+  EXPECT_EQ(event.inflow.hydrograph, q);
+  EXPECT_NEAR((event.inflow.direction - Vec3(3, 0, -1).normalized()).norm(), 0.0, 1e-15);
+  EXPECT_NEAR((event.inflow.across() - Vec3(0, 1, 0)).norm(), 0.0, 1e-15);
+  EXPECT_GT(event.inflow.up().z(), 0.9);  // perpendicular to the bed, upwards
+  EXPECT_NEAR(event.inflow.up().dot(event.inflow.direction), 0.0, 1e-15);
+  EXPECT_DOUBLE_EQ(event.inflow.volume(0, 80), 0.5 * 1530 * 60);
+  // 7 x 3 particles a layer, a buffer of ceil(3) + 1 layers, 45 900 m^3 over 21 m^2 is 2185.7 m of advance.
+  const InflowLattice lattice = event.inflow.lattice(scene.sph, scene.run.end_time);
+  EXPECT_EQ(lattice.per_layer(), 21u);
+  EXPECT_EQ(lattice.layers, 4u + 2186u + 1u);
+  const FluidBody& tributary = scene.fluids[2];
+  EXPECT_FALSE(tributary.hydrostatic);
+  EXPECT_DOUBLE_EQ(tributary.inflow.discharge(5.5), 2.0);
+  EXPECT_DOUBLE_EQ(tributary.inflow.discharge(7.0), 0.0);
+  // The estimate counts every particle the inflows will need.
+  EXPECT_DOUBLE_EQ(estimate_scene(scene).fluid_particles[1], static_cast<double>(lattice.particles()));
+
+  std::string both_text = text;
+  both_text.replace(both_text.find("hydrograph_file"), 0, "hydrograph = [[0.0, 1.0], [1.0, 0.0]]\n");
+  const std::string both = error_of_in(folder, both_text);
+  EXPECT_NE(both.find("gives both hydrograph and hydrograph_file"), std::string::npos) << both;
+  const std::string zero = error_of(std::string(R"(format_version = 1
+[run]
+end_time = 1.0
+output_interval = 0.1
+[materials.water]
+density = 1000.0
+youngs_modulus = 1e9
+poisson_ratio = 0.0
+[sph]
+particle_spacing = 0.1
+sound_speed = 20.0
+[[inflows]]
+name = "dry"
+material = "water"
+position = [0.0, 0.0, 0.0]
+width = 0.05
+depth = 1.0
+hydrograph = [[0.0, 0.0], [1.0, 0.0]]
+)"));
+  EXPECT_NE(zero.find("inflows[0].width"), std::string::npos) << zero;
+  EXPECT_NE(zero.find("smaller than the particle spacing"), std::string::npos) << zero;
+  EXPECT_NE(zero.find("every discharge is 0: nothing would enter"), std::string::npos) << zero;
 }
 
 // A 10 x 8 grid of 5 m cells from (1000, 2000), the ground rising 0.1 m per m along x.

@@ -1,0 +1,114 @@
+// Inflows (inflow.hpp): the pools, the buffers' motion, release, entry and end. The buffers hold few
+// particles against the fluid's, so their loops are serial (and their sums in a fixed order).
+#include <algorithm>
+#include <cassert>
+
+#include "sph_solver/sph_model.hpp"
+
+namespace sabo::sph {
+
+void SphModel::start_inflows(const scene::Scene& scene) {
+  buffer_velocity_.assign(scene.fluids.size(), Vec3::Zero());
+  std::uint32_t first = 0;
+  for (std::size_t b = 0; b < scene.fluids.size(); ++b) {
+    const std::uint32_t count =
+        static_cast<std::uint32_t>(std::count(body_.begin(), body_.end(), static_cast<std::uint32_t>(b)));
+    const scene::FluidBody& body = scene.fluids[b];
+    if (body.shape == scene::FluidBody::Shape::inflow) {
+      InflowState inflow;
+      inflow.body = static_cast<std::uint32_t>(b);
+      inflow.first = first;
+      inflow.section = body.inflow;
+      inflow.lattice = body.inflow.lattice(settings_, scene.run.end_time);
+      inflow.spacing = settings_.particle_spacing;
+      assert(inflow.lattice.particles() == count);
+      for (std::size_t row = 0; row < inflow.lattice.up; ++row) {
+        inflow.row_density.push_back(density_[inflow.id(0, row * inflow.lattice.across)]);
+      }
+      std::fill(active_.begin() + first, active_.begin() + first + count, kOut);
+      inflow.speed = inflow.previous_speed = inflow.section.discharge(0.0) / inflow.lattice.area;
+      inflows_.push_back(std::move(inflow));
+    }
+    first += count;
+  }
+  // The first buffer, at rest or moving at U(0): the layers with s_l >= -buffer_layers dx at X = 0.
+  for (InflowState& inflow : inflows_) advance_inflows_to(inflow);
+}
+
+void SphModel::set_inflow_velocities(double dt) {
+  for (InflowState& inflow : inflows_) {
+    inflow.previous_speed = inflow.speed;
+    inflow.speed = inflow.ended ? 0.0 : inflow.section.discharge(time_ + 0.5 * dt) / inflow.lattice.area;
+    buffer_velocity_[inflow.body] = inflow.speed * inflow.section.direction;
+  }
+}
+
+// The layers of the pool that the buffer's advance has reached enter it, at their places, with the
+// buffer's velocity and density.
+void SphModel::advance_inflows_to(InflowState& inflow) {
+  const double dx = inflow.spacing;
+  const double back = static_cast<double>(inflow.lattice.buffer_layers);
+  const Vec3 velocity = inflow.speed * inflow.section.direction;
+  while (inflow.entered < inflow.lattice.layers &&
+         inflow.advance >= (static_cast<double>(inflow.entered) + 0.5 - back) * dx) {
+    for (std::size_t k = 0; k < inflow.lattice.per_layer(); ++k) {
+      const std::uint32_t i = inflow.id(inflow.entered, k);
+      active_[i] = kEntering;
+      position_[i] = inflow.position(inflow.entered, k, inflow.advance);
+      velocity_[i] = velocity;
+      acceleration_[i].setZero();
+      density_[i] = inflow.row_density[k / inflow.lattice.across];
+      pressure_[i] = materials_[material_[i]].eos.pressure(density_[i]);
+    }
+    ++inflow.entered;
+  }
+}
+
+void SphModel::advance_inflows(double dt) {
+  for (InflowState& inflow : inflows_) {
+    if (inflow.ended) continue;
+    const std::size_t per_layer = inflow.lattice.per_layer();
+    const std::size_t first = inflow.released;
+    const double from = inflow.advance;
+    inflow.advance += dt * inflow.speed;
+    // Layers past the section are free fluid from now on.
+    while (inflow.released < inflow.entered &&
+           inflow.advance >= (static_cast<double>(inflow.released) + 0.5) * inflow.spacing) {
+      ++inflow.released;
+    }
+    // Once the hydrograph has ended, the buffer's particles leave.
+    const bool ending = time_ + dt >= inflow.section.end_time();
+    for (std::size_t layer = first; layer < inflow.entered; ++layer) {
+      const bool released = layer < inflow.released;
+      for (std::size_t k = 0; k < per_layer; ++k) {
+        const std::uint32_t i = inflow.id(layer, k);
+        const EquationOfState& eos = materials_[material_[i]].eos;
+        const double rho = inflow.row_density[k / inflow.lattice.across];
+        if (released || !ending) {
+          // Where the advance puts it, its density reset: what the reset adds to its energy shows in the next
+          // step's energies, so the account takes it then.
+          inflow_pending_ += mass_[i] * (eos.specific_energy(rho) - eos.specific_energy(density_[i]));
+          density_[i] = rho;
+          pressure_[i] = eos.pressure(rho);
+          position_[i] = inflow.position(layer, k, inflow.advance);
+          active_[i] = released ? kFree : kBuffer;
+        } else {
+          // Taken out: the account gives back the energy it has in this step's energies (at x_n, with the
+          // prescribed density, 1/2 m v_{n-1/2}.v_{n+1/2}).
+          inflow_pending_ -= 0.5 * mass_[i] * inflow.previous_speed * inflow.speed -
+                             mass_[i] * gravity_.dot(inflow.position(layer, k, from)) +
+                             mass_[i] * eos.specific_energy(rho);
+          active_[i] = kOut;
+          velocity_[i].setZero();
+        }
+      }
+    }
+    if (ending) {
+      inflow.ended = true;
+    } else {
+      advance_inflows_to(inflow);
+    }
+  }
+}
+
+}  // namespace sabo::sph

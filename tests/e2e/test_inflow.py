@@ -1,0 +1,95 @@
+"""An inflow hydrograph through the real processes (issue 23, [[inflows]]): water enters a sloping flume through a
+section at the hydrograph's rate (configs/tests/inflow_channel.toml). The volume and mass released against the
+integral of Q, the discharge through a section downstream while the flow there is steady against the plateau's
+(continuity), the inflow's energy account in energy.csv and the buffer's states in the particle files. Each check
+prints measured beside expected."""
+import collections
+import os
+
+from e2e_support import RealRunTestCase, load_scene, read_csv, read_json, read_vtk, vtp_series
+
+SCENE = "configs/tests/inflow_channel.toml"
+
+
+def section_discharges(run_dir, gauge, width):
+    """Per sample time of the line gauge `gauge`: the discharge through its vertical section, m^3/s: the width
+    times the trapezoid sum of velocity_x from the bed (its first point) up to the free surface (its depth)."""
+    samples = collections.defaultdict(list)
+    for row in read_csv(os.path.join(run_dir, "gauges.csv")):
+        if row["gauge"] == gauge:
+            samples[float(row["time"])].append(row)
+    out = {}
+    for time, rows in sorted(samples.items()):
+        rows.sort(key=lambda row: int(row["point"]))
+        depth = float(rows[0]["depth"])
+        bottom = float(rows[0]["z"])
+        spacing = float(rows[1]["z"]) - bottom
+        total = 0.0
+        for row in rows:
+            height = float(row["z"]) - bottom
+            weight = spacing / 2 if height == 0 else (spacing if height < depth else 0.0)
+            total += weight * float(row["velocity_x"])
+        out[time] = width * total
+    return out
+
+
+class InflowTest(RealRunTestCase):
+    def test_a_hydrograph_enters_at_its_rate_and_flows_on(self):
+        out = os.path.join(self.tmp, "flume")
+        sabo = self.run_sabo(self.scene_path(SCENE), out)
+        self.assertEqual(sabo.wait(150), 0, sabo.output())
+        scene = load_scene(self.scene_path(SCENE))
+        inflow = scene["inflows"][0]
+        hydrograph = inflow["hydrograph"]
+        plateau = max(q for _, q in hydrograph)
+        rest_density = scene["materials"]["water"]["density"]
+
+        # The volume released against the integral of Q (the section's lattice cells).
+        summary = read_json(os.path.join(out, "summary.json"))
+        result = summary["results"]["sph_solver"]["inflows"][0]
+        print("released {:.6g} m^3 against the hydrograph's {:.6g} m^3 to t = {:.4g} s ({:+.3%}; tolerance 1 %, "
+              "half a layer is {:.3g} m^3); mass {:.6g} kg against rho0 V = {:.6g} kg".format(
+                  result["released_volume"], result["hydrograph_volume"], result["time"], result["relative_error"],
+                  0.5 * result["layer_volume"], result["released_mass"], rest_density * result["hydrograph_volume"]))
+        self.assertEqual(result["name"], inflow["name"])
+        self.assertLess(abs(result["relative_error"]), 0.01)
+        self.assertLessEqual(abs(result["released_volume"] - result["hydrograph_volume"]),
+                             0.5 * result["layer_volume"] + 1e-12)
+        # Hydrostatic densities at the section: the mass a little above rho0 V.
+        self.assertAlmostEqual(result["released_mass"] / (rest_density * result["hydrograph_volume"]), 1.0,
+                               delta=0.01)
+        self.assertTrue(result["buffer_ended"])
+
+        # Continuity: where the flow is steady, what passes a section downstream is what the inflow brings.
+        discharges = section_discharges(out, "section_0_4m", inflow["width"])
+        steady = [q for t, q in discharges.items() if 1.0 <= t <= 1.6]
+        mean = sum(steady) / len(steady)
+        print("discharge 0.4 m downstream, t = 1.0 to 1.6 s ({} samples): mean {:.4g} m^3/s, {:.4g} to {:.4g}; the "
+              "hydrograph's plateau {:.4g} m^3/s ({:+.2%}; tolerance 3 %)".format(
+                  len(steady), mean, min(steady), max(steady), plateau, mean / plateau - 1))
+        self.assertGreater(len(steady), 20)
+        self.assertAlmostEqual(mean / plateau, 1.0, delta=0.03)
+        self.assertAlmostEqual(min(steady) / plateau, 1.0, delta=0.06)
+
+        # Energy: the inflow's account grows as the fluid enters, and the scene's own energy (the total less it)
+        # never rises above its start: nothing but the inflow brings energy.
+        energies = summary["energies"]
+        rows = read_csv(os.path.join(out, "energy.csv"))
+        inflow_energy = [float(row["inflow"]) for row in rows]
+        print("inflow account {:.4g} J at the end; largest rise of total - inflow over its start {:.3g} J; "
+              "dissipated {:.4g} J (the fluid that left the flume's end among it)".format(
+                  inflow_energy[-1], energies["max_rise_over_initial"], energies["final"]["dissipated"]))
+        self.assertGreater(inflow_energy[-1], 0.5 * float(rows[-1]["dissipated"]))
+        self.assertLessEqual(energies["max_rise_over_initial"], 1e-6 * inflow_energy[-1])
+        self.assertAlmostEqual(energies["final"]["inflow"], inflow_energy[-1], delta=1e-9 * inflow_energy[-1])
+
+        # The particle files: buffer states while the hydrograph runs, none after it.
+        frames = vtp_series(out, "sph")
+        middle = read_vtk(frames[len(frames) // 2][1])["active"]
+        last = read_vtk(frames[-1][1])["active"]
+        print("mid-run frame: {} free, {} in the buffer, {} out; last frame: {} free, {} in the buffer".format(
+            sum(1 for a in middle if a == 1), sum(1 for a in middle if a >= 2), sum(1 for a in middle if a == 0),
+            sum(1 for a in last if a == 1), sum(1 for a in last if a >= 2)))
+        self.assertGreater(sum(1 for a in middle if a >= 2), 0)
+        self.assertEqual(sum(1 for a in last if a >= 2), 0)
+        self.assertTrue(set(middle) <= {0, 1, 2, 3})
