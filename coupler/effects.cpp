@@ -40,6 +40,16 @@ nlohmann::json solver_effects(const scene::Scene& scene, const nlohmann::json& p
                        {"process", "sph_solver"},
                        {"seconds", compute_seconds(processes, "sph_solver")},
                        {"rheologies", rheologies}});
+    // Inflow hydrographs: each one's peak discharge and its volume over the run.
+    json inflows = json::object();
+    for (const auto& fluid : scene.fluids) {
+      if (fluid.shape != scene::FluidBody::Shape::inflow) continue;
+      inflows[fluid.name] = {{"peak_discharge", fluid.inflow.peak_discharge()},
+                             {"volume", fluid.inflow.volume(0.0, scene.run.end_time)}};
+    }
+    if (!inflows.empty()) {
+      effects.push_back({{"effect", "sph_inflow_hydrograph"}, {"process", "sph_solver"}, {"inflows", inflows}});
+    }
   }
   if (scene.needs(Role::fem)) {
     const bool deformable = std::any_of(scene.structures.begin(), scene.structures.end(),

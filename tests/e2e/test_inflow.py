@@ -59,6 +59,10 @@ class InflowTest(RealRunTestCase):
         self.assertAlmostEqual(result["released_mass"] / (rest_density * result["hydrograph_volume"]), 1.0,
                                delta=0.01)
         self.assertTrue(result["buffer_ended"])
+        effects = {e["effect"]: e for e in summary["active_effects"]}
+        self.assertAlmostEqual(effects["sph_inflow_hydrograph"]["inflows"][inflow["name"]]["peak_discharge"], plateau)
+        with open(os.path.join(out, "sph_solver.log")) as log:
+            self.assertIn("inflow '{}': a section of 7 x 4 particles".format(inflow["name"]), log.read())
 
         # Continuity: where the flow is steady, what passes a section downstream is what the inflow brings.
         discharges = section_discharges(out, "section_0_4m", inflow["width"])
