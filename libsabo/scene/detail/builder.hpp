@@ -91,6 +91,9 @@ class Builder {
   void read_periodic(Reader& r, const char* key, std::optional<std::array<double, 2>>& out, int& line);
   void read_fluid(const toml::table& table, std::size_t index);
   void read_inflow(const toml::table& table, std::size_t index);
+  void check_inside_periodic_spans(const Aabb& bounds, int line, const std::string& key,
+                                   const std::optional<std::string>& value, const std::string& what,
+                                   const std::string& fix);
   void check_profile(Reader& r, const std::vector<std::array<double, 2>>& profile);
   void check_fluid_materials();
   void read_plasticity(Reader& r, Material& material);

@@ -409,21 +409,31 @@ void Builder::read_fluid(const toml::table& table, std::size_t index) {
               fmt::format("the body reaches outside the SPH domain (sph.domain_min/domain_max, line {})", domain_line_),
               "enlarge the domain or move the body into it");
   }
+  if (!bounds.empty()) {
+    check_inside_periodic_spans(bounds, r.line(), path, std::nullopt, "the body", "move the body into the span");
+  }
+  scene_.fluids.push_back(std::move(body));
+}
+
+// `bounds` (a fluid body's, an inflow's buffer's) lies inside every periodic span: particles are wrapped back
+// into it, so a seam through a body would move part of it.
+void Builder::check_inside_periodic_spans(const Aabb& bounds, int line, const std::string& key,
+                                          const std::optional<std::string>& value, const std::string& what,
+                                          const std::string& fix) {
   const std::optional<std::array<double, 2>>* periodic[2] = {&scene_.sph.periodic_x, &scene_.sph.periodic_y};
   for (int axis = 0; axis < 2; ++axis) {
     const auto& span = *periodic[axis];
-    if (!span || bounds.empty()) continue;
+    if (!span) continue;
     const double tolerance = 1e-9 * std::max(1.0, (*span)[1] - (*span)[0]);
     if (bounds.min[axis] < (*span)[0] - tolerance || bounds.max[axis] > (*span)[1] + tolerance) {
       const char* name = axis == 0 ? "periodic_x" : "periodic_y";
-      diag_.add(r.line(), path, std::nullopt,
-                fmt::format("the body spans {} = [{}, {}] m, outside the periodic span sph.{} = [{}, {}] (line {})",
+      diag_.add(line, key, value,
+                fmt::format("{} spans {} = [{}, {}] m, outside the periodic span sph.{} = [{}, {}] (line {})", what,
                             axis == 0 ? "x" : "y", number_literal(bounds.min[axis]), number_literal(bounds.max[axis]),
                             name, number_literal((*span)[0]), number_literal((*span)[1]), periodic_line_[axis]),
-                fmt::format("move the body into the span or widen sph.{}", name));
+                fmt::format("{} or widen sph.{}", fix, name));
     }
   }
-  scene_.fluids.push_back(std::move(body));
 }
 
 void Builder::check_profile(Reader& r, const std::vector<std::array<double, 2>>& profile) {

@@ -183,12 +183,14 @@ void Builder::read_inflow(const toml::table& table, std::size_t index) {
                      "correct the path; it is relative to the scene file's folder");
     }
   }
-  // The buffer behind the section lies in the domain: a particle outside it would be taken out.
-  if (scene_.sph.domain && dx > 0 && section.width > 0 && section.depth > 0 && r.has("position")) {
-    const double behind = static_cast<double>(scene_.sph.inflow_buffer_layers()) * dx;
-    Aabb buffer = body.bounds();
-    buffer.extend(buffer.min - behind * section.direction);
-    buffer.extend(buffer.max - behind * section.direction);
+  // The box of the section and its buffer behind it.
+  const bool placed = dx > 0 && section.width > 0 && section.depth > 0 && r.has("position");
+  const double behind = static_cast<double>(scene_.sph.inflow_buffer_layers()) * dx;
+  Aabb buffer = body.bounds();
+  buffer.extend(buffer.min - behind * section.direction);
+  buffer.extend(buffer.max - behind * section.direction);
+  // The buffer lies in the domain: a particle outside it would be taken out.
+  if (scene_.sph.domain && placed) {
     if (!(scene_.sph.domain->contains(buffer.min) && scene_.sph.domain->contains(buffer.max))) {
       diag_.add(r.line("position"), r.key_path("position"), value_text(*r.node("position")),
                 fmt::format("the section and its buffer ({} layers, {} m behind it) reach outside the SPH domain "
@@ -197,6 +199,13 @@ void Builder::read_inflow(const toml::table& table, std::size_t index) {
                             vec_text(buffer.min), vec_text(buffer.max)),
                 "move the section into the domain, or enlarge the domain to hold the buffer behind it");
     }
+  }
+  // A periodic axis wraps particles back into its span: a seam through the buffer would cut it.
+  if (placed) {
+    check_inside_periodic_spans(buffer, r.line("position"), r.key_path("position"), value_text(*r.node("position")),
+                                "the section with its buffer",
+                                "move the section into the span (across a periodic width: the span's width, centred "
+                                "in it)");
   }
   // The buffer's speed stays well below the sound speed (weakly compressible flow).
   if (dx > 0 && scene_.sph.sound_speed > 0 && !section.hydrograph.empty() && section.width >= dx &&

@@ -477,6 +477,14 @@ const std::vector<BadScene>& bad_scenes() {
        "[-0.08, 0.05, 0.0]",
        {"its buffer (4 layers, 0.04 m behind it) reach outside the SPH domain", "line 17",
         "enlarge the domain to hold the buffer"}},
+      {"inflow_across_periodic_seam.toml",
+       21,
+       "inflows[0].position",
+       "[0.1, 0.0625, 0.0]",
+       {"the section with its buffer spans y = [0.0, 0.125] m, outside the periodic span sph.periodic_y = [0.0, 0.1] "
+        "(line 16)",
+        "move the section into the span (across a periodic width: the span's width, centred in it) or widen "
+        "sph.periodic_y"}},
       {"inflow_hydrograph_file_negative.toml",
        25,
        "inflows[0].hydrograph_file",
