@@ -76,7 +76,10 @@ void Schema::build_run() {
                "pair (never above the pair's own stable step), and a solver whose stable step is shorter takes a "
                "power of two of steps in it with the contact forces held, so that momentum is exchanged exactly "
                "(docs/architecture.md, \"Multirate\"). `false`: every solver at the smallest stable step of all "
-               "(paper eq. 7)."),
+               "(paper eq. 7). Off by default: on `debris_flow_dam` it saves 17-26 % of the wall time and moves "
+               "the fluid's mean load on the dam by 1.6-9 % (docs/accuracy-cost.md), and the held forces let the "
+               "energy rise by up to 2e-3 of its initial value at 8 substeps; turn it on where a structure's or a "
+               "boulder's step is far below the fluid's."),
       K("checkpoint_interval", Type::number)
           .absent("a tenth of `end_time`")
           .example("0.5")
