@@ -23,6 +23,8 @@ One figure per concern, each only when its data are in the folder:
   front_stations.png  front_stations.csv: the flow depth at each station of each front.
   sensors.png     sensors.csv: force magnitude F per sensor and source; the sensor's mean normal pressure
                   (the sum over its sources).
+  inflows.png     inflows.csv: each inflow's discharge Q(t), the volume released through its section and the
+                  hydrograph's integral less it.
   steps.png       coupler.events.jsonl: the time step and the step rate over simulated time. Every step's dt
                   is only in traffic.h5 (<role>/forces/dt, when the run records it; a large file, and h5py);
                   the coupler's progress events (about two a second of wall time) give the dt of the step
@@ -75,9 +77,10 @@ FEM_ENERGY_COLUMNS = ("time_s", "kinetic_J", "internal_J", "plastic_work_J", "ho
 GAUGES_COLUMNS = ("time", "gauge", "point", "x", "y", "z", "kernel_sum", "pressure", "velocity_x", "velocity_y",
                   "velocity_z", "depth")
 FRONTS_COLUMNS = ("time", "front", "position", "speed", "flow_speed", "x", "y", "z")
+INFLOWS_COLUMNS = ("time", "body", "discharge", "hydrograph_volume", "released_volume", "buffer_speed")
 FRONT_STATIONS_COLUMNS = ("time", "front", "station", "at", "depth")
 SENSORS_COLUMNS = ("time", "sensor", "part", "source", "Fx", "Fy", "Fz", "F", "F_peak", "area", "pressure")
-TEXT_COLUMNS = ("part", "source", "gauge", "sensor", "front", "station")
+TEXT_COLUMNS = ("part", "source", "gauge", "sensor", "front", "station", "body")
 
 SI_PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "µ"))
 
@@ -210,6 +213,9 @@ def si_scale(largest, unit):
     """(factor, 'kN'): the SI prefix that shows `largest` (in `unit`) with 1 to 3 digits before the point."""
     if not math.isfinite(largest) or largest <= 0:
         return 1.0, unit
+    if "²" in unit or "³" in unit:  # a prefix would read as the length's: mm³ is not a milli-m³
+        exponent = 3 * math.floor(math.log10(largest) / 3)
+        return 10.0 ** exponent, unit if exponent == 0 else "1e{} {}".format(exponent, unit)
     for factor, prefix in SI_PREFIXES:
         if largest >= factor:
             return factor, prefix + unit
@@ -509,6 +515,16 @@ def plot_fronts(runs, tables, path):
         "fronts (fronts.csv)")
 
 
+def plot_inflows(runs, tables, path):
+    for table in tables:
+        table.columns["shortfall"] = table["hydrograph_volume"] - table["released_volume"]
+    plot_series_panels(runs, tables, path, "body", (
+        ("discharge", "m³/s", "the hydrograph's discharge Q(t)"),
+        ("released_volume", "m³", "volume released through the section"),
+        ("shortfall", "m³", "the hydrograph's integral less the volume released (within half a layer)")),
+        "inflows (inflows.csv)")
+
+
 def plot_front_stations(runs, tables, path):
     for table in tables:
         table.columns["label"] = np.array(["{} {}".format(f, s) for f, s in zip(table["front"], table["station"])])
@@ -640,6 +656,7 @@ FIGURES = (
     ("front_stations.png", "front_stations.csv", lambda path: read_csv(path, FRONT_STATIONS_COLUMNS),
      plot_front_stations),
     ("sensors.png", "sensors.csv", lambda path: read_csv(path, SENSORS_COLUMNS), plot_sensors),
+    ("inflows.png", "inflows.csv", lambda path: read_csv(path, INFLOWS_COLUMNS), plot_inflows),
     ("steps.png", EVENTS_FILE, read_progress, plot_steps),
 )
 

@@ -19,6 +19,7 @@
 #include "sph_solver/energy_audit.hpp"
 #include "sph_solver/fronts.hpp"
 #include "sph_solver/gauges.hpp"
+#include "sph_solver/inflow_recorder.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "sph_solver/sph_output.hpp"
 
@@ -47,6 +48,7 @@ class SphSolver final : public solver::CoupledSolver {
         output_(options.out_dir, model_),
         gauges_(options.out_dir, scene),
         fronts_(options.out_dir, scene),
+        inflow_history_(options.out_dir, scene, model_),
         boundary_walls_(scene.sph_receives_boundary_particles()),
         limits_(solver::stability_limits(scene, Role::sph)) {
     for (const scene::Material& material : scene.materials) rest_density_.push_back(material.density);
@@ -134,6 +136,7 @@ class SphSolver final : public solver::CoupledSolver {
     audit_.before_integrate(model_, index, force);
     gauges_.sample(model_, model_.time());
     fronts_.sample(model_, model_.time());
+    inflow_history_.sample(model_, model_.time());
   }
 
   [[nodiscard]] bool can_take_state() const override { return true; }
@@ -189,6 +192,7 @@ class SphSolver final : public solver::CoupledSolver {
     output_.save(group);
     gauges_.save(group);
     fronts_.save(group);
+    inflow_history_.save(group);
     group.set_attribute("have_boundary_forces", have_boundary_forces_ ? 1 : 0);
   }
   void load_checkpoint(const io::hdf5::Group& group) override {
@@ -197,6 +201,7 @@ class SphSolver final : public solver::CoupledSolver {
     output_.load(group);
     gauges_.load(group);
     fronts_.load(group);
+    inflow_history_.load(group);
     have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
   }
   [[nodiscard]] std::string results() const override {
@@ -243,6 +248,7 @@ class SphSolver final : public solver::CoupledSolver {
   SphOutput output_;
   GaugeRecorder gauges_;
   FrontRecorder fronts_;
+  InflowRecorder inflow_history_;
   bool boundary_walls_;
   bool have_boundary_forces_ = false;
   double dt_previous_ = 0;

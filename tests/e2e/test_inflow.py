@@ -64,6 +64,16 @@ class InflowTest(RealRunTestCase):
         with open(os.path.join(out, "sph_solver.log")) as log:
             self.assertIn("inflow '{}': a section of 7 x 4 particles".format(inflow["name"]), log.read())
 
+        # inflows.csv: at every output time the volume released within half a layer of the hydrograph's integral
+        # so far; its last row what summary.json says.
+        history = read_csv(os.path.join(out, "inflows.csv"))
+        shortfall = max(abs(float(row["hydrograph_volume"]) - float(row["released_volume"])) for row in history)
+        print("inflows.csv: {} rows, the released volume within {:.3g} m^3 of the hydrograph's integral at every "
+              "output time (half a layer: {:.3g} m^3)".format(len(history), shortfall, 0.5 * result["layer_volume"]))
+        self.assertGreater(len(history), 30)
+        self.assertLessEqual(shortfall, 0.5 * result["layer_volume"] * 1.01)
+        self.assertAlmostEqual(float(history[-1]["released_volume"]), result["released_volume"], delta=1e-9)
+
         # Continuity: where the flow is steady, what passes a section downstream is what the inflow brings.
         discharges = section_discharges(out, "section_0_4m", inflow["width"])
         steady = [q for t, q in discharges.items() if 1.0 <= t <= 1.6]

@@ -1,0 +1,49 @@
+#include "sph_solver/inflow_recorder.hpp"
+
+#include <fmt/format.h>
+
+#include "libsabo/core/error.hpp"
+#include "libsabo/io/checkpoint.hpp"
+
+namespace sabo::sph {
+
+InflowRecorder::InflowRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene, const SphModel& model)
+    : file_(run_dir / "inflows.csv"), schedule_(scene.run.output_interval) {
+  for (const InflowState& inflow : model.inflows()) names_.push_back(scene.fluids[inflow.body].name);
+}
+
+void InflowRecorder::sample(const SphModel& model, double time) {
+  if (names_.empty() || !schedule_.due(time)) return;
+  std::string rows;
+  for (std::size_t k = 0; k < names_.size(); ++k) {
+    const InflowState& inflow = model.inflows()[k];
+    rows += fmt::format("{:.9g},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", time, names_[k], inflow.section.discharge(time),
+                        inflow.section.volume(0.0, time), inflow.released_volume(), inflow.speed);
+  }
+  append_csv_rows(file_, started_, "time,body,discharge,hydrograph_volume,released_volume,buffer_speed", rows,
+                  "the inflows' history");
+}
+
+void InflowRecorder::save(io::hdf5::Group& group) const {
+  if (names_.empty()) return;
+  io::hdf5::Group out = group.create_group("inflow_history");
+  out.set_attribute("next_sample", static_cast<std::int64_t>(schedule_.next()));
+  out.set_attribute("started", started_ ? 1 : 0);
+  if (started_) io::write_file_size(out, "inflows_csv", file_);
+}
+
+void InflowRecorder::load(const io::hdf5::Group& group) {
+  if (names_.empty()) return;
+  if (!group.exists("inflow_history")) {
+    throw FileError(
+        fmt::format("{}: no history of the inflows, while the scene has {}. Fix: restart from a checkpoint of "
+                    "this scene, unchanged",
+                    group.file_name(), names_.size()));
+  }
+  const io::hdf5::Group in = group.group("inflow_history");
+  schedule_.set_next(static_cast<std::uint64_t>(in.int_attribute("next_sample")));
+  // A restart into another folder (a replay) starts the file afresh.
+  started_ = in.int_attribute("started") != 0 && io::truncate_to_saved_size(in, "inflows_csv", file_);
+}
+
+}  // namespace sabo::sph
