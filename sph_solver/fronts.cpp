@@ -56,8 +56,8 @@ FrontReading read_front(const SphModel& model, const scene::Front& front) {
 }
 
 FrontRecorder::FrontRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene)
-    : fronts_file_(run_dir / kFrontsFile),
-      stations_file_(run_dir / kStationsFile),
+    : fronts_csv_(run_dir / kFrontsFile, "time,front,position,speed,flow_speed,x,y,z", "the fronts' positions"),
+      stations_csv_(run_dir / kStationsFile, "time,front,station,at,depth", "the fronts' station depths"),
       fronts_(scene.fronts),
       depth_spacing_(0.25 * scene.sph.particle_spacing) {
   for (const scene::Front& front : fronts_) {
@@ -107,14 +107,8 @@ void FrontRecorder::sample(const SphModel& model, double time) {
         fmt::format("{:.9g},{},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}\n", time, front.name, reading.position, speed,
                     reading.flow_speed, reading.point.x(), reading.point.y(), reading.point.z());
   }
-  if (!front_rows.empty()) {
-    append_csv_rows(fronts_file_, fronts_started_, "time,front,position,speed,flow_speed,x,y,z", front_rows,
-                    "the fronts' positions");
-  }
-  if (!station_rows.empty()) {
-    append_csv_rows(stations_file_, stations_started_, "time,front,station,at,depth", station_rows,
-                    "the fronts' station depths");
-  }
+  if (!front_rows.empty()) fronts_csv_.append(front_rows);
+  if (!station_rows.empty()) stations_csv_.append(station_rows);
 }
 
 nlohmann::json FrontRecorder::results() const {
@@ -173,10 +167,8 @@ void FrontRecorder::save(io::hdf5::Group& group) const {
     io::write_array(g, "max_depth", track.max_depth);
     io::write_array(g, "last_depth", track.last_depth);
   }
-  out.set_attribute("fronts_started", fronts_started_ ? 1 : 0);
-  out.set_attribute("stations_started", stations_started_ ? 1 : 0);
-  if (fronts_started_) io::write_file_size(out, "fronts_csv", fronts_file_);
-  if (stations_started_) io::write_file_size(out, "stations_csv", stations_file_);
+  fronts_csv_.save(out, "fronts_started", "fronts_csv");
+  stations_csv_.save(out, "stations_started", "stations_csv");
 }
 
 void FrontRecorder::load(const io::hdf5::Group& group) {
@@ -203,11 +195,8 @@ void FrontRecorder::load(const io::hdf5::Group& group) {
     track.max_depth = io::read_array<double>(g, "max_depth", stations);
     track.last_depth = io::read_array<double>(g, "last_depth", stations);
   }
-  // A restart into another folder (a replay) starts the files afresh.
-  fronts_started_ =
-      in.int_attribute("fronts_started") != 0 && io::truncate_to_saved_size(in, "fronts_csv", fronts_file_);
-  stations_started_ =
-      in.int_attribute("stations_started") != 0 && io::truncate_to_saved_size(in, "stations_csv", stations_file_);
+  fronts_csv_.load(in, "fronts_started", "fronts_csv");
+  stations_csv_.load(in, "stations_started", "stations_csv");
 }
 
 }  // namespace sabo::sph

@@ -48,11 +48,10 @@ class FrontRecorder {
     std::vector<double> arrival;                            // s per station, NaN until the front passes
     std::vector<double> max_depth, last_depth;              // m per station
   };
-  std::filesystem::path fronts_file_, stations_file_;
+  CsvHistory fronts_csv_, stations_csv_;
   std::vector<scene::Front> fronts_;
   std::vector<Track> tracks_;
   double depth_spacing_ = 0;  // m, the sub-sampling of the depth (dx / 4)
-  bool fronts_started_ = false, stations_started_ = false;
 };
 
 }  // namespace sabo::sph

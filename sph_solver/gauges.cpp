@@ -26,16 +26,24 @@ bool SampleSchedule::due(double time) {
   return true;
 }
 
-void append_csv_rows(const std::filesystem::path& file, bool& started, std::string_view header, const std::string& rows,
-                     std::string_view what) {
-  std::ofstream out(file, started ? std::ios::app : std::ios::trunc);
-  if (!started) {
-    out << header << "\n";
-    started = true;
+void CsvHistory::append(const std::string& rows) {
+  std::ofstream out(file_, started_ ? std::ios::app : std::ios::trunc);
+  if (!started_) {
+    out << header_ << "\n";
+    started_ = true;
   }
   out << rows;
   out.flush();
-  if (!out) throw FileError(fmt::format("{}: cannot write {}", file.string(), what));
+  if (!out) throw FileError(fmt::format("{}: cannot write {}", file_.string(), what_));
+}
+
+void CsvHistory::save(io::hdf5::Group& group, const std::string& started, const std::string& length) const {
+  group.set_attribute(started, started_ ? 1 : 0);
+  if (started_) io::write_file_size(group, length, file_);
+}
+
+void CsvHistory::load(const io::hdf5::Group& group, const std::string& started, const std::string& length) {
+  started_ = group.int_attribute(started) != 0 && io::truncate_to_saved_size(group, length, file_);
 }
 
 double surface_distance(const SphModel& model, const Vec3& start, const Vec3& end, double spacing) {
@@ -56,7 +64,10 @@ double surface_distance(const SphModel& model, const Vec3& start, const Vec3& en
 }
 
 GaugeRecorder::GaugeRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene)
-    : file_(run_dir / kGaugesFile), gauges_(scene.gauges), depth_spacing_(0.25 * scene.sph.particle_spacing) {
+    : csv_(run_dir / kGaugesFile, "time,gauge,point,x,y,z,kernel_sum,pressure,velocity_x,velocity_y,velocity_z,depth",
+           "the gauges' readings"),
+      gauges_(scene.gauges),
+      depth_spacing_(0.25 * scene.sph.particle_spacing) {
   for (const scene::Gauge& gauge : gauges_)
     schedule_.emplace_back(gauge.interval > 0 ? gauge.interval : scene.run.output_interval);
 }
@@ -76,9 +87,7 @@ void GaugeRecorder::sample(const SphModel& model, double time) {
                           s.velocity.z(), depth);
     }
   }
-  if (rows.empty()) return;
-  append_csv_rows(file_, started_, "time,gauge,point,x,y,z,kernel_sum,pressure,velocity_x,velocity_y,velocity_z,depth",
-                  rows, "the gauges' readings");
+  if (!rows.empty()) csv_.append(rows);
 }
 
 void GaugeRecorder::save(io::hdf5::Group& group) const {
@@ -87,8 +96,7 @@ void GaugeRecorder::save(io::hdf5::Group& group) const {
   std::vector<std::uint64_t> next;
   for (const SampleSchedule& schedule : schedule_) next.push_back(schedule.next());
   io::write_array<std::uint64_t>(out, "next_sample", next);
-  out.set_attribute("started", started_ ? 1 : 0);
-  if (started_) io::write_file_size(out, "gauges_csv", file_);
+  csv_.save(out, "started", "gauges_csv");
 }
 
 void GaugeRecorder::load(const io::hdf5::Group& group) {
@@ -108,8 +116,7 @@ void GaugeRecorder::load(const io::hdf5::Group& group) {
                     group.file_name(), next.size(), gauges_.size()));
   }
   for (std::size_t g = 0; g < next.size(); ++g) schedule_[g].set_next(next[g]);
-  // A restart into another folder (a replay) starts the file afresh.
-  started_ = in.int_attribute("started") != 0 && io::truncate_to_saved_size(in, "gauges_csv", file_);
+  csv_.load(in, "started", "gauges_csv");
 }
 
 }  // namespace sabo::sph

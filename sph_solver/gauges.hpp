@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "libsabo/io/hdf5.hpp"
@@ -35,10 +36,24 @@ class SampleSchedule {
   std::uint64_t next_ = 0;
 };
 
-// Appends `rows` to the CSV file `file`, writing `header` first when `started` is false (then sets it);
-// throws FileError naming `what` when the file cannot be written.
-void append_csv_rows(const std::filesystem::path& file, bool& started, std::string_view header, const std::string& rows,
-                     std::string_view what);
+// A CSV file an instrument appends to (gauges.csv, fronts.csv, front_stations.csv, inflows.csv): the header
+// before the first rows; its length goes into a checkpoint, and a run resumed from one cuts the file back to
+// it (a restart into another folder, a replay, starts the file afresh).
+class CsvHistory {
+ public:
+  CsvHistory(std::filesystem::path file, std::string header, std::string what)
+      : file_(std::move(file)), header_(std::move(header)), what_(std::move(what)) {}
+  // Appends `rows` (each ending in a newline); throws FileError naming the file and `what` when it cannot.
+  void append(const std::string& rows);
+  // In `group`: the attribute `started` (1 once the header is written) and the file's length as `length`.
+  void save(io::hdf5::Group& group, const std::string& started, const std::string& length) const;
+  void load(const io::hdf5::Group& group, const std::string& started, const std::string& length);
+
+ private:
+  std::filesystem::path file_;
+  std::string header_, what_;
+  bool started_ = false;  // the header is written
+};
 
 class GaugeRecorder {
  public:
@@ -54,11 +69,10 @@ class GaugeRecorder {
   void load(const io::hdf5::Group& group);
 
  private:
-  std::filesystem::path file_;
+  CsvHistory csv_;
   std::vector<scene::Gauge> gauges_;
   std::vector<SampleSchedule> schedule_;  // per gauge
   double depth_spacing_ = 0;              // m, the sub-sampling of the depth (dx / 4)
-  bool started_ = false;                  // the header is written
 };
 
 }  // namespace sabo::sph

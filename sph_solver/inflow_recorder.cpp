@@ -8,7 +8,9 @@
 namespace sabo::sph {
 
 InflowRecorder::InflowRecorder(const std::filesystem::path& run_dir, const scene::Scene& scene, const SphModel& model)
-    : file_(run_dir / "inflows.csv"), schedule_(scene.run.output_interval) {
+    : csv_(run_dir / "inflows.csv", "time,body,discharge,hydrograph_volume,released_volume,buffer_speed",
+           "the inflows' history"),
+      schedule_(scene.run.output_interval) {
   for (const InflowState& inflow : model.inflows()) names_.push_back(scene.fluids[inflow.body].name);
 }
 
@@ -20,16 +22,14 @@ void InflowRecorder::sample(const SphModel& model, double time) {
     rows += fmt::format("{:.9g},{},{:.9g},{:.9g},{:.9g},{:.9g}\n", time, names_[k], inflow.section.discharge(time),
                         inflow.section.volume(0.0, time), inflow.released_volume(), inflow.speed);
   }
-  append_csv_rows(file_, started_, "time,body,discharge,hydrograph_volume,released_volume,buffer_speed", rows,
-                  "the inflows' history");
+  csv_.append(rows);
 }
 
 void InflowRecorder::save(io::hdf5::Group& group) const {
   if (names_.empty()) return;
   io::hdf5::Group out = group.create_group("inflow_history");
   out.set_attribute("next_sample", static_cast<std::int64_t>(schedule_.next()));
-  out.set_attribute("started", started_ ? 1 : 0);
-  if (started_) io::write_file_size(out, "inflows_csv", file_);
+  csv_.save(out, "started", "inflows_csv");
 }
 
 void InflowRecorder::load(const io::hdf5::Group& group) {
@@ -42,8 +42,7 @@ void InflowRecorder::load(const io::hdf5::Group& group) {
   }
   const io::hdf5::Group in = group.group("inflow_history");
   schedule_.set_next(static_cast<std::uint64_t>(in.int_attribute("next_sample")));
-  // A restart into another folder (a replay) starts the file afresh.
-  started_ = in.int_attribute("started") != 0 && io::truncate_to_saved_size(in, "inflows_csv", file_);
+  csv_.load(in, "started", "inflows_csv");
 }
 
 }  // namespace sabo::sph

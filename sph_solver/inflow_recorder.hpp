@@ -27,10 +27,9 @@ class InflowRecorder {
   void load(const io::hdf5::Group& group);
 
  private:
-  std::filesystem::path file_;
+  CsvHistory csv_;
   std::vector<std::string> names_;  // per SphModel::inflows()
   SampleSchedule schedule_;
-  bool started_ = false;  // the header is written
 };
 
 }  // namespace sabo::sph
