@@ -24,6 +24,7 @@
 // internal: the fluid's energy audit (energy_audit.hpp) then closes with the account added.
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "libsabo/core/types.hpp"
@@ -40,6 +41,7 @@ enum ParticleState : std::uint8_t {
 };
 
 struct InflowState {
+  std::string name;         // the body's
   std::uint32_t body = 0;   // its index in Scene::fluids
   std::uint32_t first = 0;  // id of its first particle; its pool is [first, first + lattice.particles())
   scene::InflowSection section;

@@ -28,7 +28,7 @@ class InflowRecorder {
 
  private:
   CsvHistory csv_;
-  std::vector<std::string> names_;  // per SphModel::inflows()
+  std::size_t inflows_;  // SphModel::inflows().size()
   SampleSchedule schedule_;
 };
 

@@ -57,14 +57,12 @@ class SphSolver final : public solver::CoupledSolver {
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
                  boundary_walls_ ? "boundary particles" : "penalty");
     for (const InflowState& inflow : model_.inflows()) {
-      const scene::FluidBody& body = scene.fluids[inflow.body];
       spdlog::info(
           "inflow '{}': a section of {} x {} particles ({:.4g} m^2), a buffer of {} layers, {} particles for the "
           "{:.6g} m^3 of its hydrograph up to t = {:.6g} s (peak {:.6g} m^3/s, {:.4g} m/s)",
-          body.name, inflow.lattice.across, inflow.lattice.up, inflow.lattice.area, inflow.lattice.buffer_layers,
+          inflow.name, inflow.lattice.across, inflow.lattice.up, inflow.lattice.area, inflow.lattice.buffer_layers,
           inflow.lattice.particles(), inflow.section.volume(0.0, scene.run.end_time), scene.run.end_time,
           inflow.section.peak_discharge(), inflow.section.peak_discharge() / inflow.lattice.area);
-      inflow_names_.push_back(body.name);
     }
     for (const scene::FluidBody& body : scene.fluids) {
       if (body.settle_time > 0) {
@@ -216,14 +214,13 @@ class SphSolver final : public solver::CoupledSolver {
   // Per inflow: the hydrograph's volume up to the model's time against the volume and mass released.
   [[nodiscard]] nlohmann::json inflow_results() const {
     nlohmann::json list = nlohmann::json::array();
-    for (std::size_t k = 0; k < model_.inflows().size(); ++k) {
-      const InflowState& inflow = model_.inflows()[k];
+    for (const InflowState& inflow : model_.inflows()) {
       const double target = inflow.section.volume(0.0, model_.time());
       double mass = 0;
       for (std::size_t layer = 0; layer < inflow.released; ++layer) {
         for (std::size_t p = 0; p < inflow.lattice.per_layer(); ++p) mass += model_.masses()[inflow.id(layer, p)];
       }
-      list.push_back({{"name", inflow_names_[k]},
+      list.push_back({{"name", inflow.name},
                       {"time", model_.time()},
                       {"hydrograph_volume", target},
                       {"released_volume", inflow.released_volume()},
@@ -254,9 +251,8 @@ class SphSolver final : public solver::CoupledSolver {
   double dt_previous_ = 0;
   solver::StabilityLimits limits_;
   bool scene_max_speed_ = false;
-  std::vector<double> rest_density_;       // kg/m^3, by scene material index
-  std::size_t lost_reported_ = 0;          // particles taken out that the log has named
-  std::vector<std::string> inflow_names_;  // of model_.inflows()
+  std::vector<double> rest_density_;  // kg/m^3, by scene material index
+  std::size_t lost_reported_ = 0;     // particles taken out that the log has named
 };
 
 }  // namespace

@@ -49,7 +49,6 @@ void SphModel::save_state(io::hdf5::Group& group) const {
                     static_cast<double>(inflow.released), inflow.ended ? 1.0 : 0.0});
   }
   io::write_array(group, "inflows", inflows);
-  group.set_attribute("inflow_energy", inflow_energy_);
   group.set_attribute("inflow_pending", inflow_pending_);
 }
 
@@ -100,7 +99,7 @@ void SphModel::load_state(const io::hdf5::Group& group) {
     inflow.released = static_cast<std::size_t>(v[4]);
     inflow.ended = v[5] != 0;
   }
-  inflow_energy_ = group.double_attribute("inflow_energy");
+  inflow_energy_ = energies_.inflow;  // integrate() leaves the account there
   inflow_pending_ = group.double_attribute("inflow_pending");
   forces_ready_ = false;
 }

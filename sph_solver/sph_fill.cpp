@@ -71,24 +71,29 @@ void carve_spheres(const scene::Scene& scene, const scene::FluidBody& body,
 // An inflow's pool (inflow.hpp): every layer its run can need, in the order they enter, each where it
 // would be at the buffer's start (advance 0), at rest, with the density its buffer prescribes: the
 // hydrostatic pressure of its row's depth below the section's top along `up` (gravity's component
-// there), or the rest density. The model takes them in when they enter.
-void fill_inflow_pool(const scene::Scene& scene, const scene::FluidBody& body, const FluidMaterial& material,
+// there), or the rest density. The model takes them in when they enter; the inflow's state (its pool's
+// first id, lattice and those densities) goes into fill.inflows.
+void fill_inflow_pool(const scene::Scene& scene, std::uint32_t body_index, const FluidMaterial& material,
                       bool with_stress, FluidFill& fill) {
+  const scene::FluidBody& body = scene.fluids[body_index];
   InflowState inflow;
+  inflow.name = body.name;
+  inflow.body = body_index;
+  inflow.first = static_cast<std::uint32_t>(fill.position.size());
   inflow.section = body.inflow;
   inflow.lattice = body.inflow.lattice(scene.sph, scene.run.end_time);
   inflow.spacing = scene.sph.particle_spacing;
   const double dx = inflow.spacing;
   const double g_across_bed = std::max(0.0, -scene.run.gravity.dot(body.inflow.up()));
-  std::vector<double> row_density(inflow.lattice.up);
   for (std::size_t row = 0; row < inflow.lattice.up; ++row) {
     const double depth = (static_cast<double>(inflow.lattice.up - row) - 0.5) * dx;
-    row_density[row] = body.hydrostatic ? material.eos.density(hydrostatic_pressure(material.eos, g_across_bed, depth))
-                                        : material.eos.rest_density;
+    inflow.row_density.push_back(body.hydrostatic
+                                     ? material.eos.density(hydrostatic_pressure(material.eos, g_across_bed, depth))
+                                     : material.eos.rest_density);
   }
   for (std::size_t layer = 0; layer < inflow.lattice.layers; ++layer) {
     for (std::size_t k = 0; k < inflow.lattice.per_layer(); ++k) {
-      const double rho = row_density[k / inflow.lattice.across];
+      const double rho = inflow.row_density[k / inflow.lattice.across];
       fill.position.push_back(inflow.position(layer, k, 0.0));
       fill.velocity.push_back(Vec3::Zero());
       fill.density.push_back(rho);
@@ -97,6 +102,7 @@ void fill_inflow_pool(const scene::Scene& scene, const scene::FluidBody& body, c
       if (with_stress) fill.stress.insert(fill.stress.end(), 6, 0.0);
     }
   }
+  fill.inflows.push_back(std::move(inflow));
 }
 
 }  // namespace
@@ -115,7 +121,7 @@ FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> 
     const scene::FluidBody& body = scene.fluids[b];
     const std::size_t first = fill.position.size();
     if (body.shape == scene::FluidBody::Shape::inflow) {
-      fill_inflow_pool(scene, body, materials[body_material[b]], with_stress, fill);
+      fill_inflow_pool(scene, static_cast<std::uint32_t>(b), materials[body_material[b]], with_stress, fill);
       const auto count = fill.position.size() - first;
       fill.material.insert(fill.material.end(), count, body_material[b]);
       fill.body.insert(fill.body.end(), count, static_cast<std::uint32_t>(b));

@@ -88,6 +88,7 @@ SphModel::SphModel(const scene::Scene& scene)
   mass_ = std::move(fill.mass);
   material_ = std::move(fill.material);
   body_ = std::move(fill.body);
+  inflows_ = std::move(fill.inflows);
   const std::size_t n = position_.size();
   acceleration_.assign(n, Vec3::Zero());
   if (has_stress_) {
@@ -95,7 +96,7 @@ SphModel::SphModel(const scene::Scene& scene)
     stress_rate_.assign(6 * n, 0.0);
   }
   active_.assign(n, kFree);
-  start_inflows(scene);
+  start_inflows(scene.fluids.size());
   for (const scene::FluidBody& body : scene.fluids) settle_time_.push_back(body.settle_time);
   const std::optional<std::array<double, 2>>* spans[2] = {&settings_.periodic_x, &settings_.periodic_y};
   for (int axis = 0; axis < 2; ++axis) {

@@ -112,6 +112,7 @@ struct FluidFill {
   std::vector<double>
       stress;  // Pa, deviatoric, 6 per particle (xx yy zz xy yz zx); empty without elastic-plastic bodies
   std::vector<std::uint32_t> material, body;
+  std::vector<InflowState> inflows;  // per [[inflows]] body: its pool's place, lattice and buffer densities
 };
 [[nodiscard]] FluidFill fill_fluids(const scene::Scene& scene, std::span<const FluidMaterial> materials,
                                     const std::vector<std::uint32_t>& body_material);
@@ -238,7 +239,7 @@ class SphModel {
   // velocity for the step to time_ + dt; after the position update, the buffers advanced (positions,
   // densities), their front layers released and new layers added behind, and a buffer whose hydrograph
   // has ended taken out.
-  void start_inflows(const scene::Scene& scene);
+  void start_inflows(std::size_t bodies);
   void set_inflow_velocities(double dt);
   void advance_inflows(double dt);
   void advance_inflows_to(InflowState& inflow);

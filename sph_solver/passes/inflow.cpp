@@ -1,38 +1,19 @@
 // Inflows (inflow.hpp): the pools, the buffers' motion, release, entry and end. The buffers hold few
 // particles against the fluid's, so their loops are serial (and their sums in a fixed order).
 #include <algorithm>
-#include <cassert>
 
 #include "sph_solver/sph_model.hpp"
 
 namespace sabo::sph {
 
-void SphModel::start_inflows(const scene::Scene& scene) {
-  buffer_velocity_.assign(scene.fluids.size(), Vec3::Zero());
-  std::uint32_t first = 0;
-  for (std::size_t b = 0; b < scene.fluids.size(); ++b) {
-    const std::uint32_t count =
-        static_cast<std::uint32_t>(std::count(body_.begin(), body_.end(), static_cast<std::uint32_t>(b)));
-    const scene::FluidBody& body = scene.fluids[b];
-    if (body.shape == scene::FluidBody::Shape::inflow) {
-      InflowState inflow;
-      inflow.body = static_cast<std::uint32_t>(b);
-      inflow.first = first;
-      inflow.section = body.inflow;
-      inflow.lattice = body.inflow.lattice(settings_, scene.run.end_time);
-      inflow.spacing = settings_.particle_spacing;
-      assert(inflow.lattice.particles() == count);
-      for (std::size_t row = 0; row < inflow.lattice.up; ++row) {
-        inflow.row_density.push_back(density_[inflow.id(0, row * inflow.lattice.across)]);
-      }
-      std::fill(active_.begin() + first, active_.begin() + first + count, kOut);
-      inflow.speed = inflow.previous_speed = inflow.section.discharge(0.0) / inflow.lattice.area;
-      inflows_.push_back(std::move(inflow));
-    }
-    first += count;
+void SphModel::start_inflows(std::size_t bodies) {
+  buffer_velocity_.assign(bodies, Vec3::Zero());
+  for (InflowState& inflow : inflows_) {
+    std::fill_n(active_.begin() + inflow.first, inflow.lattice.particles(), kOut);
+    inflow.speed = inflow.previous_speed = inflow.section.discharge(0.0) / inflow.lattice.area;
+    // The first buffer, at rest or moving at U(0): the layers with s_l >= -buffer_layers dx at X = 0.
+    advance_inflows_to(inflow);
   }
-  // The first buffer, at rest or moving at U(0): the layers with s_l >= -buffer_layers dx at X = 0.
-  for (InflowState& inflow : inflows_) advance_inflows_to(inflow);
 }
 
 void SphModel::set_inflow_velocities(double dt) {

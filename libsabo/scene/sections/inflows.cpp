@@ -19,12 +19,9 @@ void Schema::build_inflows() {
       "A = n_w n_d dx^2 (n_w = round(width / dx), n_d = round(depth / dx) particles across and up), with the "
       "hydrostatic density of their depth (or the rest density); a layer that crosses the section is "
       "released into the flow, and a new one is added at the back each time the buffer has advanced dx. The "
-      "released volume follows the integral of Q to within half a layer (summary.json: `results.sph_solver.inflows`; "
-      "its history "
-      "in `inflows.csv`: time, body (the inflow's name), discharge, hydrograph_volume, released_volume, buffer_speed "
-      "at the output "
-      "times). "
-      "The buffer pushes the fluid ahead of "
+      "released volume follows the integral of Q to within half a layer (summary.json: "
+      "`results.sph_solver.inflows`; its history in `inflows.csv`: time, body (the inflow's name), discharge, "
+      "hydrograph_volume, released_volume, buffer_speed at the output times). The buffer pushes the fluid ahead of "
       "it like a piston, and takes the flow's pressure back; the work it does and the energy of the fluid it "
       "brings is the `inflow` column of energy.csv. When the hydrograph ends (Q = 0 after its last point) the "
       "buffer's particles are taken out. The particles the run will need are counted from the hydrograph up "
@@ -214,8 +211,7 @@ void Builder::read_inflow(const toml::table& table, std::size_t index) {
   // The buffer's speed stays well below the sound speed (weakly compressible flow).
   if (dx > 0 && scene_.sph.sound_speed > 0 && !section.hydrograph.empty() && section.width >= dx &&
       section.depth >= dx) {
-    const double area =
-        std::max(1.0, std::round(section.width / dx)) * std::max(1.0, std::round(section.depth / dx)) * dx * dx;
+    const double area = section.lattice(scene_.sph, scene_.run.end_time).area;
     const double speed = section.peak_discharge() / area;
     if (speed >= scene_.sph.sound_speed) {
       diag_.add(r.line(), path, std::nullopt,
