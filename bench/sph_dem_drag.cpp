@@ -5,7 +5,12 @@
 // how: the fluid carries no gravity, the sphere its submerged weight).
 //   bench_sph_dem_drag [--reynolds RE] [--diameter-spacings D_OVER_DX] [--tank-diameters W_OVER_D]
 //                      [--tank-height H_OVER_D] [--density-ratio RHO_S_OVER_RHO_F] [--mach M]
-//                      [--window DIAMETERS] [--tolerance T] [--threads N]
+//                      [--window DIAMETERS] [--tolerance T] [--viscous-operator strain_rate|morris]
+//                      [--density-diffusion fourtakas|molteni|none] [--threads N]
+//   bench_sph_dem_drag --spin [--diameter-spacings D_OVER_DX] [--tank-diameters SIDE_OVER_D]
+//                      [--spin-reynolds RE] [--spin-time VISCOUS_TIMES]
+// --spin measures the curved surface's no-slip alone: the sphere held at the centre of a closed cube and spun,
+// its torque against Stokes' rotlet (tests/support/sph_dem_drag.hpp).
 // Steady: the mean speed over the last window (the time to fall `--window` diameters at the predicted
 // speed) within `--tolerance` of the window before. The last line is JSON.
 #include "tests/support/sph_dem_drag.hpp"
@@ -14,7 +19,9 @@
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <string>
 
 int main(int argc, char** argv) {
   CLI::App app("SPH-DEM drag: a settling sphere's terminal speed against Schiller-Naumann");
@@ -37,8 +44,47 @@ int main(int argc, char** argv) {
   app.add_option("--artificial-viscosity", c.artificial_viscosity, "Monaghan alpha (0: none)");
   app.add_option("--report", report, "speed history every this many diameters-fallen times (0: none)");
   app.add_option("--threads", threads, "OpenMP threads (0: OMP_NUM_THREADS)");
+  const std::map<std::string, sabo::scene::SphSettings::ViscousOperator> operators{
+      {"strain_rate", sabo::scene::SphSettings::ViscousOperator::strain_rate},
+      {"morris", sabo::scene::SphSettings::ViscousOperator::morris}};
+  app.add_option("--viscous-operator", c.viscous_operator, "the SPH viscous term (sph.viscous_operator)")
+      ->transform(CLI::CheckedTransformer(operators));
+  app.add_option("--density-diffusion", c.density_diffusion, "delta-SPH's density diffusion (sph.density_diffusion)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, sabo::scene::SphSettings::DensityDiffusion>{
+          {"fourtakas", sabo::scene::SphSettings::DensityDiffusion::fourtakas},
+          {"molteni", sabo::scene::SphSettings::DensityDiffusion::molteni},
+          {"none", sabo::scene::SphSettings::DensityDiffusion::none}}));
+  bool spin = false;
+  sabo::testing::SpinCase spin_case;
+  app.add_flag("--spin", spin, "the spinning-sphere torque instead of the settling sphere");
+  app.add_option("--spin-reynolds", spin_case.reynolds, "Omega R^2 / nu of the spinning sphere");
+  app.add_option("--spin-time", spin_case.end_time, "run length in viscous times R^2 / nu");
   CLI11_PARSE(app, argc, argv);
   if (threads > 0) omp_set_num_threads(threads);
+
+  if (spin) {
+    spin_case.diameter_spacings = c.diameter_spacings;
+    spin_case.box_diameters = c.tank_diameters;
+    spin_case.cfl = c.cfl;
+    spin_case.viscous_operator = c.viscous_operator;
+    const auto r = sabo::testing::run_spin(spin_case);
+    fmt::print(
+        "spinning sphere: D = {} dx, closed cube {} D ({} fluid particles), Omega R^2 / nu = {}, {} steps to t = "
+        "{:.4f} s: torque {:.5g} N m against the rotlet's {:.5g} N m ({:+.1f} %), wall time {:.1f} s, {} threads\n",
+        spin_case.diameter_spacings, spin_case.box_diameters, r.fluid_particles, spin_case.reynolds, r.steps, r.time,
+        r.torque, r.expected, 100 * r.error(), r.wall_seconds, omp_get_max_threads());
+    fmt::print("{}\n", nlohmann::json{{"case", "spin"},
+                                      {"diameter_dx", spin_case.diameter_spacings},
+                                      {"box_diameters", spin_case.box_diameters},
+                                      {"reynolds", spin_case.reynolds},
+                                      {"torque", r.torque},
+                                      {"torque_rotlet", r.expected},
+                                      {"torque_error", r.error()},
+                                      {"steps", r.steps},
+                                      {"wall_seconds", r.wall_seconds}}
+                           .dump());
+    return 0;
+  }
 
   bool header = false;
   const auto r = sabo::testing::run_drag(c, report, [&](const sabo::testing::DragSample& s) {

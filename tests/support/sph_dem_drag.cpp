@@ -40,6 +40,8 @@ DragResult run_drag(const DragCase& c, double report, const std::function<void(c
   s.run.gravity = Vec3::Zero();
   s.sph.cfl = c.cfl;
   s.sph.artificial_viscosity = c.artificial_viscosity;
+  s.sph.viscous_operator = c.viscous_operator;
+  s.sph.density_diffusion = c.density_diffusion;
   scene::Material& fluid = s.materials[0];
   fluid.rheology = scene::Material::Rheology::newtonian;
   fluid.viscosity = r.viscosity;
@@ -126,6 +128,63 @@ DragResult run_drag(const DragCase& c, double report, const std::function<void(c
   r.re_unbounded = r.re / f;
   r.cd_unbounded = r.cd_balance * f * f;
   r.cd_sn = schiller_naumann(r.re_unbounded);
+  r.wall_seconds = std::chrono::duration<double>(Clock::now() - started).count();
+  return r;
+}
+
+SpinResult run_spin(const SpinCase& c) {
+  using Clock = std::chrono::steady_clock;
+  const auto started = Clock::now();
+  const double dx = 0.01, d = c.diameter_spacings * dx, radius = 0.5 * d, width = c.box_diameters * d;
+  const double rho = 1000, nu = 0.01, mu = rho * nu, omega = c.reynolds * nu / (radius * radius);
+  const double h = 1.5 * dx;
+  // As in run_drag: Mach 0.1 at the surface's speed, and the acoustic step no shorter than the viscous one.
+  const double sound_speed = std::max(10 * omega * radius, 8 * nu / h);
+  scene::Scene s = sph::testing::water_scene(dx, sound_speed, 1.5);
+  s.run.gravity = Vec3::Zero();
+  s.sph.cfl = c.cfl;
+  s.sph.artificial_viscosity = 0;
+  s.sph.viscous_operator = c.viscous_operator;
+  scene::Material& fluid = s.materials[0];
+  fluid.rheology = scene::Material::Rheology::newtonian;
+  fluid.viscosity = mu;
+  fluid.eos = scene::Material::Eos::polynomial;
+  fluid.eos_c0 = 0.05 * rho * sound_speed * sound_speed;
+  fluid.eos_c1 = 1.0;
+  scene::Material ball;
+  ball.name = "ball";
+  ball.density = 2000;
+  ball.youngs_modulus = 1e5;
+  ball.poisson_ratio = 0.3;
+  s.materials.insert(s.materials.begin(), ball);  // sorted by name: ball, water
+  s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3::Constant(width)));
+  scene::ParticleSet set;
+  set.name = "ball";
+  set.material = "ball";
+  set.fixed = true;  // held in place; its spin is set before every step
+  set.spheres.push_back({Vec3::Constant(0.5 * width), radius, Vec3::Zero(), Vec3::Zero()});
+  s.particle_sets.push_back(set);
+  s.sph_dem_default.model = scene::SphDemContact::Model::boundary_particles;
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
+  SphDemHarness run(s, sph::testing::container_walls(Vec3::Zero(), Vec3::Constant(width), dx, 3, /*lid=*/true));
+  const double end = c.end_time * radius * radius / nu;
+  double torque_integral = 0, span = 0;
+  while (run.time() < end) {
+    run.dem().angular_velocities()[0] = Vec3(0, 0, omega);
+    const double before = run.time();
+    run.step();
+    if (run.time() > 0.75 * end) {
+      torque_integral -= run.fluid_torque_on_sphere(0).z() * (run.time() - before);
+      span += run.time() - before;
+    }
+  }
+  const double outer = std::cbrt(3.0 / (4.0 * std::numbers::pi)) * width;
+  SpinResult r;
+  r.torque = torque_integral / span;
+  r.expected = 8 * std::numbers::pi * mu * std::pow(radius, 3) * omega / (1 - std::pow(radius / outer, 3));
+  r.time = run.time();
+  r.steps = run.steps();
+  r.fluid_particles = run.sph().size();
   r.wall_seconds = std::chrono::duration<double>(Clock::now() - started).count();
   return r;
 }

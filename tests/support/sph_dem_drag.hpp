@@ -52,6 +52,8 @@ struct DragCase {
   double max_time = 40.0;   // D / v_pred
   double smoothing_ratio = 1.5;
   double artificial_viscosity = 0.0;
+  scene::SphSettings::ViscousOperator viscous_operator = scene::SphSettings::ViscousOperator::strain_rate;
+  scene::SphSettings::DensityDiffusion density_diffusion = scene::SphSettings::DensityDiffusion::fourtakas;
 };
 
 struct DragResult {
@@ -80,5 +82,28 @@ struct DragSample {
 
 // Runs the case; on_sample(sample) every `report` D / v_pred (0: never).
 DragResult run_drag(const DragCase& c, double report = 0, const std::function<void(const DragSample&)>& on_sample = {});
+
+// The no-slip of the sphere's curved surface alone: the sphere held in place at the centre of a closed cube of
+// fluid at rest and spun at a fixed rate Omega about z, at a rotational Reynolds number Omega R^2 / nu. Its
+// creeping-flow torque is Stokes' rotlet 8 pi mu R^3 Omega, here for the sphere inside a fixed concentric
+// sphere of the cube's volume (R_o), 8 pi mu R^3 Omega / (1 - (R / R_o)^3). The torque is averaged over the
+// last quarter of the run (`end_time` viscous times R^2 / nu; after one the torque is steady to 1 %).
+struct SpinCase {
+  double diameter_spacings = 10;  // D / dx
+  double box_diameters = 4;       // cube side / D
+  double reynolds = 0.1;          // Omega R^2 / nu
+  double end_time = 1.0;          // R^2 / nu
+  double cfl = 0.5;
+  scene::SphSettings::ViscousOperator viscous_operator = scene::SphSettings::ViscousOperator::strain_rate;
+};
+
+struct SpinResult {
+  double torque = 0, expected = 0, time = 0, wall_seconds = 0;
+  std::size_t fluid_particles = 0;
+  std::uint64_t steps = 0;
+  [[nodiscard]] double error() const { return torque / expected - 1.0; }
+};
+
+SpinResult run_spin(const SpinCase& c);
 
 }  // namespace sabo::testing

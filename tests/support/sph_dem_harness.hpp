@@ -53,6 +53,12 @@ class SphDemHarness {
     return 3 * j + 2 < f.size() ? Vec3(f[3 * j], f[3 * j + 1], f[3 * j + 2]) : Vec3::Zero();
   }
 
+  // The fluid's torque on sphere j about its centre in the last step, N m (zero if the pair sends none).
+  [[nodiscard]] Vec3 fluid_torque_on_sphere(std::size_t j) const {
+    const auto& t = replies_.particle_torque(sabo::Role::dem);
+    return 3 * j + 2 < t.size() ? Vec3(t[3 * j], t[3 * j + 1], t[3 * j + 2]) : Vec3::Zero();
+  }
+
   // Total momentum at the half step of the last integrate, kg m/s; and what gravity and the tank
   // walls gave the fluid and the spheres since the start, plus the fluid's impulse on the boulders
   // that is still in flight (returned with the next state, delivered at the next step).
