@@ -17,6 +17,8 @@ terms' own discretisation, one choice at a time:
                      across the surface (fixed ghost points, Marrone et al. 2011)
   --velocity exact   Stokes' solution continued into the sphere
   --pressure adami   the kernel average of the fluid's pressure (Adami eq. 27 without gravity)
+  --pressure mirror  the fluid's pressure and its gradient fitted to first order (weighted least squares
+                     in the kernel) at the mirror point, continued linearly to the wall particle
   --pressure exact   Stokes' pressure continued to the wall particle
 
 Needs Debian's python3-numpy. Prints one line per diameter.
@@ -94,7 +96,18 @@ def forces(diameter_spacings, velocity_mode, pressure_mode, dx=0.01, mu=10.0, rh
             v_b = 2 * u - average(x_b + 2 * depth * x_b / np.linalg.norm(x_b), v)
         else:
             v_b = stokes(x_b[None, :], radius, mu, u)[0][0]
-        p_b = average(x_b, p) if pressure_mode == "adami" else stokes(x_b[None, :], radius, mu, u)[1][0]
+        if pressure_mode == "adami":
+            p_b = average(x_b, p)
+        elif pressure_mode == "mirror":
+            depth = radius - np.linalg.norm(x_b)
+            x_g = x_b + 2 * depth * x_b / np.linalg.norm(x_b)
+            offset = fluid - x_g
+            w = wendland(np.linalg.norm(offset, axis=1), h)
+            a = np.hstack([np.ones((len(fluid), 1)), offset])
+            fit = np.linalg.solve((a * w[:, None]).T @ a, (a * w[:, None]).T @ p)
+            p_b = fit[0] + fit[1:] @ (x_b - x_g)
+        else:
+            p_b = stokes(x_b[None, :], radius, mu, u)[1][0]
         m_i = rho * fluid_volume[near]
         # The force on fluid particle i from wall particle b; the wall particle takes minus it.
         viscous -= ((m_i * wall_volume[b] * 2 * mu / rho * f)[:, None] * (v[near] - v_b)).sum(0)
@@ -107,7 +120,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--diameters", type=float, nargs="+", default=[6, 10, 20], help="D / dx")
     parser.add_argument("--velocity", choices=["adami", "mirror", "exact"], default="adami")
-    parser.add_argument("--pressure", choices=["adami", "exact"], default="adami")
+    parser.add_argument("--pressure", choices=["adami", "mirror", "exact"], default="adami")
     args = parser.parse_args()
     for d in args.diameters:
         viscous, pressure = forces(d, args.velocity, args.pressure)
