@@ -15,6 +15,9 @@ terms' own discretisation, one choice at a time:
                      the wall particle (Adami et al. 2012 eq. 22; what the sph_solver does)
   --velocity mirror  2 v_w - v(x_g), v(x_g) the kernel average at the wall particle's mirror point
                      across the surface (fixed ghost points, Marrone et al. 2011)
+  --velocity mirror_linear  2 v_w - v(x_g), v(x_g) fitted to first order (weighted least squares in
+                     the kernel) at the mirror point: exact for a linear flow, where the kernel average
+                     at a mirror point beside the fluid's edge is biased away from the wall
   --velocity exact   Stokes' solution continued into the sphere
   --pressure adami   the kernel average of the fluid's pressure (Adami eq. 27 without gravity)
   --pressure mirror  the fluid's pressure and its gradient fitted to first order (weighted least squares
@@ -75,6 +78,16 @@ def forces(diameter_spacings, velocity_mode, pressure_mode, dx=0.01, mu=10.0, rh
     wall, wall_volume = shells([radius - (k + 0.5) * dx for k in range(3)], dx, 0.5 * GOLDEN)
     v, p = stokes(fluid, radius, mu, u)
 
+    def fit(point, values):
+        offset = fluid - point
+        w = wendland(np.linalg.norm(offset, axis=1), h)
+        a = np.hstack([np.ones((len(fluid), 1)), offset])
+        return np.linalg.solve((a * w[:, None]).T @ a, (a * w[:, None]).T @ values)
+
+    def mirror(x_b):
+        depth = radius - np.linalg.norm(x_b)
+        return x_b + 2 * depth * x_b / np.linalg.norm(x_b)
+
     def average(point, values):
         r = np.linalg.norm(fluid - point, axis=1)
         w = wendland(r, h)
@@ -92,20 +105,17 @@ def forces(diameter_spacings, velocity_mode, pressure_mode, dx=0.01, mu=10.0, rh
         if velocity_mode == "adami":
             v_b = 2 * u - average(x_b, v)
         elif velocity_mode == "mirror":
-            depth = radius - np.linalg.norm(x_b)
-            v_b = 2 * u - average(x_b + 2 * depth * x_b / np.linalg.norm(x_b), v)
+            v_b = 2 * u - average(mirror(x_b), v)
+        elif velocity_mode == "mirror_linear":
+            v_b = 2 * u - fit(mirror(x_b), v)[0]
         else:
             v_b = stokes(x_b[None, :], radius, mu, u)[0][0]
         if pressure_mode == "adami":
             p_b = average(x_b, p)
         elif pressure_mode == "mirror":
-            depth = radius - np.linalg.norm(x_b)
-            x_g = x_b + 2 * depth * x_b / np.linalg.norm(x_b)
-            offset = fluid - x_g
-            w = wendland(np.linalg.norm(offset, axis=1), h)
-            a = np.hstack([np.ones((len(fluid), 1)), offset])
-            fit = np.linalg.solve((a * w[:, None]).T @ a, (a * w[:, None]).T @ p)
-            p_b = fit[0] + fit[1:] @ (x_b - x_g)
+            x_g = mirror(x_b)
+            coefficients = fit(x_g, p)
+            p_b = coefficients[0] + coefficients[1:] @ (x_b - x_g)
         else:
             p_b = stokes(x_b[None, :], radius, mu, u)[1][0]
         m_i = rho * fluid_volume[near]
@@ -119,7 +129,7 @@ def forces(diameter_spacings, velocity_mode, pressure_mode, dx=0.01, mu=10.0, rh
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--diameters", type=float, nargs="+", default=[6, 10, 20], help="D / dx")
-    parser.add_argument("--velocity", choices=["adami", "mirror", "exact"], default="adami")
+    parser.add_argument("--velocity", choices=["adami", "mirror", "mirror_linear", "exact"], default="adami")
     parser.add_argument("--pressure", choices=["adami", "mirror", "exact"], default="adami")
     args = parser.parse_args()
     for d in args.diameters:
