@@ -25,7 +25,6 @@ void SphModel::save_state(io::hdf5::Group& group) const {
   io::write_array(group, "settle_factor", settle_factor_);
   io::write_vectors(group, "wrap_offset", wrap_offset_);
   io::write_vectors(group, "boundary_force", boundary_force_);
-  io::write_array(group, "boundary_pressure", boundary_pressure_);
   io::write_array(group, "boundary_stress", boundary_stress_);
   // Counts and single-precision credits as doubles: exact, and the files keep to the element types of libsabo/io.
   io::write_array(group, "support_neighbours",
@@ -72,7 +71,6 @@ void SphModel::load_state(const io::hdf5::Group& group) {
   settle_factor_ = io::read_array<double>(group, "settle_factor");
   wrap_offset_ = io::read_vectors(group, "wrap_offset");
   boundary_force_ = io::read_vectors(group, "boundary_force");
-  boundary_pressure_ = io::read_array<double>(group, "boundary_pressure");
   boundary_stress_ = io::read_array<double>(group, "boundary_stress");
   const auto support = io::read_array<double>(group, "support_neighbours");
   support_neighbours_.assign(support.begin(), support.end());

@@ -175,8 +175,6 @@ class SphModel {
   // Force (N) the fluid exerted on each boundary particle in the last
   // compute_internal_forces(); their sum is minus the wall force on the fluid.
   [[nodiscard]] std::span<const Vec3> boundary_forces() const { return boundary_force_; }
-  // Pressure (Pa) extrapolated onto each boundary particle in the last compute.
-  [[nodiscard]] std::span<const double> boundary_pressures() const { return boundary_pressure_; }
   // Deviatoric stress (Pa, xx yy zz xy yz zx) extrapolated onto each boundary particle in the
   // last compute; empty without elastic-plastic fluids.
   [[nodiscard]] std::span<const double> boundary_stresses() const { return boundary_stress_; }
@@ -344,7 +342,6 @@ class SphModel {
   // Boundary particles and their per-step state.
   physics::BoundaryParticles boundary_;
   std::vector<Vec3> boundary_force_;
-  std::vector<double> boundary_pressure_;
   std::vector<double> boundary_stress_;  // Pa, 6 per boundary particle by id (only with stress)
 
   // Uniform grid (cell size 2h) and the cell-ordered working copies, single precision,

@@ -74,7 +74,6 @@ void SphModel::set_boundary(physics::BoundaryParticles boundary) {
 }
 
 void SphModel::compute_boundary_state() {
-  boundary_pressure_.assign(boundary_.size(), 0.0);
   if (has_stress_) bmoment_.resize(kWallMoments * b_order_.size());
   with_terms(kernel_.type, any_gradient_, has_stress_, false, false, DensityDiffusion::none,
              [&](auto terms) { boundary_state(terms); });
@@ -305,7 +304,6 @@ void SphModel::boundary_state(T) {
           bvz_[s] = static_cast<float>(mirrored.z());
         }
       }
-      boundary_pressure_[id] = p;
     }
   });
 }
