@@ -127,7 +127,7 @@ def main():
                 peers[path].append(r)
                 print("round {} DualSPHysics {}: {} fluid + {} boundary particles, {} steps in {:.3f} s: "
                       "{:.3g} fluid particle-steps/s, {:.3g} with the boundary".format(
-                          round_, os.path.basename(path), r["fluid"], r["boundary"], r["steps"], r["seconds"],
+                          round_, path, r["fluid"], r["boundary"], r["steps"], r["seconds"],
                           r["fluid_rate"], r["all_rate"]), flush=True)
             s = run_sabo(sabo, args.sabo_steps, args.threads)
             ours.append(s)

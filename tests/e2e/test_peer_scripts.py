@@ -1,7 +1,9 @@
-"""Issue 26, bench/peers/dualsphysics.py against fakes of both sides: a DualSPHysics that writes a Run.out as
-DualSPHysics 5.4 does (its format copied from a real run: thousands separators, dotted labels), and a
-bench_sph_throughput that prints its JSON line. The rates, medians and both ratios are checked against the
-arithmetic of the fakes' figures, and a peer that fails or writes no runtime is refused with what to mend."""
+"""Issue 26, the side-by-side scripts of bench/peers/ against fakes of both sides. dualsphysics.py: a
+DualSPHysics that writes a Run.out as DualSPHysics 5.4 does (its format copied from a real run: thousands
+separators, dotted labels) and a bench_sph_throughput that prints its JSON line. liggghts.py: an mpirun that
+runs its program, a LIGGGHTS that prints its thermo rows and "Loop time" line as LIGGGHTS 3.8 does, and a
+bench_dem_box. The rates, medians and ratios are checked against the arithmetic of the fakes' figures, and a
+peer that fails or writes no runtime is refused with what to mend."""
 import json
 import os
 import shutil
@@ -107,6 +109,83 @@ class DualSphysicsPeerTest(unittest.TestCase):
         result = self.run_script()
         self.assertNotEqual(result.returncode, 0)
         self.assertIn("CaseDambreak.bi4 are needed. Fix: run GenCase", result.stdout)
+
+
+class LiggghtsPeerTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="sabo-peer-test-")
+        self.addCleanup(shutil.rmtree, self.tmp, ignore_errors=True)
+        self.mpirun = os.path.join(self.tmp, "mpirun")
+        executable(self.mpirun, textwrap.dedent("""\
+            #!/usr/bin/env python3
+            import os, sys
+            args = sys.argv[1:]
+            assert args[0] == "-np" and args[2] == "--oversubscribe", args
+            program = [a for a in args[3:] if a != "--allow-run-as-root"]
+            os.environ["FAKE_RANKS"] = args[1]
+            os.execv(program[0], program)
+            """))
+        # A fake LIGGGHTS: the timed run takes 6, 5, 4 s on one rank (half on two), 1000 steps of 30000 spheres.
+        self.lmp = os.path.join(self.tmp, "lmp_auto")
+        executable(self.lmp, textwrap.dedent("""\
+            #!/usr/bin/env python3
+            import os, sys
+            deck = sys.argv[sys.argv.index("-in") + 1]
+            text = open(deck).read()
+            assert "pair_style gran model hertz tangential history" in text and "processors * * 1" in text
+            if deck == "settle.in":
+                assert "particles_in_region 30000" in text and "run 6000" in text, text
+                open("settled.restart", "w").write("fake")
+                sys.exit(0)
+            assert os.path.exists("settled.restart") and "timestep 1e-05" in text and "run 1000" in text, text
+            if os.environ.get("FAKE_CRASH"):
+                print("ERROR: Lost atoms")
+                sys.exit(1)
+            counter = "calls"
+            calls = int(open(counter).read()) if os.path.exists(counter) else 0
+            open(counter, "w").write(str(calls + 1))
+            ranks = int(os.environ["FAKE_RANKS"])
+            seconds = [6.0, 5.0, 4.0][calls % 3] / ranks
+            print("Step Atoms c_total")
+            print("       0    30000    144000 ")
+            print("    1000    30000    144000 ")
+            print("Loop time of {} on {} procs for 1000 steps with 30000 atoms".format(seconds, ranks))
+            """))
+        bin_dir = os.path.join(self.tmp, "build", "bin")
+        os.makedirs(bin_dir)
+        executable(os.path.join(bin_dir, "bench_dem_box"), textwrap.dedent("""\
+            #!/usr/bin/env python3
+            import json, os, sys
+            assert sys.argv[1:3] == ["--spheres", "30000"], sys.argv
+            threads = int(os.environ["OMP_NUM_THREADS"])
+            print(json.dumps({"sphere_steps_per_second": 9.0e6 * threads, "contacts_per_sphere": 4.8}))
+            """))
+        self.env = dict(os.environ, SABO_BUILD_DIR=os.path.join(self.tmp, "build"))
+
+    def run_script(self, extra_env=None):
+        env = dict(self.env, **(extra_env or {}))
+        return subprocess.run([os.path.join(ROOT, "bench", "peers", "liggghts.py"), "--liggghts", self.lmp,
+                               "--mpirun", self.mpirun, "--ranks", "1", "2", "--runs", "3"], env=env,
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=60)
+
+    def test_medians_and_ratios_per_rank_count(self):
+        result = self.run_script()
+        self.assertEqual(result.returncode, 0, result.stdout)
+        summary = json.loads(result.stdout.strip().splitlines()[-1])
+        for entry, ranks in zip(summary["ranks"], (1, 2)):
+            expected = 30000 * 1000 / (5.0 / ranks)  # the median loop time
+            print("{} rank(s): LIGGGHTS {:.6g} (expected {:.6g}), ratio {:.4f} (expected {:.4f})".format(
+                ranks, entry["liggghts_rate"], expected, entry["ratio"], 9.0e6 * ranks / expected))
+            self.assertEqual(entry["ranks"], ranks)
+            self.assertAlmostEqual(entry["liggghts_rate"], expected, delta=1e-9 * expected)
+            self.assertAlmostEqual(entry["ratio"], 9.0e6 * ranks / expected, places=9)
+        self.assertIn("4.80 contacts per sphere", result.stdout)
+
+    def test_a_failed_run_is_refused(self):
+        result = self.run_script({"FAKE_CRASH": "1"})
+        self.assertNotEqual(result.returncode, 0)
+        self.assertIn("failed (exit 1)", result.stdout)
+        self.assertIn("ERROR: Lost atoms", result.stdout)
 
 
 if __name__ == "__main__":
