@@ -47,7 +47,10 @@ class RestartTest(RealRunTestCase):
         randomness = random.Random(19)
         for role in ("dem_solver", "sph_solver", "fem_solver"):
             for trial in range(3):
-                at_step = randomness.randrange(100, steps - 150)
+                # The kill follows the coupler's progress events, one every 0.5 s: on a quiet machine the last
+                # 150 steps can pass between two of them, and a kill at the first event past at_step then lands
+                # after the run's last step. 350 steps leave two or more events after any at_step.
+                at_step = randomness.randrange(100, steps - 350)
                 out = os.path.join(self.tmp, "{}-{}".format(role, trial))
                 code, sabo = self.run_and_kill(scene, out, role, at_step)
                 summary = read_json(os.path.join(out, "summary.json"))
