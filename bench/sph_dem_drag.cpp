@@ -19,9 +19,10 @@
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
+
+#include "libsabo/scene/names.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app("SPH-DEM drag: a settling sphere's terminal speed against Schiller-Naumann");
@@ -44,16 +45,11 @@ int main(int argc, char** argv) {
   app.add_option("--artificial-viscosity", c.artificial_viscosity, "Monaghan alpha (0: none)");
   app.add_option("--report", report, "speed history every this many diameters-fallen times (0: none)");
   app.add_option("--threads", threads, "OpenMP threads (0: OMP_NUM_THREADS)");
-  const std::map<std::string, sabo::scene::SphSettings::ViscousOperator> operators{
-      {"strain_rate", sabo::scene::SphSettings::ViscousOperator::strain_rate},
-      {"morris", sabo::scene::SphSettings::ViscousOperator::morris}};
-  app.add_option("--viscous-operator", c.viscous_operator, "the SPH viscous term (sph.viscous_operator)")
-      ->transform(CLI::CheckedTransformer(operators));
-  app.add_option("--density-diffusion", c.density_diffusion, "delta-SPH's density diffusion (sph.density_diffusion)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, sabo::scene::SphSettings::DensityDiffusion>{
-          {"fourtakas", sabo::scene::SphSettings::DensityDiffusion::fourtakas},
-          {"molteni", sabo::scene::SphSettings::DensityDiffusion::molteni},
-          {"none", sabo::scene::SphSettings::DensityDiffusion::none}}));
+  std::string viscous_operator = "strain_rate", density_diffusion = "fourtakas";
+  app.add_option("--viscous-operator", viscous_operator, "the SPH viscous term (sph.viscous_operator)")
+      ->check(CLI::IsMember(sabo::scene::choice_names<sabo::scene::SphSettings::ViscousOperator>()));
+  app.add_option("--density-diffusion", density_diffusion, "delta-SPH's density diffusion (sph.density_diffusion)")
+      ->check(CLI::IsMember(sabo::scene::choice_names<sabo::scene::SphSettings::DensityDiffusion>()));
   bool spin = false;
   sabo::testing::SpinCase spin_case;
   app.add_flag("--spin", spin, "the spinning-sphere torque instead of the settling sphere");
@@ -61,6 +57,8 @@ int main(int argc, char** argv) {
   app.add_option("--spin-time", spin_case.end_time, "run length in viscous times R^2 / nu");
   CLI11_PARSE(app, argc, argv);
   if (threads > 0) omp_set_num_threads(threads);
+  c.viscous_operator = sabo::scene::value_named<sabo::scene::SphSettings::ViscousOperator>(viscous_operator);
+  c.density_diffusion = sabo::scene::value_named<sabo::scene::SphSettings::DensityDiffusion>(density_diffusion);
 
   if (spin) {
     spin_case.diameter_spacings = c.diameter_spacings;

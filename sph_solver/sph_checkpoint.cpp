@@ -97,7 +97,6 @@ void SphModel::load_state(const io::hdf5::Group& group) {
     inflow.released = static_cast<std::size_t>(v[4]);
     inflow.ended = v[5] != 0;
   }
-  inflow_energy_ = energies_.inflow;  // integrate() leaves the account there
   inflow_pending_ = group.double_attribute("inflow_pending");
   forces_ready_ = false;
 }

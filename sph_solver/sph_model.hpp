@@ -318,9 +318,9 @@ class SphModel {
   std::size_t lost_ = 0;
   std::vector<InflowState> inflows_;
   std::vector<Vec3> buffer_velocity_;  // m/s, per body: an inflow buffer's v_{n+1/2} in integrate() (else zero)
-  // J: the inflows' account (Energies::inflow), and what the next integrate() adds to it (the energy of
-  // buffer densities reset and of buffers taken out, which the energies of the next step show).
-  double inflow_energy_ = 0, inflow_pending_ = 0;
+  // J: what the next integrate() adds to the inflows' account (Energies::inflow, in energies_): the energy of
+  // buffer densities reset and of buffers taken out, which the energies of the next step show.
+  double inflow_pending_ = 0;
   double time_ = 0;                  // s, t_n: the sum of the steps integrated
   std::vector<double> settle_time_;  // s, per body: its damped settling phase ends there (0: none)
   // Per body, this step's factor on v_{n+1/2}: exp(-dt / tau) while settling, 0 at the step

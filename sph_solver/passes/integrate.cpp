@@ -181,7 +181,8 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
   });
   Energies energies;
-  inflow_energy_ += inflow_pending_;
+  // The inflows' account is cumulative: the last step's, what came in since and this step's work.
+  energies.inflow = energies_.inflow + inflow_pending_;
   inflow_pending_ = 0;
   for (std::size_t block = 0; block < blocks; ++block) {
     const double* sums = &energy_block_[kEnergyTerms * block];
@@ -189,10 +190,9 @@ void SphModel::integrate(double dt_previous, double dt) {
     energies.potential += sums[1];
     energies.elastic += sums[2];
     energies.wall_held += sums[3];
-    inflow_energy_ += sums[4];
+    energies.inflow += sums[4];
   }
   if (!inflows_.empty()) advance_inflows(dt);
-  energies.inflow = inflow_energy_;
   if (periodic) wrap_positions();
   for (std::size_t i = 0; i < n; ++i) {
     // A buffer's particles keep to the buffer's path (the scene holds it in the domain).

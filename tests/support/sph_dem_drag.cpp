@@ -15,6 +15,41 @@ double equivalent_lambda(double diameter, double width) {
   return diameter / (2.0 * width / std::sqrt(std::numbers::pi));
 }
 
+namespace {
+
+// A Newtonian fluid of `viscosity` (Pa s) without gravity filling the closed box [0, tank] (m), its pressure
+// p = p0 + rho c^2 (rho / rho0 - 1) with the background p0 = `background` (Pa), and one sphere of
+// `ball_density` (held in place when `fixed`) coupled through the boundary_particles pair.
+scene::Scene sphere_in_fluid(double dx, double sound_speed, double smoothing_ratio, double viscosity, double background,
+                             const Vec3& tank, const scene::Sphere& sphere, double ball_density, bool fixed) {
+  scene::Scene s = sph::testing::water_scene(dx, sound_speed, smoothing_ratio);
+  s.run.gravity = Vec3::Zero();
+  scene::Material& fluid = s.materials[0];
+  fluid.rheology = scene::Material::Rheology::newtonian;
+  fluid.viscosity = viscosity;
+  fluid.eos = scene::Material::Eos::polynomial;
+  fluid.eos_c0 = background;
+  fluid.eos_c1 = 1.0;
+  scene::Material ball;
+  ball.name = "ball";
+  ball.density = ball_density;
+  ball.youngs_modulus = 1e5;  // never in contact: soft, so that the DEM step is not the shortest
+  ball.poisson_ratio = 0.3;
+  s.materials.insert(s.materials.begin(), ball);  // sorted by name: ball, water
+  s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), tank));
+  scene::ParticleSet set;
+  set.name = "ball";
+  set.material = "ball";
+  set.fixed = fixed;
+  set.spheres.push_back(sphere);
+  s.particle_sets.push_back(set);
+  s.sph_dem_default.model = scene::SphDemContact::Model::boundary_particles;
+  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
+  return s;
+}
+
+}  // namespace
+
 DragResult run_drag(const DragCase& c, double report, const std::function<void(const DragSample&)>& on_sample) {
   using Clock = std::chrono::steady_clock;
   const auto started = Clock::now();
@@ -36,33 +71,14 @@ DragResult run_drag(const DragCase& c, double report, const std::function<void(c
   r.sound_speed = std::max(r.v_inf / c.mach, 8.0 * nu / h);
   r.background = c.background * r.rho_f * r.sound_speed * r.sound_speed;
 
-  scene::Scene s = sph::testing::water_scene(r.dx, r.sound_speed, c.smoothing_ratio);
-  s.run.gravity = Vec3::Zero();
+  const Vec3 start(0.5 * r.width, 0.5 * r.width, r.height - c.start_depth * d);
+  scene::Scene s = sphere_in_fluid(r.dx, r.sound_speed, c.smoothing_ratio, r.viscosity, r.background,
+                                   Vec3(r.width, r.width, r.height), {start, 0.5 * d, Vec3::Zero(), Vec3::Zero()},
+                                   r.rho_s, /*fixed=*/false);
   s.sph.cfl = c.cfl;
   s.sph.artificial_viscosity = c.artificial_viscosity;
   s.sph.viscous_operator = c.viscous_operator;
   s.sph.density_diffusion = c.density_diffusion;
-  scene::Material& fluid = s.materials[0];
-  fluid.rheology = scene::Material::Rheology::newtonian;
-  fluid.viscosity = r.viscosity;
-  fluid.eos = scene::Material::Eos::polynomial;  // p = p0 + rho c^2 (rho / rho0 - 1)
-  fluid.eos_c0 = r.background;
-  fluid.eos_c1 = 1.0;
-  scene::Material ball;
-  ball.name = "ball";
-  ball.density = r.rho_s;
-  ball.youngs_modulus = 1e5;  // never in contact: soft, so that the DEM step is not the shortest
-  ball.poisson_ratio = 0.3;
-  s.materials.insert(s.materials.begin(), ball);  // sorted by name: ball, water
-  s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3(r.width, r.width, r.height)));
-  scene::ParticleSet set;
-  set.name = "ball";
-  set.material = "ball";
-  const Vec3 start(0.5 * r.width, 0.5 * r.width, r.height - c.start_depth * d);
-  set.spheres.push_back({start, 0.5 * d, Vec3::Zero(), Vec3::Zero()});
-  s.particle_sets.push_back(set);
-  s.sph_dem_default.model = scene::SphDemContact::Model::boundary_particles;
-  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
 
   auto walls = sph::testing::container_walls(Vec3::Zero(), Vec3(r.width, r.width, r.height), r.dx, 3, /*lid=*/true);
   r.wall_particles = walls.size();
@@ -137,35 +153,16 @@ SpinResult run_spin(const SpinCase& c) {
   const auto started = Clock::now();
   const double dx = 0.01, d = c.diameter_spacings * dx, radius = 0.5 * d, width = c.box_diameters * d;
   const double rho = 1000, nu = 0.01, mu = rho * nu, omega = c.reynolds * nu / (radius * radius);
-  const double h = 1.5 * dx;
+  const double smoothing_ratio = 1.5, h = smoothing_ratio * dx;
   // As in run_drag: Mach 0.1 at the surface's speed, and the acoustic step no shorter than the viscous one.
   const double sound_speed = std::max(10 * omega * radius, 8 * nu / h);
-  scene::Scene s = sph::testing::water_scene(dx, sound_speed, 1.5);
-  s.run.gravity = Vec3::Zero();
+  scene::Scene s =
+      sphere_in_fluid(dx, sound_speed, smoothing_ratio, mu, 0.05 * rho * sound_speed * sound_speed,
+                      Vec3::Constant(width), {Vec3::Constant(0.5 * width), radius, Vec3::Zero(), Vec3::Zero()}, 2000,
+                      /*fixed=*/true);  // held in place; its spin is set before every step
   s.sph.cfl = c.cfl;
   s.sph.artificial_viscosity = 0;
   s.sph.viscous_operator = c.viscous_operator;
-  scene::Material& fluid = s.materials[0];
-  fluid.rheology = scene::Material::Rheology::newtonian;
-  fluid.viscosity = mu;
-  fluid.eos = scene::Material::Eos::polynomial;
-  fluid.eos_c0 = 0.05 * rho * sound_speed * sound_speed;
-  fluid.eos_c1 = 1.0;
-  scene::Material ball;
-  ball.name = "ball";
-  ball.density = 2000;
-  ball.youngs_modulus = 1e5;
-  ball.poisson_ratio = 0.3;
-  s.materials.insert(s.materials.begin(), ball);  // sorted by name: ball, water
-  s.fluids.push_back(sph::testing::box_body("water", Vec3::Zero(), Vec3::Constant(width)));
-  scene::ParticleSet set;
-  set.name = "ball";
-  set.material = "ball";
-  set.fixed = true;  // held in place; its spin is set before every step
-  set.spheres.push_back({Vec3::Constant(0.5 * width), radius, Vec3::Zero(), Vec3::Zero()});
-  s.particle_sets.push_back(set);
-  s.sph_dem_default.model = scene::SphDemContact::Model::boundary_particles;
-  for (auto role : {sabo::Role::sph, sabo::Role::dem}) s.solvers.emplace_back().role = role;
   SphDemHarness run(s, sph::testing::container_walls(Vec3::Zero(), Vec3::Constant(width), dx, 3, /*lid=*/true));
   const double end = c.end_time * radius * radius / nu;
   double torque_integral = 0, span = 0;
