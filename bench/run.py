@@ -532,7 +532,7 @@ def all_cases(quick, cores):
     else:
         for threads in box_threads:
             cases.append(DemBox(30000, threads, 0.3, 1000, True))  # LIGGGHTS' case: settle, then time
-        for spheres in (10000, 100000):  # linear scaling while settling
+        for spheres in (10000, 100000, 1000000):  # linear scaling while settling (1e6: 2.5 min)
             cases.append(DemBox(spheres, min(2, cores), 0.1, 50, False))
         cases.append(DemPile(10000, 10.0, min(2, cores)))
     fem = [("hex", 4096, 50), ("shell", 4096, 50)] if quick else [("hex", 32768, 50), ("shell", 65536, 50)]
