@@ -291,6 +291,40 @@ class SphThroughput(Case):
         return passive_threads_env(self.threads)
 
 
+class SphSlab(Case):
+    """bench_sph_throughput --slab: a layer of water 20 spacings deep at rest on a floor, periodic along x and y,
+    so that every size has the same share of wall particles (0.15 a fluid particle): the cost against N
+    (issue 26: 1e4, 1e5 and 1e6 particles within 15 % of each other)."""
+
+    def __init__(self, particles, steps, threads):
+        super().__init__(
+            "sph_slab.{}.t{}".format(entity_label(particles), threads),
+            "sph_throughput",
+            "SPH periodic slab N={} wendland_c2 h/dx=1.5 threads={}".format(particles, threads),
+            "particle_steps_per_second",
+            "particle-steps/s",
+            timeout_s=600,
+        )
+        self.particles = particles
+        self.steps = steps
+        self.threads = threads
+
+    def binaries(self, bin_dir):
+        return [os.path.join(bin_dir, "bench_sph_throughput")]
+
+    def command(self, bin_dir):
+        return [
+            os.path.join(bin_dir, "bench_sph_throughput"),
+            "--slab", str(self.particles),
+            "--spacing", "0.01",
+            "--ratio", "1.5",
+            "--steps", str(self.steps),
+        ]
+
+    def env(self):
+        return passive_threads_env(self.threads)
+
+
 class DemPile(Case):
     """bench_dem_pile: a dense pile of boulders settling in a box; stability figures and throughput."""
 
@@ -548,6 +582,9 @@ def all_cases(quick, cores):
                                 ("cubic_spline", 1.732, False), ("wendland_c2", 1.3, False),
                                 ("wendland_c2", 1.5, False)):
         cases.append(SphThroughput(kernel, ratio, spacing, sph_steps, 2, goal and not quick))
+    # The cost against N at a constant share of wall particles (each size about 4 s).
+    for particles, steps in ((10000, 40), (100000, 40)) if quick else ((10000, 400), (100000, 40), (1000000, 10)):
+        cases.append(SphSlab(particles, steps, 2))
     cases.append(chute)
     # The first three-solver scene (issue 16: the coupling's share of the wall time, goal at most 5 %) and the
     # Wenjia scenes at the paper's resolution (issue 23: the treated layout's 160 s within an hour; hours here).

@@ -11,7 +11,9 @@
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <utility>
 
@@ -32,7 +34,7 @@ double resident_megabytes() {
 
 int main(int argc, char** argv) {
   using namespace sabo;
-  CLI::App app("SPH throughput on a 3-D dam break");
+  CLI::App app("SPH throughput on a 3-D dam break (or a periodic slab at rest: --slab)");
   double dx = 0.009, ratio = 1.3;
   int steps = 20;
   std::string kernel = "wendland_c2";
@@ -49,10 +51,24 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"inviscid", "newtonian", "bingham"}));
   app.add_option("--viscous-operator", viscous_operator, "sph.viscous_operator (the default: strain_rate)")
       ->check(CLI::IsMember(scene::choice_names<scene::SphSettings::ViscousOperator>()));
+  std::int64_t slab_particles = 0;
+  app.add_option("--slab", slab_particles,
+                 "instead of the dam break: about this many fluid particles in a layer 20 spacings deep at rest on a "
+                 "floor, periodic along x and y (the same share of wall particles at every size: cost against N)")
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
   const double a = 0.4;
-  scene::Scene s = sph::testing::water_scene(dx, 10.0 * std::sqrt(2 * 9.81 * 2 * a), ratio);
+  // The slab: 20 spacings of water, as wide as it takes to hold slab_particles, on a floor of wall particles.
+  constexpr int kSlabDepth = 20;
+  const int slab_side =
+      slab_particles > 0
+          ? std::max(8, static_cast<int>(std::lround(std::sqrt(static_cast<double>(slab_particles) / kSlabDepth))))
+          : 0;
+  const double slab_width = slab_side * dx, slab_height = kSlabDepth * dx;
+  const double sound_speed =
+      slab_particles > 0 ? 10.0 * std::sqrt(2 * 9.81 * slab_height) : 10.0 * std::sqrt(2 * 9.81 * 2 * a);
+  scene::Scene s = sph::testing::water_scene(dx, sound_speed, ratio);
   s.sph.kernel = scene::value_named<scene::SphSettings::Kernel>(kernel);
   s.sph.wall_work = scene::value_named<scene::SphSettings::WallWork>(wall_work);
   s.sph.viscous_operator = scene::value_named<scene::SphSettings::ViscousOperator>(viscous_operator);
@@ -66,15 +82,24 @@ int main(int argc, char** argv) {
     material.yield_stress = 100.0;
     material.yield_shear_rate = 1.0;
   }
-  s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
+  if (slab_particles > 0) {
+    s.sph.periodic_x = {0.0, slab_width};
+    s.sph.periodic_y = {0.0, slab_width};
+    s.fluids.push_back(sph::testing::box_body("slab", Vec3::Zero(), Vec3(slab_width, slab_width, slab_height)));
+  } else {
+    s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
+  }
 
   const double memory_before = resident_megabytes();
   sph::SphModel model(s);
-  // Walls: 3 layers under and around the tank [0, 4a] x [0, a] x [0, 3a].
+  // Walls: 3 layers under and around the tank [0, 4a] x [0, a] x [0, 3a], or under the slab.
   physics::BoundaryParticles walls;
   const int layers = static_cast<int>(std::ceil(2 * ratio));
-  const Vec3 min = Vec3::Zero(), max(4 * a, a, 3 * a);
-  const Vec3 lo = min - Vec3::Constant(layers * dx), hi(max.x() + layers * dx, max.y() + layers * dx, max.z());
+  const Vec3 min = Vec3::Zero(),
+             max = slab_particles > 0 ? Vec3(slab_width, slab_width, slab_height) : Vec3(4 * a, a, 3 * a);
+  const Vec3 lo = slab_particles > 0 ? Vec3(0.0, 0.0, -layers * dx) : Vec3(min - Vec3::Constant(layers * dx));
+  const Vec3 hi =
+      slab_particles > 0 ? Vec3(max.x(), max.y(), 0.0) : Vec3(max.x() + layers * dx, max.y() + layers * dx, max.z());
   const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
   for (int k = 0; k < count(hi.z() - lo.z()); ++k)
     for (int j = 0; j < count(hi.y() - lo.y()); ++j)
@@ -102,8 +127,9 @@ int main(int argc, char** argv) {
   for (int k = 0; k < steps; ++k) step();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double n = static_cast<double>(model.size());
-  fmt::print("particles {} walls {} threads {} kernel {} h/dx {} rheology {} viscous operator {}\n", model.size(),
-             wall_count, omp_get_max_threads(), kernel, ratio, rheology, viscous_operator);
+  fmt::print("{} particles {} walls {} threads {} kernel {} h/dx {} rheology {} viscous operator {}\n",
+             slab_particles > 0 ? "periodic slab" : "dam break", model.size(), wall_count, omp_get_max_threads(),
+             kernel, ratio, rheology, viscous_operator);
   const double rate = n * steps / seconds;
   const double bytes = (memory_after - memory_before) * 1e6 / (n + static_cast<double>(wall_count));
   fmt::print("particle_steps_per_second {:.4g}\n", rate);
