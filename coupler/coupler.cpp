@@ -385,7 +385,10 @@ RatePlan Coupler::plan_step() {
   std::vector<PairRate> pairs;
   for (const auto& slot : pairs_) {
     const auto roles = slot.pair->roles();
-    pairs.push_back({.a = index_of(roles[0]), .b = index_of(roles[1]), .stable_dt = slot.pair->stable_dt()});
+    pairs.push_back({.a = index_of(roles[0]),
+                     .b = index_of(roles[1]),
+                     .stable_dt = slot.pair->stable_dt(),
+                     .held = slot.pair->holding().allowed});
   }
   // Only rigid parts and nothing else that limits the step: take output-sized steps.
   const double until_output = std::min(next_output_time_, scene_.run.end_time) - time_;
@@ -397,6 +400,14 @@ RatePlan Coupler::plan_step() {
   if (scene_.run.multirate) {
     pair_rate_reported_.resize(pairs.size(), false);
     for (std::size_t j = 0; j < pairs.size(); ++j) {
+      if (!pairs[j].held) {
+        if (!pair_rate_reported_[j]) {
+          pair_rate_reported_[j] = true;
+          spdlog::info("multirate: the {} pair is exchanged at the step of its faster side: {}", pairs_[j].pair->name(),
+                       pairs_[j].pair->holding().why_not);
+        }
+        continue;
+      }
       const double slower = std::max(solvers[pairs[j].a].stable_step, solvers[pairs[j].b].stable_step);
       if (pair_rate_reported_[j] || !(pairs[j].stable_dt < slower) || plan.exchange_dt > pairs[j].stable_dt) continue;
       pair_rate_reported_[j] = true;

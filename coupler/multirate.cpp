@@ -57,7 +57,8 @@ RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRat
   for (std::size_t i = 0; i < solvers.size(); ++i) take(solvers[i].stable_step * cap(i), {Kind::solver, i});
   for (std::size_t j = 0; j < pairs.size(); ++j) {
     const PairRate& pair = pairs[j];
-    take(std::min(pair.stable_dt, std::max(solvers[pair.a].stable_step, solvers[pair.b].stable_step)), {Kind::pair, j});
+    const double a = solvers[pair.a].stable_step, b = solvers[pair.b].stable_step;
+    take(std::min(pair.stable_dt, pair.held ? std::max(a, b) : std::min(a, b)), {Kind::pair, j});
   }
   if (limits.max_dt) take(*limits.max_dt, {Kind::max_dt, 0});
   if (!std::isfinite(dt)) dt = limits.fallback_dt;

@@ -18,6 +18,7 @@ struct SolverRate {
 struct PairRate {
   std::size_t a = 0, b = 0;  // indices of the two solvers it joins
   double stable_dt = 0;      // s: the pair's own limit (eq. 7 contact term); infinity: none
+  bool held = true;          // false: its forces may not be held (ContactPair::holding): its faster side's step
 };
 
 // What set a plan's exchange step; text(): "solver 2", "pair 0", "max_dt", "next output", "nothing".
@@ -44,7 +45,8 @@ struct RateLimits {
 };
 
 // Lock-step: exchange_dt = min(stable steps, pair limits, max_dt), one step each. Multirate: each pair
-// is exchanged at the step of the slower of its two sides and never above its own limit, every solver
+// is exchanged at the step of the slower of its two sides (of the faster, for a pair whose forces may not be
+// held) and never above its own limit, every solver
 // at most max_substeps times its stable step; exchange_dt is the smallest of these, and each solver
 // takes the smallest power of two of steps that keeps its own step within its stable step.
 [[nodiscard]] RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRate> pairs,

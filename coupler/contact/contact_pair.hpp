@@ -187,6 +187,14 @@ class ContactPair {
 
   // Paper eq. 7's term of this pair after compute(), beta included, s; infinity: no limit.
   [[nodiscard]] virtual double stable_dt() const { return std::numeric_limits<double>::infinity(); }
+  // Multirate (docs/architecture.md): whether its forces may be held over several steps of either side.
+  // False: the pair is exchanged at the step of its faster side, whatever its sides' rates; with the
+  // reason, for the coupler's log.
+  struct Holding {
+    bool allowed = true;
+    std::string why_not;
+  };
+  [[nodiscard]] virtual Holding holding() const { return {}; }
   [[nodiscard]] virtual NewtonBalance newton_balance() const = 0;
   // J in the pair's springs at x_n, and W dissipated by its dashpots and slip in step n (acts over dt_n).
   struct Energy {

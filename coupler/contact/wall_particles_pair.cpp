@@ -36,7 +36,20 @@ std::vector<BoundaryWalls::PeriodicSpan> periodic_spans(const scene::SphSettings
 WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
     : walls_(scene.sph.particle_spacing, scene.sph.kernel_support(), periodic_spans(scene.sph),
              scene.sph.free_slip_walls),
-      spacing_(scene.sph.particle_spacing) {}
+      spacing_(scene.sph.particle_spacing) {
+  for (const auto& structure : scene.structures) {
+    if (!structure.rigid) deformable_.push_back(structure.name);
+  }
+}
+
+ContactPair::Holding WallParticlesPair::holding() const {
+  if (deformable_.empty()) return {};
+  return {.allowed = false,
+          .why_not = fmt::format("its boundary particles sit on the deformable structure{} '{}': their acceleration "
+                                 "enters the fluid's pressure on them, and held over several steps that force feeds "
+                                 "the structure's vibration",
+                                 deformable_.size() > 1 ? "s" : "", fmt::join(deformable_, "', '"))};
+}
 
 void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {
   walls_.set_surface(protocol::surface_from_message(solvers.at(Role::fem).registration->surface(), "fem_solver"));

@@ -83,6 +83,22 @@ TEST(Multirate, APairsOwnLimitHoldsTheExchangeBelowItsSlowerSide) {
   EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 2}));
 }
 
+TEST(Multirate, APairWhoseForcesMayNotBeHeldIsExchangedAtItsFasterSidesStep) {
+  // The sph-fem pair with boundary particles on a deformable structure (ContactPair::holding): the fem's step,
+  // 1, sets the exchange although the slurry steps at 8; the others' rates do not matter.
+  auto pairs = three_pairs();
+  pairs[0].held = false;
+  const auto plan = plan_rates(three_solvers(8.0, 9.0, 1.0), pairs, kNoLimits, true);
+  EXPECT_EQ(plan.exchange_dt, 1.0);
+  EXPECT_EQ(plan.limit.text(), "pair 0");
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 1}));
+  // Lock-step is the same plan: the pair's own limit does not enter it.
+  EXPECT_EQ(plan_rates(three_solvers(8.0, 9.0, 1.0), pairs, kNoLimits, false).exchange_dt, 1.0);
+  // Held again: the slurry's step.
+  pairs[0].held = true;
+  EXPECT_EQ(plan_rates(three_solvers(8.0, 9.0, 1.0), pairs, kNoLimits, true).exchange_dt, 8.0);
+}
+
 TEST(Multirate, ASolverThatCannotSubcycleKeepsTheExchangeAtItsStep) {
   auto solvers = three_solvers(8.0, 9.0, 1.0);
   solvers[2].max_substeps = 1;  // registered max_substeps 0 or 1

@@ -79,7 +79,9 @@ void Schema::build_run() {
                "(paper eq. 7). Off by default: on `debris_flow_dam` it saves 17-26 % of the wall time and moves "
                "the fluid's mean load on the dam by 1.6-9 % (docs/accuracy-cost.md), and the held forces let the "
                "energy rise by up to 2e-3 of its initial value at 8 substeps; turn it on where a structure's or a "
-               "boulder's step is far below the fluid's."),
+               "boulder's step is far below the fluid's. SPH boundary particles on a deformable structure are "
+               "never held (their pair keeps its faster side's step: held, the fluid's added mass fed C1's plate "
+               "until it failed)."),
       K("checkpoint_interval", Type::number)
           .absent("a tenth of `end_time`")
           .example("0.5")
