@@ -22,7 +22,7 @@ class WallParticlesPair final : public ContactPair {
   [[nodiscard]] NewtonBalance newton_balance() const override;
   // Not on a deformable structure: there the walls' acceleration enters their pressure (the fluid's added
   // mass), and that force held over several of the structure's steps feeds its vibration (C1 in
-  // bench/RESULTS.md: the plate's energy grew a hundredfold at two steps per exchange).
+  // bench/RESULTS.md: the energy grew eightfold at two of its steps per exchange).
   [[nodiscard]] Holding holding() const override;
   [[nodiscard]] std::optional<std::string> load_source() const override { return "fluid"; }
   [[nodiscard]] std::span<const Vec3> loads() const override { return part_force_; }
