@@ -114,19 +114,25 @@ TEST_F(AuthenticatorTest, OverIpcOnlyTheRunsTokenJoins) {
   EXPECT_EQ(register_with(endpoint, dem), "dem_solver");
   protocol::ClientCredentials wrong = dem;
   wrong.token = std::string(64, 'a');
-  EXPECT_EQ(register_with(endpoint, wrong), std::nullopt);
   protocol::ClientCredentials unknown = dem;
   unknown.user = "sph_solver";  // a role the scene does not have
-  EXPECT_EQ(register_with(endpoint, unknown), std::nullopt);
-  EXPECT_EQ(register_with(endpoint, {}), std::nullopt);
-  std::this_thread::sleep_for(200ms);
-  guard_->tick();
-  for (const auto& refused : guard_->refused()) std::cout << refused.address << ": " << refused.reason << "\n";
   const std::string self = "pid " + std::to_string(::getpid());
-  for (const char* reason : {"gave a token that is not this run's", "'sph_solver' is not a role of this scene",
-                             "another security mechanism"}) {
-    EXPECT_TRUE(refused_from(reason, self)) << reason;
+  // Each refusal names this process. The guard reads the peer's pid when the monitor's "accepted" event
+  // passes its relay thread; on a loaded machine a refused connection may be gone by then (logged as from
+  // "unknown"), so each is tried up to three times.
+  const std::vector<std::pair<const char*, protocol::ClientCredentials>> cases{
+      {"gave a token that is not this run's", wrong},
+      {"'sph_solver' is not a role of this scene", unknown},
+      {"another security mechanism", {}}};
+  for (const auto& [reason, credentials] : cases) {
+    for (int attempt = 0; attempt < 3 && !refused_from(reason, self); ++attempt) {
+      EXPECT_EQ(register_with(endpoint, credentials), std::nullopt) << reason;
+      std::this_thread::sleep_for(200ms);
+      guard_->tick();
+    }
   }
+  for (const auto& refused : guard_->refused()) std::cout << refused.address << ": " << refused.reason << "\n";
+  for (const auto& [reason, credentials] : cases) EXPECT_TRUE(refused_from(reason, self)) << reason;
 }
 
 TEST(AuthenticatorDecision, NamesTheRoleOrWhyNot) {
