@@ -16,14 +16,12 @@ import argparse
 import csv
 import math
 import os
-import re
-import struct
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
 
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
-from scene_runs import ROOT, run_scene  # noqa: E402
+from scene_runs import ROOT, read_vtu, run_scene  # noqa: E402
 
 HARD = os.path.join(ROOT, "configs", "tests", "hard")
 
@@ -141,25 +139,10 @@ CASES = {
 
 
 def read_points(path):
-    """Points and the `active` flags (None when absent) of one of Sabo's VTK XML files (appended raw data,
-    UInt64 headers), with the standard library."""
-    with open(path, "rb") as handle:
-        raw = handle.read()
-    start = raw.index(b"<AppendedData")
-    head = raw[:start].decode()
-    data = raw.index(b"_", start) + 1
-    arrays = {}
-    pattern = r'<DataArray type="(\w+)" Name="(\w+)" NumberOfComponents="(\d+)" format="appended" offset="(\d+)"'
-    for kind, name, _, offset in re.findall(pattern, head):
-        if (name, kind) not in (("Points", "Float64"), ("active", "UInt8")):
-            continue
-        at = data + int(offset)
-        size = struct.unpack("<Q", raw[at:at + 8])[0]
-        code = "d" if kind == "Float64" else "B"
-        arrays[name] = struct.unpack("<{}{}".format(size // struct.calcsize(code), code), raw[at + 8:at + 8 + size])
-    values = arrays["Points"]
-    points = [values[k:k + 3] for k in range(0, len(values), 3)]
-    return points, arrays.get("active")
+    """Points (x, y, z tuples) and the `active` flags (None when absent) of one of Sabo's VTK XML files."""
+    arrays = read_vtu(path)
+    active = arrays.get("active")
+    return arrays["Points"], None if active is None else [flag for (flag,) in active]
 
 
 def particles_kept(out, solver, container):

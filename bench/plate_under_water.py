@@ -35,8 +35,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
-from scene_runs import run_scene  # noqa: E402
-from taylor_bar import read_vtu  # noqa: E402
+from scene_runs import read_vtu, run_scene  # noqa: E402
 
 GRAVITY = 9.81
 WATER_DENSITY = 1000.0

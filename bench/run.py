@@ -254,22 +254,27 @@ class FemThroughput(Case):
 class SphThroughput(Case):
     """bench_sph_throughput: SphModel alone on a 3-D dam break (about 170 000 fluid particles at the full size)
     with boundary-particle walls. The goal (issue 3) is twice DualSPHysics 5.4's 4.2-4.7e5 particle-steps/s at an
-    equal neighbour count (about 127 per particle); it is held on the cubic spline at h = 1.61 dx, 143 here."""
+    equal neighbour count (about 127 per particle); it is held on the cubic spline at h = 1.61 dx, 143 here.
+    With `slab` particles instead: a layer of water 20 spacings deep at rest on a floor, periodic along x and y,
+    so that every size has the same share of wall particles (0.15 a fluid particle): the cost against N
+    (issue 26: 1e4, 1e5 and 1e6 particles within 15 % of each other)."""
 
-    def __init__(self, kernel, ratio, spacing, steps, threads, goal):
-        super().__init__(
-            "sph_throughput.{}.{}.t{}".format("cubic" if kernel == "cubic_spline" else "wendland", ratio, threads),
-            "sph_throughput",
-            "SPH dam break {} h/dx={} dx={} threads={}".format(kernel, ratio, spacing, threads),
-            "particle_steps_per_second",
-            "particle-steps/s",
-            timeout_s=600,
-        )
+    def __init__(self, kernel, ratio, spacing, steps, threads, goal, slab=None):
+        if slab:
+            name = "sph_slab.{}.t{}".format(entity_label(slab), threads)
+            describe = "SPH periodic slab N={} {} h/dx={} threads={}".format(slab, kernel, ratio, threads)
+        else:
+            name = "sph_throughput.{}.{}.t{}".format("cubic" if kernel == "cubic_spline" else "wendland", ratio,
+                                                     threads)
+            describe = "SPH dam break {} h/dx={} dx={} threads={}".format(kernel, ratio, spacing, threads)
+        super().__init__(name, "sph_throughput", describe, "particle_steps_per_second", "particle-steps/s",
+                         timeout_s=600)
         self.kernel = kernel
         self.ratio = ratio
         self.spacing = spacing
         self.steps = steps
         self.threads = threads
+        self.slab = slab
         if goal:
             self.goal = {"min": DUALSPHYSICS_PARTICLE_STEPS_GOAL,
                          "text": ">= {:.2g}: twice DualSPHysics 5.4 (~127 neighbours; here 143)".format(
@@ -285,41 +290,7 @@ class SphThroughput(Case):
             "--ratio", str(self.ratio),
             "--spacing", str(self.spacing),
             "--steps", str(self.steps),
-        ]
-
-    def env(self):
-        return passive_threads_env(self.threads)
-
-
-class SphSlab(Case):
-    """bench_sph_throughput --slab: a layer of water 20 spacings deep at rest on a floor, periodic along x and y,
-    so that every size has the same share of wall particles (0.15 a fluid particle): the cost against N
-    (issue 26: 1e4, 1e5 and 1e6 particles within 15 % of each other)."""
-
-    def __init__(self, particles, steps, threads):
-        super().__init__(
-            "sph_slab.{}.t{}".format(entity_label(particles), threads),
-            "sph_throughput",
-            "SPH periodic slab N={} wendland_c2 h/dx=1.5 threads={}".format(particles, threads),
-            "particle_steps_per_second",
-            "particle-steps/s",
-            timeout_s=600,
-        )
-        self.particles = particles
-        self.steps = steps
-        self.threads = threads
-
-    def binaries(self, bin_dir):
-        return [os.path.join(bin_dir, "bench_sph_throughput")]
-
-    def command(self, bin_dir):
-        return [
-            os.path.join(bin_dir, "bench_sph_throughput"),
-            "--slab", str(self.particles),
-            "--spacing", "0.01",
-            "--ratio", "1.5",
-            "--steps", str(self.steps),
-        ]
+        ] + (["--slab", str(self.slab)] if self.slab else [])
 
     def env(self):
         return passive_threads_env(self.threads)
@@ -584,7 +555,7 @@ def all_cases(quick, cores):
         cases.append(SphThroughput(kernel, ratio, spacing, sph_steps, 2, goal and not quick))
     # The cost against N at a constant share of wall particles (each size about 4 s).
     for particles, steps in ((10000, 40), (100000, 40)) if quick else ((10000, 400), (100000, 40), (1000000, 10)):
-        cases.append(SphSlab(particles, steps, 2))
+        cases.append(SphThroughput("wendland_c2", 1.5, 0.01, steps, 2, False, slab=particles))
     cases.append(chute)
     # The first three-solver scene (issue 16: the coupling's share of the wall time, goal at most 5 %) and the
     # Wenjia scenes at the paper's resolution (issue 23: the treated layout's 160 s within an hour; hours here).

@@ -17,39 +17,19 @@ import json
 import math
 import os
 import re
-import struct
 import subprocess
 import sys
 import tempfile
 import time
 import xml.etree.ElementTree as ET
 
+sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
+from scene_runs import read_vtu  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 SCENE = os.path.join(ROOT, "configs", "tests", "taylor_bar.toml")
 BAND_MM = (21.42, 21.66)
 FORMULATIONS = ("one_point", "fully_integrated", "enhanced_strain")
-
-
-def read_vtu(path):
-    """Points and point arrays of one of Sabo's .vtu files (appended raw, UInt64 headers), by name."""
-    with open(path, "rb") as handle:
-        raw = handle.read()
-    start = raw.index(b"<AppendedData")
-    head = raw[:start].decode()
-    data = raw.index(b"_", start) + 1
-    sizes = {"Float64": ("d", 8), "Int64": ("q", 8), "UInt64": ("Q", 8), "UInt8": ("B", 1)}
-    arrays = {}
-    pattern = r'<DataArray type="(\w+)" Name="(\w+)" NumberOfComponents="(\d+)" format="appended" offset="(\d+)"'
-    for match in re.finditer(pattern, head):
-        kind, name, components, offset = match.group(1), match.group(2), int(match.group(3)), int(match.group(4))
-        if kind not in sizes:
-            continue
-        code, width = sizes[kind]
-        at = data + offset
-        size = struct.unpack_from("<Q", raw, at)[0]
-        values = struct.unpack_from("<{}{}".format(size // width, code), raw, at + 8)
-        arrays[name] = [values[k:k + components] for k in range(0, len(values), components)]
-    return arrays
 
 
 def last_volume(run_dir, part="bar"):
