@@ -194,7 +194,10 @@ class ContactPair {
     bool allowed = true;
     std::string why_not;
   };
-  [[nodiscard]] virtual Holding holding() const { return {}; }
+  [[nodiscard]] virtual const Holding& holding() const {
+    static const Holding allowed;
+    return allowed;
+  }
   [[nodiscard]] virtual NewtonBalance newton_balance() const = 0;
   // J in the pair's springs at x_n, and W dissipated by its dashpots and slip in step n (acts over dt_n).
   struct Energy {

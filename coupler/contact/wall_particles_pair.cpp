@@ -37,18 +37,17 @@ WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
     : walls_(scene.sph.particle_spacing, scene.sph.kernel_support(), periodic_spans(scene.sph),
              scene.sph.free_slip_walls),
       spacing_(scene.sph.particle_spacing) {
+  std::vector<std::string> deformable;
   for (const auto& structure : scene.structures) {
-    if (!structure.rigid) deformable_.push_back(structure.name);
+    if (!structure.rigid) deformable.push_back(structure.name);
   }
-}
-
-ContactPair::Holding WallParticlesPair::holding() const {
-  if (deformable_.empty()) return {};
-  return {.allowed = false,
-          .why_not = fmt::format("its boundary particles sit on the deformable structure{} '{}': their acceleration "
-                                 "enters the fluid's pressure on them, and held over several steps that force feeds "
-                                 "the structure's vibration",
-                                 deformable_.size() > 1 ? "s" : "", fmt::join(deformable_, "', '"))};
+  if (!deformable.empty()) {
+    holding_ = {.allowed = false,
+                .why_not = fmt::format("its boundary particles sit on the deformable structure{} '{}': their "
+                                       "acceleration enters the fluid's pressure on them, and held over several steps "
+                                       "that force feeds the structure's vibration",
+                                       deformable.size() > 1 ? "s" : "", fmt::join(deformable, "', '"))};
+  }
 }
 
 void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {

@@ -23,7 +23,7 @@ class WallParticlesPair final : public ContactPair {
   // Not on a deformable structure: there the walls' acceleration enters their pressure (the fluid's added
   // mass), and that force held over several of the structure's steps feeds its vibration (C1 in
   // bench/RESULTS.md: the energy grew eightfold at two of its steps per exchange).
-  [[nodiscard]] Holding holding() const override;
+  [[nodiscard]] const Holding& holding() const override { return holding_; }
   [[nodiscard]] std::optional<std::string> load_source() const override { return "fluid"; }
   [[nodiscard]] std::span<const Vec3> loads() const override { return part_force_; }
   void want_point_loads() override { want_point_loads_ = true; }
@@ -39,7 +39,7 @@ class WallParticlesPair final : public ContactPair {
  private:
   BoundaryWalls walls_;
   double spacing_;
-  std::vector<std::string> deformable_;  // the deformable structures among the walls, by name
+  Holding holding_;  // not allowed when a structure among the walls is deformable
   const BoundaryChannel* channel_ = nullptr;
   std::size_t slot_ = 0;
   std::span<const double> returned_;  // this step: the fluid's force on the walls of an earlier step
