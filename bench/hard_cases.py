@@ -18,10 +18,9 @@ import math
 import os
 import sys
 import tempfile
-import xml.etree.ElementTree as ET
 
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
-from scene_runs import ROOT, read_vtu, run_scene  # noqa: E402
+from scene_runs import ROOT, pvd_frames, read_vtu, run_scene  # noqa: E402
 
 HARD = os.path.join(ROOT, "configs", "tests", "hard")
 
@@ -148,9 +147,9 @@ def read_points(path):
 def particles_kept(out, solver, container):
     """(ok, text): every particle of the first frame of RUN/SOLVER.pvd is in the last, active, its centre
     inside every half-space of `container`."""
-    files = [e.get("file") for e in ET.parse(os.path.join(out, solver + ".pvd")).getroot().iter("DataSet")]
-    first, _ = read_points(os.path.join(out, files[0]))
-    last, active = read_points(os.path.join(out, files[-1]))
+    frames = pvd_frames(out, solver)
+    first, _ = read_points(frames[0][1])
+    last, active = read_points(frames[-1][1])
     problems = []
     if len(last) != len(first):
         problems.append("{} of {} left".format(len(first) - len(last), len(first)))

@@ -6,6 +6,7 @@ import re
 import struct
 import subprocess
 import time
+import xml.etree.ElementTree as ET
 
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 
@@ -25,6 +26,12 @@ def run_scene(text, work, name):
         raise RuntimeError("{}: ./sabo run failed ({}):\n{}{}".format(name, run.returncode, run.stdout, run.stderr))
     with open(os.path.join(out, "summary.json"), encoding="utf-8") as handle:
         return out, wall, json.load(handle)
+
+
+def pvd_frames(run_dir, name):
+    """(time, path) of each frame of RUN_DIR/NAME.pvd, in the series' order."""
+    root = ET.parse(os.path.join(run_dir, name + ".pvd")).getroot()
+    return [(float(e.get("timestep")), os.path.join(run_dir, e.get("file"))) for e in root.iter("DataSet")]
 
 
 def read_vtu(path):

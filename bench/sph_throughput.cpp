@@ -58,16 +58,28 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
 
+  // What runs: the dam break (a column a x a x 2a in a tank 4a x a x 3a, wall particles under and around it),
+  // or the slab (20 spacings of water as wide as it takes to hold slab_particles, periodic along x and y, wall
+  // particles under it). lo..hi: the lattice box of the wall particles, less the tank's inside.
+  const bool slab = slab_particles > 0;
   const double a = 0.4;
-  // The slab: 20 spacings of water, as wide as it takes to hold slab_particles, on a floor of wall particles.
-  constexpr int kSlabDepth = 20;
-  const int slab_side =
-      slab_particles > 0
-          ? std::max(8, static_cast<int>(std::lround(std::sqrt(static_cast<double>(slab_particles) / kSlabDepth))))
-          : 0;
-  const double slab_width = slab_side * dx, slab_height = kSlabDepth * dx;
-  const double sound_speed =
-      slab_particles > 0 ? 10.0 * std::sqrt(2 * 9.81 * slab_height) : 10.0 * std::sqrt(2 * 9.81 * 2 * a);
+  const int layers = static_cast<int>(std::ceil(2 * ratio));
+  Vec3 fluid_max, tank_max, lo, hi;
+  if (slab) {
+    constexpr int kSlabDepth = 20;
+    const double width =
+        static_cast<double>(std::max(8L, std::lround(std::sqrt(static_cast<double>(slab_particles) / kSlabDepth)))) *
+        dx;
+    fluid_max = tank_max = Vec3(width, width, kSlabDepth * dx);
+    lo = Vec3(0.0, 0.0, -layers * dx);
+    hi = Vec3(width, width, 0.0);
+  } else {
+    fluid_max = Vec3(a, a, 2 * a);
+    tank_max = Vec3(4 * a, a, 3 * a);
+    lo = -Vec3::Constant(layers * dx);
+    hi = Vec3(tank_max.x() + layers * dx, tank_max.y() + layers * dx, tank_max.z());
+  }
+  const double sound_speed = 10.0 * std::sqrt(2 * 9.81 * fluid_max.z());
   scene::Scene s = sph::testing::water_scene(dx, sound_speed, ratio);
   s.sph.kernel = scene::value_named<scene::SphSettings::Kernel>(kernel);
   s.sph.wall_work = scene::value_named<scene::SphSettings::WallWork>(wall_work);
@@ -82,24 +94,16 @@ int main(int argc, char** argv) {
     material.yield_stress = 100.0;
     material.yield_shear_rate = 1.0;
   }
-  if (slab_particles > 0) {
-    s.sph.periodic_x = {0.0, slab_width};
-    s.sph.periodic_y = {0.0, slab_width};
-    s.fluids.push_back(sph::testing::box_body("slab", Vec3::Zero(), Vec3(slab_width, slab_width, slab_height)));
-  } else {
-    s.fluids.push_back(sph::testing::box_body("column", Vec3::Zero(), Vec3(a, a, 2 * a)));
+  if (slab) {
+    s.sph.periodic_x = {0.0, fluid_max.x()};
+    s.sph.periodic_y = {0.0, fluid_max.y()};
   }
+  s.fluids.push_back(sph::testing::box_body(slab ? "slab" : "column", Vec3::Zero(), fluid_max));
 
   const double memory_before = resident_megabytes();
   sph::SphModel model(s);
-  // Walls: 3 layers under and around the tank [0, 4a] x [0, a] x [0, 3a], or under the slab.
   physics::BoundaryParticles walls;
-  const int layers = static_cast<int>(std::ceil(2 * ratio));
-  const Vec3 min = Vec3::Zero(),
-             max = slab_particles > 0 ? Vec3(slab_width, slab_width, slab_height) : Vec3(4 * a, a, 3 * a);
-  const Vec3 lo = slab_particles > 0 ? Vec3(0.0, 0.0, -layers * dx) : Vec3(min - Vec3::Constant(layers * dx));
-  const Vec3 hi =
-      slab_particles > 0 ? Vec3(max.x(), max.y(), 0.0) : Vec3(max.x() + layers * dx, max.y() + layers * dx, max.z());
+  const Vec3 min = Vec3::Zero(), max = tank_max;
   const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
   for (int k = 0; k < count(hi.z() - lo.z()); ++k)
     for (int j = 0; j < count(hi.y() - lo.y()); ++j)
@@ -128,8 +132,8 @@ int main(int argc, char** argv) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const double n = static_cast<double>(model.size());
   fmt::print("{} particles {} walls {} threads {} kernel {} h/dx {} rheology {} viscous operator {}\n",
-             slab_particles > 0 ? "periodic slab" : "dam break", model.size(), wall_count, omp_get_max_threads(),
-             kernel, ratio, rheology, viscous_operator);
+             slab ? "periodic slab" : "dam break", model.size(), wall_count, omp_get_max_threads(), kernel, ratio,
+             rheology, viscous_operator);
   const double rate = n * steps / seconds;
   const double bytes = (memory_after - memory_before) * 1e6 / (n + static_cast<double>(wall_count));
   fmt::print("particle_steps_per_second {:.4g}\n", rate);

@@ -21,10 +21,9 @@ import subprocess
 import sys
 import tempfile
 import time
-import xml.etree.ElementTree as ET
 
 sys.path.insert(0, os.path.dirname(os.path.realpath(__file__)))
-from scene_runs import read_vtu  # noqa: E402
+from scene_runs import pvd_frames, read_vtu  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 SCENE = os.path.join(ROOT, "configs", "tests", "taylor_bar.toml")
@@ -33,9 +32,7 @@ FORMULATIONS = ("one_point", "fully_integrated", "enhanced_strain")
 
 
 def last_volume(run_dir, part="bar"):
-    root = ET.parse(os.path.join(run_dir, "fem_{}.pvd".format(part))).getroot()
-    files = [(float(e.get("timestep")), e.get("file")) for e in root.iter("DataSet")]
-    return max(files)[0], os.path.join(run_dir, max(files)[1])
+    return max(pvd_frames(run_dir, "fem_" + part))
 
 
 def measure(run_dir):

@@ -11,20 +11,15 @@ The boulder at 30 m/s against a 240 mm brick shell wall is BoulderAgainstShellWa
 labelled `hard`. bench/hard_cases.py's full-size scenes are checked to be valid scenes here, and its judge of
 lost and tunnelled particles against the test's own reading of the same frames."""
 import argparse
-import importlib.util
 import math
 import os
 import subprocess
+import sys
 
 from e2e_support import BUILD_DIR, ROOT, RealRunTestCase, read_csv, read_json, read_vtk, vtp_series
 
-
-def bench_hard_cases():
-    """bench/hard_cases.py as a module."""
-    spec = importlib.util.spec_from_file_location("hard_cases", os.path.join(ROOT, "bench", "hard_cases.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+import hard_cases  # noqa: E402
 
 HARD = "configs/tests/hard/"
 # configs/tests/chute_small.toml: a chute 15 m long (14.78 m along x) at 20 degrees, 4 m wide, walls and end
@@ -94,12 +89,11 @@ class HardCaseTest(RealRunTestCase):
             self.assertAlmostEqual(z, 0.04, delta=0.002)
         # The benchmark's judge (standard library only) reads the same frames to the same verdict, and sees a
         # centre past a wall as one.
-        hard = bench_hard_cases()
-        tank = hard.box((0.0, 0.0, 0.0), (0.3, 0.3, 0.25), "the tank")
-        self.assertEqual(hard.particles_kept(out, "dem", tank), (True, "3 dem: all kept"))
+        tank = hard_cases.box((0.0, 0.0, 0.0), (0.3, 0.3, 0.25), "the tank")
+        self.assertEqual(hard_cases.particles_kept(out, "dem", tank), (True, "3 dem: all kept"))
         lowest = float(heights.min())
-        shallow = hard.box((0.0, 0.0, lowest + 0.001), (0.3, 0.3, 0.25), "a floor above the lowest centre")
-        kept, text = hard.particles_kept(out, "dem", shallow)
+        shallow = hard_cases.box((0.0, 0.0, lowest + 0.001), (0.3, 0.3, 0.25), "a floor above the lowest centre")
+        kept, text = hard_cases.particles_kept(out, "dem", shallow)
         print("against a floor 1 mm above the lowest centre: " + text)
         self.assertFalse(kept)
         self.assertIn("past a floor above the lowest centre", text)
@@ -107,10 +101,9 @@ class HardCaseTest(RealRunTestCase):
     def test_the_benchmark_versions_are_valid_scenes(self):
         """Every full-size case of bench/hard_cases.py builds a scene that the scene check accepts (the
         script edits the shipped scenes; an edit that no longer applies stops it with a message)."""
-        hard = bench_hard_cases()
         args = argparse.Namespace(count=2000)
         checker = os.path.join(BUILD_DIR, "bin", "sabo_scene")
-        for name, (what, make, containers) in sorted(hard.CASES.items()):
+        for name, (what, make, containers) in sorted(hard_cases.CASES.items()):
             scene = os.path.join(self.tmp, name + ".toml")
             with open(scene, "w", encoding="utf-8") as handle:
                 handle.write(make(args))
