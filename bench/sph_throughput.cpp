@@ -7,6 +7,9 @@
 //                        [--viscous-operator strain_rate|morris]
 // --rheology: the column's material: inviscid water (the default), water of viscosity 1e-3 Pa s,
 // or a Bingham slurry (tau_y 100 Pa, mu_p 1 Pa s, gamma_0 1/s); --viscous-operator: sph.viscous_operator.
+// Under mpirun (mpirun -n R bench_sph_throughput ...) the model is shared by the R ranks
+// (sph_model.hpp, "Ranks"): rank 0 prints, the rate counts every rank's particles over the
+// slowest rank's time, and the halo (particles read from other ranks) is reported per step.
 #include <fmt/format.h>
 #include <omp.h>
 
@@ -15,9 +18,12 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <memory>
+#include <optional>
 #include <utility>
 
 #include "libsabo/scene/names.hpp"
+#include "sph_solver/parallel/mpi_ranks.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
 
@@ -56,7 +62,14 @@ int main(int argc, char** argv) {
                  "instead of the dam break: about this many fluid particles in a layer 20 spacings deep at rest on a "
                  "floor, periodic along x and y (the same share of wall particles at every size: cost against N)")
       ->check(CLI::PositiveNumber);
+  std::optional<sph::parallel::MpiSession> mpi;
+  std::shared_ptr<sph::parallel::Ranks> ranks;
+  if (sph::parallel::launched_by_mpi()) {
+    mpi.emplace(argc, argv);
+    ranks = std::make_shared<sph::parallel::MpiRanks>();
+  }
   CLI11_PARSE(app, argc, argv);
+  const bool root = ranks == nullptr || ranks->rank() == 0;
 
   // What runs: the dam break (a column a x a x 2a in a tank 4a x a x 3a, wall particles under and around it),
   // or the slab (20 spacings of water as wide as it takes to hold slab_particles, periodic along x and y, wall
@@ -101,7 +114,7 @@ int main(int argc, char** argv) {
   s.fluids.push_back(sph::testing::box_body(slab ? "slab" : "column", Vec3::Zero(), fluid_max));
 
   const double memory_before = resident_megabytes();
-  sph::SphModel model(s);
+  sph::SphModel model(s, ranks);
   physics::BoundaryParticles walls;
   const Vec3 min = Vec3::Zero(), max = tank_max;
   const auto count = [&](double e) { return static_cast<int>(std::floor(e / dx + 1e-9)); };
@@ -127,9 +140,25 @@ int main(int argc, char** argv) {
   };
   step();  // warm-up: buffers sized
   const double memory_after = resident_megabytes();
+  std::int64_t halo = 0, most_owned = ranks ? 0 : static_cast<std::int64_t>(model.size());
   const auto start = std::chrono::steady_clock::now();
-  for (int k = 0; k < steps; ++k) step();
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  for (int k = 0; k < steps; ++k) {
+    step();
+    halo += static_cast<std::int64_t>(model.halo_count());
+    if (ranks) most_owned = std::max(most_owned, static_cast<std::int64_t>(model.owned_count()));
+  }
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const int rank_count = ranks ? ranks->size() : 1;
+  if (ranks) {
+    double slowest[2] = {seconds, static_cast<double>(most_owned)};
+    ranks->max(slowest);
+    seconds = slowest[0];
+    most_owned = static_cast<std::int64_t>(slowest[1]);
+    std::int64_t total[1] = {halo};
+    ranks->sum(total);
+    halo = total[0];
+  }
+  if (!root) return 0;
   const double n = static_cast<double>(model.size());
   fmt::print("{} particles {} walls {} threads {} kernel {} h/dx {} rheology {} viscous operator {}\n",
              slab ? "periodic slab" : "dam break", model.size(), wall_count, omp_get_max_threads(), kernel, ratio,
@@ -139,10 +168,17 @@ int main(int argc, char** argv) {
   fmt::print("particle_steps_per_second {:.4g}\n", rate);
   fmt::print("neighbours_per_particle {:.1f}\n", model.mean_neighbours());
   fmt::print("bytes_per_particle {:.0f}\n", bytes);
+  const double halo_per_step = static_cast<double>(halo) / steps;
+  if (ranks) {
+    fmt::print("ranks {}: halo {:.0f} particles a step ({:.3g} of N), the largest rank owned {} ({:.3g} of N / R)\n",
+               rank_count, halo_per_step, halo_per_step / n, most_owned,
+               static_cast<double>(most_owned) * rank_count / n);
+  }
   // The last line: the figures for bench/run.py.
   fmt::print(
       "{{\"particles\": {}, \"walls\": {}, \"particle_steps_per_second\": {:.6g}, \"neighbours_per_particle\": {:.2f}, "
-      "\"bytes_per_particle\": {:.1f}, \"seconds\": {:.4g}}}\n",
-      model.size(), wall_count, rate, model.mean_neighbours(), bytes, seconds);
+      "\"bytes_per_particle\": {:.1f}, \"seconds\": {:.4g}, \"ranks\": {}, \"halo_per_step\": {:.1f}, "
+      "\"largest_rank_particles\": {}}}\n",
+      model.size(), wall_count, rate, model.mean_neighbours(), bytes, seconds, rank_count, halo_per_step, most_owned);
   return 0;
 }

@@ -9,17 +9,26 @@
 // in the StepForces of step n, so the SPH forces of step n are computed once they
 // are there (apply_coupling_forces), and the force on each wall particle goes back
 // in the next StepState.boundary_force, in the order received.
+//
+// Ranks (docs/architecture.md, "The slurry on several processes"): started by mpirun with R > 1
+// ranks, rank 0 is the coupler's correspondent (SphSolver, as alone) and the others follow it
+// (follow()): rank 0 broadcasts each call it makes of the shared model (RankCommand) before
+// making it, so that every rank steps the model with it, and after each step collects the whole
+// state (SphModel::collect_state()), which the coupler's states, the output and the checks read.
+// The coupler and the protocol do not change.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <utility>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/scene/loader.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/energy_audit.hpp"
 #include "sph_solver/fronts.hpp"
 #include "sph_solver/gauges.hpp"
 #include "sph_solver/inflow_recorder.hpp"
+#include "sph_solver/parallel/mpi_ranks.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "sph_solver/sph_output.hpp"
 
@@ -40,10 +49,87 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
   return out;
 }
 
+// What rank 0 tells the other ranks before each call of the shared model: the command, then its
+// arguments, all as doubles (ids and counts are exact in one).
+enum class RankCommand { compute = 1, walls, forces, integrate, collect, stop };
+
+std::vector<double> pack_walls(const physics::BoundaryParticles& walls) {
+  std::vector<double> out{double(RankCommand::walls), double(walls.size()), walls.velocity.empty() ? 0.0 : 1.0,
+                          walls.acceleration.empty() ? 0.0 : 1.0, walls.free_slip.empty() ? 0.0 : 1.0};
+  const auto vectors = [&](const std::vector<Vec3>& values) {
+    for (const Vec3& v : values) out.insert(out.end(), {v.x(), v.y(), v.z()});
+  };
+  vectors(walls.position);
+  vectors(walls.velocity);
+  vectors(walls.normal);
+  vectors(walls.acceleration);
+  out.insert(out.end(), walls.volume.begin(), walls.volume.end());
+  out.insert(out.end(), walls.free_slip.begin(), walls.free_slip.end());
+  return out;
+}
+
+physics::BoundaryParticles unpack_walls(const std::vector<double>& in) {
+  const auto n = static_cast<std::size_t>(in[1]);
+  std::size_t at = 5;
+  const auto vectors = [&](bool present) {
+    std::vector<Vec3> values;
+    if (!present) return values;
+    for (std::size_t k = 0; k < n; ++k, at += 3) values.emplace_back(in[at], in[at + 1], in[at + 2]);
+    return values;
+  };
+  physics::BoundaryParticles walls;
+  walls.position = vectors(true);
+  walls.velocity = vectors(in[2] != 0);
+  walls.normal = vectors(true);
+  walls.acceleration = vectors(in[3] != 0);
+  walls.volume.assign(in.begin() + static_cast<std::ptrdiff_t>(at), in.begin() + static_cast<std::ptrdiff_t>(at + n));
+  at += n;
+  if (in[4] != 0) {
+    for (std::size_t k = 0; k < n; ++k) walls.free_slip.push_back(static_cast<std::uint8_t>(in[at + k]));
+  }
+  return walls;
+}
+
+// Rank 0's side of the commands (a no-op without ranks).
+class RankLeader {
+ public:
+  explicit RankLeader(std::shared_ptr<parallel::Ranks> ranks) : ranks_(std::move(ranks)) {}
+  [[nodiscard]] bool active() const { return ranks_ != nullptr; }
+  void send(std::vector<double> command) {
+    if (ranks_) ranks_->broadcast(command, 0);
+  }
+  void send(RankCommand command, std::initializer_list<double> arguments = {}) {
+    std::vector<double> out{double(command)};
+    out.insert(out.end(), arguments);
+    send(std::move(out));
+  }
+  void stop() {
+    if (ranks_ && !stopped_) send(RankCommand::stop);
+    stopped_ = true;
+  }
+
+ private:
+  std::shared_ptr<parallel::Ranks> ranks_;
+  bool stopped_ = false;
+};
+
+// The scene's parts that rank 0 alone cannot serve yet: they read the neighbour grid.
+void refuse_on_ranks(const scene::Scene& scene) {
+  const char* unsupported = !scene.gauges.empty() ? "[[gauges]]" : !scene.fronts.empty() ? "[[fronts]]" : nullptr;
+  if (unsupported != nullptr) {
+    throw SceneError(fmt::format(
+        "{}: the sph_solver on several ranks does not sample the fluid yet. Fix: run the sph_solver as one process "
+        "(without mpirun), or leave them out",
+        unsupported));
+  }
+}
+
 class SphSolver final : public solver::CoupledSolver {
  public:
-  SphSolver(const scene::Scene& scene, const solver::SolverOptions& options)
-      : model_(scene),
+  SphSolver(const scene::Scene& scene, const solver::SolverOptions& options,
+            std::shared_ptr<parallel::Ranks> ranks = nullptr)
+      : model_(scene, ranks),
+        leader_(ranks),
         audit_(model_),
         output_(options.out_dir, model_),
         gauges_(options.out_dir, scene),
@@ -51,6 +137,12 @@ class SphSolver final : public solver::CoupledSolver {
         inflow_history_(options.out_dir, scene, model_),
         boundary_walls_(scene.sph_receives_boundary_particles()),
         limits_(solver::stability_limits(scene, Role::sph)) {
+    if (leader_.active()) {
+      refuse_on_ranks(scene);
+      spdlog::info("the SPH model runs on {} ranks (slabs of the grid along its longest axis); this rank, 0, talks "
+                   "to the coupler",
+                   ranks->size());
+    }
     for (const scene::Material& material : scene.materials) rest_density_.push_back(material.density);
     scene_max_speed_ = scene.run.max_speed.has_value();
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
@@ -106,7 +198,10 @@ class SphSolver final : public solver::CoupledSolver {
 
   void compute_internal_forces(double dt_previous) override {
     dt_previous_ = dt_previous;
-    if (!boundary_walls_) model_.compute_internal_forces(dt_previous);
+    if (!boundary_walls_) {
+      leader_.send(RankCommand::compute, {dt_previous});
+      model_.compute_internal_forces(dt_previous);
+    }
   }
 
   void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
@@ -124,12 +219,22 @@ class SphSolver final : public solver::CoupledSolver {
       }
       walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
       walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
+      if (leader_.active()) {
+        leader_.send(pack_walls(walls));
+        leader_.send(RankCommand::compute, {dt_previous_});
+      }
       model_.set_boundary(std::move(walls));
       model_.compute_internal_forces(dt_previous_);
       have_boundary_forces_ = true;
     }
     const std::span<const std::uint32_t> index{forces.index().data(), static_cast<std::size_t>(forces.index_size())};
     const std::span<const double> force{forces.force().data(), static_cast<std::size_t>(forces.force_size())};
+    if (leader_.active()) {
+      std::vector<double> command{double(RankCommand::forces), double(index.size())};
+      command.insert(command.end(), index.begin(), index.end());
+      command.insert(command.end(), force.begin(), force.end());
+      leader_.send(std::move(command));
+    }
     model_.add_external_forces(index, force);
     audit_.before_integrate(model_, index, force);
     gauges_.sample(model_, model_.time());
@@ -137,7 +242,8 @@ class SphSolver final : public solver::CoupledSolver {
     inflow_history_.sample(model_, model_.time());
   }
 
-  [[nodiscard]] bool can_take_state() const override { return true; }
+  // On ranks the recorded state would have to go to each particle's owner: not yet.
+  [[nodiscard]] bool can_take_state() const override { return !leader_.active(); }
   void take_state(const sabo::v1::StepState& recorded) override {
     solver::take_particle_states(recorded, model_.positions(), model_.velocities());
   }
@@ -148,7 +254,14 @@ class SphSolver final : public solver::CoupledSolver {
   }
 
   void integrate(double dt_previous, double dt) override {
-    model_.integrate(dt_previous, dt);
+    if (leader_.active()) {
+      leader_.send(RankCommand::integrate, {dt_previous, dt});
+      model_.integrate(dt_previous, dt);
+      leader_.send(RankCommand::collect);
+      model_.collect_state();
+    } else {
+      model_.integrate(dt_previous, dt);
+    }
     audit_.after_integrate(model_, dt_previous, dt);
     if (lost_reported_ == 0 && model_.lost_count() > 0) {
       // The first loss at once; later ones summed up at each output time (a flow leaving through an open end
@@ -182,7 +295,8 @@ class SphSolver final : public solver::CoupledSolver {
   // Walls arrive as boundary particles at x_n and the fluid's force on them goes back for that one
   // step: held over several steps, neither would be exact, so such a run is lock-step for the fluid.
   [[nodiscard]] std::uint32_t max_substeps() const override { return boundary_walls_ ? 1 : solver::kMaxSubsteps; }
-  [[nodiscard]] bool can_checkpoint() const override { return true; }
+  // On ranks a checkpoint would be written by rank 0 and read back by every rank: not yet.
+  [[nodiscard]] bool can_checkpoint() const override { return !leader_.active(); }
   void save_checkpoint(io::hdf5::Group& group) const override {
     io::hdf5::Group model = group.create_group("model");
     model_.save_state(model);
@@ -208,7 +322,10 @@ class SphSolver final : public solver::CoupledSolver {
     if (!model_.inflows().empty()) results["inflows"] = inflow_results();
     return results.empty() ? std::string() : results.dump();
   }
-  void finish() override { report_losses("since the last output, to the end"); }
+  void finish() override {
+    leader_.stop();
+    report_losses("since the last output, to the end");
+  }
 
  private:
   // Per inflow: the hydrograph's volume up to the model's time against the volume and mass released.
@@ -241,6 +358,7 @@ class SphSolver final : public solver::CoupledSolver {
   }
 
   SphModel model_;
+  RankLeader leader_;
   EnergyAudit audit_;
   SphOutput output_;
   GaugeRecorder gauges_;
@@ -258,9 +376,68 @@ class SphSolver final : public solver::CoupledSolver {
 }  // namespace
 }  // namespace sabo::sph
 
+namespace sabo::sph {
+namespace {
+
+// The other ranks: the same scene's model, stepped as rank 0 says, until it says stop.
+int follow(int argc, char** argv, const std::shared_ptr<parallel::Ranks>& ranks) {
+  const std::optional<solver::SolverOptions> options = solver::parse_solver_command_line(argc, argv, "sph_solver");
+  if (!options) return 0;
+  const scene::Scene scene = scene::load_scene(options->scene);
+  SphModel model(scene, ranks);
+  for (;;) {
+    std::vector<double> command;
+    ranks->broadcast(command, 0);
+    switch (static_cast<RankCommand>(static_cast<int>(command.at(0)))) {
+      case RankCommand::compute: model.compute_internal_forces(command.at(1)); break;
+      case RankCommand::walls: model.set_boundary(unpack_walls(command)); break;
+      case RankCommand::forces: {
+        const auto count = static_cast<std::size_t>(command.at(1));
+        std::vector<std::uint32_t> index(count);
+        for (std::size_t k = 0; k < count; ++k) index[k] = static_cast<std::uint32_t>(command[2 + k]);
+        model.add_external_forces(index, std::span<const double>(command).subspan(2 + count));
+        break;
+      }
+      case RankCommand::integrate: model.integrate(command.at(1), command.at(2)); break;
+      case RankCommand::collect: model.collect_state(); break;
+      case RankCommand::stop: return 0;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace sabo::sph
+
 int main(int argc, char** argv) {
-  return sabo::solver::solver_main(argc, argv, sabo::Role::sph,
-                                   [](const sabo::scene::Scene& scene, const sabo::solver::SolverOptions& options) {
-                                     return std::make_unique<sabo::sph::SphSolver>(scene, options);
-                                   });
+  using namespace sabo;
+  const auto make = [](std::shared_ptr<sph::parallel::Ranks> ranks) {
+    return [ranks](const scene::Scene& scene, const solver::SolverOptions& options) {
+      return std::make_unique<sph::SphSolver>(scene, options, ranks);
+    };
+  };
+  if (!sph::parallel::launched_by_mpi()) return solver::solver_main(argc, argv, Role::sph, make(nullptr));
+  std::optional<sph::parallel::MpiSession> mpi;
+  std::shared_ptr<sph::parallel::MpiRanks> ranks;
+  try {
+    mpi.emplace(argc, argv);
+    ranks = std::make_shared<sph::parallel::MpiRanks>();
+  } catch (const std::exception& error) {
+    fmt::print(stderr, "{}\n", error.what());
+    return 1;
+  }
+  if (ranks->size() == 1) return solver::solver_main(argc, argv, Role::sph, make(nullptr));
+  int status = 0;
+  if (ranks->rank() == 0) {
+    status = solver::solver_main(argc, argv, Role::sph, make(ranks));
+  } else {
+    try {
+      status = sph::follow(argc, argv, ranks);
+    } catch (const std::exception& error) {
+      fmt::print(stderr, "sph_solver rank {}: {}\n", ranks->rank(), error.what());
+      status = 1;
+    }
+  }
+  // A rank that failed may have left the others inside a collective call: end them all.
+  if (status != 0 && status != 130) mpi->abort(status);
+  return status;
 }

@@ -35,7 +35,7 @@ int lattice_neighbours(double reach) {
 
 }  // namespace
 
-SphModel::SphModel(const scene::Scene& scene)
+SphModel::SphModel(const scene::Scene& scene, std::shared_ptr<parallel::Ranks> ranks)
     : settings_(scene.sph),
       kernel_(scene.sph.kernel, scene.sph.smoothing_length()),
       gravity_(scene.run.gravity),
@@ -117,9 +117,27 @@ SphModel::SphModel(const scene::Scene& scene)
   }
   if (credits_wall_work() && settings_.wall_work == WallWork::bounded) wall_work_held_.assign(n, 0.0f);
   stable_dt_ = initial_stable_dt();
+  if (ranks) {
+    const char* unsupported = !periodic_.empty()  ? "sph.periodic_x / sph.periodic_y"
+                              : !inflows_.empty() ? "[[inflows]]"
+                                                  : nullptr;
+    if (unsupported != nullptr) {
+      throw SceneError(fmt::format(
+          "{}: the sph_solver on several ranks does not model them yet. Fix: run the sph_solver as one process "
+          "(without mpirun), or leave them out",
+          unsupported));
+    }
+    ranks_ = std::move(ranks);
+    if (ranks_->rank() == 0) collected_active_ = active_;  // it starts with the whole state
+    // Until the first step's slabs: rank r owns the r-th of R equal runs of ids.
+    const auto r = static_cast<std::size_t>(ranks_->rank()), count = static_cast<std::size_t>(ranks_->size());
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i * count / n != r) active_[i] = 0;
+    }
+  }
   energies_.kinetic = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    if (active_[i] != kFree) continue;  // an inflow's buffer enters the account at the first step
+    if (ranks_ == nullptr && active_[i] != kFree) continue;  // an inflow's buffer enters the account at the first step
     energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm();
     energies_.potential -=
         mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i]));
@@ -133,12 +151,17 @@ void SphModel::compute_internal_forces(double dt_previous) {
     wrap_positions();  // positions() is writable
     make_images();
   }
+  if (decomposed()) distribute();
   build_grid();
+  if (decomposed()) mark_slots();
   gather();
   compute_boundary_state();
+  if (decomposed()) exchange_wall_state();
   compute_velocity_gradients(false);
+  if (decomposed()) exchange_viscosities();
   compute_fluid_forces();
   compute_boundary_forces();
+  if (decomposed()) reduce_step_maxima();
   stable_dt_ = forces_stable_dt();
   forces_ready_ = true;
 }

@@ -49,8 +49,24 @@
 // added in lane order); the per-particle results are written back by id;
 // every floating-point reduction over particles is serial (or a max).
 // Same input, same bits, for any number of threads.
+//
+// Ranks (docs/architecture.md, "The slurry on several processes"): a model built with
+// parallel::Ranks shares the particles with the other ranks' models. Every step it owns the
+// particles in its slab of grid layers along the longest axis of the grid (parallel/slabs.hpp,
+// rebalanced every step by the particles per layer) and reads the layer either side of it as a
+// halo: the particles there arrive from their owners at the start of the step, and the per-slot
+// results that neighbours read (wall state, viscosities, new velocities) after the pass that
+// makes them. A rank's grid holds every particle of the cells its own particles search, in the
+// same slots order as one model alone, so each particle sums the same neighbours in the same
+// order: the same bits on any number of ranks. Between steps, positions(), velocities() and the
+// other per-id arrays are current for the particles this rank owns (active() != 0 here) only;
+// gather_state() brings the whole state to every rank. Not yet with periodic boundaries or
+// inflows (SceneError). The energies are the ranks' sums added in rank order: the same on any
+// run with the same rank count, equal to one model's to rounding.
 #include <cstdint>
+#include <initializer_list>
 #include <limits>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -61,6 +77,8 @@
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
 #include "sph_solver/inflow.hpp"
+#include "sph_solver/parallel/ranks.hpp"
+#include "sph_solver/parallel/slabs.hpp"
 #include "sph_solver/sph_kernel.hpp"
 
 namespace sabo::sph {
@@ -133,8 +151,9 @@ inline constexpr double kSurfaceKernelSum = 0.5;
 class SphModel {
  public:
   // Builds the particles of every fluid body. Throws SceneError when a body
-  // holds no particle at the scene's spacing.
-  explicit SphModel(const scene::Scene& scene);
+  // holds no particle at the scene's spacing. With ranks: one of the ranks' models (above);
+  // every rank builds it from the same scene.
+  explicit SphModel(const scene::Scene& scene, std::shared_ptr<parallel::Ranks> ranks = nullptr);
 
   [[nodiscard]] std::size_t size() const { return position_.size(); }
   [[nodiscard]] const scene::SphSettings& settings() const { return settings_; }
@@ -157,7 +176,13 @@ class SphModel {
   // ParticleState per particle: 0 for those out of the simulation (taken out on leaving the domain, or an
   // inflow's that have not entered or were taken out with its buffer), else in it (1 free, 2 and 3 in an
   // inflow's buffer).
-  [[nodiscard]] std::span<const std::uint8_t> active() const { return active_; }
+  // On ranks: this rank's particles only (the others read 0), but on rank 0 (collect_state()):
+  // every particle's.
+  [[nodiscard]] std::span<const std::uint8_t> active() const {
+    return collected_active_.empty() ? std::span<const std::uint8_t>(active_) : collected_active_;
+  }
+  // Nonzero for the particles this model steps: all active ones alone, this rank's on ranks.
+  [[nodiscard]] std::span<const std::uint8_t> owned() const { return active_; }
   // The inflows' emission, one per [[inflows]] body in scene order.
   [[nodiscard]] std::span<const InflowState> inflows() const { return inflows_; }
   [[nodiscard]] std::size_t lost_count() const { return lost_; }
@@ -209,6 +234,28 @@ class SphModel {
   // Box around all active particles; empty when there are none.
   [[nodiscard]] Aabb bounds() const;
 
+  // Decomposed over ranks (parallel::Ranks): the slabs and their axis (0 x, 1 y, 2 z) of the
+  // last compute_internal_forces(), the particles this rank owned there and read as its halo.
+  [[nodiscard]] bool decomposed() const { return ranks_ != nullptr; }
+  [[nodiscard]] const parallel::Slabs& slabs() const { return slabs_; }
+  [[nodiscard]] int slab_axis() const { return slab_axis_; }
+  [[nodiscard]] std::size_t owned_count() const { return owned_count_; }
+  [[nodiscard]] std::size_t halo_count() const { return halo_count_; }
+  // The whole state by particle id, as one model alone holds it in positions() and the rest.
+  struct ParticleState {
+    std::vector<Vec3> position, velocity;
+    std::vector<double> density, pressure, stress;  // stress: 6 per particle, only with has_stress()
+    std::vector<float> wall_work_held;              // only with wall_work_held()
+    std::vector<std::uint8_t> active;
+  };
+  // Collective: every rank's owned particles' state on rank `root` (on every rank: root < 0);
+  // empty on the others. Without ranks: a copy.
+  [[nodiscard]] ParticleState gather_state(int root = -1) const;
+  // Collective: gather_state(0) into rank 0's own per-id arrays and active(), so that its
+  // accessors read the whole state as one model's would (the sph_solver's rank 0 after each
+  // step: the coupler's states, the output and the checks read it). The ownership stays.
+  void collect_state();
+
   // The whole state integrate() leaves for the next step, for checkpoints (sph_checkpoint.cpp): a model built
   // from the same scene that loads it continues with the same bits. FileError for a checkpoint of another scene.
   void save_state(io::hdf5::Group& group) const;
@@ -233,6 +280,33 @@ class SphModel {
   template <class Visit>
   void for_fluid_within_support(const Vec3& point, Visit&& visit) const;
   void wrap_positions();
+  // Decomposed (above): the global grid, the slabs, and the particles of this rank's window
+  // from their owners; then, after build_grid(), which slots this rank computes and the halo
+  // lists; and the halo exchange of per-slot results (component q of slot s at
+  // data[q * stride + s]).
+  void distribute();
+  void mark_slots();
+  struct HaloField {
+    float* data;
+    std::size_t stride;
+    int components;
+  };
+  void exchange_halo(std::initializer_list<HaloField> fluid, std::initializer_list<HaloField> wall);
+  void exchange_wall_state();   // compute_boundary_state()'s
+  void exchange_viscosities();  // compute_velocity_gradients()' effective viscosities and eta L~^T
+  void exchange_velocities();   // the new velocities compute_velocity_divergence() gathered
+  void exchange_wall_credit();  // compute_wall_compression()'s
+  // The stable step's maxima, the neighbour count and the wall forces over all ranks.
+  void reduce_step_maxima();
+  // Whether this model computes sorted fluid (wall) slot s: a particle, not an image nor a halo slot.
+  [[nodiscard]] bool computes_fluid_slot(std::size_t s) const {
+    return f_order_[s] < position_.size() && (fmine_.empty() || fmine_[s] != 0);
+  }
+  [[nodiscard]] bool computes_wall_slot(std::size_t s) const {
+    return b_order_[s] < boundary_.size() && (bmine_.empty() || bmine_[s] != 0);
+  }
+  // The grid's origin and cell counts for the particles (and walls) inside `box`.
+  void set_grid_geometry(Aabb box);
   // Inflows (passes/inflow.cpp): the pools and the first buffer layers, at construction; each buffer's
   // velocity for the step to time_ + dt; after the position update, the buffers advanced (positions,
   // densities), their front layers released and new layers added behind, and a buffer whose hydrograph
@@ -396,9 +470,25 @@ class SphModel {
 
   double stable_dt_ = 0;
   double mean_neighbours_ = 0;
+  std::int64_t neighbour_pairs_ = 0;  // pairs inside the support counted by mean_neighbours_
   bool forces_ready_ = false;
   std::vector<double> energy_block_;  // J: kinetic, potential, elastic per block of particles
   Energies energies_;
+
+  // Decomposition (only with ranks_).
+  std::shared_ptr<parallel::Ranks> ranks_;
+  parallel::Slabs slabs_;
+  int slab_axis_ = 0;
+  std::int64_t global_particles_ = 0;   // active fluid particles over all ranks at the last compute
+  std::int64_t uniform_material_ = -1;  // the fluid's one material over all ranks, or -1
+  std::size_t owned_count_ = 0, halo_count_ = 0;
+  std::vector<std::uint8_t> fmine_, bmine_;  // per sorted slot: 1 where this rank computes it
+  struct HaloSide {
+    int rank;
+    std::vector<std::uint32_t> fluid_send, fluid_receive, wall_send, wall_receive;  // sorted slots
+  };
+  std::vector<HaloSide> halo_;                  // the lower and upper neighbour ranks that exist
+  std::vector<std::uint8_t> collected_active_;  // every particle's flag (only on rank 0 of ranks, see active())
 };
 
 }  // namespace sabo::sph

@@ -42,14 +42,18 @@ void SphModel::compute_velocity_divergence(double dt) {
     fvy_[s] = static_cast<float>(v.y());
     fvz_[s] = static_cast<float>(v.z());
   }
-  if (credits_wall_work()) compute_wall_compression();  // read by velocity_divergence()
+  if (decomposed()) exchange_velocities();
+  if (credits_wall_work()) {
+    compute_wall_compression();  // read by velocity_divergence()
+    if (decomposed()) exchange_wall_credit();
+  }
   with_terms(kernel_.type, false, false, false, false, DensityDiffusion::none,
              [&](auto terms) { velocity_divergence(terms, dt); });
 }
 
 template <class T>
 void SphModel::velocity_divergence(T, double dt) {
-  const std::size_t n = f_order_.size(), particles = position_.size();
+  const std::size_t n = f_order_.size();
   const KernelF kernel(kernel_);
   const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
   const float* fx = fx_.data();
@@ -74,7 +78,7 @@ void SphModel::velocity_divergence(T, double dt) {
   particle_for(n, parallel, [=, this](std::int64_t first, std::int64_t last) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto i = static_cast<std::uint32_t>(k);
-      if (f_order_[i] >= particles) continue;  // an image: read-only
+      if (!computes_fluid_slot(i)) continue;  // an image or a halo slot: read-only
       alignas(64) float credit[kLanes] = {};
       const float x = fx[i], y = fy[i], z = fz[i];
       const float vx = fvx[i], vy = fvy[i], vz = fvz[i];

@@ -39,15 +39,8 @@ Aabb SphModel::bounds() const {
   return box;
 }
 
-void SphModel::build_grid() {
+void SphModel::set_grid_geometry(Aabb box) {
   const double cell = kernel_.support();
-  const bool periodic = !periodic_.empty();
-  const std::vector<Vec3>& f_position = periodic ? f_sort_position_ : position_;
-  const std::vector<Vec3>& b_position = periodic ? b_sort_position_ : boundary_.position;
-  const std::size_t particles = position_.size();
-  Aabb box = bounds();
-  for (const Vec3& p : b_position) box.extend(p);
-  for (std::size_t k = particles; k < f_position.size(); ++k) box.extend(f_position[k]);
   if (box.empty()) box = Aabb{Vec3::Zero(), Vec3::Zero()};
   grid_origin_ = box.min.array() - 0.5 * cell;
   const Vec3 extent = box.max - grid_origin_;
@@ -61,9 +54,22 @@ void SphModel::build_grid() {
                     "leaving the domain are taken out, or close the walls.",
                     extent.x(), extent.y(), extent.z(), nx_ * ny_ * nz_, cell));
   }
+  inverse_cell_ = 1.0 / cell;
+}
+
+void SphModel::build_grid() {
+  const bool periodic = !periodic_.empty();
+  const std::vector<Vec3>& f_position = periodic ? f_sort_position_ : position_;
+  const std::vector<Vec3>& b_position = periodic ? b_sort_position_ : boundary_.position;
+  const std::size_t particles = position_.size();
+  if (!decomposed()) {  // distribute() set the grid of all ranks
+    Aabb box = bounds();
+    for (const Vec3& p : b_position) box.extend(p);
+    for (std::size_t k = particles; k < f_position.size(); ++k) box.extend(f_position[k]);
+    set_grid_geometry(box);
+  }
   const std::size_t cells = static_cast<std::size_t>(nx_ * ny_ * nz_);
-  const double inverse_cell = 1.0 / cell;
-  inverse_cell_ = inverse_cell;
+  const double inverse_cell = inverse_cell_;
   const auto cell_of = [&](const Vec3& p) {
     const auto ix = static_cast<std::int64_t>((p.x() - grid_origin_.x()) * inverse_cell);
     const auto iy = static_cast<std::int64_t>((p.y() - grid_origin_.y()) * inverse_cell);
@@ -108,8 +114,14 @@ void SphModel::build_grid() {
   sort(
       f_position, [&](std::size_t i) { return i >= particles || active_[i] != 0; }, f_cell_start_, f_order_);
   sort_by_x(f_position, f_cell_start_, f_order_, f_image_source_.size());
+  // Decomposed: the wall particles of this rank's window only.
+  const int axis = slab_axis_;
+  const auto in_window = [&](std::size_t b) {
+    const auto layer = static_cast<std::int64_t>((b_position[b][axis] - grid_origin_[axis]) * inverse_cell);
+    return slabs_.in_window(ranks_->rank(), layer);
+  };
   sort(
-      b_position, [](std::size_t) { return true; }, b_cell_start_, b_order_);
+      b_position, [&](std::size_t b) { return !decomposed() || in_window(b); }, b_cell_start_, b_order_);
   sort_by_x(b_position, b_cell_start_, b_order_, b_image_source_.size());
   if (periodic) {
     f_slot_of_.resize(particles);

@@ -60,9 +60,9 @@ double SphModel::initial_stable_dt() const {
 }
 
 double SphModel::forces_stable_dt() const {
-  const std::size_t n = f_order_.size();
+  const bool any_fluid = decomposed() ? global_particles_ > 0 : !f_order_.empty();
   const double h = kernel_.h;
-  double dt_cv = n > 0 ? h / (sound_speed_ + max_mu_) : h / sound_speed_;
+  double dt_cv = any_fluid ? h / (sound_speed_ + max_mu_) : h / sound_speed_;
   dt_cv = std::min(dt_cv, elastic_wave_dt_);
   const double dt_force =
       max_acceleration_ > 0 ? std::sqrt(h / max_acceleration_) : std::numeric_limits<double>::infinity();
@@ -157,7 +157,7 @@ void SphModel::integrate(double dt_previous, double dt) {
   particle_for<Compile::baseline>(f_order_.size(), parallel, [&](std::int64_t first, std::int64_t last) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto s = static_cast<std::size_t>(k);
-      if (f_order_[s] < n) density_[f_order_[s]] += dt * out_drho_[s];
+      if (computes_fluid_slot(s)) density_[f_order_[s]] += dt * out_drho_[s];
     }
   });
   particle_for<Compile::baseline>(n, parallel, [&](std::int64_t first, std::int64_t last) {
@@ -194,6 +194,7 @@ void SphModel::integrate(double dt_previous, double dt) {
   }
   if (!inflows_.empty()) advance_inflows(dt);
   if (periodic) wrap_positions();
+  const std::size_t lost_before = lost_;
   for (std::size_t i = 0; i < n; ++i) {
     // A buffer's particles keep to the buffer's path (the scene holds it in the domain).
     if (active_[i] != kFree) continue;
@@ -204,6 +205,21 @@ void SphModel::integrate(double dt_previous, double dt) {
       active_[i] = 0;
       velocity_[i].setZero();
       ++lost_;
+    }
+  }
+  if (decomposed()) {
+    // This rank's sums (its particles only), then every rank's in rank order; the losses likewise.
+    const double local[5] = {energies.kinetic, energies.potential, energies.elastic, energies.wall_held,
+                             static_cast<double>(lost_ - lost_before)};
+    const std::vector<double> all = ranks_->gather(local);
+    energies.kinetic = energies.potential = energies.elastic = energies.wall_held = 0;
+    lost_ = lost_before;
+    for (std::size_t r = 0; r < all.size(); r += 5) {
+      energies.kinetic += all[r];
+      energies.potential += all[r + 1];
+      energies.elastic += all[r + 2];
+      energies.wall_held += all[r + 3];
+      lost_ += static_cast<std::size_t>(all[r + 4]);
     }
   }
   energies_ = energies;

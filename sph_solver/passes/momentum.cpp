@@ -86,7 +86,7 @@ void SphModel::fluid_forces(T) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto i = static_cast<std::uint32_t>(k);
       const std::uint32_t id = f_order_[i];
-      if (id >= particles) continue;  // an image: read-only
+      if (!computes_fluid_slot(i)) continue;  // an image or a halo slot: read-only
       const float x = fx[i], y = fy[i], z = fz[i];
       const float vx = fvx[i], vy = fvy[i], vz = fvz[i];
       const float rho_i = frho[i], pr_i = fpr[i], full_i = ffull[i];
@@ -234,7 +234,8 @@ void SphModel::fluid_forces(T) {
   const StepMaxima maxima = particle_reduce(n, parallel, StepMaxima{}, body);
   max_mu_ = maxima.mu;
   max_acceleration_ = maxima.acceleration;
-  const std::size_t real = n - f_image_source_.size();
+  neighbour_pairs_ = maxima.neighbours;
+  const std::size_t real = decomposed() ? owned_count_ : n - f_image_source_.size();
   mean_neighbours_ = real > 0 ? static_cast<double>(maxima.neighbours) / static_cast<double>(real) : 0.0;
 }
 

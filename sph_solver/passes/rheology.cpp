@@ -83,7 +83,8 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto i = static_cast<std::size_t>(k);
       const FluidMaterial& material = materials_[fmat_[i]];
-      if (!material.needs_velocity_gradient() || f_order_[i] >= particles) continue;  // images: copied below
+      // Images: copied below; halo slots: exchange_viscosities().
+      if (!material.needs_velocity_gradient() || !computes_fluid_slot(i)) continue;
       if (elastic_plastic_only && material.rheology != Rheology::elastic_plastic) continue;
       const double x = fx_[i], y = fy_[i], z = fz_[i];
       double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
@@ -200,7 +201,7 @@ void SphModel::stress_rates() {
   std::fill(stress_rate_.begin(), stress_rate_.end(), 0.0);
   for (std::size_t s = 0; s < n; ++s) {
     const std::uint32_t i = f_order_[s];
-    if (i >= position_.size()) continue;  // an image
+    if (!computes_fluid_slot(s)) continue;  // an image or a halo slot
     double* rate = &stress_rate_[6 * i];
     const FluidMaterial& material = materials_[material_[i]];
     if (material.rheology != Rheology::elastic_plastic) continue;

@@ -78,7 +78,13 @@ void SphModel::compute_boundary_state() {
   with_terms(kernel_.type, any_gradient_, has_stress_, false, false, DensityDiffusion::none,
              [&](auto terms) { boundary_state(terms); });
   if (has_stress_) {
-    boundary_stress_.resize(6 * boundary_.size());  // every entry is written: b_order_ holds every wall particle
+    // Alone, every entry is written (b_order_ holds every wall particle); on ranks, the walls of
+    // other slabs stay 0 for reduce_step_maxima()'s sum.
+    if (decomposed()) {
+      boundary_stress_.assign(6 * boundary_.size(), 0.0);
+    } else {
+      boundary_stress_.resize(6 * boundary_.size());
+    }
     extrapolate_wall_stress();
   }
   if (!b_image_source_.empty()) copy_wall_image_state();
@@ -101,7 +107,7 @@ void SphModel::extrapolate_wall_stress() {
     for (std::int64_t k = first; k < last; ++k) {
       const auto s = static_cast<std::size_t>(k);
       const std::uint32_t id = b_order_[s];
-      if (id >= boundary_.size()) continue;  // an image: copy_wall_image_state()
+      if (!computes_wall_slot(s)) continue;  // an image (copy_wall_image_state()) or a halo slot
       const double* m = &bmoment_[kWallMoments * s];
       Sym6 s_w;
       if (m[0] > 0) {
@@ -141,7 +147,7 @@ void SphModel::extrapolate_wall_stress() {
 
 template <class T>
 void SphModel::boundary_state(T) {
-  const std::size_t nb = b_order_.size(), walls = boundary_.size();
+  const std::size_t nb = b_order_.size();
   const KernelF kernel(kernel_);
   const auto support2 = static_cast<float>(kernel_.support() * kernel_.support());
   const float* fx = fx_.data();
@@ -156,14 +162,21 @@ void SphModel::boundary_state(T) {
   const std::size_t stress_stride = f_order_.size() + kLanes;
   // With one fluid material the material of every wall particle is known.
   const bool credit_walls = credits_wall_work();
-  const bool one_material = std::all_of(fmat_.begin(), fmat_.begin() + static_cast<std::ptrdiff_t>(f_order_.size()),
-                                        [&](std::uint32_t m) { return m == fmat_[0]; });
+  // On ranks: over all ranks' fluid (distribute()).
+  const bool one_material =
+      decomposed() ? uniform_material_ >= 0
+                   : std::all_of(fmat_.begin(), fmat_.begin() + static_cast<std::ptrdiff_t>(f_order_.size()),
+                                 [&](std::uint32_t m) { return m == fmat_[0]; });
+  const std::uint32_t first_material = decomposed() && uniform_material_ >= 0
+                                           ? static_cast<std::uint32_t>(uniform_material_)
+                                       : fmat_.empty() ? 0
+                                                       : fmat_[0];
   const bool parallel = in_parallel(nb - b_image_source_.size());
   particle_for(nb, parallel, [=, this](std::int64_t first, std::int64_t last) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto s = static_cast<std::size_t>(k);
       const std::uint32_t id = b_order_[s];
-      if (id >= walls) continue;  // an image: copy_wall_image_state()
+      if (!computes_wall_slot(s)) continue;  // an image (copy_wall_image_state()) or a halo slot
       const Vec3 g_minus_a = gravity_ - boundary_.acceleration_of(id);
       const auto gax = static_cast<float>(g_minus_a.x()), gay = static_cast<float>(g_minus_a.y()),
                  gaz = static_cast<float>(g_minus_a.z());
@@ -243,7 +256,7 @@ void SphModel::boundary_state(T) {
           out[q + 2] = total;
         }
       }
-      std::uint32_t material = fmat_.empty() ? 0 : fmat_[0];
+      std::uint32_t material = first_material;
       if (!one_material && total_w > 0) {
         // The material of the nearest fluid particle (largest W, the first in search order).
         double best_w = -1;
@@ -349,6 +362,7 @@ void SphModel::boundary_forces(T) {
   particle_for(nb, parallel, [=, this, &b_position](std::int64_t first, std::int64_t last) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto b = static_cast<std::size_t>(k);
+      if (!bmine_.empty() && bmine_[b] == 0) continue;  // a halo slot: its owner's
       const std::uint32_t id = b_order_[b];
       const float x = bx_[b], y = by_[b], z = bz_[b];
       const float rho_b = brho_[b], m_b = rho_b * bvol_[b], pr_b = bpr_[b];
@@ -450,7 +464,7 @@ void SphModel::wall_compression(T) {
     for (std::int64_t k = first; k < last; ++k) {
       const auto s = static_cast<std::size_t>(k);
       const std::uint32_t id = b_order_[s];
-      if (id >= walls) continue;  // an image: copied below
+      if (!computes_wall_slot(s)) continue;  // an image (copied below) or a halo slot
       if (bcredit_[s] == 0.0f) continue;
       const float x = bx_[s], y = by_[s], z = bz_[s];
       const float wx = bwx_[s], wy = bwy_[s], wz = bwz_[s];

@@ -1,0 +1,319 @@
+// The model on several ranks (sph_model.hpp, "Ranks"): the global grid and the slabs, the
+// particles of each rank's window from their owners, which sorted slots a rank computes, the
+// halo exchanges of per-slot results, and the reductions over ranks.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "libsabo/core/error.hpp"
+#include "sph_solver/passes/neighbours.hpp"
+#include "sph_solver/sph_model.hpp"
+
+namespace sabo::sph {
+namespace {
+
+// A particle's record between ranks: id, active flag, position, velocity, density, pressure,
+// then (where the model keeps them) its fluid neighbours, 6 stress components and the wall
+// work it holds back. Doubles: an id or a count is exact in one.
+constexpr std::size_t kRecordCore = 10;
+
+}  // namespace
+
+void SphModel::distribute() {
+  const int rank = ranks_->rank();
+  const std::size_t n = position_.size();
+  // The grid of all ranks: the box around every rank's particles and the walls, and the range
+  // of the fluid's materials (min and max; both as minima).
+  Aabb box = bounds();
+  for (const Vec3& p : boundary_.position) box.extend(p);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  double material_min = kInf, material_max = -kInf;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!active_[i]) continue;
+    material_min = std::min(material_min, double(material_[i]));
+    material_max = std::max(material_max, double(material_[i]));
+  }
+  double low[8] = {kInf, kInf, kInf, -kInf, -kInf, -kInf, material_min, -material_max};
+  if (!box.empty()) {
+    for (int a = 0; a < 3; ++a) {
+      low[a] = box.min[a];
+      low[3 + a] = -box.max[a];
+    }
+  }
+  ranks_->min(low);
+  Aabb global;
+  if (low[0] <= -low[3]) {
+    global.extend(Vec3(low[0], low[1], low[2]));
+    global.extend(Vec3(-low[3], -low[4], -low[5]));
+  }
+  uniform_material_ = low[6] == -low[7] ? static_cast<std::int64_t>(low[6]) : -1;
+  set_grid_geometry(global);
+  // Slabs along the axis with the most cells (ties: x, then y), balanced by the particles per layer.
+  slab_axis_ = nx_ >= ny_ && nx_ >= nz_ ? 0 : (ny_ >= nz_ ? 1 : 2);
+  const std::int64_t layers = slab_axis_ == 0 ? nx_ : (slab_axis_ == 1 ? ny_ : nz_);
+  const int axis = slab_axis_;
+  const auto layer_of = [&](const Vec3& p) {
+    const auto layer = static_cast<std::int64_t>((p[axis] - grid_origin_[axis]) * inverse_cell_);
+    return std::clamp<std::int64_t>(layer, 0, layers - 1);  // a position that is not finite: any layer
+  };
+  std::vector<std::int64_t> counts(static_cast<std::size_t>(layers), 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (active_[i]) ++counts[static_cast<std::size_t>(layer_of(position_[i]))];
+  }
+  ranks_->sum(counts);
+  global_particles_ = 0;
+  for (std::int64_t c : counts) global_particles_ += c;
+  slabs_ = parallel::Slabs(counts, ranks_->size());
+  // Every particle this rank owned goes to each rank whose window now holds it; it stays here
+  // only if this window holds it too.
+  const bool neighbours = !support_neighbours_.empty(), held = !wall_work_held_.empty();
+  const std::size_t record = kRecordCore + 1 + (has_stress_ ? 6 : 0) + (held ? 1 : 0);
+  std::vector<std::vector<double>> to(static_cast<std::size_t>(ranks_->size()));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!active_[i]) continue;
+    bool stays = false;
+    for (const int q : slabs_.windows_holding(layer_of(position_[i]))) {
+      if (q == rank) {
+        stays = true;
+        continue;
+      }
+      std::vector<double>& out = to[static_cast<std::size_t>(q)];
+      out.insert(out.end(), {double(i), double(active_[i]), position_[i].x(), position_[i].y(), position_[i].z(),
+                             velocity_[i].x(), velocity_[i].y(), velocity_[i].z(), density_[i], pressure_[i]});
+      out.push_back(neighbours ? double(support_neighbours_[i]) : 0.0);
+      if (has_stress_) out.insert(out.end(), &stress_[6 * i], &stress_[6 * i] + 6);
+      if (held) out.push_back(double(wall_work_held_[i]));
+    }
+    if (!stays) active_[i] = 0;
+  }
+  for (const std::vector<double>& from : ranks_->all_to_all(to)) {
+    assert(from.size() % record == 0);
+    for (std::size_t k = 0; k < from.size(); k += record) {
+      const double* r = &from[k];
+      const auto i = static_cast<std::size_t>(r[0]);
+      active_[i] = static_cast<std::uint8_t>(r[1]);
+      position_[i] = Vec3(r[2], r[3], r[4]);
+      velocity_[i] = Vec3(r[5], r[6], r[7]);
+      density_[i] = r[8];
+      pressure_[i] = r[9];
+      if (neighbours) support_neighbours_[i] = static_cast<std::int32_t>(r[10]);
+      std::size_t next = kRecordCore + 1;
+      if (has_stress_) {
+        std::copy_n(r + next, 6, &stress_[6 * i]);
+        next += 6;
+      }
+      if (held) wall_work_held_[i] = static_cast<float>(r[next]);
+    }
+  }
+}
+
+void SphModel::mark_slots() {
+  const int rank = ranks_->rank(), count = ranks_->size();
+  const std::int64_t first = slabs_.first(rank), end = slabs_.first(rank + 1);
+  const auto layer_of_cell = [&](std::int64_t c) {
+    switch (slab_axis_) {
+      case 0: return c % nx_;
+      case 1: return (c / nx_) % ny_;
+      default: return c / (nx_ * ny_);
+    }
+  };
+  halo_.clear();
+  if (rank > 0) halo_.push_back({rank - 1, {}, {}, {}, {}});
+  if (rank + 1 < count) halo_.push_back({rank + 1, {}, {}, {}, {}});
+  // Cells in grid order, slots in order inside each: both sides of a halo list the slots of
+  // the same cells in the same order.
+  const auto mark = [&](const std::vector<std::uint32_t>& start, std::vector<std::uint8_t>& mine, bool fluid) {
+    mine.assign(start.back(), 0);
+    const auto cells = static_cast<std::int64_t>(start.size()) - 1;
+    for (std::int64_t c = 0; c < cells; ++c) {
+      const std::uint32_t begin = start[static_cast<std::size_t>(c)], stop = start[static_cast<std::size_t>(c) + 1];
+      if (begin == stop) continue;
+      const std::int64_t layer = layer_of_cell(c);
+      const bool own = layer >= first && layer < end;
+      for (HaloSide& side : halo_) {
+        const bool lower = side.rank < rank;
+        const bool send = own && (lower ? layer == first : layer == end - 1);
+        const bool receive = lower ? layer == first - 1 : layer == end;
+        if (!send && !receive) continue;
+        std::vector<std::uint32_t>& list =
+            fluid ? (send ? side.fluid_send : side.fluid_receive) : (send ? side.wall_send : side.wall_receive);
+        for (std::uint32_t s = begin; s < stop; ++s) list.push_back(s);
+      }
+      if (own) std::fill(mine.begin() + begin, mine.begin() + stop, std::uint8_t{1});
+    }
+  };
+  mark(f_cell_start_, fmine_, true);
+  mark(b_cell_start_, bmine_, false);
+  // The halo's particles are read, not integrated: this rank owns the rest until the next step.
+  owned_count_ = halo_count_ = 0;
+  for (std::size_t s = 0; s < f_order_.size(); ++s) {
+    if (fmine_[s]) {
+      ++owned_count_;
+    } else {
+      active_[f_order_[s]] = 0;
+      ++halo_count_;
+    }
+  }
+}
+
+void SphModel::exchange_halo(std::initializer_list<HaloField> fluid, std::initializer_list<HaloField> wall) {
+  std::vector<int> peers;
+  std::vector<std::vector<float>> sends;
+  const auto pack = [](std::initializer_list<HaloField> fields, const std::vector<std::uint32_t>& slots,
+                       std::vector<float>& out) {
+    for (const HaloField& field : fields) {
+      for (int q = 0; q < field.components; ++q) {
+        const float* data = field.data + static_cast<std::size_t>(q) * field.stride;
+        for (const std::uint32_t s : slots) out.push_back(data[s]);
+      }
+    }
+  };
+  for (const HaloSide& side : halo_) {
+    peers.push_back(side.rank);
+    sends.emplace_back();
+    pack(fluid, side.fluid_send, sends.back());
+    pack(wall, side.wall_send, sends.back());
+  }
+  const std::vector<std::vector<float>> received = ranks_->exchange(peers, sends);
+  for (std::size_t k = 0; k < halo_.size(); ++k) {
+    const HaloSide& side = halo_[k];
+    const std::vector<float>& in = received[k];
+    std::size_t at = 0;
+    const auto unpack = [&](std::initializer_list<HaloField> fields, const std::vector<std::uint32_t>& slots) {
+      for (const HaloField& field : fields) {
+        for (int q = 0; q < field.components; ++q) {
+          float* data = field.data + static_cast<std::size_t>(q) * field.stride;
+          for (const std::uint32_t s : slots) {
+            if (at >= in.size()) break;
+            data[s] = in[at++];
+          }
+        }
+      }
+    };
+    unpack(fluid, side.fluid_receive);
+    unpack(wall, side.wall_receive);
+    if (at != in.size() || [&] {
+          std::size_t expected = 0;
+          for (const HaloField& f : fluid)
+            expected += static_cast<std::size_t>(f.components) * side.fluid_receive.size();
+          for (const HaloField& f : wall) expected += static_cast<std::size_t>(f.components) * side.wall_receive.size();
+          return expected != in.size();
+        }()) {
+      throw Error(fmt::format(
+          "sph_solver: rank {} received {} halo values from rank {}, not the {} fluid and {} wall slots it reads "
+          "there; the ranks' grids disagree (an internal error: please report it with the scene)",
+          ranks_->rank(), in.size(), side.rank, side.fluid_receive.size(), side.wall_receive.size()));
+    }
+  }
+}
+
+void SphModel::exchange_wall_state() {
+  const std::size_t stride = b_order_.size() + kLanes;
+  exchange_halo({}, {{bpr_.data(), stride, 1},
+                     {brho_.data(), stride, 1},
+                     {bvol_.data(), stride, 1},
+                     {bvx_.data(), stride, any_gradient_ ? 1 : 0},
+                     {bvy_.data(), stride, any_gradient_ ? 1 : 0},
+                     {bvz_.data(), stride, any_gradient_ ? 1 : 0},
+                     {bstress_.data(), stride, has_stress_ ? 6 : 0},
+                     {bcredit_.data(), stride, credits_wall_work() ? 1 : 0}});
+}
+
+void SphModel::exchange_viscosities() {
+  const std::size_t stride = f_order_.size() + kLanes;
+  exchange_halo(
+      {{feta_.data(), stride, any_gradient_ ? 1 : 0}, {ftranspose_.data(), stride, ftranspose_.empty() ? 0 : 9}}, {});
+}
+
+void SphModel::exchange_velocities() {
+  const std::size_t stride = f_order_.size() + kLanes;
+  exchange_halo({{fvx_.data(), stride, 1}, {fvy_.data(), stride, 1}, {fvz_.data(), stride, 1}}, {});
+}
+
+void SphModel::exchange_wall_credit() {
+  exchange_halo({}, {{bcredit_.data(), b_order_.size() + kLanes, 1}});
+}
+
+void SphModel::reduce_step_maxima() {
+  double maxima[3] = {max_mu_, max_acceleration_, -min_viscous_dt_};
+  ranks_->max(maxima);
+  max_mu_ = maxima[0];
+  max_acceleration_ = maxima[1];
+  min_viscous_dt_ = -maxima[2];
+  std::int64_t counts[2] = {neighbour_pairs_, static_cast<std::int64_t>(owned_count_)};
+  ranks_->sum(counts);
+  neighbour_pairs_ = counts[0];
+  mean_neighbours_ = counts[1] > 0 ? static_cast<double>(counts[0]) / static_cast<double>(counts[1]) : 0.0;
+  // Each wall particle's force (and stress) came from the rank that owns it; the others hold 0.
+  ranks_->sum_disjoint({boundary_force_.data()->data(), 3 * boundary_force_.size()});
+  if (!boundary_stress_.empty()) ranks_->sum_disjoint(boundary_stress_);
+}
+
+SphModel::ParticleState SphModel::gather_state(int root) const {
+  const std::size_t n = position_.size();
+  const bool held = !wall_work_held_.empty();
+  ParticleState state;
+  const bool receives = !decomposed() || root < 0 || ranks_->rank() == root;
+  if (receives) {
+    state.position = position_;
+    state.velocity = velocity_;
+    state.density = density_;
+    state.pressure = pressure_;
+    state.stress = stress_;
+    state.wall_work_held = wall_work_held_;
+    state.active = active_;
+  }
+  if (!decomposed()) return state;
+  const std::size_t record = kRecordCore + (has_stress_ ? 6 : 0) + (held ? 1 : 0);
+  std::vector<double> mine;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!active_[i]) continue;
+    mine.insert(mine.end(), {double(i), double(active_[i]), position_[i].x(), position_[i].y(), position_[i].z(),
+                             velocity_[i].x(), velocity_[i].y(), velocity_[i].z(), density_[i], pressure_[i]});
+    if (has_stress_) mine.insert(mine.end(), &stress_[6 * i], &stress_[6 * i] + 6);
+    if (held) mine.push_back(double(wall_work_held_[i]));
+  }
+  std::vector<std::vector<double>> to(static_cast<std::size_t>(ranks_->size()));
+  for (std::size_t q = 0; q < to.size(); ++q) {
+    if (root < 0 || static_cast<int>(q) == root) to[q] = mine;
+  }
+  const std::vector<std::vector<double>> received = ranks_->all_to_all(to);
+  if (!receives) return state;
+  // The particles out of the simulation are no rank's: they read inactive.
+  std::fill(state.active.begin(), state.active.end(), std::uint8_t{0});
+  for (const std::vector<double>& from : received) {
+    for (std::size_t k = 0; k < from.size(); k += record) {
+      const double* r = &from[k];
+      const auto i = static_cast<std::size_t>(r[0]);
+      state.active[i] = static_cast<std::uint8_t>(r[1]);
+      state.position[i] = Vec3(r[2], r[3], r[4]);
+      state.velocity[i] = Vec3(r[5], r[6], r[7]);
+      state.density[i] = r[8];
+      state.pressure[i] = r[9];
+      if (has_stress_) std::copy_n(r + kRecordCore, 6, &state.stress[6 * i]);
+      if (held) state.wall_work_held[i] = static_cast<float>(r[kRecordCore + (has_stress_ ? 6 : 0)]);
+    }
+  }
+  return state;
+}
+
+void SphModel::collect_state() {
+  if (!decomposed()) return;
+  ParticleState state = gather_state(0);
+  if (ranks_->rank() != 0) return;
+  // Only what a rank does not own changes: its own entries are what it sent.
+  position_ = std::move(state.position);
+  velocity_ = std::move(state.velocity);
+  density_ = std::move(state.density);
+  pressure_ = std::move(state.pressure);
+  stress_ = std::move(state.stress);
+  wall_work_held_ = std::move(state.wall_work_held);
+  collected_active_ = std::move(state.active);
+}
+
+}  // namespace sabo::sph

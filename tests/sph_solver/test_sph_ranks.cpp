@@ -1,0 +1,201 @@
+// The SPH model on several ranks (sph_model.hpp, "Ranks"): run under mpirun, every rank steps
+// its share of a scene and, beside it, the whole scene alone; each particle a rank owns, and
+// the state gathered from all ranks, must equal the model alone to the bit. The slabs'
+// arithmetic is checked on its own. Registered with ctest for 2 ranks (tests/sph_solver/CMakeLists.txt).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <memory>
+
+#include "libsabo/core/error.hpp"
+#include "sph_solver/parallel/mpi_ranks.hpp"
+#include "sph_solver/parallel/slabs.hpp"
+#include "sph_solver/sph_model.hpp"
+#include "tests/support/sph_scenes.hpp"
+
+namespace sabo::sph {
+namespace {
+
+using testing::box_body;
+using testing::container_walls;
+using testing::water_scene;
+
+std::shared_ptr<parallel::Ranks> world() {
+  return std::make_shared<parallel::MpiRanks>();
+}
+
+TEST(SphSlabs, BalanceTheParticlesAndGiveEveryRankALayer) {
+  const std::int64_t counts[] = {0, 10, 10, 10, 10, 0, 0, 40, 0, 0};
+  const parallel::Slabs two(counts, 2);
+  EXPECT_EQ(two.first(0), 0);
+  // Rank 1 starts at the first layer that would take rank 0 past half: 40 particles each.
+  EXPECT_EQ(two.first(1), 7);
+  EXPECT_EQ(two.owner(6), 0);
+  EXPECT_EQ(two.owner(7), 1);
+  EXPECT_EQ(two.windows_holding(4), (std::vector<int>{0}));
+  EXPECT_EQ(two.windows_holding(6), (std::vector<int>{0, 1}));
+  EXPECT_EQ(two.windows_holding(7), (std::vector<int>{0, 1}));
+  EXPECT_EQ(two.windows_holding(8), (std::vector<int>{1}));
+  const parallel::Slabs four(counts, 4);
+  for (int r = 0; r < 4; ++r) EXPECT_LT(four.first(r), four.first(r + 1)) << "rank " << r << " has no layer";
+  // All in one layer: still one layer each.
+  const std::int64_t lump[] = {0, 0, 80, 0};
+  const parallel::Slabs lumped(lump, 4);
+  for (int r = 0; r < 4; ++r) EXPECT_EQ(lumped.first(r), r);
+  const std::int64_t few[] = {5, 5};
+  EXPECT_THROW(parallel::Slabs(few, 3), Error);
+}
+
+struct Case {
+  scene::Scene scene;
+  physics::BoundaryParticles walls;
+  double end_time;
+};
+
+// Steps `alone` (the whole scene) and `shared` (this rank's part) with the same steps and
+// compares them after each of a few checkpoints; returns the number of steps.
+int compare_runs(const Case& c, const char* what) {
+  SphModel alone(c.scene), shared(c.scene, world());
+  alone.set_boundary(c.walls);
+  shared.set_boundary(c.walls);
+  int steps = 0, mismatches = 0;
+  double dt_previous = 0, time = 0;
+  std::size_t most_halo = 0;
+  while (time < c.end_time && mismatches == 0) {
+    alone.compute_internal_forces(dt_previous);
+    shared.compute_internal_forces(dt_previous);
+    EXPECT_EQ(alone.stable_dt(), shared.stable_dt()) << what << " step " << steps;
+    for (std::size_t b = 0; b < c.walls.size(); ++b) {
+      if (alone.boundary_forces()[b] != shared.boundary_forces()[b]) ++mismatches;
+    }
+    EXPECT_EQ(mismatches, 0) << what << ": wall forces differ at step " << steps;
+    most_halo = std::max(most_halo, shared.halo_count());
+    const double dt = alone.stable_dt();
+    alone.integrate(dt_previous, dt);
+    shared.integrate(dt_previous, dt);
+    dt_previous = dt;
+    time += dt;
+    ++steps;
+    for (std::size_t i = 0; i < alone.size(); ++i) {
+      if (!shared.owned()[i]) continue;
+      if (alone.positions()[i] != shared.positions()[i] || alone.velocities()[i] != shared.velocities()[i] ||
+          alone.densities()[i] != shared.densities()[i]) {
+        ADD_FAILURE() << what << ": particle " << i << " differs at step " << steps;
+        ++mismatches;
+        break;
+      }
+    }
+  }
+  const SphModel::ParticleState all = shared.gather_state();
+  std::size_t compared = 0;
+  for (std::size_t i = 0; i < alone.size(); ++i) {
+    EXPECT_EQ(all.active[i], alone.active()[i]) << what << ": particle " << i;
+    if (!alone.active()[i]) continue;
+    ++compared;
+    EXPECT_EQ(all.position[i], alone.positions()[i]) << what << ": particle " << i;
+    EXPECT_EQ(all.velocity[i], alone.velocities()[i]) << what << ": particle " << i;
+    EXPECT_EQ(all.density[i], alone.densities()[i]) << what << ": particle " << i;
+    EXPECT_EQ(all.pressure[i], alone.pressures()[i]) << what << ": particle " << i;
+    for (std::size_t q = 0; q < all.stress.size() / alone.size(); ++q) {
+      EXPECT_EQ(all.stress[6 * i + q], alone.deviatoric_stress()[6 * i + q]) << what << ": particle " << i;
+    }
+  }
+  // Rank 0's own accessors after collect_state(): the whole state.
+  shared.collect_state();
+  if (parallel::MpiRanks().rank() == 0) {
+    for (std::size_t i = 0; i < alone.size(); ++i) {
+      EXPECT_EQ(shared.active()[i], alone.active()[i]) << what << ": collected particle " << i;
+      if (alone.active()[i]) {
+        EXPECT_EQ(shared.positions()[i], alone.positions()[i]) << what << ": collected " << i;
+      }
+    }
+  }
+  const double energy = alone.energies().total(), shared_energy = shared.energies().total();
+  const double scale = std::abs(alone.energies().kinetic) + std::abs(alone.energies().potential) + 1e-30;
+  EXPECT_NEAR(shared_energy, energy, 1e-12 * scale) << what;
+  std::cout << what << ", " << shared.slabs().ranks() << " ranks: " << steps << " steps, " << compared
+            << " particles compared bit for bit, this rank owns " << shared.owned_count() << " and read at most "
+            << most_halo << " in its halo (slab axis " << shared.slab_axis() << "); energy " << shared_energy
+            << " J against " << energy << " J alone\n";
+  EXPECT_GT(steps, 20);
+  return steps;
+}
+
+// A column collapsing in a closed box (walls of boundary particles; water; the default
+// density diffusion and bounded wall work): the flow moves across the slabs.
+Case collapse(double end_time) {
+  const double dx = 0.02;
+  Case c{water_scene(dx, 20.0), container_walls(Vec3(0, 0, 0), Vec3(0.6, 0.12, 0.3), dx, 3), end_time};
+  c.scene.fluids.push_back(box_body("column", Vec3(0, 0, 0), Vec3(0.2, 0.12, 0.2)));
+  return c;
+}
+
+TEST(SphRanks, DamBreakIsTheSameBitsAsOneModel) {
+  compare_runs(collapse(0.15), "dam break");
+}
+
+TEST(SphRanks, BinghamSlurryWithTheStrainRateOperator) {
+  Case c = collapse(0.08);
+  scene::Material& m = c.scene.materials[0];
+  m.rheology = scene::Material::Rheology::bingham;
+  m.viscosity = 0.5;
+  m.yield_stress = 20.0;
+  m.yield_shear_rate = 5.0;
+  compare_runs(c, "Bingham slurry");
+}
+
+TEST(SphRanks, ElasticPlasticColumn) {
+  Case c = collapse(0.06);
+  scene::Material& m = c.scene.materials[0];
+  m.rheology = scene::Material::Rheology::elastic_plastic;
+  m.yield_stress = 580;
+  m.fluid_shear_modulus = 1e5;
+  compare_runs(c, "elastic-plastic column");
+}
+
+TEST(SphRanks, ParticlesLeavingTheDomainAreTakenOutOnce) {
+  Case c = collapse(0.2);
+  c.walls = container_walls(Vec3(0, 0, 0), Vec3(0.6, 0.12, 0.3), 0.02, 3);
+  // Open on the right: the domain ends at x = 0.3, where the walls keep going.
+  c.scene.sph.domain = Aabb{Vec3(-1, -1, -1), Vec3(0.3, 1, 1)};
+  SphModel alone(c.scene), shared(c.scene, world());
+  alone.set_boundary(c.walls);
+  shared.set_boundary(c.walls);
+  double dt_previous = 0;
+  for (int step = 0; step < 400; ++step) {
+    alone.compute_internal_forces(dt_previous);
+    shared.compute_internal_forces(dt_previous);
+    alone.integrate(dt_previous, alone.stable_dt());
+    shared.integrate(dt_previous, alone.stable_dt());
+    dt_previous = alone.stable_dt();
+  }
+  std::cout << "particles taken out: " << shared.lost_count() << " on ranks, " << alone.lost_count() << " alone\n";
+  EXPECT_GT(alone.lost_count(), 0u);
+  EXPECT_EQ(shared.lost_count(), alone.lost_count());
+}
+
+TEST(SphRanks, PeriodicScenesAreRefusedWithTheFix) {
+  Case c = collapse(0.1);
+  c.scene.sph.periodic_y = std::array<double, 2>{0.0, 0.12 * 4};
+  try {
+    SphModel model(c.scene, world());
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    std::cout << e.what() << "\n";
+    EXPECT_NE(std::string(e.what()).find("without mpirun"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace sabo::sph
+
+int main(int argc, char** argv) {
+  sabo::sph::parallel::MpiSession session(argc, argv);
+  ::testing::InitGoogleTest(&argc, argv);
+  // Every rank reports (a failure on one rank names it); the exit status is any rank's failure.
+  const int failed = RUN_ALL_TESTS();
+  std::vector<std::int64_t> any{failed};
+  sabo::sph::parallel::MpiRanks().sum(any);
+  return any[0] != 0 ? 1 : 0;
+}
