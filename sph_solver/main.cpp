@@ -51,7 +51,7 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
 
 // What rank 0 tells the other ranks before each call of the shared model: the command, then its
 // arguments, all as doubles (ids and counts are exact in one).
-enum class RankCommand { compute = 1, walls, forces, integrate, collect, stop };
+enum class RankCommand { compute = 1, walls, forces, integrate, collect, share_loaded_state, stop };
 
 std::vector<double> pack_walls(const physics::BoundaryParticles& walls) {
   std::vector<double> out{double(RankCommand::walls), double(walls.size()), walls.velocity.empty() ? 0.0 : 1.0,
@@ -139,9 +139,10 @@ class SphSolver final : public solver::CoupledSolver {
         limits_(solver::stability_limits(scene, Role::sph)) {
     if (leader_.active()) {
       refuse_on_ranks(scene);
-      spdlog::info("the SPH model runs on {} ranks (slabs of the grid along its longest axis); this rank, 0, talks "
-                   "to the coupler",
-                   ranks->size());
+      spdlog::info(
+          "the SPH model runs on {} ranks (slabs of the grid along its longest axis); this rank, 0, talks "
+          "to the coupler",
+          ranks->size());
     }
     for (const scene::Material& material : scene.materials) rest_density_.push_back(material.density);
     scene_max_speed_ = scene.run.max_speed.has_value();
@@ -295,8 +296,8 @@ class SphSolver final : public solver::CoupledSolver {
   // Walls arrive as boundary particles at x_n and the fluid's force on them goes back for that one
   // step: held over several steps, neither would be exact, so such a run is lock-step for the fluid.
   [[nodiscard]] std::uint32_t max_substeps() const override { return boundary_walls_ ? 1 : solver::kMaxSubsteps; }
-  // On ranks a checkpoint would be written by rank 0 and read back by every rank: not yet.
-  [[nodiscard]] bool can_checkpoint() const override { return !leader_.active(); }
+  // On ranks rank 0 writes the state it collects after every step, and shares what it loads.
+  [[nodiscard]] bool can_checkpoint() const override { return true; }
   void save_checkpoint(io::hdf5::Group& group) const override {
     io::hdf5::Group model = group.create_group("model");
     model_.save_state(model);
@@ -309,6 +310,10 @@ class SphSolver final : public solver::CoupledSolver {
   }
   void load_checkpoint(const io::hdf5::Group& group) override {
     model_.load_state(group.group("model"));
+    if (leader_.active()) {
+      leader_.send(RankCommand::share_loaded_state);
+      model_.share_loaded_state();
+    }
     audit_.load(group);
     output_.load(group);
     gauges_.load(group);
@@ -400,6 +405,7 @@ int follow(int argc, char** argv, const std::shared_ptr<parallel::Ranks>& ranks)
       }
       case RankCommand::integrate: model.integrate(command.at(1), command.at(2)); break;
       case RankCommand::collect: model.collect_state(); break;
+      case RankCommand::share_loaded_state: model.share_loaded_state(); break;
       case RankCommand::stop: return 0;
     }
   }

@@ -21,7 +21,8 @@ void SphModel::save_state(io::hdf5::Group& group) const {
   io::write_array(group, "pressure", pressure_);
   io::write_array(group, "stress", stress_);
   io::write_array(group, "stress_rate", stress_rate_);
-  io::write_array(group, "active", active_);
+  // On ranks (rank 0, after collect_state()): every particle's flag, not this rank's share.
+  io::write_array(group, "active", std::vector<std::uint8_t>(active().begin(), active().end()));
   io::write_array(group, "settle_factor", settle_factor_);
   io::write_vectors(group, "wrap_offset", wrap_offset_);
   io::write_vectors(group, "boundary_force", boundary_force_);
@@ -68,6 +69,7 @@ void SphModel::load_state(const io::hdf5::Group& group) {
   stress_ = io::read_array<double>(group, "stress", has_stress_ ? 6 * size() : 0);
   stress_rate_ = io::read_array<double>(group, "stress_rate");
   active_ = io::read_array<std::uint8_t>(group, "active", size());
+  if (decomposed()) collected_active_ = active_;  // and share_loaded_state() cuts active_ to this rank's share
   settle_factor_ = io::read_array<double>(group, "settle_factor");
   wrap_offset_ = io::read_vectors(group, "wrap_offset");
   boundary_force_ = io::read_vectors(group, "boundary_force");

@@ -60,8 +60,8 @@
 // same slots order as one model alone, so each particle sums the same neighbours in the same
 // order: the same bits on any number of ranks. Between steps, positions(), velocities() and the
 // other per-id arrays are current for the particles this rank owns (active() != 0 here) only;
-// gather_state() brings the whole state to every rank. Not yet with periodic boundaries or
-// inflows (SceneError). The energies are the ranks' sums added in rank order: the same on any
+// gather_state() brings the whole state to every rank, collect_state() to rank 0. Not yet with
+// periodic boundaries or inflows (SceneError). The energies are the ranks' sums added in rank order: the same on any
 // run with the same rank count, equal to one model's to rounding.
 #include <cstdint>
 #include <initializer_list>
@@ -246,6 +246,7 @@ class SphModel {
     std::vector<Vec3> position, velocity;
     std::vector<double> density, pressure, stress;  // stress: 6 per particle, only with has_stress()
     std::vector<float> wall_work_held;              // only with wall_work_held()
+    std::vector<std::int32_t> support_neighbours;   // fluid neighbours in the last compute (once one ran)
     std::vector<std::uint8_t> active;
   };
   // Collective: every rank's owned particles' state on rank `root` (on every rank: root < 0);
@@ -258,8 +259,13 @@ class SphModel {
 
   // The whole state integrate() leaves for the next step, for checkpoints (sph_checkpoint.cpp): a model built
   // from the same scene that loads it continues with the same bits. FileError for a checkpoint of another scene.
+  // On ranks: rank 0 writes, after collect_state() (the whole state; what only a particle's
+  // owner holds, its last acceleration and stress rate, is not read by the next step); rank 0
+  // loads, and share_loaded_state() (collective) then gives every rank the state and its share
+  // of the particles: a checkpoint of any rank count continues on any other with the same bits.
   void save_state(io::hdf5::Group& group) const;
   void load_state(const io::hdf5::Group& group);
+  void share_loaded_state();
 
  private:
   // The particle (wall particle) id whose state a sorted slot's id carries: itself, or an

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
 #include <vector>
 
 #include "libsabo/core/error.hpp"
@@ -266,15 +267,18 @@ SphModel::ParticleState SphModel::gather_state(int root) const {
     state.pressure = pressure_;
     state.stress = stress_;
     state.wall_work_held = wall_work_held_;
+    state.support_neighbours = support_neighbours_;
     state.active = active_;
   }
   if (!decomposed()) return state;
-  const std::size_t record = kRecordCore + (has_stress_ ? 6 : 0) + (held ? 1 : 0);
+  const bool neighbours = !support_neighbours_.empty();
+  const std::size_t record = kRecordCore + (neighbours ? 1 : 0) + (has_stress_ ? 6 : 0) + (held ? 1 : 0);
   std::vector<double> mine;
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
     mine.insert(mine.end(), {double(i), double(active_[i]), position_[i].x(), position_[i].y(), position_[i].z(),
                              velocity_[i].x(), velocity_[i].y(), velocity_[i].z(), density_[i], pressure_[i]});
+    if (neighbours) mine.push_back(double(support_neighbours_[i]));
     if (has_stress_) mine.insert(mine.end(), &stress_[6 * i], &stress_[6 * i] + 6);
     if (held) mine.push_back(double(wall_work_held_[i]));
   }
@@ -295,8 +299,13 @@ SphModel::ParticleState SphModel::gather_state(int root) const {
       state.velocity[i] = Vec3(r[5], r[6], r[7]);
       state.density[i] = r[8];
       state.pressure[i] = r[9];
-      if (has_stress_) std::copy_n(r + kRecordCore, 6, &state.stress[6 * i]);
-      if (held) state.wall_work_held[i] = static_cast<float>(r[kRecordCore + (has_stress_ ? 6 : 0)]);
+      std::size_t next = kRecordCore;
+      if (neighbours) state.support_neighbours[i] = static_cast<std::int32_t>(r[next++]);
+      if (has_stress_) {
+        std::copy_n(r + next, 6, &state.stress[6 * i]);
+        next += 6;
+      }
+      if (held) state.wall_work_held[i] = static_cast<float>(r[next]);
     }
   }
   return state;
@@ -313,7 +322,83 @@ void SphModel::collect_state() {
   pressure_ = std::move(state.pressure);
   stress_ = std::move(state.stress);
   wall_work_held_ = std::move(state.wall_work_held);
+  support_neighbours_ = std::move(state.support_neighbours);
   collected_active_ = std::move(state.active);
+}
+
+void SphModel::share_loaded_state() {
+  if (!decomposed()) return;
+  const std::size_t n = position_.size();
+  // Rank 0's whole state, as doubles (flags, counts and single-precision values are exact in one).
+  std::vector<double> all;
+  if (ranks_->rank() == 0) {
+    const auto vectors = [&](const std::vector<Vec3>& values) {
+      for (const Vec3& v : values) all.insert(all.end(), {v.x(), v.y(), v.z()});
+    };
+    const auto sized = [&](const auto& values) {
+      all.push_back(double(values.size()));
+      all.insert(all.end(), values.begin(), values.end());
+    };
+    vectors(position_);
+    vectors(velocity_);
+    all.insert(all.end(), density_.begin(), density_.end());
+    all.insert(all.end(), pressure_.begin(), pressure_.end());
+    all.insert(all.end(), active_.begin(), active_.end());
+    sized(stress_);
+    sized(support_neighbours_);
+    sized(wall_work_held_);
+    sized(settle_factor_);
+    all.push_back(double(boundary_force_.size()));
+    vectors(boundary_force_);
+    sized(boundary_stress_);
+    all.insert(all.end(),
+               {double(lost_), time_, max_mu_, max_acceleration_, min_viscous_dt_, stable_dt_, mean_neighbours_,
+                energies_.kinetic, energies_.potential, energies_.elastic, energies_.wall_held, energies_.inflow});
+  }
+  ranks_->broadcast(all, 0);
+  if (ranks_->rank() != 0) {
+    std::size_t at = 0;
+    const auto vectors = [&](std::vector<Vec3>& values, std::size_t count) {
+      values.resize(count);
+      for (Vec3& v : values) {
+        v = Vec3(all[at], all[at + 1], all[at + 2]);
+        at += 3;
+      }
+    };
+    const auto scalars = [&](auto& values, std::size_t count) {
+      using Value = typename std::remove_reference_t<decltype(values)>::value_type;
+      values.resize(count);
+      for (auto& v : values) v = static_cast<Value>(all[at++]);
+    };
+    const auto sized = [&](auto& values) { scalars(values, static_cast<std::size_t>(all[at++])); };
+    vectors(position_, n);
+    vectors(velocity_, n);
+    scalars(density_, n);
+    scalars(pressure_, n);
+    scalars(active_, n);
+    sized(stress_);
+    sized(support_neighbours_);
+    sized(wall_work_held_);
+    sized(settle_factor_);
+    vectors(boundary_force_, static_cast<std::size_t>(all[at++]));
+    sized(boundary_stress_);
+    lost_ = static_cast<std::size_t>(all[at++]);
+    time_ = all[at++];
+    max_mu_ = all[at++];
+    max_acceleration_ = all[at++];
+    min_viscous_dt_ = all[at++];
+    stable_dt_ = all[at++];
+    mean_neighbours_ = all[at++];
+    energies_ = {all[at], all[at + 1], all[at + 2], all[at + 3], all[at + 4]};
+    forces_ready_ = false;
+  } else {
+    collected_active_ = active_;
+  }
+  // Each rank's share until the next step's slabs, as at construction.
+  const auto r = static_cast<std::size_t>(ranks_->rank()), count = static_cast<std::size_t>(ranks_->size());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i * count / n != r) active_[i] = 0;
+  }
 }
 
 }  // namespace sabo::sph

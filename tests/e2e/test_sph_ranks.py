@@ -2,12 +2,16 @@
 the same scene run with the sph_solver alone and through the launcher `mpirun -n 2` (rank 0 the
 coupler's correspondent, rank 1 following it) gives the same forces on every structure, step by step,
 and the same particles in every output, to the bit: a dam break against penalty walls and a collapsing
-column in a tank of boundary particles. Parts the ranks do not model yet are refused with the fix."""
+column in a tank of boundary particles. A checkpoint moves between rank counts: the sph_solver of a 2-rank run
+replayed alone from its checkpoint, and that of a run alone replayed on 2 ranks, reproduce the recorded states.
+Parts the ranks do not model yet are refused with the fix."""
 import filecmp
+import glob
 import os
+import re
 import unittest
 
-from e2e_support import RealRunTestCase, read_json
+from e2e_support import BUILD_DIR, RealRunTestCase, read_json
 
 # mpirun as root (CI's containers) needs these; --oversubscribe: more ranks than cores.
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1", "OMP_NUM_THREADS": "1",
@@ -66,6 +70,38 @@ class SphRanksTest(RealRunTestCase):
         self.compare("configs/tests/sph_tank_boundary.toml", "boundary",
                      [("end_time = 0.6\n", "end_time = 0.3\n"),
                       ("max = [0.4, 0.4, 0.3]", "max = [0.2, 0.4, 0.3]")])
+
+    def test_checkpoints_move_between_rank_counts(self):
+        """A run on 2 ranks writes the sph role's checkpoints; its sph_solver replayed alone from one of them
+        reproduces the recorded states (2 ranks -> 1). A run alone; its sph_solver replayed on 2 ranks from one
+        of its checkpoints (1 -> 2). The energies are the ranks' sums added in rank order: equal to rounding."""
+        replacements = [("end_time = 0.6\n", "end_time = 0.2\ncheckpoint_interval = 0.05\n"),
+                        ("max = [0.4, 0.4, 0.3]", "max = [0.2, 0.4, 0.3]"), ('fields = ["energies"]', "fields = []")]
+        solver = os.path.join(BUILD_DIR, "bin", "sph_solver")
+        for ranks, program in ((True, None), (False, "mpirun -n 2 --oversubscribe " + solver)):
+            label = "checkpoints_" + ("ranks" if ranks else "alone")
+            out = os.path.join(self.tmp, label)
+            sabo = self.run_sabo(self.write_scene("configs/tests/sph_tank_boundary.toml", label, replacements, ranks),
+                                 out, env=MPI_ENV)
+            self.assertEqual(sabo.wait(300), 0, sabo.output())
+            checkpoints = sorted(glob.glob(os.path.join(out, "checkpoints", "sph_solver_*.h5")))
+            self.assertTrue(checkpoints, "no checkpoint of the sph_solver")
+            args = ["replay", out, "sph", "--no-setup", "--resume", checkpoints[0], "--rtol", "energies=1e-12"]
+            if program:
+                args += ["--command", program]
+            env = dict(MPI_ENV, SABO_BUILD_DIR=BUILD_DIR, SABO_PLAN_OVERRIDE="")
+            replay = self.sabo(args, env=env)
+            code = replay.wait(300)
+            self.assertEqual(code, 0, replay.stdout + replay.stderr)
+            steps = int(re.search(r"every field matches over (\d+) steps", replay.stdout).group(1))
+            print("{}: the sph_solver {} from {} matches the recording over {} steps".format(
+                label, "on 2 ranks" if program else "alone", os.path.basename(checkpoints[0]), steps))
+            self.assertGreater(steps, 10)
+            logs = glob.glob(os.path.join(out, "replay", "sph-*", "sph_solver.log"))
+            self.assertEqual(len(logs), 1, logs)
+            with open(logs[0], encoding="utf-8", errors="replace") as handle:
+                on_ranks = "the SPH model runs on 2 ranks" in handle.read()
+            self.assertEqual(on_ranks, bool(program), "the replayed sph_solver on 2 ranks exactly when asked")
 
     def test_gauges_are_refused_on_ranks_with_the_fix(self):
         scene = self.write_scene("configs/tests/sph_tank_gauges.toml", "gauges", [], True)

@@ -2,13 +2,17 @@
 // its share of a scene and, beside it, the whole scene alone; each particle a rank owns, and
 // the state gathered from all ranks, must equal the model alone to the bit. The slabs'
 // arithmetic is checked on its own. Registered with ctest for 2 ranks (tests/sph_solver/CMakeLists.txt).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/io/hdf5.hpp"
 #include "sph_solver/parallel/mpi_ranks.hpp"
 #include "sph_solver/parallel/slabs.hpp"
 #include "sph_solver/sph_model.hpp"
@@ -173,6 +177,93 @@ TEST(SphRanks, ParticlesLeavingTheDomainAreTakenOutOnce) {
   std::cout << "particles taken out: " << shared.lost_count() << " on ranks, " << alone.lost_count() << " alone\n";
   EXPECT_GT(alone.lost_count(), 0u);
   EXPECT_EQ(shared.lost_count(), alone.lost_count());
+}
+
+// Steps a model `steps` times from where it stands.
+void advance(SphModel& model, int steps, double& dt_previous) {
+  for (int k = 0; k < steps; ++k) {
+    model.compute_internal_forces(dt_previous);
+    const double dt = model.stable_dt();
+    model.integrate(dt_previous, dt);
+    dt_previous = dt;
+  }
+}
+
+// A checkpoint of one model continues on ranks, and one of the ranks (written by rank 0 after
+// collect_state()) continues alone, both the same bits as the model that never stopped.
+TEST(SphRanks, CheckpointsMoveBetweenRankCounts) {
+  const Case c = collapse(0.1);
+  const auto ranks = world();
+  std::vector<double> tag{static_cast<double>(::getpid())};
+  ranks->broadcast(tag, 0);  // one file name for every rank: rank 0's pid
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / fmt::format("sabo_sph_ranks_{}.h5", static_cast<long>(tag[0]));
+  constexpr int kBefore = 60, kAfter = 60;
+  SphModel reference(c.scene);
+  reference.set_boundary(c.walls);
+  double dt_reference = 0;
+  advance(reference, kBefore, dt_reference);
+  const double dt_at_checkpoint = dt_reference;
+  advance(reference, kAfter, dt_reference);
+  const auto same_as_reference = [&](const SphModel::ParticleState& state, const char* what) {
+    int differing = 0;
+    for (std::size_t i = 0; i < reference.size(); ++i) {
+      if (state.active[i] != reference.active()[i] ||
+          (reference.active()[i] &&
+           (state.position[i] != reference.positions()[i] || state.velocity[i] != reference.velocities()[i] ||
+            state.density[i] != reference.densities()[i]))) {
+        ++differing;
+      }
+    }
+    std::cout << what << ": " << differing << " of " << reference.size()
+              << " particles differ from the run that never stopped (expected 0)\n";
+    EXPECT_EQ(differing, 0) << what;
+  };
+
+  // One model -> ranks.
+  {
+    if (ranks->rank() == 0) {
+      SphModel alone(c.scene);
+      alone.set_boundary(c.walls);
+      double dt_previous = 0;
+      advance(alone, kBefore, dt_previous);
+      io::hdf5::File out = io::hdf5::File::create(file);
+      io::hdf5::Group group = out.create_group("model");
+      alone.save_state(group);
+    }
+    std::vector<std::int64_t> barrier{0};
+    ranks->sum(barrier);  // the file is written
+    SphModel shared(c.scene, ranks);
+    shared.set_boundary(c.walls);
+    if (ranks->rank() == 0) shared.load_state(io::hdf5::File::open(file).group("model"));
+    shared.share_loaded_state();
+    double dt_previous = dt_at_checkpoint;
+    advance(shared, kAfter, dt_previous);
+    same_as_reference(shared.gather_state(), "one model's checkpoint continued on ranks");
+  }
+  // Ranks -> one model.
+  {
+    SphModel shared(c.scene, ranks);
+    shared.set_boundary(c.walls);
+    double dt_previous = 0;
+    advance(shared, kBefore, dt_previous);
+    shared.collect_state();
+    if (ranks->rank() == 0) {
+      io::hdf5::File out = io::hdf5::File::create(file);
+      io::hdf5::Group group = out.create_group("model");
+      shared.save_state(group);
+    }
+    std::vector<std::int64_t> barrier{0};
+    ranks->sum(barrier);
+    SphModel alone(c.scene);
+    alone.set_boundary(c.walls);
+    alone.load_state(io::hdf5::File::open(file).group("model"));
+    dt_previous = dt_at_checkpoint;
+    advance(alone, kAfter, dt_previous);
+    same_as_reference(alone.gather_state(), "the ranks' checkpoint continued by one model");
+    ranks->sum(barrier);  // every rank has read it
+    if (ranks->rank() == 0) std::filesystem::remove(file);
+  }
 }
 
 TEST(SphRanks, PeriodicScenesAreRefusedWithTheFix) {
