@@ -47,7 +47,7 @@
 // Determinism: every particle sums its own neighbours in a fixed order (rows
 // in grid order, lane k of a block summing slots begin + k + kLanes m, lanes
 // added in lane order); the per-particle results are written back by id;
-// every floating-point reduction over particles is serial (or a max).
+// every floating-point reduction over particles is serial, a max, or exact (the energies).
 // Same input, same bits, for any number of threads.
 //
 // Ranks (docs/architecture.md, "The slurry on several processes"): a model built with
@@ -61,8 +61,8 @@
 // order: the same bits on any number of ranks. Between steps, positions(), velocities() and the
 // other per-id arrays are current for the particles this rank owns (active() != 0 here) only;
 // gather_state() brings the whole state to every rank, collect_state() to rank 0. Not yet with
-// periodic boundaries or inflows (SceneError). The energies are the ranks' sums added in rank order: the same on any
-// run with the same rank count, equal to one model's to rounding.
+// periodic boundaries or inflows (SceneError). The energies are exact sums (exact_sum.hpp): the
+// same bits too.
 #include <cstdint>
 #include <initializer_list>
 #include <limits>
@@ -76,6 +76,7 @@
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
+#include "sph_solver/exact_sum.hpp"
 #include "sph_solver/inflow.hpp"
 #include "sph_solver/parallel/ranks.hpp"
 #include "sph_solver/parallel/slabs.hpp"
@@ -478,7 +479,7 @@ class SphModel {
   double mean_neighbours_ = 0;
   std::int64_t neighbour_pairs_ = 0;  // pairs inside the support counted by mean_neighbours_
   bool forces_ready_ = false;
-  std::vector<double> energy_block_;  // J: kinetic, potential, elastic per block of particles
+  std::vector<ExactSum> energy_block_;  // J: kinetic, potential, elastic, held, inflow per block of particles
   Energies energies_;
 
   // Decomposition (only with ranks_).

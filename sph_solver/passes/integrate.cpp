@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "libsabo/core/error.hpp"
+#include "sph_solver/exact_sum.hpp"
 #include "sph_solver/passes/pair_terms.hpp"
 #include "sph_solver/passes/particle_for.hpp"
 #include "sph_solver/sph_model.hpp"
@@ -98,10 +99,10 @@ void SphModel::integrate(double dt_previous, double dt) {
   if (!inflows_.empty()) set_inflow_velocities(dt);
   // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
   const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
-  energy_block_.assign(kEnergyTerms * blocks, 0.0);
+  energy_block_.assign(kEnergyTerms * blocks, ExactSum{});
   particle_for<Compile::baseline>(n, parallel, kEnergyBlock, [&](std::int64_t begin, std::int64_t end) {
     const auto first = static_cast<std::size_t>(begin), last = static_cast<std::size_t>(end);
-    double kinetic = 0, potential = 0, elastic = 0, held = 0, inflow = 0;
+    ExactSum kinetic, potential, elastic, held, inflow;
     for (std::size_t i = first; i < last; ++i) {
       if (!active_[i]) {
         if (external) external_force_[i].setZero();
@@ -111,9 +112,9 @@ void SphModel::integrate(double dt_previous, double dt) {
       const double particle_potential =
           -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
       const double particle_elastic = mass_[i] * material.eos.specific_energy(density_[i]);
-      potential += particle_potential;
-      elastic += particle_elastic;
-      if (!wall_work_held_.empty()) held += wall_work_held_[i];
+      potential.add(particle_potential);
+      elastic.add(particle_elastic);
+      if (!wall_work_held_.empty()) held.add(wall_work_held_[i]);
       Vec3 a = acceleration_[i];
       if (external) {
         a += external_force_[i] / mass_[i];
@@ -128,16 +129,16 @@ void SphModel::integrate(double dt_previous, double dt) {
       }
       const double particle_kinetic =
           first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
-      kinetic += particle_kinetic;
+      kinetic.add(particle_kinetic);
       if (active_[i] == kEntering) {
-        inflow += particle_kinetic + particle_potential + particle_elastic;
+        inflow.add(particle_kinetic + particle_potential + particle_elastic);
       } else if (active_[i] == kBuffer) {
         const Vec3 holding = mass_[i] * ((velocity - velocity_[i]) / dt_update - a);
-        inflow += 0.5 * dt_update * holding.dot(velocity_[i] + velocity);
+        inflow.add(0.5 * dt_update * holding.dot(velocity_[i] + velocity));
       }
       velocity_[i] = velocity;
     }
-    double* sums = &energy_block_[kEnergyTerms * (first / kEnergyBlock)];
+    ExactSum* sums = &energy_block_[kEnergyTerms * (first / kEnergyBlock)];
     sums[0] = kinetic;
     sums[1] = potential;
     sums[2] = elastic;
@@ -180,18 +181,15 @@ void SphModel::integrate(double dt_previous, double dt) {
       pressure_[i] = material.eos.pressure(density_[i]);
     }
   });
-  Energies energies;
-  // The inflows' account is cumulative: the last step's, what came in since and this step's work.
-  energies.inflow = energies_.inflow + inflow_pending_;
-  inflow_pending_ = 0;
+  // Exact sums (exact_sum.hpp): the blocks' order, the threads and the ranks do not change the bits.
+  ExactSum totals[kEnergyTerms];
   for (std::size_t block = 0; block < blocks; ++block) {
-    const double* sums = &energy_block_[kEnergyTerms * block];
-    energies.kinetic += sums[0];
-    energies.potential += sums[1];
-    energies.elastic += sums[2];
-    energies.wall_held += sums[3];
-    energies.inflow += sums[4];
+    for (std::size_t t = 0; t < kEnergyTerms; ++t) totals[t].join(energy_block_[kEnergyTerms * block + t]);
   }
+  // The inflows' account is cumulative: the last step's, what came in since (advance_inflows() below adds
+  // to the next step's) and this step's work.
+  const double inflow_before = energies_.inflow + inflow_pending_;
+  inflow_pending_ = 0;
   if (!inflows_.empty()) advance_inflows(dt);
   if (periodic) wrap_positions();
   const std::size_t lost_before = lost_;
@@ -208,20 +206,27 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
   }
   if (decomposed()) {
-    // This rank's sums (its particles only), then every rank's in rank order; the losses likewise.
-    const double local[5] = {energies.kinetic, energies.potential, energies.elastic, energies.wall_held,
-                             static_cast<double>(lost_ - lost_before)};
-    const std::vector<double> all = ranks_->gather(local);
-    energies.kinetic = energies.potential = energies.elastic = energies.wall_held = 0;
-    lost_ = lost_before;
-    for (std::size_t r = 0; r < all.size(); r += 5) {
-      energies.kinetic += all[r];
-      energies.potential += all[r + 1];
-      energies.elastic += all[r + 2];
-      energies.wall_held += all[r + 3];
-      lost_ += static_cast<std::size_t>(all[r + 4]);
+    // Every rank's sums (its particles only) and losses, exactly (limbs of 32 bits in integers).
+    std::vector<std::int64_t> limbs(4 * kEnergyTerms + 1);
+    for (std::size_t t = 0; t < kEnergyTerms; ++t) {
+      const ExactSum::Limbs own = totals[t].limbs();
+      std::copy(own.begin(), own.end(), limbs.begin() + static_cast<std::ptrdiff_t>(4 * t));
     }
+    limbs.back() = static_cast<std::int64_t>(lost_ - lost_before);
+    ranks_->sum(limbs);
+    for (std::size_t t = 0; t < kEnergyTerms; ++t) {
+      ExactSum::Limbs all;
+      std::copy_n(limbs.begin() + static_cast<std::ptrdiff_t>(4 * t), 4, all.begin());
+      totals[t] = ExactSum::from_limbs(all);
+    }
+    lost_ = lost_before + static_cast<std::size_t>(limbs.back());
   }
+  Energies energies;
+  energies.kinetic = totals[0].value();
+  energies.potential = totals[1].value();
+  energies.elastic = totals[2].value();
+  energies.wall_held = totals[3].value();
+  energies.inflow = inflow_before + totals[4].value();
   energies_ = energies;
   time_ += dt;
   forces_ready_ = false;
