@@ -51,7 +51,7 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
 
 // What rank 0 tells the other ranks before each call of the shared model: the command, then its
 // arguments, all as doubles (ids and counts are exact in one).
-enum class RankCommand { compute = 1, walls, forces, integrate, collect, share_loaded_state, stop };
+enum class RankCommand { compute = 1, walls, forces, integrate, collect, share_loaded_state, sample, stop };
 
 std::vector<double> pack_walls(const physics::BoundaryParticles& walls) {
   std::vector<double> out{double(RankCommand::walls), double(walls.size()), walls.velocity.empty() ? 0.0 : 1.0,
@@ -113,17 +113,6 @@ class RankLeader {
   bool stopped_ = false;
 };
 
-// The scene's parts that rank 0 alone cannot serve yet: they read the neighbour grid.
-void refuse_on_ranks(const scene::Scene& scene) {
-  const char* unsupported = !scene.gauges.empty() ? "[[gauges]]" : !scene.fronts.empty() ? "[[fronts]]" : nullptr;
-  if (unsupported != nullptr) {
-    throw SceneError(fmt::format(
-        "{}: the sph_solver on several ranks does not sample the fluid yet. Fix: run the sph_solver as one process "
-        "(without mpirun), or leave them out",
-        unsupported));
-  }
-}
-
 class SphSolver final : public solver::CoupledSolver {
  public:
   SphSolver(const scene::Scene& scene, const solver::SolverOptions& options,
@@ -138,7 +127,11 @@ class SphSolver final : public solver::CoupledSolver {
         boundary_walls_(scene.sph_receives_boundary_particles()),
         limits_(solver::stability_limits(scene, Role::sph)) {
     if (leader_.active()) {
-      refuse_on_ranks(scene);
+      // Gauges and fronts sample the fluid on the grid, which each rank holds for its slab.
+      model_.set_remote_sampler([this](const Vec3& point, bool kernel_sum_only) {
+        leader_.send(RankCommand::sample, {kernel_sum_only ? 1.0 : 0.0, point.x(), point.y(), point.z()});
+        return model_.sample_on_ranks(point, kernel_sum_only);
+      });
       spdlog::info(
           "the SPH model runs on {} ranks (slabs of the grid along its longest axis); this rank, 0, talks "
           "to the coupler",
@@ -406,6 +399,9 @@ int follow(int argc, char** argv, const std::shared_ptr<parallel::Ranks>& ranks)
       case RankCommand::integrate: model.integrate(command.at(1), command.at(2)); break;
       case RankCommand::collect: model.collect_state(); break;
       case RankCommand::share_loaded_state: model.share_loaded_state(); break;
+      case RankCommand::sample:
+        (void)model.sample_on_ranks(Vec3(command.at(2), command.at(3), command.at(4)), command.at(1) != 0.0);
+        break;
       case RankCommand::stop: return 0;
     }
   }

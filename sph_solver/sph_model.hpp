@@ -64,6 +64,7 @@
 // periodic boundaries or inflows (SceneError). The energies are exact sums (exact_sum.hpp): the
 // same bits too.
 #include <cstdint>
+#include <functional>
 #include <initializer_list>
 #include <limits>
 #include <memory>
@@ -228,8 +229,17 @@ class SphModel {
   // 2h, weighted by V_j W; the Shepard mean where their moment matrix is singular (they do not span 3-D);
   // zero below kDryKernelSum. Uses the neighbour grid of the last compute_internal_forces(): call it
   // after that and before integrate(). kernel_sum() is the same sum alone.
+  // On ranks, rank 0's calls go through the remote sampler (set_remote_sampler()), which asks every rank.
   [[nodiscard]] FluidSample sample(const Vec3& point) const;
   [[nodiscard]] double kernel_sum(const Vec3& point) const;
+  // On ranks: the sample (or only its kernel sum) at `point`, taken by the rank whose slab holds the
+  // point's layer (its grid holds every particle within the support there) and summed over the ranks
+  // (the others add zeros), returned on every rank. Collective. Alone: sample() / kernel_sum().
+  [[nodiscard]] FluidSample sample_on_ranks(const Vec3& point, bool kernel_sum_only) const;
+  // Rank 0 of the sph_solver: what sample() and kernel_sum() call instead of sampling here (it tells
+  // the other ranks to join sample_on_ranks(), then joins it).
+  using RemoteSampler = std::function<FluidSample(const Vec3& point, bool kernel_sum_only)>;
+  void set_remote_sampler(RemoteSampler sampler) { remote_sampler_ = std::move(sampler); }
   // Mean number of neighbours (fluid and wall, inside the support, self excluded) in the last compute.
   [[nodiscard]] double mean_neighbours() const { return mean_neighbours_; }
   // Box around all active particles; empty when there are none.
@@ -286,6 +296,8 @@ class SphModel {
   // source's id, their own position), from the grid of the last compute.
   template <class Visit>
   void for_fluid_within_support(const Vec3& point, Visit&& visit) const;
+  [[nodiscard]] FluidSample sample_here(const Vec3& point) const;
+  [[nodiscard]] double kernel_sum_here(const Vec3& point) const;
   void wrap_positions();
   // Decomposed (above): the global grid, the slabs, and the particles of this rank's window
   // from their owners; then, after build_grid(), which slots this rank computes and the halo
@@ -494,7 +506,8 @@ class SphModel {
     int rank;
     std::vector<std::uint32_t> fluid_send, fluid_receive, wall_send, wall_receive;  // sorted slots
   };
-  std::vector<HaloSide> halo_;                  // the lower and upper neighbour ranks that exist
+  std::vector<HaloSide> halo_;  // the lower and upper neighbour ranks that exist
+  RemoteSampler remote_sampler_;
   std::vector<std::uint8_t> collected_active_;  // every particle's flag (only on rank 0 of ranks, see active())
 };
 

@@ -34,6 +34,14 @@ void SphModel::for_fluid_within_support(const Vec3& point, Visit&& visit) const 
 }
 
 double SphModel::kernel_sum(const Vec3& point) const {
+  return remote_sampler_ ? remote_sampler_(point, true).kernel_sum : kernel_sum_here(point);
+}
+
+FluidSample SphModel::sample(const Vec3& point) const {
+  return remote_sampler_ ? remote_sampler_(point, false) : sample_here(point);
+}
+
+double SphModel::kernel_sum_here(const Vec3& point) const {
   double sum = 0;
   for_fluid_within_support(point, [&](std::uint32_t id, const Vec3& x) {
     sum += mass_[id] / density_[id] * kernel_.value((point - x).norm());
@@ -41,7 +49,7 @@ double SphModel::kernel_sum(const Vec3& point) const {
   return sum;
 }
 
-FluidSample SphModel::sample(const Vec3& point) const {
+FluidSample SphModel::sample_here(const Vec3& point) const {
   // Weighted least squares of f_j = a + b . (x_j - x) / h over the neighbours: a is the value at x.
   Eigen::Matrix4d moment = Eigen::Matrix4d::Zero();
   Eigen::Matrix4d right = Eigen::Matrix4d::Zero();  // columns: pressure, velocity x, y, z

@@ -326,6 +326,22 @@ void SphModel::collect_state() {
   collected_active_ = std::move(state.active);
 }
 
+FluidSample SphModel::sample_on_ranks(const Vec3& point, bool kernel_sum_only) const {
+  if (!decomposed()) return kernel_sum_only ? FluidSample{kernel_sum_here(point)} : sample_here(point);
+  const std::int64_t layers = slab_axis_ == 0 ? nx_ : (slab_axis_ == 1 ? ny_ : nz_);
+  const auto layer = std::clamp<std::int64_t>(
+      static_cast<std::int64_t>(std::floor((point[slab_axis_] - grid_origin_[slab_axis_]) * inverse_cell_)), 0,
+      layers - 1);
+  FluidSample here;
+  if (slabs_.owner(layer) == ranks_->rank()) {
+    here = kernel_sum_only ? FluidSample{kernel_sum_here(point)} : sample_here(point);
+  }
+  double values[6] = {here.kernel_sum,   here.pressure,     here.velocity.x(),
+                      here.velocity.y(), here.velocity.z(), here.linear_fit ? 1.0 : 0.0};
+  ranks_->sum_disjoint(values);
+  return FluidSample{values[0], values[1], Vec3(values[2], values[3], values[4]), values[5] != 0.0};
+}
+
 void SphModel::share_loaded_state() {
   if (!decomposed()) return;
   const std::size_t n = position_.size();

@@ -4,7 +4,7 @@ coupler's correspondent, rank 1 following it) gives the same forces on every str
 and the same particles in every output, to the bit: a dam break against penalty walls and a collapsing
 column in a tank of boundary particles. A checkpoint moves between rank counts: the sph_solver of a 2-rank run
 replayed alone from its checkpoint, and that of a run alone replayed on 2 ranks, reproduce the recorded states.
-Parts the ranks do not model yet are refused with the fix."""
+Gauges and fronts read the same on ranks."""
 import filecmp
 import glob
 import os
@@ -37,7 +37,7 @@ class SphRanksTest(RealRunTestCase):
             handle.write(text)
         return scene
 
-    def compare(self, source, name, replacements):
+    def compare(self, source, name, replacements, extra=()):
         runs = {}
         for ranks in (False, True):
             label = name + ("_ranks" if ranks else "_alone")
@@ -48,17 +48,18 @@ class SphRanksTest(RealRunTestCase):
         alone, shared = runs[False], runs[True]
         with open(os.path.join(shared, "sph_solver.log"), encoding="utf-8", errors="replace") as handle:
             self.assertIn("the SPH model runs on 2 ranks", handle.read())
-        for name in ("forces.csv", "energy.csv"):
-            self.assertTrue(filecmp.cmp(os.path.join(alone, name), os.path.join(shared, name), shallow=False),
-                            name + " differs between the sph_solver alone and on 2 ranks")
+        for output in ("forces.csv", "energy.csv") + tuple(extra):
+            self.assertTrue(os.path.getsize(os.path.join(alone, output)) > 0, output)
+            self.assertTrue(filecmp.cmp(os.path.join(alone, output), os.path.join(shared, output), shallow=False),
+                            output + " differs between the sph_solver alone and on 2 ranks")
         frames = sorted(os.listdir(os.path.join(alone, "sph")))
         self.assertEqual(frames, sorted(os.listdir(os.path.join(shared, "sph"))))
         different = [f for f in frames if not filecmp.cmp(os.path.join(alone, "sph", f),
                                                           os.path.join(shared, "sph", f), shallow=False)]
         summary = read_json(os.path.join(shared, "summary.json"))
-        print("{}: forces.csv and energy.csv the same, {} of {} particle outputs the same bits on 2 ranks; Newton violations {}"
-              .format(name, len(frames) - len(different), len(frames),
-                      summary["newton_third_law"]["violations"]))
+        print("{}: {} the same, {} of {} particle outputs the same bits on 2 ranks; Newton violations {}".format(
+            name, ", ".join(("forces.csv", "energy.csv") + tuple(extra)), len(frames) - len(different), len(frames),
+            summary["newton_third_law"]["violations"]))
         self.assertEqual(different, [])
         self.assertEqual(summary["newton_third_law"]["violations"], 0)
 
@@ -104,16 +105,17 @@ class SphRanksTest(RealRunTestCase):
                 on_ranks = "the SPH model runs on 2 ranks" in handle.read()
             self.assertEqual(on_ranks, bool(program), "the replayed sph_solver on 2 ranks exactly when asked")
 
-    def test_gauges_are_refused_on_ranks_with_the_fix(self):
-        scene = self.write_scene("configs/tests/sph_tank_gauges.toml", "gauges", [], True)
-        out = os.path.join(self.tmp, "gauges")
-        sabo = self.run_sabo(scene, out, env=MPI_ENV)
-        self.assertNotEqual(sabo.wait(120), 0)
-        with open(os.path.join(out, "sph_solver.log"), encoding="utf-8", errors="replace") as handle:
-            log = handle.read()
-        print(log.strip().splitlines()[-1] if log.strip() else "(empty log)")
-        self.assertIn("[[gauges]]: the sph_solver on several ranks", log)
-        self.assertIn("without mpirun", log)
+    def test_gauges_and_fronts_read_the_same_on_ranks(self):
+        """A gauge line and a front along the tank: rank 0 asks the rank whose slab holds each point."""
+        instruments = (
+            '\n[[fronts]]\nname = "front"\nkind = "axis"\nstart = [0.0, 0.2, 0.0]\ndirection = [1.0, 0.0, 0.0]\n'
+            'interval = 0.02\nstations = [{ name = "middle", at = 0.3 }]\n'
+            '\n[[gauges]]\nname = "depth"\nkind = "line"\nstart = [0.3, 0.2, 0.0]\nend = [0.3, 0.2, 0.3]\n'
+            'points = 4\ninterval = 0.01\n\n[recording]\n')
+        self.compare("configs/tests/sph_tank_boundary.toml", "instruments",
+                     [("end_time = 0.6\n", "end_time = 0.3\n"), ("max = [0.4, 0.4, 0.3]", "max = [0.2, 0.4, 0.3]"),
+                      ("\n[recording]\n", instruments)],
+                     extra=("gauges.csv", "fronts.csv", "front_stations.csv"))
 
 
 if __name__ == "__main__":

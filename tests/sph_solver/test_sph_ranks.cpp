@@ -269,6 +269,37 @@ TEST(SphRanks, CheckpointsMoveBetweenRankCounts) {
   }
 }
 
+// Gauges and fronts on ranks: the sample at a point is taken by the rank whose slab holds it.
+TEST(SphRanks, SamplesAreTheSameBitsAsOneModels) {
+  const Case c = collapse(0.1);
+  SphModel alone(c.scene), shared(c.scene, world());
+  alone.set_boundary(c.walls);
+  shared.set_boundary(c.walls);
+  double dt_alone = 0, dt_shared = 0;
+  advance(alone, 80, dt_alone);
+  advance(shared, 80, dt_shared);
+  alone.compute_internal_forces(dt_alone);
+  shared.compute_internal_forces(dt_shared);
+  int points = 0, wet = 0, differing = 0;
+  for (double x = -0.05; x <= 0.65; x += 0.037) {
+    for (double z = 0.0; z <= 0.3; z += 0.029) {
+      const Vec3 point(x, 0.06, z);
+      const FluidSample one = alone.sample(point), many = shared.sample_on_ranks(point, false);
+      const double sum = shared.sample_on_ranks(point, true).kernel_sum;
+      ++points;
+      wet += one.kernel_sum > kDryKernelSum ? 1 : 0;
+      if (one.kernel_sum != many.kernel_sum || one.pressure != many.pressure || one.velocity != many.velocity ||
+          one.linear_fit != many.linear_fit || sum != alone.kernel_sum(point)) {
+        ++differing;
+      }
+    }
+  }
+  std::cout << "samples at " << points << " points (" << wet << " wet): " << differing
+            << " differ from one model's (expected 0)\n";
+  EXPECT_GT(wet, 10);
+  EXPECT_EQ(differing, 0);
+}
+
 TEST(SphRanks, PeriodicScenesAreRefusedWithTheFix) {
   Case c = collapse(0.1);
   c.scene.sph.periodic_y = std::array<double, 2>{0.0, 0.12 * 4};
