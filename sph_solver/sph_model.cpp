@@ -135,14 +135,17 @@ SphModel::SphModel(const scene::Scene& scene, std::shared_ptr<parallel::Ranks> r
       if (i * count / n != r) active_[i] = 0;
     }
   }
-  energies_.kinetic = 0;
+  // Exact sums, as integrate() takes them (exact_sum.hpp): a state that does not change keeps its energies' bits.
+  ExactSum kinetic, potential, elastic;
   for (std::size_t i = 0; i < n; ++i) {
     if (ranks_ == nullptr && active_[i] != kFree) continue;  // an inflow's buffer enters the account at the first step
-    energies_.kinetic += 0.5 * mass_[i] * velocity_[i].squaredNorm();
-    energies_.potential -=
-        mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i]));
-    energies_.elastic += mass_[i] * materials_[material_[i]].eos.specific_energy(density_[i]);
+    kinetic.add(0.5 * mass_[i] * velocity_[i].squaredNorm());
+    potential.add(-mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i])));
+    elastic.add(mass_[i] * materials_[material_[i]].eos.specific_energy(density_[i]));
   }
+  energies_.kinetic = kinetic.value();
+  energies_.potential = potential.value();
+  energies_.elastic = elastic.value();
 }
 
 void SphModel::compute_internal_forces(double dt_previous) {

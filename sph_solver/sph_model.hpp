@@ -311,6 +311,20 @@ class SphModel {
     int components;
   };
   void exchange_halo(std::initializer_list<HaloField> fluid, std::initializer_list<HaloField> wall);
+  // A particle's state between ranks (distribute(), gather_state()), as doubles (ids, flags and
+  // counts are exact in one): its size, appending particle `id`'s, and reading one back.
+  struct Record {
+    std::size_t id;
+    std::uint8_t active;
+    Vec3 position, velocity;
+    double density, pressure;
+    std::int32_t support_neighbours;
+    const double* stress;  // 6 values, only with has_stress_
+    float wall_work_held;  // only with wall_work_held_
+  };
+  [[nodiscard]] std::size_t record_size() const;
+  void append_record(std::size_t id, std::vector<double>& out) const;
+  [[nodiscard]] Record read_record(const double* values) const;
   void exchange_wall_state();   // compute_boundary_state()'s
   void exchange_viscosities();  // compute_velocity_gradients()' effective viscosities and eta L~^T
   void exchange_velocities();   // the new velocities compute_velocity_divergence() gathered

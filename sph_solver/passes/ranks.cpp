@@ -19,11 +19,35 @@ namespace sabo::sph {
 namespace {
 
 // A particle's record between ranks: id, active flag, position, velocity, density, pressure,
-// then (where the model keeps them) its fluid neighbours, 6 stress components and the wall
-// work it holds back. Doubles: an id or a count is exact in one.
-constexpr std::size_t kRecordCore = 10;
+// its fluid neighbours (0 before the first compute), then (where the model keeps them) 6 stress
+// components and the wall work it holds back.
+constexpr std::size_t kRecordCore = 11;
 
 }  // namespace
+
+std::size_t SphModel::record_size() const {
+  return kRecordCore + (has_stress_ ? 6 : 0) + (wall_work_held_.empty() ? 0 : 1);
+}
+
+void SphModel::append_record(std::size_t i, std::vector<double>& out) const {
+  out.insert(out.end(), {double(i), double(active_[i]), position_[i].x(), position_[i].y(), position_[i].z(),
+                         velocity_[i].x(), velocity_[i].y(), velocity_[i].z(), density_[i], pressure_[i],
+                         support_neighbours_.empty() ? 0.0 : double(support_neighbours_[i])});
+  if (has_stress_) out.insert(out.end(), &stress_[6 * i], &stress_[6 * i] + 6);
+  if (!wall_work_held_.empty()) out.push_back(double(wall_work_held_[i]));
+}
+
+SphModel::Record SphModel::read_record(const double* r) const {
+  return {static_cast<std::size_t>(r[0]),
+          static_cast<std::uint8_t>(r[1]),
+          Vec3(r[2], r[3], r[4]),
+          Vec3(r[5], r[6], r[7]),
+          r[8],
+          r[9],
+          static_cast<std::int32_t>(r[10]),
+          r + kRecordCore,
+          wall_work_held_.empty() ? 0.0f : static_cast<float>(r[kRecordCore + (has_stress_ ? 6 : 0)])};
+}
 
 void SphModel::distribute() {
   const int rank = ranks_->rank();
@@ -73,7 +97,7 @@ void SphModel::distribute() {
   // Every particle this rank owned goes to each rank whose window now holds it; it stays here
   // only if this window holds it too.
   const bool neighbours = !support_neighbours_.empty(), held = !wall_work_held_.empty();
-  const std::size_t record = kRecordCore + 1 + (has_stress_ ? 6 : 0) + (held ? 1 : 0);
+  const std::size_t record = record_size();
   std::vector<std::vector<double>> to(static_cast<std::size_t>(ranks_->size()));
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
@@ -81,34 +105,24 @@ void SphModel::distribute() {
     for (const int q : slabs_.windows_holding(layer_of(position_[i]))) {
       if (q == rank) {
         stays = true;
-        continue;
+      } else {
+        append_record(i, to[static_cast<std::size_t>(q)]);
       }
-      std::vector<double>& out = to[static_cast<std::size_t>(q)];
-      out.insert(out.end(), {double(i), double(active_[i]), position_[i].x(), position_[i].y(), position_[i].z(),
-                             velocity_[i].x(), velocity_[i].y(), velocity_[i].z(), density_[i], pressure_[i]});
-      out.push_back(neighbours ? double(support_neighbours_[i]) : 0.0);
-      if (has_stress_) out.insert(out.end(), &stress_[6 * i], &stress_[6 * i] + 6);
-      if (held) out.push_back(double(wall_work_held_[i]));
     }
     if (!stays) active_[i] = 0;
   }
   for (const std::vector<double>& from : ranks_->all_to_all(to)) {
     assert(from.size() % record == 0);
     for (std::size_t k = 0; k < from.size(); k += record) {
-      const double* r = &from[k];
-      const auto i = static_cast<std::size_t>(r[0]);
-      active_[i] = static_cast<std::uint8_t>(r[1]);
-      position_[i] = Vec3(r[2], r[3], r[4]);
-      velocity_[i] = Vec3(r[5], r[6], r[7]);
-      density_[i] = r[8];
-      pressure_[i] = r[9];
-      if (neighbours) support_neighbours_[i] = static_cast<std::int32_t>(r[10]);
-      std::size_t next = kRecordCore + 1;
-      if (has_stress_) {
-        std::copy_n(r + next, 6, &stress_[6 * i]);
-        next += 6;
-      }
-      if (held) wall_work_held_[i] = static_cast<float>(r[next]);
+      const Record r = read_record(&from[k]);
+      active_[r.id] = r.active;
+      position_[r.id] = r.position;
+      velocity_[r.id] = r.velocity;
+      density_[r.id] = r.density;
+      pressure_[r.id] = r.pressure;
+      if (neighbours) support_neighbours_[r.id] = r.support_neighbours;
+      if (has_stress_) std::copy_n(r.stress, 6, &stress_[6 * r.id]);
+      if (held) wall_work_held_[r.id] = r.wall_work_held;
     }
   }
 }
@@ -272,15 +286,10 @@ SphModel::ParticleState SphModel::gather_state(int root) const {
   }
   if (!decomposed()) return state;
   const bool neighbours = !support_neighbours_.empty();
-  const std::size_t record = kRecordCore + (neighbours ? 1 : 0) + (has_stress_ ? 6 : 0) + (held ? 1 : 0);
+  const std::size_t record = record_size();
   std::vector<double> mine;
   for (std::size_t i = 0; i < n; ++i) {
-    if (!active_[i]) continue;
-    mine.insert(mine.end(), {double(i), double(active_[i]), position_[i].x(), position_[i].y(), position_[i].z(),
-                             velocity_[i].x(), velocity_[i].y(), velocity_[i].z(), density_[i], pressure_[i]});
-    if (neighbours) mine.push_back(double(support_neighbours_[i]));
-    if (has_stress_) mine.insert(mine.end(), &stress_[6 * i], &stress_[6 * i] + 6);
-    if (held) mine.push_back(double(wall_work_held_[i]));
+    if (active_[i]) append_record(i, mine);
   }
   std::vector<std::vector<double>> to(static_cast<std::size_t>(ranks_->size()));
   for (std::size_t q = 0; q < to.size(); ++q) {
@@ -292,20 +301,15 @@ SphModel::ParticleState SphModel::gather_state(int root) const {
   std::fill(state.active.begin(), state.active.end(), std::uint8_t{0});
   for (const std::vector<double>& from : received) {
     for (std::size_t k = 0; k < from.size(); k += record) {
-      const double* r = &from[k];
-      const auto i = static_cast<std::size_t>(r[0]);
-      state.active[i] = static_cast<std::uint8_t>(r[1]);
-      state.position[i] = Vec3(r[2], r[3], r[4]);
-      state.velocity[i] = Vec3(r[5], r[6], r[7]);
-      state.density[i] = r[8];
-      state.pressure[i] = r[9];
-      std::size_t next = kRecordCore;
-      if (neighbours) state.support_neighbours[i] = static_cast<std::int32_t>(r[next++]);
-      if (has_stress_) {
-        std::copy_n(r + next, 6, &state.stress[6 * i]);
-        next += 6;
-      }
-      if (held) state.wall_work_held[i] = static_cast<float>(r[next]);
+      const Record r = read_record(&from[k]);
+      state.active[r.id] = r.active;
+      state.position[r.id] = r.position;
+      state.velocity[r.id] = r.velocity;
+      state.density[r.id] = r.density;
+      state.pressure[r.id] = r.pressure;
+      if (neighbours) state.support_neighbours[r.id] = r.support_neighbours;
+      if (has_stress_) std::copy_n(r.stress, 6, &state.stress[6 * r.id]);
+      if (held) state.wall_work_held[r.id] = r.wall_work_held;
     }
   }
   return state;

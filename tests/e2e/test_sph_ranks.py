@@ -13,9 +13,10 @@ import unittest
 
 from e2e_support import BUILD_DIR, RealRunTestCase, read_json
 
-# mpirun as root (CI's containers) needs these; --oversubscribe: more ranks than cores.
+# mpirun as root (CI's containers) needs these; --oversubscribe: more ranks than cores;
+# mpi_yield_when_idle: a rank waiting in a collective gives its core away (this machine runs other tests beside).
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1", "OMP_NUM_THREADS": "1",
-           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+           "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMPI_MCA_mpi_yield_when_idle": "1"}
 LAUNCHER = '\n[solvers.sph]\nlauncher = ["mpirun", "-n", "2", "--oversubscribe"]\n'
 # A launcher needs a tcp endpoint (docs/cluster.md); both runs take the same one.
 ENDPOINT = ("[run]\n", '[run]\nendpoint = "tcp://127.0.0.1:*"\n')
