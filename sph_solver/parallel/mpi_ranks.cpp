@@ -79,14 +79,6 @@ void MpiRanks::sum_disjoint(std::span<double> values) {
         "MPI_Allreduce(sum)");
 }
 
-std::vector<double> MpiRanks::gather(std::span<const double> values) {
-  std::vector<double> all(values.size() * static_cast<std::size_t>(size_));
-  const int count = count_of(values.size(), "gather");
-  check(MPI_Allgather(values.data(), count, MPI_DOUBLE, all.data(), count, MPI_DOUBLE, MPI_COMM_WORLD),
-        "MPI_Allgather");
-  return all;
-}
-
 std::vector<std::vector<double>> MpiRanks::all_to_all(const std::vector<std::vector<double>>& to) {
   const auto ranks = static_cast<std::size_t>(size_);
   std::vector<int> send_counts(ranks), send_offsets(ranks), receive_counts(ranks), receive_offsets(ranks);

@@ -40,7 +40,6 @@ class MpiRanks final : public Ranks {
   void max(std::span<double> values) override;
   void sum(std::span<std::int64_t> values) override;
   void sum_disjoint(std::span<double> values) override;
-  [[nodiscard]] std::vector<double> gather(std::span<const double> values) override;
   [[nodiscard]] std::vector<std::vector<double>> all_to_all(const std::vector<std::vector<double>>& to) override;
   [[nodiscard]] std::vector<std::vector<float>> exchange(std::span<const int> peers,
                                                          const std::vector<std::vector<float>>& sends) override;

@@ -5,8 +5,7 @@
 //
 // Every call is collective over the ranks that share the model: all of them call it, in the
 // same order. Reductions that the results depend on are exact whatever the rank count
-// (min, max, integer sums, a sum where one rank holds each nonzero entry); gather() returns
-// the ranks' values in rank order, so that a floating-point sum over them has a fixed order.
+// (min, max, integer sums, a sum where one rank holds each nonzero entry).
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -25,8 +24,6 @@ class Ranks {
   virtual void sum(std::span<std::int64_t> values) = 0;
   // Element-wise sum; exact where at most one rank holds a nonzero value of each element.
   virtual void sum_disjoint(std::span<double> values) = 0;
-  // Every rank's `values` (the same count on every rank), rank after rank.
-  [[nodiscard]] virtual std::vector<double> gather(std::span<const double> values) = 0;
   // to[q] goes to rank q; returns what each rank sent this one (index: sender).
   [[nodiscard]] virtual std::vector<std::vector<double>> all_to_all(const std::vector<std::vector<double>>& to) = 0;
   // Point-to-point among neighbours: sends[k] goes to peers[k] and the result's k-th entry

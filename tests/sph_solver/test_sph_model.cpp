@@ -3,15 +3,18 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <numeric>
+#include <random>
 #include <utility>
 
 #include "libsabo/contact/surface_contact.hpp"
 #include "libsabo/geometry/primitives.hpp"
+#include "sph_solver/exact_sum.hpp"
 #include "sph_solver/sph_model.hpp"
 #include "tests/support/sph_scenes.hpp"
 
@@ -41,6 +44,53 @@ TEST(SphKernel, IntegratesToOneAndGradientMatchesValue) {
     }
     EXPECT_EQ(kernel.value(2.0 * h), 0.0);
   }
+}
+
+// The energies' sums (exact_sum.hpp): any order of the terms, any split among ranks (joined through
+// their limbs), the same bits; and within a double's rounding of the exact sum.
+TEST(SphExactSum, OrderAndSplitDoNotChangeTheBits) {
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> magnitude(-12.0, 8.0);
+  std::vector<double> terms;
+  for (int k = 0; k < 20000; ++k) {
+    const double term = std::pow(10.0, magnitude(random)) * (k % 3 == 0 ? -1.0 : 1.0);
+    terms.push_back(term);
+  }
+  const auto sum_of = [](const std::vector<double>& values) {
+    ExactSum sum;
+    for (double v : values) sum.add(v);
+    return sum;
+  };
+  const double forward = sum_of(terms).value();
+  std::vector<double> shuffled = terms;
+  std::shuffle(shuffled.begin(), shuffled.end(), random);
+  EXPECT_EQ(sum_of(shuffled).value(), forward);
+  // Three "ranks" of unequal shares, joined through their limbs as integer sums.
+  ExactSum::Limbs total{};
+  for (const auto& [begin, end] : {std::pair{0, 5000}, std::pair{5000, 5001}, std::pair{5001, 20000}}) {
+    ExactSum part;
+    for (int k = begin; k < end; ++k) part.add(shuffled[static_cast<std::size_t>(k)]);
+    const ExactSum::Limbs limbs = part.limbs();
+    for (std::size_t q = 0; q < 4; ++q) total[q] += limbs[q];
+  }
+  EXPECT_EQ(ExactSum::from_limbs(total).value(), forward);
+  // A negative total survives the limbs (two's complement through the carries).
+  ExactSum negative;
+  negative.add(-3.25e6);
+  negative.add(1e-9);
+  EXPECT_EQ(ExactSum::from_limbs(negative.limbs()).value(), negative.value());
+  // Against a long-double sum of the terms sorted by size: within 1e-14 of the sum of their magnitudes
+  // (the long double's own rounding over 20000 terms stays far inside).
+  std::vector<double> sorted = terms;
+  std::sort(sorted.begin(), sorted.end(), [](double a, double b) { return std::abs(a) < std::abs(b); });
+  long double reference = 0, magnitudes = 0;
+  for (double v : sorted) {
+    reference += v;
+    magnitudes += std::abs(v);
+  }
+  std::cout << "exact sum of 20000 terms from 1e-12 to 1e8: " << forward << ", long double " << double(reference)
+            << " (expected within " << 1e-14 * double(magnitudes) << ")\n";
+  EXPECT_NEAR(forward, double(reference), 1e-14 * double(magnitudes));
 }
 
 TEST(SphEos, InverseOfTaitAndPolynomial) {
