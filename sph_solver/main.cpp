@@ -99,6 +99,7 @@ class RankLeader {
     if (ranks_) ranks_->broadcast(command, 0);
   }
   void send(RankCommand command, std::initializer_list<double> arguments = {}) {
+    if (!ranks_) return;
     std::vector<double> out{double(command)};
     out.insert(out.end(), arguments);
     send(std::move(out));
@@ -213,10 +214,8 @@ class SphSolver final : public solver::CoupledSolver {
       }
       walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
       walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
-      if (leader_.active()) {
-        leader_.send(pack_walls(walls));
-        leader_.send(RankCommand::compute, {dt_previous_});
-      }
+      if (leader_.active()) leader_.send(pack_walls(walls));
+      leader_.send(RankCommand::compute, {dt_previous_});
       model_.set_boundary(std::move(walls));
       model_.compute_internal_forces(dt_previous_);
       have_boundary_forces_ = true;
@@ -248,14 +247,10 @@ class SphSolver final : public solver::CoupledSolver {
   }
 
   void integrate(double dt_previous, double dt) override {
-    if (leader_.active()) {
-      leader_.send(RankCommand::integrate, {dt_previous, dt});
-      model_.integrate(dt_previous, dt);
-      leader_.send(RankCommand::collect);
-      model_.collect_state();
-    } else {
-      model_.integrate(dt_previous, dt);
-    }
+    leader_.send(RankCommand::integrate, {dt_previous, dt});
+    model_.integrate(dt_previous, dt);
+    leader_.send(RankCommand::collect);
+    model_.collect_state();  // alone: nothing to do
     audit_.after_integrate(model_, dt_previous, dt);
     if (lost_reported_ == 0 && model_.lost_count() > 0) {
       // The first loss at once; later ones summed up at each output time (a flow leaving through an open end
@@ -303,10 +298,8 @@ class SphSolver final : public solver::CoupledSolver {
   }
   void load_checkpoint(const io::hdf5::Group& group) override {
     model_.load_state(group.group("model"));
-    if (leader_.active()) {
-      leader_.send(RankCommand::share_loaded_state);
-      model_.share_loaded_state();
-    }
+    leader_.send(RankCommand::share_loaded_state);
+    model_.share_loaded_state();  // alone: nothing to do
     audit_.load(group);
     output_.load(group);
     gauges_.load(group);

@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "libsabo/core/error.hpp"
+#include "sph_solver/exact_sum.hpp"
 
 namespace sabo::sph {
 namespace {
@@ -127,18 +128,11 @@ SphModel::SphModel(const scene::Scene& scene, std::shared_ptr<parallel::Ranks> r
           "(without mpirun), or leave them out",
           unsupported));
     }
-    ranks_ = std::move(ranks);
-    if (ranks_->rank() == 0) collected_active_ = active_;  // it starts with the whole state
-    // Until the first step's slabs: rank r owns the r-th of R equal runs of ids.
-    const auto r = static_cast<std::size_t>(ranks_->rank()), count = static_cast<std::size_t>(ranks_->size());
-    for (std::size_t i = 0; i < n; ++i) {
-      if (i * count / n != r) active_[i] = 0;
-    }
   }
   // Exact sums, as integrate() takes them (exact_sum.hpp): a state that does not change keeps its energies' bits.
   ExactSum kinetic, potential, elastic;
   for (std::size_t i = 0; i < n; ++i) {
-    if (ranks_ == nullptr && active_[i] != kFree) continue;  // an inflow's buffer enters the account at the first step
+    if (active_[i] != kFree) continue;  // an inflow's buffer enters the account at the first step
     kinetic.add(0.5 * mass_[i] * velocity_[i].squaredNorm());
     potential.add(-mass_[i] * gravity_.dot(wrap_offset_.empty() ? position_[i] : Vec3(position_[i] - wrap_offset_[i])));
     elastic.add(mass_[i] * materials_[material_[i]].eos.specific_energy(density_[i]));
@@ -146,6 +140,11 @@ SphModel::SphModel(const scene::Scene& scene, std::shared_ptr<parallel::Ranks> r
   energies_.kinetic = kinetic.value();
   energies_.potential = potential.value();
   energies_.elastic = elastic.value();
+  if (ranks) {
+    ranks_ = std::move(ranks);
+    if (ranks_->rank() == 0) collected_active_ = active_;  // it starts with the whole state
+    keep_initial_share();
+  }
 }
 
 void SphModel::compute_internal_forces(double dt_previous) {

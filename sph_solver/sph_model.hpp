@@ -77,7 +77,6 @@
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
-#include "sph_solver/exact_sum.hpp"
 #include "sph_solver/inflow.hpp"
 #include "sph_solver/parallel/ranks.hpp"
 #include "sph_solver/parallel/slabs.hpp"
@@ -340,6 +339,13 @@ class SphModel {
   }
   // The grid's origin and cell counts for the particles (and walls) inside `box`.
   void set_grid_geometry(Aabb box);
+  // Decomposed: the grid's layers along the slab axis, and the layer of a point (clamped to them:
+  // a point outside the grid, or not finite, belongs to an end layer).
+  [[nodiscard]] std::int64_t slab_layers() const { return slab_axis_ == 0 ? nx_ : (slab_axis_ == 1 ? ny_ : nz_); }
+  [[nodiscard]] std::int64_t layer_of(const Vec3& point) const;
+  // Decomposed: until the first step's slabs (at construction, after a checkpoint is loaded), rank
+  // r owns the r-th of R equal runs of ids.
+  void keep_initial_share();
   // Inflows (passes/inflow.cpp): the pools and the first buffer layers, at construction; each buffer's
   // velocity for the step to time_ + dt; after the position update, the buffers advanced (positions,
   // densities), their front layers released and new layers added behind, and a buffer whose hydrograph
@@ -505,7 +511,6 @@ class SphModel {
   double mean_neighbours_ = 0;
   std::int64_t neighbour_pairs_ = 0;  // pairs inside the support counted by mean_neighbours_
   bool forces_ready_ = false;
-  std::vector<ExactSum> energy_block_;  // J: kinetic, potential, elastic, held, inflow per block of particles
   Energies energies_;
 
   // Decomposition (only with ranks_).

@@ -115,13 +115,10 @@ void SphModel::build_grid() {
       f_position, [&](std::size_t i) { return i >= particles || active_[i] != 0; }, f_cell_start_, f_order_);
   sort_by_x(f_position, f_cell_start_, f_order_, f_image_source_.size());
   // Decomposed: the wall particles of this rank's window only.
-  const int axis = slab_axis_;
-  const auto in_window = [&](std::size_t b) {
-    const auto layer = static_cast<std::int64_t>((b_position[b][axis] - grid_origin_[axis]) * inverse_cell);
-    return slabs_.in_window(ranks_->rank(), layer);
-  };
   sort(
-      b_position, [&](std::size_t b) { return !decomposed() || in_window(b); }, b_cell_start_, b_order_);
+      b_position,
+      [&](std::size_t b) { return !decomposed() || slabs_.in_window(ranks_->rank(), layer_of(b_position[b])); },
+      b_cell_start_, b_order_);
   sort_by_x(b_position, b_cell_start_, b_order_, b_image_source_.size());
   if (periodic) {
     f_slot_of_.resize(particles);

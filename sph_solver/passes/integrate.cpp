@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
@@ -17,10 +18,15 @@
 namespace sabo::sph {
 namespace {
 
-// Particles per block of the energy sums (fixed: the same bits on any number of threads).
-constexpr std::size_t kEnergyBlock = 4096;
-// Sums per block: kinetic, potential, elastic, wall work held back, inflow (inflow.hpp).
-constexpr std::size_t kEnergyTerms = 5;
+// The energies at the step. Exact sums (exact_sum.hpp): the chunks, the threads and the ranks that add
+// the terms do not change the bits.
+enum EnergyTerm : std::size_t { kKinetic, kPotential, kElastic, kWallHeld, kInflow, kEnergyTerms };
+struct EnergySums {
+  std::array<ExactSum, kEnergyTerms> term;
+  void join(const EnergySums& other) {
+    for (std::size_t t = 0; t < kEnergyTerms; ++t) term[t].join(other.term[t]);
+  }
+};
 
 }  // namespace
 
@@ -97,54 +103,45 @@ void SphModel::integrate(double dt_previous, double dt) {
   const bool periodic = !periodic_.empty();
   update_settle_factors(dt);
   if (!inflows_.empty()) set_inflow_velocities(dt);
-  // Energies at the step, summed per block of kEnergyBlock particles, blocks in order.
-  const std::size_t blocks = (n + kEnergyBlock - 1) / kEnergyBlock;
-  energy_block_.assign(kEnergyTerms * blocks, ExactSum{});
-  particle_for<Compile::baseline>(n, parallel, kEnergyBlock, [&](std::int64_t begin, std::int64_t end) {
-    const auto first = static_cast<std::size_t>(begin), last = static_cast<std::size_t>(end);
-    ExactSum kinetic, potential, elastic, held, inflow;
-    for (std::size_t i = first; i < last; ++i) {
-      if (!active_[i]) {
-        if (external) external_force_[i].setZero();
-        continue;
-      }
-      const FluidMaterial& material = materials_[material_[i]];
-      const double particle_potential =
-          -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
-      const double particle_elastic = mass_[i] * material.eos.specific_energy(density_[i]);
-      potential.add(particle_potential);
-      elastic.add(particle_elastic);
-      if (!wall_work_held_.empty()) held.add(wall_work_held_[i]);
-      Vec3 a = acceleration_[i];
-      if (external) {
-        a += external_force_[i] / mass_[i];
-        external_force_[i].setZero();
-      }
-      Vec3 velocity;
-      if (active_[i] == kFree) {
-        velocity = velocity_[i] + dt_update * a;
-        if (const double settle = settle_factor_[body_[i]]; settle != 1.0) velocity *= settle;
-      } else {
-        velocity = buffer_velocity_[body_[i]];  // an inflow's buffer (inflow.hpp)
-      }
-      const double particle_kinetic =
-          first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
-      kinetic.add(particle_kinetic);
-      if (active_[i] == kEntering) {
-        inflow.add(particle_kinetic + particle_potential + particle_elastic);
-      } else if (active_[i] == kBuffer) {
-        const Vec3 holding = mass_[i] * ((velocity - velocity_[i]) / dt_update - a);
-        inflow.add(0.5 * dt_update * holding.dot(velocity_[i] + velocity));
-      }
-      velocity_[i] = velocity;
-    }
-    ExactSum* sums = &energy_block_[kEnergyTerms * (first / kEnergyBlock)];
-    sums[0] = kinetic;
-    sums[1] = potential;
-    sums[2] = elastic;
-    sums[3] = held;
-    sums[4] = inflow;
-  });
+  // Energies at the step, with the new velocities.
+  EnergySums totals = particle_reduce<Compile::baseline>(
+      n, parallel, EnergySums{}, [&](std::int64_t begin, std::int64_t end, EnergySums& sums) {
+        for (auto i = static_cast<std::size_t>(begin); i < static_cast<std::size_t>(end); ++i) {
+          if (!active_[i]) {
+            if (external) external_force_[i].setZero();
+            continue;
+          }
+          const FluidMaterial& material = materials_[material_[i]];
+          const double particle_potential =
+              -mass_[i] * gravity_.dot(periodic ? Vec3(position_[i] - wrap_offset_[i]) : position_[i]);
+          const double particle_elastic = mass_[i] * material.eos.specific_energy(density_[i]);
+          sums.term[kPotential].add(particle_potential);
+          sums.term[kElastic].add(particle_elastic);
+          if (!wall_work_held_.empty()) sums.term[kWallHeld].add(wall_work_held_[i]);
+          Vec3 a = acceleration_[i];
+          if (external) {
+            a += external_force_[i] / mass_[i];
+            external_force_[i].setZero();
+          }
+          Vec3 velocity;
+          if (active_[i] == kFree) {
+            velocity = velocity_[i] + dt_update * a;
+            if (const double settle = settle_factor_[body_[i]]; settle != 1.0) velocity *= settle;
+          } else {
+            velocity = buffer_velocity_[body_[i]];  // an inflow's buffer (inflow.hpp)
+          }
+          const double particle_kinetic =
+              first_step ? 0.5 * mass_[i] * velocity_[i].squaredNorm() : 0.5 * mass_[i] * velocity_[i].dot(velocity);
+          sums.term[kKinetic].add(particle_kinetic);
+          if (active_[i] == kEntering) {
+            sums.term[kInflow].add(particle_kinetic + particle_potential + particle_elastic);
+          } else if (active_[i] == kBuffer) {
+            const Vec3 holding = mass_[i] * ((velocity - velocity_[i]) / dt_update - a);
+            sums.term[kInflow].add(0.5 * dt_update * holding.dot(velocity_[i] + velocity));
+          }
+          velocity_[i] = velocity;
+        }
+      });
   compute_velocity_divergence(dt);
   if (has_stress_) {
     // The deviatoric stress is position-like too: its rate from L(x_n, v_{n+1/2}) (the fluid's
@@ -181,11 +178,6 @@ void SphModel::integrate(double dt_previous, double dt) {
       pressure_[i] = material.eos.pressure(density_[i]);
     }
   });
-  // Exact sums (exact_sum.hpp): the blocks' order, the threads and the ranks do not change the bits.
-  ExactSum totals[kEnergyTerms];
-  for (std::size_t block = 0; block < blocks; ++block) {
-    for (std::size_t t = 0; t < kEnergyTerms; ++t) totals[t].join(energy_block_[kEnergyTerms * block + t]);
-  }
   // The inflows' account is cumulative: the last step's, what came in since (advance_inflows() below adds
   // to the next step's) and this step's work.
   const double inflow_before = energies_.inflow + inflow_pending_;
@@ -209,7 +201,7 @@ void SphModel::integrate(double dt_previous, double dt) {
     // Every rank's sums (its particles only) and losses, exactly (limbs of 32 bits in integers).
     std::vector<std::int64_t> limbs(4 * kEnergyTerms + 1);
     for (std::size_t t = 0; t < kEnergyTerms; ++t) {
-      const ExactSum::Limbs own = totals[t].limbs();
+      const ExactSum::Limbs own = totals.term[t].limbs();
       std::copy(own.begin(), own.end(), limbs.begin() + static_cast<std::ptrdiff_t>(4 * t));
     }
     limbs.back() = static_cast<std::int64_t>(lost_ - lost_before);
@@ -217,16 +209,16 @@ void SphModel::integrate(double dt_previous, double dt) {
     for (std::size_t t = 0; t < kEnergyTerms; ++t) {
       ExactSum::Limbs all;
       std::copy_n(limbs.begin() + static_cast<std::ptrdiff_t>(4 * t), 4, all.begin());
-      totals[t] = ExactSum::from_limbs(all);
+      totals.term[t] = ExactSum::from_limbs(all);
     }
     lost_ = lost_before + static_cast<std::size_t>(limbs.back());
   }
   Energies energies;
-  energies.kinetic = totals[0].value();
-  energies.potential = totals[1].value();
-  energies.elastic = totals[2].value();
-  energies.wall_held = totals[3].value();
-  energies.inflow = inflow_before + totals[4].value();
+  energies.kinetic = totals.term[kKinetic].value();
+  energies.potential = totals.term[kPotential].value();
+  energies.elastic = totals.term[kElastic].value();
+  energies.wall_held = totals.term[kWallHeld].value();
+  energies.inflow = inflow_before + totals.term[kInflow].value();
   energies_ = energies;
   time_ += dt;
   forces_ready_ = false;

@@ -49,6 +49,19 @@ SphModel::Record SphModel::read_record(const double* r) const {
           wall_work_held_.empty() ? 0.0f : static_cast<float>(r[kRecordCore + (has_stress_ ? 6 : 0)])};
 }
 
+std::int64_t SphModel::layer_of(const Vec3& point) const {
+  const auto layer = static_cast<std::int64_t>((point[slab_axis_] - grid_origin_[slab_axis_]) * inverse_cell_);
+  return std::clamp<std::int64_t>(layer, 0, slab_layers() - 1);
+}
+
+void SphModel::keep_initial_share() {
+  const std::size_t n = position_.size();
+  const auto r = static_cast<std::size_t>(ranks_->rank()), count = static_cast<std::size_t>(ranks_->size());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i * count / n != r) active_[i] = 0;
+  }
+}
+
 void SphModel::distribute() {
   const int rank = ranks_->rank();
   const std::size_t n = position_.size();
@@ -80,13 +93,7 @@ void SphModel::distribute() {
   set_grid_geometry(global);
   // Slabs along the axis with the most cells (ties: x, then y), balanced by the particles per layer.
   slab_axis_ = nx_ >= ny_ && nx_ >= nz_ ? 0 : (ny_ >= nz_ ? 1 : 2);
-  const std::int64_t layers = slab_axis_ == 0 ? nx_ : (slab_axis_ == 1 ? ny_ : nz_);
-  const int axis = slab_axis_;
-  const auto layer_of = [&](const Vec3& p) {
-    const auto layer = static_cast<std::int64_t>((p[axis] - grid_origin_[axis]) * inverse_cell_);
-    return std::clamp<std::int64_t>(layer, 0, layers - 1);  // a position that is not finite: any layer
-  };
-  std::vector<std::int64_t> counts(static_cast<std::size_t>(layers), 0);
+  std::vector<std::int64_t> counts(static_cast<std::size_t>(slab_layers()), 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (active_[i]) ++counts[static_cast<std::size_t>(layer_of(position_[i]))];
   }
@@ -198,32 +205,26 @@ void SphModel::exchange_halo(std::initializer_list<HaloField> fluid, std::initia
   for (std::size_t k = 0; k < halo_.size(); ++k) {
     const HaloSide& side = halo_[k];
     const std::vector<float>& in = received[k];
-    std::size_t at = 0;
-    const auto unpack = [&](std::initializer_list<HaloField> fields, const std::vector<std::uint32_t>& slots) {
-      for (const HaloField& field : fields) {
-        for (int q = 0; q < field.components; ++q) {
-          float* data = field.data + static_cast<std::size_t>(q) * field.stride;
-          for (const std::uint32_t s : slots) {
-            if (at >= in.size()) break;
-            data[s] = in[at++];
-          }
-        }
-      }
-    };
-    unpack(fluid, side.fluid_receive);
-    unpack(wall, side.wall_receive);
-    if (at != in.size() || [&] {
-          std::size_t expected = 0;
-          for (const HaloField& f : fluid)
-            expected += static_cast<std::size_t>(f.components) * side.fluid_receive.size();
-          for (const HaloField& f : wall) expected += static_cast<std::size_t>(f.components) * side.wall_receive.size();
-          return expected != in.size();
-        }()) {
+    std::size_t expected = 0;
+    for (const HaloField& f : fluid) expected += static_cast<std::size_t>(f.components) * side.fluid_receive.size();
+    for (const HaloField& f : wall) expected += static_cast<std::size_t>(f.components) * side.wall_receive.size();
+    if (in.size() != expected) {
       throw Error(fmt::format(
           "sph_solver: rank {} received {} halo values from rank {}, not the {} fluid and {} wall slots it reads "
           "there; the ranks' grids disagree (an internal error: please report it with the scene)",
           ranks_->rank(), in.size(), side.rank, side.fluid_receive.size(), side.wall_receive.size()));
     }
+    std::size_t at = 0;
+    const auto unpack = [&](std::initializer_list<HaloField> fields, const std::vector<std::uint32_t>& slots) {
+      for (const HaloField& field : fields) {
+        for (int q = 0; q < field.components; ++q) {
+          float* data = field.data + static_cast<std::size_t>(q) * field.stride;
+          for (const std::uint32_t s : slots) data[s] = in[at++];
+        }
+      }
+    };
+    unpack(fluid, side.fluid_receive);
+    unpack(wall, side.wall_receive);
   }
 }
 
@@ -332,12 +333,8 @@ void SphModel::collect_state() {
 
 FluidSample SphModel::sample_on_ranks(const Vec3& point, bool kernel_sum_only) const {
   if (!decomposed()) return kernel_sum_only ? FluidSample{kernel_sum_here(point)} : sample_here(point);
-  const std::int64_t layers = slab_axis_ == 0 ? nx_ : (slab_axis_ == 1 ? ny_ : nz_);
-  const auto layer = std::clamp<std::int64_t>(
-      static_cast<std::int64_t>(std::floor((point[slab_axis_] - grid_origin_[slab_axis_]) * inverse_cell_)), 0,
-      layers - 1);
   FluidSample here;
-  if (slabs_.owner(layer) == ranks_->rank()) {
+  if (slabs_.owner(layer_of(point)) == ranks_->rank()) {
     here = kernel_sum_only ? FluidSample{kernel_sum_here(point)} : sample_here(point);
   }
   double values[6] = {here.kernel_sum,   here.pressure,     here.velocity.x(),
@@ -414,11 +411,7 @@ void SphModel::share_loaded_state() {
   } else {
     collected_active_ = active_;
   }
-  // Each rank's share until the next step's slabs, as at construction.
-  const auto r = static_cast<std::size_t>(ranks_->rank()), count = static_cast<std::size_t>(ranks_->size());
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i * count / n != r) active_[i] = 0;
-  }
+  keep_initial_share();
 }
 
 }  // namespace sabo::sph
