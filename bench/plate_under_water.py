@@ -10,11 +10,10 @@ The plate is a deformable shell panel (`plane` with a `thickness`), clamped on i
 (`fixed = ["x-", "x+"]`) and held in cylindrical bending (every node: no y displacement, no rotation about
 x), the water periodic across the width (`sph.periodic_y`, 8 spacings), between two rigid walls; the
 plate's surface is sampled as boundary particles (`sph.wall_model = "boundary_particles"`) or met by the
-penalty law (`--wall-models penalty`). The plate is loaded at once at t = 0: it rings about its static
-deflection, and the column, short of its weight on the plate at first (the plate's acceleration of
-about 150 m/s^2 enters the walls' pressure, Adami's g - a_w), bounces on it at its acoustic period
-4 H / c. The water's `settle_time` (`--settle`) damps that bounce; the measured deflection is the mean of
-the midspan nodes' vertical displacement over [--from, end_time]. For every shell formulation and wall model asked for, prints
+penalty law (`--wall-models penalty`). The plate is loaded at once at t = 0 and rings about its static
+deflection; the water's `settle_time` (`--settle`) damps the column's own start; the measured deflection
+is the mean of the midspan nodes' vertical displacement over [--from, end_time]. For every shell
+formulation and wall model asked for, prints
 a markdown table (bench/RESULTS.md). Python 3.8+, standard library only; it builds nothing (run ./sabo setup
 first; $SABO_BUILD_DIR picks the build folder).
 
@@ -82,8 +81,9 @@ class Plate:
 
     def scene_text(self):
         W, dx = self.width, self.spacing
-        # The walls end at the plate's upper face: reaching below it, they would take the plate's wall
-        # particles near them (those in front of a wall closer than their depth are dropped).
+        # The walls stand on the plate's upper face: the corners behind them and the plate are filled with
+        # wall particles (reaching below the face, they would take the plate's wall particles near them:
+        # those in front of a wall closer than their depth are dropped).
         wall_bottom, wall_top = 0.0, DEPTH + 0.2
         wall_height = wall_top - wall_bottom
         lines = [

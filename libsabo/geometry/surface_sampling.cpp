@@ -194,12 +194,15 @@ class Sampler {
 
   [[nodiscard]] double on_face_tolerance() const { return 1e-9 * dx_; }
 
+  // n . x on the face the fluid wets: the plane itself for a solid's face, a shell's front face t/2 in front
+  // of its mid-surface.
+  [[nodiscard]] static double front_offset(const Patch& p) { return p.offset + 0.5 * p.thickness; }
+
   [[nodiscard]] Claim claim(const Patch& p, const Vec3& x) const {
     Claim c;
     if (!p.bounds.inflated(reach_ + p.thickness).contains(x)) return c;
-    const double depth = p.offset - p.n.dot(x);
-    const double first = 0.5 * p.thickness;
-    if (depth <= first + on_face_tolerance() || depth > first + reach_ + on_face_tolerance()) return c;
+    const double depth = front_offset(p) - p.n.dot(x);
+    if (depth <= on_face_tolerance() || depth > reach_ + on_face_tolerance()) return c;
     const double o = overshoot(p, x);
     if (!(o < reach_)) return c;
     c.valid = true;
@@ -212,7 +215,7 @@ class Sampler {
   // out through the far side of a thin solid.
   [[nodiscard]] bool crossed(const Patch& p, const Vec3& x, double depth) const {
     if (!p.bounds.inflated(depth + p.thickness).contains(x)) return false;
-    const double front = p.n.dot(x) - p.offset - 0.5 * p.thickness;
+    const double front = p.n.dot(x) - front_offset(p);
     if (front < -on_face_tolerance() || front >= depth) return false;
     return overshoot(p, x) <= on_face_tolerance();
   }
@@ -270,8 +273,8 @@ class Sampler {
         const Vec3 q = p.offset * p.n + u_at(i) * p.u + v_at(j) * p.v;
         const Frame frame = face_frame(mesh_, cell.face);
         for (std::size_t k = 0; k < layers_; ++k) {
-          const double depth = 0.5 * p.thickness + (static_cast<double>(k) + 0.5) * dx_;
-          const Vec3 x = q - depth * p.n;
+          const double depth = (static_cast<double>(k) + 0.5) * dx_;
+          const Vec3 x = q + (0.5 * p.thickness - depth) * p.n;
           std::size_t partner = 0;
           if (!keep(a, x, cell.anchor, {true, cell.distance > 0, depth}, partner)) continue;
           std::uint32_t partner_face = kNoFace;
@@ -296,10 +299,13 @@ class Sampler {
   // corner with patch `other` when other is at an angle to a (not its opposite
   // face) and the anchor lies on other's faces too (the two meet there).
   [[nodiscard]] bool fills_corner_with(const Patch& other, std::size_t a, const Vec3& anchor) const {
-    if (other.n.dot(patches_[a].n) <= -1 + 1e-9) return false;
+    const Patch& own = patches_[a];
+    if (other.n.dot(own.n) <= -1 + 1e-9) return false;
     const double tolerance = 1e-3 * dx_;
-    if (std::abs(other.n.dot(anchor) - other.offset) > tolerance) return false;
-    return overshoot(other, anchor) <= tolerance;
+    // The wetted faces meet: a shell's front face, not its mid-surface, joins a wall standing on it.
+    const Vec3 front = anchor + 0.5 * own.thickness * own.n;
+    if (std::abs(other.n.dot(front) - front_offset(other)) > tolerance) return false;
+    return overshoot(other, front) <= tolerance;
   }
 
   // Whether patch a keeps particle x; for a corner fill, `partner` becomes the

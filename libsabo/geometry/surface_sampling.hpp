@@ -8,10 +8,13 @@
 // thickness) form a patch with one square lattice of spacing dx in the plane,
 // aligned with the patch's bounds along the global axis closest to the plane
 // (an axis-aligned box face of n dx gets exactly n x n points). Lattice point
-// q of a patch gives `layers` particles at depths t/2 + (k + 1/2) dx behind
-// the plane, k = 0 .. layers - 1 (t: shell thickness, 0 for solid faces; a
-// shell is sampled on its back side), when q lies on a face of the patch
-// ("inside"), or within layers * dx of the patch's edge ("extension").
+// q of a patch gives `layers` particles at depths (k + 1/2) dx behind the
+// face the fluid wets, k = 0 .. layers - 1, when q lies on a face of the patch
+// ("inside"), or within layers * dx of the patch's edge ("extension"). That
+// face is the plane itself for a solid's face and a shell's front face, t/2 in
+// front of its mid-surface (t: the thickness): Adami's wall lies half a
+// spacing in front of the first layer, so the fluid stands on the shell's
+// face, and the shell's own volume holds the first layers.
 // Where the layers of several patches meet:
 //  * convex edges and corners (box edges): the layers of both faces overlap
 //    inside the solid; a particle is kept only by the patch it is nearest to
@@ -63,7 +66,7 @@ struct SurfaceSampling {
   std::vector<std::uint32_t> face;            // triangle each particle is anchored to
   std::vector<std::array<double, 3>> weight;  // barycentric weights of the anchor on the face (sum 1, each >= 0)
   std::vector<Vec3> offset;                   // particle - anchor in the face frame (e1, e2, n), m
-  std::vector<double> depth;                  // m behind the face's plane at sampling time
+  std::vector<double> depth;                  // m behind the wetted face at sampling time
   std::vector<char> extension;                // 1: anchored beyond the patch's edge (concave corner fill)
   // Corner fills only (else kNoFace): the face of the patch it fills the
   // corner with, and the weights of the particle's nearest point on it.

@@ -105,15 +105,41 @@ TEST(SurfaceSampling, FlatPlaneGivesLayersAtSpacingAndCoversTheArea) {
   EXPECT_DOUBLE_EQ(s.particle_volume(), 1e-3);
 }
 
-TEST(SurfaceSampling, ShellIsSampledOnItsBackSideBeyondHalfItsThickness) {
+TEST(SurfaceSampling, ShellLayersStartHalfASpacingBehindItsWettedFace) {
+  // A shell 0.02 m thick on the plane z = 0: its front face at z = 0.01, the first layer at 0.01 - dx / 2.
   auto mesh = plane({0, 0, 0}, {0, 0, 1}, {1, 0, 0}, 0.4, 0.4, 0);
   mesh.face_thickness.assign(mesh.face_count(), 0.02);
   const auto s = sabo::geometry::sample_surface(mesh, 0.1, 2);
   EXPECT_EQ(s.size(), 4u * 4u * 2u);
-  double shallowest = 1;
+  double shallowest = 1, highest = -1;
   for (double d : s.depth) shallowest = std::min(shallowest, d);
-  std::cout << "shell first layer depth: measured " << shallowest << " m expected " << 0.01 + 0.05 << "\n";
-  EXPECT_NEAR(shallowest, 0.06, 1e-12);
+  for (const auto& x : positions(mesh, s)) highest = std::max(highest, x.z());
+  std::cout << "shell first layer: depth behind the front face measured " << shallowest << " m expected 0.05; z "
+            << highest << " m expected " << 0.01 - 0.05 << "\n";
+  EXPECT_NEAR(shallowest, 0.05, 1e-12);
+  EXPECT_NEAR(highest, -0.04, 1e-12);
+}
+
+TEST(SurfaceSampling, AWallStandingOnAShellsFrontFaceFillsTheCornerBetweenThem) {
+  // A shell floor 0.05 m thick, its mid-surface at z = -0.025 (front face z = 0), and a solid wall x = 0 from z = 0
+  // up: the corner behind both is filled as between a floor and a wall that meet (no gap for the fluid to leave by).
+  const double dx = 0.1;
+  SurfaceMesh mesh = plane({0.5, 0.2, -0.025}, {0, 0, 1}, {1, 0, 0}, 1.0, 0.4, 0);
+  mesh.face_thickness.assign(mesh.face_count(), 0.05);
+  mesh.append(plane({0, 0.2, 0.5}, {1, 0, 0}, {0, 0, 1}, 1.0, 0.4, 0));
+  for (std::size_t n = 0; n < mesh.node_count(); ++n) mesh.node_id[n] = n;
+  const auto s = sabo::geometry::sample_surface(mesh, dx, 3);
+  const auto x = positions(mesh, s);
+  std::size_t corner = 0;
+  for (const auto& p : x) {
+    if (p.x() < 0 && p.z() < 0 && p.y() > 0 && p.y() < 0.4) ++corner;
+  }
+  // The wedge x in (-0.3, 0), z in (-0.3, 0) behind both faces: 3 x 3 lattice points a row, 4 rows across the
+  // faces' width (the corner's ends beyond it are filled too).
+  std::cout << "corner fill behind a shell floor and a wall: measured " << corner << " particles expected " << 36
+            << "\n";
+  EXPECT_EQ(corner, 36u);
+  EXPECT_GE(min_pair_distance(x, dx), 0.5 * dx - 1e-12);
 }
 
 TEST(SurfaceSampling, SolidBoxHasNoDoubleLayersAtEdgesAndCorners) {
