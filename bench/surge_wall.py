@@ -60,7 +60,7 @@ class Surge:
     (at x = 0), z up, y across the periodic width."""
 
     def __init__(self, froude, spacings=8, depth=0.04, window=8.0, length=None, alpha_viscosity=0.005,
-                 free_slip=False, width=None):
+                 free_slip=False, width=None, settle=None):
         self.froude = froude
         self.artificial_viscosity = alpha_viscosity
         self.free_slip = free_slip  # floor and wall free-slip ([sph] free_slip_walls): the bore theory's walls
@@ -73,7 +73,8 @@ class Surge:
         self.alpha = alpha_theory(froude)
         self.bore_speed = self.speed / (self.ratio - 1.0)  # upstream, in the ground's frame
         self.width = width if width is not None else 8 * self.spacing  # m, the periodic span across
-        self.settled = (2.0 * froude + 3.0) * self.time_unit  # jet up and back, then a few T
+        # The window's start: the jet up and back, then a few T (or `settle` T after the impact).
+        self.settled = (settle if settle is not None else 2.0 * froude + 3.0) * self.time_unit
         # The head of the rarefaction from the block's tail runs into the block at c relative to the water,
         # v + c towards the wall; it meets the bore after L / (v + c + w), and that news reaches the wall at the
         # speed sqrt(g r h) of the still water behind the bore.
@@ -265,6 +266,12 @@ def main():
     parser.add_argument("--spacings", type=int, nargs="+", default=[8], help="particles across the depth h")
     parser.add_argument("--depth", type=float, default=0.04, help="surge depth h (m)")
     parser.add_argument("--window", type=float, default=8.0, help="plateau length in T = h / sqrt(g h)")
+    parser.add_argument("--settle", type=float,
+                        help="the plateau window's start, in T after the impact (default 2 Fr + 3: the jet up and "
+                             "back, then a few T); the block is made longer to match")
+    parser.add_argument("--width-spacings", type=int, default=8,
+                        help="the periodic channel's width in spacings (a slice of a wide surge; at least the "
+                             "kernel's support)")
     parser.add_argument("--artificial-viscosity", type=float, default=0.005,
                         help="sph.artificial_viscosity (it also acts as a friction of the floor)")
     parser.add_argument("--free-slip", action="store_true",
@@ -279,9 +286,12 @@ def main():
     for spacings in args.spacings:
         for froude in args.froude:
             surge = Surge(froude, spacings, args.depth, args.window, alpha_viscosity=args.artificial_viscosity,
-                          free_slip=args.free_slip)
-            name = "fr{:g}_n{}_av{:g}{}".format(froude, spacings, args.artificial_viscosity,
-                                                 "_free_slip" if args.free_slip else "")
+                          free_slip=args.free_slip, width=args.width_spacings * args.depth / spacings,
+                          settle=args.settle)
+            name = "fr{:g}_n{}_av{:g}{}{}{}".format(
+                froude, spacings, args.artificial_viscosity, "_free_slip" if args.free_slip else "",
+                "" if args.settle is None else "_from{:g}T".format(args.settle),
+                "" if args.width_spacings == 8 else "_w{}".format(args.width_spacings))
             figures = run_case(surge, work, name)
             figures.update({"froude": froude, "spacings": spacings, "free_slip": args.free_slip, "length": surge.length,
                             "expected": surge.expected_force(), "alpha_theory": surge.alpha,
