@@ -270,12 +270,8 @@ def main():
                         help="the plateau window's start, in T after the impact (default 2 Fr + 3: the jet up and "
                              "back, then a few T); the block is made longer to match")
     parser.add_argument("--width-spacings", type=int, default=8,
-                        help="the periodic channel's width in spacings (a slice of a wide surge; at least the "
-                             "kernel's support)")
-    parser.add_argument("--artificial-viscosity", type=float, default=0.005,
-                        help="sph.artificial_viscosity (it also acts as a friction of the floor)")
-    parser.add_argument("--free-slip", action="store_true",
-                        help="free-slip floor and wall ([sph] free_slip_walls), as the bore theory's; default no-slip")
+                        help="the periodic channel's width in spacings (a slice of a wide surge; at least 7: "
+                             "two kernel supports and a spacing)")
     parser.add_argument("--keep", help="folder for the scenes and run folders (default: a temporary one)")
     parser.add_argument("--json", help="also write the figures here")
     parser.add_argument("--plot", help="draw alpha(Fr) into this PNG")
