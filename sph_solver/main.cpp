@@ -51,7 +51,7 @@ std::vector<Vec3> unpack_vectors(const google::protobuf::RepeatedField<double>& 
 
 // What rank 0 tells the other ranks before each call of the shared model: the command, then its
 // arguments, all as doubles (ids and counts are exact in one).
-enum class RankCommand { compute = 1, walls, forces, integrate, collect, share_loaded_state, sample, stop };
+enum class RankCommand { compute = 1, walls, forces, integrate, collect, share_loaded_state, sample, take, stop };
 
 std::vector<double> pack_walls(const physics::BoundaryParticles& walls) {
   std::vector<double> out{double(RankCommand::walls), double(walls.size()), walls.velocity.empty() ? 0.0 : 1.0,
@@ -88,6 +88,29 @@ physics::BoundaryParticles unpack_walls(const std::vector<double>& in) {
     for (std::size_t k = 0; k < n; ++k) walls.free_slip.push_back(static_cast<std::uint8_t>(in[at + k]));
   }
   return walls;
+}
+
+// Replay's recorded state to take (StepForces.taken): index, then each field's count and values.
+std::vector<double> pack_taken(const sabo::v1::StepState& recorded) {
+  std::vector<double> out{double(RankCommand::take), double(recorded.index_size())};
+  out.insert(out.end(), recorded.index().begin(), recorded.index().end());
+  for (const auto* field : {&recorded.position(), &recorded.velocity()}) {
+    out.push_back(double(field->size()));
+    out.insert(out.end(), field->begin(), field->end());
+  }
+  return out;
+}
+
+sabo::v1::StepState unpack_taken(const std::vector<double>& in) {
+  sabo::v1::StepState recorded;
+  std::size_t at = 1;
+  const auto count = static_cast<std::size_t>(in.at(at++));
+  for (std::size_t k = 0; k < count; ++k) recorded.add_index(static_cast<std::uint32_t>(in.at(at++)));
+  for (auto* field : {recorded.mutable_position(), recorded.mutable_velocity()}) {
+    const auto size = static_cast<std::size_t>(in.at(at++));
+    for (std::size_t k = 0; k < size; ++k) field->Add(in.at(at++));
+  }
+  return recorded;
 }
 
 // Rank 0's side of the commands (a no-op without ranks).
@@ -235,10 +258,12 @@ class SphSolver final : public solver::CoupledSolver {
     inflow_history_.sample(model_, model_.time());
   }
 
-  // On ranks the recorded state would have to go to each particle's owner: not yet.
-  [[nodiscard]] bool can_take_state() const override { return !leader_.active(); }
+  // On ranks every rank takes the recorded values into its arrays: an owner steps its particles from them, and
+  // rank 0's collected copy (what the next state sends) holds them too.
+  [[nodiscard]] bool can_take_state() const override { return true; }
   void take_state(const sabo::v1::StepState& recorded) override {
-    solver::take_particle_states(recorded, model_.positions(), model_.velocities());
+    solver::take_particle_states(recorded, model_.positions(), model_.velocities());  // checks it before the ranks
+    if (leader_.active()) leader_.send(pack_taken(recorded));
   }
 
   void write_output(std::uint64_t step, double time) override {
@@ -394,6 +419,9 @@ int follow(int argc, char** argv, const std::shared_ptr<parallel::Ranks>& ranks)
       case RankCommand::share_loaded_state: model.share_loaded_state(); break;
       case RankCommand::sample:
         (void)model.sample_on_ranks(Vec3(command.at(2), command.at(3), command.at(4)), command.at(1) != 0.0);
+        break;
+      case RankCommand::take:
+        solver::take_particle_states(unpack_taken(command), model.positions(), model.velocities());
         break;
       case RankCommand::stop: return 0;
     }

@@ -61,8 +61,7 @@
 // order: the same bits on any number of ranks. Between steps, positions(), velocities() and the
 // other per-id arrays are current for the particles this rank owns (active() != 0 here) only;
 // gather_state() brings the whole state to every rank, collect_state() to rank 0. Not yet with
-// periodic boundaries or inflows (SceneError). The energies are exact sums (exact_sum.hpp): the
-// same bits too.
+// periodic boundaries (SceneError). The energies are exact sums (exact_sum.hpp): the same bits too.
 #include <cstdint>
 #include <functional>
 #include <initializer_list>
@@ -77,6 +76,7 @@
 #include "libsabo/physics/boundary_particles.hpp"
 #include "libsabo/scene/scene.hpp"
 #include "sph_solver/eos.hpp"
+#include "sph_solver/exact_sum.hpp"
 #include "sph_solver/inflow.hpp"
 #include "sph_solver/parallel/ranks.hpp"
 #include "sph_solver/parallel/slabs.hpp"
@@ -346,13 +346,15 @@ class SphModel {
   // Decomposed: until the first step's slabs (at construction, after a checkpoint is loaded), rank
   // r owns the r-th of R equal runs of ids.
   void keep_initial_share();
+  // Whether particle i is in this rank's share of ids (keep_initial_share; always alone).
+  [[nodiscard]] bool in_initial_share(std::size_t i) const;
   // Inflows (passes/inflow.cpp): the pools and the first buffer layers, at construction; each buffer's
   // velocity for the step to time_ + dt; after the position update, the buffers advanced (positions,
   // densities), their front layers released and new layers added behind, and a buffer whose hydrograph
   // has ended taken out.
   void start_inflows(std::size_t bodies);
   void set_inflow_velocities(double dt);
-  void advance_inflows(double dt);
+  void advance_inflows(double dt, ExactSum& pending);
   void advance_inflows_to(InflowState& inflow);
   // settle_factor_ for the step from time_ to time_ + dt.
   void update_settle_factors(double dt);

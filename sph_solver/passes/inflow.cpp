@@ -1,5 +1,8 @@
 // Inflows (inflow.hpp): the pools, the buffers' motion, release, entry and end. The buffers hold few
-// particles against the fluid's, so their loops are serial (and their sums in a fixed order).
+// particles against the fluid's, so their loops are serial. On ranks every rank advances each inflow's
+// state alike (it depends on the hydrograph and the steps only) and moves the buffer particles it owns; a
+// layer entering the buffer goes to the ranks by the share of ids the first step's slabs start from, and
+// its owners follow from the next step's slabs.
 #include <algorithm>
 
 #include "sph_solver/sph_model.hpp"
@@ -34,6 +37,7 @@ void SphModel::advance_inflows_to(InflowState& inflow) {
          inflow.advance >= (static_cast<double>(inflow.entered) + 0.5 - back) * dx) {
     for (std::size_t k = 0; k < inflow.lattice.per_layer(); ++k) {
       const std::uint32_t i = inflow.id(inflow.entered, k);
+      if (!in_initial_share(i)) continue;
       active_[i] = kEntering;
       position_[i] = inflow.position(inflow.entered, k, inflow.advance);
       velocity_[i] = velocity;
@@ -45,7 +49,7 @@ void SphModel::advance_inflows_to(InflowState& inflow) {
   }
 }
 
-void SphModel::advance_inflows(double dt) {
+void SphModel::advance_inflows(double dt, ExactSum& pending) {
   for (InflowState& inflow : inflows_) {
     if (inflow.ended) continue;
     const std::size_t per_layer = inflow.lattice.per_layer();
@@ -63,12 +67,13 @@ void SphModel::advance_inflows(double dt) {
       const bool released = layer < inflow.released;
       for (std::size_t k = 0; k < per_layer; ++k) {
         const std::uint32_t i = inflow.id(layer, k);
+        if (active_[i] == kOut) continue;  // another rank's (a buffer's particles are never lost)
         const EquationOfState& eos = materials_[material_[i]].eos;
         const double rho = inflow.row_density[k / inflow.lattice.across];
         if (released || !ending) {
           // Where the advance puts it, its density reset: what the reset adds to its energy shows in the next
           // step's energies, so the account takes it then.
-          inflow_pending_ += mass_[i] * (eos.specific_energy(rho) - eos.specific_energy(density_[i]));
+          pending.add(mass_[i] * (eos.specific_energy(rho) - eos.specific_energy(density_[i])));
           density_[i] = rho;
           pressure_[i] = eos.pressure(rho);
           position_[i] = inflow.position(layer, k, inflow.advance);
@@ -76,9 +81,9 @@ void SphModel::advance_inflows(double dt) {
         } else {
           // Taken out: the account gives back the energy it has in this step's energies (at x_n, with the
           // prescribed density, 1/2 m v_{n-1/2}.v_{n+1/2}).
-          inflow_pending_ -= 0.5 * mass_[i] * inflow.previous_speed * inflow.speed -
-                             mass_[i] * gravity_.dot(inflow.position(layer, k, from)) +
-                             mass_[i] * eos.specific_energy(rho);
+          pending.add(-(0.5 * mass_[i] * inflow.previous_speed * inflow.speed -
+                        mass_[i] * gravity_.dot(inflow.position(layer, k, from)) +
+                        mass_[i] * eos.specific_energy(rho)));
           active_[i] = kOut;
           velocity_[i].setZero();
         }

@@ -54,11 +54,15 @@ std::int64_t SphModel::layer_of(const Vec3& point) const {
   return std::clamp<std::int64_t>(layer, 0, slab_layers() - 1);
 }
 
+bool SphModel::in_initial_share(std::size_t i) const {
+  if (!decomposed()) return true;
+  const auto count = static_cast<std::size_t>(ranks_->size());
+  return i * count / position_.size() == static_cast<std::size_t>(ranks_->rank());
+}
+
 void SphModel::keep_initial_share() {
-  const std::size_t n = position_.size();
-  const auto r = static_cast<std::size_t>(ranks_->rank()), count = static_cast<std::size_t>(ranks_->size());
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i * count / n != r) active_[i] = 0;
+  for (std::size_t i = 0; i < position_.size(); ++i) {
+    if (!in_initial_share(i)) active_[i] = 0;
   }
 }
 
@@ -368,9 +372,13 @@ void SphModel::share_loaded_state() {
     all.push_back(double(boundary_force_.size()));
     vectors(boundary_force_);
     sized(boundary_stress_);
-    all.insert(all.end(),
-               {double(lost_), time_, max_mu_, max_acceleration_, min_viscous_dt_, stable_dt_, mean_neighbours_,
-                energies_.kinetic, energies_.potential, energies_.elastic, energies_.wall_held, energies_.inflow});
+    all.insert(all.end(), {double(lost_), time_, max_mu_, max_acceleration_, min_viscous_dt_, stable_dt_,
+                           mean_neighbours_, energies_.kinetic, energies_.potential, energies_.elastic,
+                           energies_.wall_held, energies_.inflow, inflow_pending_});
+    for (const InflowState& inflow : inflows_) {
+      all.insert(all.end(), {inflow.advance, inflow.speed, inflow.previous_speed, double(inflow.entered),
+                             double(inflow.released), inflow.ended ? 1.0 : 0.0});
+    }
   }
   ranks_->broadcast(all, 0);
   if (ranks_->rank() != 0) {
@@ -407,6 +415,17 @@ void SphModel::share_loaded_state() {
     stable_dt_ = all[at++];
     mean_neighbours_ = all[at++];
     energies_ = {all[at], all[at + 1], all[at + 2], all[at + 3], all[at + 4]};
+    at += 5;
+    inflow_pending_ = all[at++];
+    for (InflowState& inflow : inflows_) {
+      inflow.advance = all[at];
+      inflow.speed = all[at + 1];
+      inflow.previous_speed = all[at + 2];
+      inflow.entered = static_cast<std::size_t>(all[at + 3]);
+      inflow.released = static_cast<std::size_t>(all[at + 4]);
+      inflow.ended = all[at + 5] != 0;
+      at += 6;
+    }
     forces_ready_ = false;
   } else {
     collected_active_ = active_;

@@ -4,9 +4,11 @@ coupler's correspondent, rank 1 following it) gives the same forces on every str
 and the same particles in every output, to the bit: a dam break against penalty walls and a collapsing
 column in a tank of boundary particles. A checkpoint moves between rank counts: the sph_solver of a 2-rank run
 replayed alone from its checkpoint, and that of a run alone replayed on 2 ranks, reproduce the recorded states.
-Gauges and fronts read the same on ranks."""
+A flood enters through an inflow on ranks as alone. Replay's --take feeds recorded fields to the ranks as to one
+process. Gauges and fronts read the same on ranks."""
 import filecmp
 import glob
+import json
 import os
 import re
 import unittest
@@ -74,6 +76,14 @@ class SphRanksTest(RealRunTestCase):
                      [("end_time = 0.6\n", "end_time = 0.3\n"),
                       ("max = [0.4, 0.4, 0.3]", "max = [0.2, 0.4, 0.3]")])
 
+    def test_a_flood_entering_through_an_inflow(self):
+        """configs/tests/inflow_channel.toml's hydrograph entering the sloping flume, its first 0.4 s, with side
+        walls instead of the periodic width: the buffer's particles move with their owners."""
+        self.compare("configs/tests/inflow_channel.toml", "inflow",
+                     [("end_time = 1.9\n", "end_time = 0.4\n"), ("periodic_y = [0.0, 0.07]\n", ""),
+                      ("start_wall_height = 0.2\n", "start_wall_height = 0.2\nwall_height = 0.1\n")],
+                     extra=("inflows.csv", "gauges.csv"))
+
     def test_checkpoints_move_between_rank_counts(self):
         """A run on 2 ranks writes the sph role's checkpoints; its sph_solver replayed alone from one of them
         reproduces the recorded states (2 ranks -> 1). A run alone; its sph_solver replayed on 2 ranks from one
@@ -105,6 +115,42 @@ class SphRanksTest(RealRunTestCase):
             with open(logs[0], encoding="utf-8", errors="replace") as handle:
                 on_ranks = "the SPH model runs on 2 ranks" in handle.read()
             self.assertEqual(on_ranks, bool(program), "the replayed sph_solver on 2 ranks exactly when asked")
+
+    def test_replay_takes_recorded_fields_on_ranks(self):
+        """`./sabo replay RUN sph --take position` with the sph_solver on 2 ranks: every rank takes the recorded
+        positions into its arrays. A changed fluid (twice the artificial viscosity) fed the recorded positions
+        diverges in the same fields, from the same steps, by the same largest differences as the sph_solver alone
+        does: the two replays' reports are equal."""
+        replacements = [("end_time = 0.6\n", "end_time = 0.15\n"), ("max = [0.4, 0.4, 0.3]", "max = [0.2, 0.4, 0.3]"),
+                        ('fields = ["energies"]', "fields = []")]
+        out = os.path.join(self.tmp, "take")
+        sabo = self.run_sabo(self.write_scene("configs/tests/sph_tank_boundary.toml", "take", replacements, False),
+                             out, env=MPI_ENV)
+        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        solver = os.path.join(BUILD_DIR, "bin", "sph_solver")
+        env = dict(MPI_ENV, SABO_BUILD_DIR=BUILD_DIR, SABO_PLAN_OVERRIDE="")
+        reports = {}
+        for program in (None, "mpirun -n 2 --oversubscribe " + solver):
+            args = ["replay", out, "sph", "--no-setup", "--set", "sph.artificial_viscosity=0.1", "--take", "position"]
+            if program:
+                args += ["--command", program]
+            replay = self.sabo(args, env=env)
+            code = replay.wait(300)
+            self.assertEqual(code, 1, replay.stdout + replay.stderr)  # the changed fluid diverges
+            folder = sorted(f for f in os.listdir(os.path.join(out, "replay")) if f.startswith("sph-"))[-1]
+            with open(os.path.join(out, "replay", folder, "replay.json"), encoding="utf-8") as handle:
+                report = json.load(handle)
+            with open(os.path.join(out, "replay", folder, "sph_solver.log"), encoding="utf-8",
+                      errors="replace") as handle:
+                self.assertEqual("the SPH model runs on 2 ranks" in handle.read(), bool(program))
+            reports[bool(program)] = report
+        alone, shared = reports[False]["fields"], reports[True]["fields"]
+        print("replay sph --take position of a changed fluid: alone {}; on 2 ranks {}".format(
+            {f: v["first_step"] for f, v in alone.items()}, {f: v["first_step"] for f, v in shared.items()}))
+        self.assertEqual(reports[True]["taken"], ["position"])
+        self.assertIsNone(shared["position"]["first_step"])
+        self.assertIsNotNone(shared["velocity"]["first_step"])
+        self.assertEqual(alone, shared)
 
     def test_gauges_and_fronts_read_the_same_on_ranks(self):
         """A gauge line and a front along the tank: rank 0 asks the rank whose slab holds each point."""

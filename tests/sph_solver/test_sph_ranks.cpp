@@ -123,6 +123,7 @@ int compare_runs(const Case& c, const char* what) {
   EXPECT_EQ(shared.energies().potential, alone.energies().potential) << what;
   EXPECT_EQ(shared.energies().elastic, alone.energies().elastic) << what;
   EXPECT_EQ(shared.energies().wall_held, alone.energies().wall_held) << what;
+  EXPECT_EQ(shared.energies().inflow, alone.energies().inflow) << what;
   std::cout << what << ", " << shared.slabs().ranks() << " ranks: " << steps << " steps, " << compared
             << " particles compared bit for bit, this rank owns " << shared.owned_count() << " and read at most "
             << most_halo << " in its halo (slab axis " << shared.slab_axis() << "); energy " << shared_energy
@@ -161,6 +162,27 @@ TEST(SphRanks, ElasticPlasticColumn) {
   m.yield_stress = 580;
   m.fluid_shear_modulus = 1e5;
   compare_runs(c, "elastic-plastic column");
+}
+
+// Water entering through a section ([[inflows]]: 0.01 m^3/s for 0.2 s, down to 0 at 0.25 s) over the floor of a
+// container: the buffer's particles move with their owners, the layers it releases cross the slabs, and the buffer
+// is taken out when the hydrograph ends.
+TEST(SphRanks, InflowReleasesTheSameParticlesAsOneModel) {
+  const double dx = 0.02;
+  Case c{water_scene(dx, 20.0), container_walls(Vec3(-0.3, -0.06, 0.0), Vec3(0.9, 0.06, 0.3), dx, 3), 0.27};
+  c.scene.run.end_time = 0.3;
+  c.scene.sph.wall_model = scene::SphSettings::WallModel::boundary_particles;
+  scene::FluidBody body;
+  body.name = "upstream";
+  body.material = "water";
+  body.shape = scene::FluidBody::Shape::inflow;
+  body.inflow.position = Vec3(0.0, 0.0, 0.0);
+  body.inflow.direction = Vec3(1, 0, 0);
+  body.inflow.width = 0.12;
+  body.inflow.depth = 0.06;
+  body.inflow.hydrograph = {{0.0, 0.01}, {0.2, 0.01}, {0.25, 0.0}};
+  c.scene.fluids.push_back(body);
+  compare_runs(c, "inflow");
 }
 
 TEST(SphRanks, ParticlesLeavingTheDomainAreTakenOutOnce) {
