@@ -9,9 +9,13 @@
 // or a Bingham slurry (tau_y 100 Pa, mu_p 1 Pa s, gamma_0 1/s); --viscous-operator: sph.viscous_operator.
 // Under mpirun (mpirun -n R bench_sph_throughput ...) the model is shared by the R ranks
 // (sph_model.hpp, "Ranks"): rank 0 prints, the rate counts every rank's particles over the
-// slowest rank's time, and the halo (particles read from other ranks) is reported per step.
+// slowest rank's time, and the halo (particles read from other ranks) is reported per step. The
+// state after the timed steps is digested (XXH3 of every active particle's position, velocity and
+// density, collected to rank 0): the same digest on any rank count is the same bits
+// (bench/sph_ranks.py compares them).
 #include <fmt/format.h>
 #include <omp.h>
+#include <xxhash.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -28,6 +32,22 @@
 #include "tests/support/sph_scenes.hpp"
 
 namespace {
+
+// XXH3 of the active particles' ids, positions, velocities and densities, in id order.
+std::uint64_t state_digest(const sabo::sph::SphModel& model) {
+  XXH3_state_t* state = XXH3_createState();
+  XXH3_64bits_reset(state);
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    if (!model.active()[i]) continue;
+    const double values[8] = {static_cast<double>(i),    model.positions()[i].x(),  model.positions()[i].y(),
+                              model.positions()[i].z(),  model.velocities()[i].x(), model.velocities()[i].y(),
+                              model.velocities()[i].z(), model.densities()[i]};
+    XXH3_64bits_update(state, values, sizeof(values));
+  }
+  const std::uint64_t digest = XXH3_64bits_digest(state);
+  XXH3_freeState(state);
+  return digest;
+}
 
 double resident_megabytes() {
   std::ifstream statm("/proc/self/statm");
@@ -158,7 +178,9 @@ int main(int argc, char** argv) {
     ranks->sum(total);
     halo = total[0];
   }
+  model.collect_state();  // rank 0: the whole state (alone: nothing to do)
   if (!root) return 0;
+  const std::uint64_t digest = state_digest(model);
   const double n = static_cast<double>(model.size());
   fmt::print("{} particles {} walls {} threads {} kernel {} h/dx {} rheology {} viscous operator {}\n",
              slab ? "periodic slab" : "dam break", model.size(), wall_count, omp_get_max_threads(), kernel, ratio,
@@ -178,7 +200,8 @@ int main(int argc, char** argv) {
   fmt::print(
       "{{\"particles\": {}, \"walls\": {}, \"particle_steps_per_second\": {:.6g}, \"neighbours_per_particle\": {:.2f}, "
       "\"bytes_per_particle\": {:.1f}, \"seconds\": {:.4g}, \"ranks\": {}, \"halo_per_step\": {:.1f}, "
-      "\"largest_rank_particles\": {}}}\n",
-      model.size(), wall_count, rate, model.mean_neighbours(), bytes, seconds, rank_count, halo_per_step, most_owned);
+      "\"largest_rank_particles\": {}, \"state_digest\": \"{:016x}\"}}\n",
+      model.size(), wall_count, rate, model.mean_neighbours(), bytes, seconds, rank_count, halo_per_step, most_owned,
+      digest);
   return 0;
 }
