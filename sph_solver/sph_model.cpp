@@ -118,11 +118,6 @@ SphModel::SphModel(const scene::Scene& scene, std::shared_ptr<parallel::Ranks> r
   }
   if (credits_wall_work() && settings_.wall_work == WallWork::bounded) wall_work_held_.assign(n, 0.0f);
   stable_dt_ = initial_stable_dt();
-  if (ranks && !periodic_.empty()) {
-    throw SceneError(
-        "sph.periodic_x / sph.periodic_y: the sph_solver on several ranks does not model them yet. Fix: run the "
-        "sph_solver as one process (without mpirun), or leave them out");
-  }
   // Exact sums, as integrate() takes them (exact_sum.hpp): a state that does not change keeps its energies' bits.
   ExactSum kinetic, potential, elastic;
   for (std::size_t i = 0; i < n; ++i) {

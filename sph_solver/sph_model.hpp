@@ -60,8 +60,9 @@
 // same slots order as one model alone, so each particle sums the same neighbours in the same
 // order: the same bits on any number of ranks. Between steps, positions(), velocities() and the
 // other per-id arrays are current for the particles this rank owns (active() != 0 here) only;
-// gather_state() brings the whole state to every rank, collect_state() to rank 0. Not yet with
-// periodic boundaries (SceneError). The energies are exact sums (exact_sum.hpp): the same bits too.
+// gather_state() brings the whole state to every rank, collect_state() to rank 0. With periodic
+// boundaries the slabs cut a non-periodic axis and each rank makes the images of its window's
+// particles. The energies are exact sums (exact_sum.hpp): the same bits too.
 #include <cstdint>
 #include <functional>
 #include <initializer_list>
@@ -258,6 +259,7 @@ class SphModel {
     std::vector<float> wall_work_held;              // only with wall_work_held()
     std::vector<std::int32_t> support_neighbours;   // fluid neighbours in the last compute (once one ran)
     std::vector<std::uint8_t> active;
+    std::vector<Vec3> wrap_offset;  // only with periodic boundaries
   };
   // Collective: every rank's owned particles' state on rank `root` (on every rank: root < 0);
   // empty on the others. Without ranks: a copy.
@@ -320,6 +322,7 @@ class SphModel {
     std::int32_t support_neighbours;
     const double* stress;  // 6 values, only with has_stress_
     float wall_work_held;  // only with wall_work_held_
+    Vec3 wrap_offset;      // only with periodic boundaries
   };
   [[nodiscard]] std::size_t record_size() const;
   void append_record(std::size_t id, std::vector<double>& out) const;

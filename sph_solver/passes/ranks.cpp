@@ -20,13 +20,13 @@ namespace {
 
 // A particle's record between ranks: id, active flag, position, velocity, density, pressure,
 // its fluid neighbours (0 before the first compute), then (where the model keeps them) 6 stress
-// components and the wall work it holds back.
+// components, the wall work it holds back and its periodic wrap offset.
 constexpr std::size_t kRecordCore = 11;
 
 }  // namespace
 
 std::size_t SphModel::record_size() const {
-  return kRecordCore + (has_stress_ ? 6 : 0) + (wall_work_held_.empty() ? 0 : 1);
+  return kRecordCore + (has_stress_ ? 6 : 0) + (wall_work_held_.empty() ? 0 : 1) + (wrap_offset_.empty() ? 0 : 3);
 }
 
 void SphModel::append_record(std::size_t i, std::vector<double>& out) const {
@@ -35,9 +35,11 @@ void SphModel::append_record(std::size_t i, std::vector<double>& out) const {
                          support_neighbours_.empty() ? 0.0 : double(support_neighbours_[i])});
   if (has_stress_) out.insert(out.end(), &stress_[6 * i], &stress_[6 * i] + 6);
   if (!wall_work_held_.empty()) out.push_back(double(wall_work_held_[i]));
+  if (!wrap_offset_.empty()) out.insert(out.end(), {wrap_offset_[i].x(), wrap_offset_[i].y(), wrap_offset_[i].z()});
 }
 
 SphModel::Record SphModel::read_record(const double* r) const {
+  const double* wrap = r + kRecordCore + (has_stress_ ? 6 : 0) + (wall_work_held_.empty() ? 0 : 1);
   return {static_cast<std::size_t>(r[0]),
           static_cast<std::uint8_t>(r[1]),
           Vec3(r[2], r[3], r[4]),
@@ -46,7 +48,8 @@ SphModel::Record SphModel::read_record(const double* r) const {
           r[9],
           static_cast<std::int32_t>(r[10]),
           r + kRecordCore,
-          wall_work_held_.empty() ? 0.0f : static_cast<float>(r[kRecordCore + (has_stress_ ? 6 : 0)])};
+          wall_work_held_.empty() ? 0.0f : static_cast<float>(r[kRecordCore + (has_stress_ ? 6 : 0)]),
+          wrap_offset_.empty() ? Vec3::Zero() : Vec3(wrap[0], wrap[1], wrap[2])};
 }
 
 std::int64_t SphModel::layer_of(const Vec3& point) const {
@@ -71,8 +74,12 @@ void SphModel::distribute() {
   const std::size_t n = position_.size();
   // The grid of all ranks: the box around every rank's particles and the walls, and the range
   // of the fluid's materials (min and max; both as minima).
+  // With periodic boundaries the images this rank's particles and the walls give (make_images() ran on
+  // them): the box one model lays over every particle and image.
   Aabb box = bounds();
   for (const Vec3& p : boundary_.position) box.extend(p);
+  for (std::size_t k = n; k < f_sort_position_.size(); ++k) box.extend(f_sort_position_[k]);
+  for (std::size_t k = boundary_.size(); k < b_sort_position_.size(); ++k) box.extend(b_sort_position_[k]);
   constexpr double kInf = std::numeric_limits<double>::infinity();
   double material_min = kInf, material_max = -kInf;
   for (std::size_t i = 0; i < n; ++i) {
@@ -95,8 +102,15 @@ void SphModel::distribute() {
   }
   uniform_material_ = low[6] == -low[7] ? static_cast<std::int64_t>(low[6]) : -1;
   set_grid_geometry(global);
-  // Slabs along the axis with the most cells (ties: x, then y), balanced by the particles per layer.
-  slab_axis_ = nx_ >= ny_ && nx_ >= nz_ ? 0 : (ny_ >= nz_ ? 1 : 2);
+  // Slabs along the axis with the most cells (ties: x, then y) that is not periodic (an image then lies in
+  // its particle's layer), balanced by the particles per layer.
+  const std::int64_t cells[3] = {nx_, ny_, nz_};
+  slab_axis_ = -1;
+  for (int a = 0; a < 3; ++a) {
+    const bool periodic =
+        std::any_of(periodic_.begin(), periodic_.end(), [&](const PeriodicAxis& p) { return p.axis == a; });
+    if (!periodic && (slab_axis_ < 0 || cells[a] > cells[slab_axis_])) slab_axis_ = a;
+  }
   std::vector<std::int64_t> counts(static_cast<std::size_t>(slab_layers()), 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (active_[i]) ++counts[static_cast<std::size_t>(layer_of(position_[i]))];
@@ -107,7 +121,7 @@ void SphModel::distribute() {
   slabs_ = parallel::Slabs(counts, ranks_->size());
   // Every particle this rank owned goes to each rank whose window now holds it; it stays here
   // only if this window holds it too.
-  const bool neighbours = !support_neighbours_.empty(), held = !wall_work_held_.empty();
+  const bool neighbours = !support_neighbours_.empty(), held = !wall_work_held_.empty(), wraps = !wrap_offset_.empty();
   const std::size_t record = record_size();
   std::vector<std::vector<double>> to(static_cast<std::size_t>(ranks_->size()));
   for (std::size_t i = 0; i < n; ++i) {
@@ -134,8 +148,11 @@ void SphModel::distribute() {
       if (neighbours) support_neighbours_[r.id] = r.support_neighbours;
       if (has_stress_) std::copy_n(r.stress, 6, &stress_[6 * r.id]);
       if (held) wall_work_held_[r.id] = r.wall_work_held;
+      if (wraps) wrap_offset_[r.id] = r.wrap_offset;
     }
   }
+  // The images of this window's particles, in id order as one model makes them: the same slots.
+  if (!periodic_.empty()) make_images();
 }
 
 void SphModel::mark_slots() {
@@ -178,6 +195,7 @@ void SphModel::mark_slots() {
   // The halo's particles are read, not integrated: this rank owns the rest until the next step.
   owned_count_ = halo_count_ = 0;
   for (std::size_t s = 0; s < f_order_.size(); ++s) {
+    if (f_order_[s] >= position_.size()) continue;  // a periodic image
     if (fmine_[s]) {
       ++owned_count_;
     } else {
@@ -288,9 +306,10 @@ SphModel::ParticleState SphModel::gather_state(int root) const {
     state.wall_work_held = wall_work_held_;
     state.support_neighbours = support_neighbours_;
     state.active = active_;
+    state.wrap_offset = wrap_offset_;
   }
   if (!decomposed()) return state;
-  const bool neighbours = !support_neighbours_.empty();
+  const bool neighbours = !support_neighbours_.empty(), wraps = !wrap_offset_.empty();
   const std::size_t record = record_size();
   std::vector<double> mine;
   for (std::size_t i = 0; i < n; ++i) {
@@ -315,6 +334,7 @@ SphModel::ParticleState SphModel::gather_state(int root) const {
       if (neighbours) state.support_neighbours[r.id] = r.support_neighbours;
       if (has_stress_) std::copy_n(r.stress, 6, &state.stress[6 * r.id]);
       if (held) state.wall_work_held[r.id] = r.wall_work_held;
+      if (wraps) state.wrap_offset[r.id] = r.wrap_offset;
     }
   }
   return state;
@@ -332,6 +352,7 @@ void SphModel::collect_state() {
   stress_ = std::move(state.stress);
   wall_work_held_ = std::move(state.wall_work_held);
   support_neighbours_ = std::move(state.support_neighbours);
+  wrap_offset_ = std::move(state.wrap_offset);
   collected_active_ = std::move(state.active);
 }
 
@@ -362,6 +383,7 @@ void SphModel::share_loaded_state() {
     };
     vectors(position_);
     vectors(velocity_);
+    vectors(wrap_offset_);
     all.insert(all.end(), density_.begin(), density_.end());
     all.insert(all.end(), pressure_.begin(), pressure_.end());
     all.insert(all.end(), active_.begin(), active_.end());
@@ -398,6 +420,7 @@ void SphModel::share_loaded_state() {
     const auto sized = [&](auto& values) { scalars(values, static_cast<std::size_t>(all[at++])); };
     vectors(position_, n);
     vectors(velocity_, n);
+    vectors(wrap_offset_, wrap_offset_.size());
     scalars(density_, n);
     scalars(pressure_, n);
     scalars(active_, n);

@@ -4,8 +4,9 @@ coupler's correspondent, rank 1 following it) gives the same forces on every str
 and the same particles in every output, to the bit: a dam break against penalty walls and a collapsing
 column in a tank of boundary particles. A checkpoint moves between rank counts: the sph_solver of a 2-rank run
 replayed alone from its checkpoint, and that of a run alone replayed on 2 ranks, reproduce the recorded states.
-A flood enters through an inflow on ranks as alone. Replay's --take feeds recorded fields to the ranks as to one
-process. Gauges and fronts read the same on ranks."""
+A flood enters through an inflow, and a dam break runs in a channel periodic across its width, on ranks as
+alone. Replay's --take feeds recorded fields to the ranks as to one process. Gauges and fronts read the same on
+ranks."""
 import filecmp
 import glob
 import json
@@ -83,6 +84,14 @@ class SphRanksTest(RealRunTestCase):
                      [("end_time = 1.9\n", "end_time = 0.4\n"), ("periodic_y = [0.0, 0.07]\n", ""),
                       ("start_wall_height = 0.2\n", "start_wall_height = 0.2\nwall_height = 0.1\n")],
                      extra=("inflows.csv", "gauges.csv"))
+
+    def test_a_dam_break_periodic_across_its_channel(self):
+        """configs/tests/sph_dam_break_gauges.toml (periodic across the width, gauges on the far wall), its first
+        0.25 s: the slabs cut along the channel and each rank makes its window's periodic images."""
+        self.compare("configs/tests/sph_dam_break_gauges.toml", "periodic",
+                     [("end_time = 0.5\n", "end_time = 0.25\n"), ("output_interval = 0.01\n",
+                                                                   "output_interval = 0.05\n")],
+                     extra=("gauges.csv",))
 
     def test_checkpoints_move_between_rank_counts(self):
         """A run on 2 ranks writes the sph role's checkpoints; its sph_solver replayed alone from one of them

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <numbers>
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/hdf5.hpp"
@@ -323,16 +324,48 @@ TEST(SphRanks, SamplesAreTheSameBitsAsOneModels) {
   EXPECT_EQ(differing, 0);
 }
 
-TEST(SphRanks, PeriodicScenesAreRefusedWithTheFix) {
-  Case c = collapse(0.1);
-  c.scene.sph.periodic_y = std::array<double, 2>{0.0, 0.12 * 4};
-  try {
-    SphModel model(c.scene, world());
-    ADD_FAILURE() << "no error";
-  } catch (const SceneError& e) {
-    std::cout << e.what() << "\n";
-    EXPECT_NE(std::string(e.what()).find("without mpirun"), std::string::npos);
+// The collapse in a channel periodic across its width (the walls along y taken out): the slabs cut x, and each
+// rank makes the images of its window's particles.
+TEST(SphRanks, DamBreakPeriodicAcrossTheChannel) {
+  Case c = collapse(0.12);
+  c.scene.sph.periodic_y = std::array<double, 2>{0.0, 0.12};
+  physics::BoundaryParticles walls;
+  for (std::size_t b = 0; b < c.walls.size(); ++b) {
+    const Vec3& p = c.walls.position[b];
+    if (p.y() < 0.0 || p.y() >= 0.12) continue;
+    walls.position.push_back(p);
+    walls.velocity.push_back(c.walls.velocity[b]);
+    walls.normal.push_back(c.walls.normal[b]);
+    walls.acceleration.push_back(c.walls.acceleration[b]);
+    walls.volume.push_back(c.walls.volume[b]);
   }
+  c.walls = walls;
+  compare_runs(c, "periodic dam break");
+}
+
+// A layer sliding down an infinite slope (gravity tilted 10 degrees), periodic along x and y, started at 0.5 m/s
+// along x and 0.2 m/s along y so that particles cross both seams: the slabs cut z.
+TEST(SphRanks, LayerSlidingOnAPeriodicSlope) {
+  const double dx = 0.02, side = 0.16;
+  Case c{water_scene(dx, 20.0, 1.5), {}, 0.1};
+  const double theta = 10.0 * std::numbers::pi / 180.0;
+  c.scene.run.gravity = Vec3(9.81 * std::sin(theta), 0.0, -9.81 * std::cos(theta));
+  c.scene.sph.periodic_x = std::array<double, 2>{0.0, side};
+  c.scene.sph.periodic_y = std::array<double, 2>{0.0, side};
+  c.scene.fluids.push_back(box_body("layer", Vec3(0, 0, 0), Vec3(side, side, 0.24)));
+  c.scene.fluids.back().velocity = Vec3(0.5, 0.2, 0.0);
+  for (int k = 0; k < 3; ++k) {
+    for (int j = 0; j < 8; ++j) {
+      for (int i = 0; i < 8; ++i) {
+        c.walls.position.emplace_back((i + 0.5) * dx, (j + 0.5) * dx, -(k + 0.5) * dx);
+        c.walls.velocity.push_back(Vec3::Zero());
+        c.walls.normal.push_back(Vec3::UnitZ());
+        c.walls.acceleration.push_back(Vec3::Zero());
+        c.walls.volume.push_back(dx * dx * dx);
+      }
+    }
+  }
+  compare_runs(c, "periodic slope");
 }
 
 }  // namespace
