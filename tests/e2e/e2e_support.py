@@ -294,6 +294,17 @@ class RealRunTestCase(E2eTestCase):
         args = ["run", scene, "--out", out, "--no-setup"] + ([] if plots else ["--no-plots"]) + list(extra)
         return self.sabo(args, env=full_env)
 
+    def run_scene_text(self, text, name, timeout):
+        """Writes TMP/NAME.toml with `text`, runs it into TMP/NAME and asserts the run succeeds within
+        `timeout` s; returns the run folder."""
+        scene = os.path.join(self.tmp, name + ".toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        out = os.path.join(self.tmp, name)
+        sabo = self.run_sabo(scene, out)
+        self.assertEqual(sabo.wait(timeout), 0, sabo.output())
+        return out
+
     def run_and_kill(self, scene, out, role, at_step):
         """Runs `scene`, sends SIGKILL to `role` once the coupler reports step `at_step`; returns the exit code
         and the run."""

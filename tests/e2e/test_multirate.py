@@ -265,13 +265,7 @@ class MultirateBoundaryWallsOnADeformablePlateTest(RealRunTestCase):
 
     def run_plate(self, name, multirate):
         plate = Plate(spacing=0.1, element_size=0.1, end_time=0.03, multirate=multirate)
-        scene = os.path.join(self.tmp, name + ".toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(plate.scene_text())
-        out = os.path.join(self.tmp, name)
-        sabo = self.run_sabo(scene, out)
-        self.assertEqual(sabo.wait(240), 0, sabo.output())
-        return out
+        return self.run_scene_text(plate.scene_text(), name, 240)
 
     def test_forces_on_a_deformable_structure_through_boundary_particles_are_not_held(self):
         lock = self.run_plate("lock_step", False)

@@ -31,12 +31,7 @@ class PlateUnderWaterTest(RealRunTestCase):
     def test_a_water_column_bends_a_clamped_plate_as_beam_theory_says(self):
         plate = Plate(spacing=0.1, element_size=0.1, formulation="one_point", end_time=0.15, measure_from=0.05,
                       settle_time=0.05)
-        scene = os.path.join(self.tmp, "plate.toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(plate.scene_text())
-        out = os.path.join(self.tmp, "plate")
-        sabo = self.run_sabo(scene, out)
-        self.assertEqual(sabo.wait(240), 0, sabo.output())
+        out = self.run_scene_text(plate.scene_text(), "plate", 240)
 
         figures = measure(out, plate)
         off = figures["deflection"] / REFERENCE - 1

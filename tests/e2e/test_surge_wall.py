@@ -18,12 +18,7 @@ from surge_wall import Surge, measure, TOLERANCE  # noqa: E402
 class SurgeWallTest(RealRunTestCase):
     def test_surge_at_froude_1_loads_the_wall_as_the_bore_theory_says(self):
         surge = Surge(1.0, spacings=6, window=4.0)
-        scene = os.path.join(self.tmp, "surge.toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(surge.scene_text())
-        out = os.path.join(self.tmp, "surge")
-        sabo = self.run_sabo(scene, out)
-        self.assertEqual(sabo.wait(300), 0, sabo.output())
+        out = self.run_scene_text(surge.scene_text(), "surge", 300)
         figures = measure(out, surge)
         off = figures["alpha"] / surge.alpha - 1
         print("B1 Fr = 1, h = 6 dx, block {:g} h: wall force plateau {:.2f} N/m over {:.2f}-{:.2f} s, expected "
