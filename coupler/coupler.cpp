@@ -240,7 +240,7 @@ void Coupler::check_lost_peers(std::uint64_t step) {
         "s, or its process ended (its host is unreachable, its network down, or the process stopped or killed)",
         peer.name(), peer.registration.pid(), peer.address.empty() ? "" : ", at " + peer.address, step,
         scene_.run.heartbeat_timeout);
-    if (peer.journal) {
+    if (peer.journal && !peer.journal->dropped()) {
       // The supervisor ends what is left of it and starts it again from its checkpoint; the wait starts again.
       spdlog::warn("{}; waiting for it to be restarted from its checkpoint", message);
       events_.emit(
@@ -248,7 +248,11 @@ void Coupler::check_lost_peers(std::uint64_t step) {
       continue;
     }
     peer.said_goodbye = true;  // it will not say goodbye: do not wait for it
-    fail(peer.name(), message);
+    fail(peer.name(), peer.journal ? message + fmt::format("; it cannot be restarted: its restart journal passed "
+                                                           "run.restart_journal_limit = {} GB since its checkpoint of "
+                                                           "step {} and was dropped",
+                                                           scene_.run.restart_journal_limit, peer.journal->first_step())
+                                   : message);
   }
 }
 
@@ -569,14 +573,36 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
     check_forces(*peer, f);
     if (recorder_) recorder_->record_forces(peer->name(), f);
     if (checkpoint && peer->registration.checkpoints()) peer->checkpoint_step = step + 1;
-    if (peer->journal) {
+    if (peer->journal && !peer->journal->dropped()) {
       peer->journal->add_forces(f);
+      if (peer->journal->dropped()) {
+        spdlog::warn(
+            "the restart journal of the {} passed run.restart_journal_limit = {} GB at step {} (since its checkpoint "
+            "of step {}): dropped until its next checkpoint, and the {} cannot be restarted until then. Fix: "
+            "checkpoints more often (run.checkpoint_interval), or a larger run.restart_journal_limit",
+            role_name(peer->role), scene_.run.restart_journal_limit, f.step(), peer->journal->first_step(),
+            role_name(peer->role));
+      }
+    }
+    if (peer->journal && !peer->journal->dropped()) {
       // A solver that died after its state: its replacement gets these forces in the catch-up.
       try {
         socket_.send(f, peer->buffer, peer->identity);
       } catch (const LibraryError& error) {
         spdlog::warn("could not send the forces of step {} to {} (it may have died; it can be restarted): {}", step,
                      peer->name(), error.what());
+      }
+    } else if (peer->journal) {
+      try {
+        socket_.send(f, peer->buffer, peer->identity);
+      } catch (const LibraryError& error) {
+        fail(peer->name(),
+             fmt::format("could not send the forces of step {} to {} ({}), and it cannot be restarted: its restart "
+                         "journal passed run.restart_journal_limit = {} GB since its checkpoint of step {} and was "
+                         "dropped. Fix: checkpoints more often (run.checkpoint_interval), or a larger "
+                         "run.restart_journal_limit",
+                         step, peer->name(), error.what(), scene_.run.restart_journal_limit,
+                         peer->journal->first_step()));
       }
     } else {
       socket_.send(f, peer->buffer, peer->identity);
@@ -771,8 +797,9 @@ int Coupler::run() {
     // every free descriptor later.
     if (scene_.run.restart) {
       for (const auto& solver : scene_.solvers) {
-        journals_[solver.role] = std::make_unique<RestartJournal>(options_.out_dir / "checkpoints" /
-                                                                  fmt::format("{}.journal", role_name(solver.role)));
+        journals_[solver.role] = std::make_unique<RestartJournal>(
+            options_.out_dir / "checkpoints" / fmt::format("{}.journal", role_name(solver.role)),
+            static_cast<std::uint64_t>(scene_.run.restart_journal_limit * 1e9));
       }
     }
     summary_out_.open(options_.out_dir / "summary.json.tmp");

@@ -180,6 +180,13 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
     refuse(fmt::format("the scene does not restart solvers ([run] restart = \"off\"): {} cannot rejoin", name));
     return;
   }
+  if (peer.journal->dropped()) {
+    refuse(
+        fmt::format("{} resumes at step {}, but its restart journal passed run.restart_journal_limit = {} GB "
+                    "after its checkpoint of step {} and was dropped: it cannot rejoin before its next checkpoint",
+                    name, from, scene_.run.restart_journal_limit, peer.journal->first_step()));
+    return;
+  }
   if (from < peer.journal->first_step() || from > current_step_) {
     refuse(fmt::format(
         "{} resumes at step {}; the coupler, at step {}, can feed it steps {} to {} (from its newest "

@@ -12,7 +12,8 @@
 
 namespace sabo::coupler {
 
-RestartJournal::RestartJournal(std::filesystem::path file) : path_(std::move(file)) {
+RestartJournal::RestartJournal(std::filesystem::path file, std::uint64_t limit)
+    : path_(std::move(file)), limit_(limit) {
   begin(0);
 }
 
@@ -31,6 +32,7 @@ void RestartJournal::begin(std::uint64_t step) {
   }
   size_ = 0;
   first_ = step;
+  dropped_ = false;
   states_.clear();
   forces_.clear();
 }
@@ -133,15 +135,28 @@ std::vector<std::uint64_t> RestartJournal::digests(const sabo::v1::StepState& st
 }
 
 void RestartJournal::add_state(const sabo::v1::StepState& state) {
+  if (dropped_) return;
   assert(state.step() == first_ + states_.size() && states_.size() == forces_.size());
   states_.push_back(digests(state));
 }
 
 void RestartJournal::add_forces(const sabo::v1::StepForces& forces) {
+  if (dropped_) return;
   assert(forces.step() == first_ + forces_.size() && states_.size() == forces_.size() + 1);
   // Into a buffer kept between steps: a fresh string of hundreds of kB a step is fresh pages to fault in.
   if (!forces.SerializeToString(&scratch_)) {
     throw FileError(fmt::format("{}: the forces of step {} do not serialize", path_.string(), forces.step()));
+  }
+  if (size_ + scratch_.size() > limit_) {
+    // Dropped until the next checkpoint: the file emptied (its space given back), nothing kept.
+    dropped_ = true;
+    states_.clear();
+    forces_.clear();
+    size_ = 0;
+    file_.close();
+    std::error_code error;
+    std::filesystem::resize_file(path_, 0, error);
+    return;
   }
   forces_.push_back(append(scratch_));
 }

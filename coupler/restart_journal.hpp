@@ -3,7 +3,11 @@
 // restarted solver can be fed the same StepForces again and its states checked
 // against the ones it sent before it died (docs/restart.md, "Catch-up"). The
 // forces go to a file in RUN_DIR/checkpoints (a long interval of a large scene
-// would not fit in memory); of each state a digest per field is held.
+// would not fit in memory); of each state a digest per field is held. The file
+// is held to a size (scene run.restart_journal_limit): past it, the journal is
+// dropped and its file emptied until the solver's next checkpoint, and the
+// solver cannot be restarted until then (a run without checkpoints filled a
+// disk with 82 GB of a surge's wall particles).
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -16,8 +20,9 @@ namespace sabo::coupler {
 
 class RestartJournal {
  public:
-  // `file`: e.g. RUN_DIR/checkpoints/dem_solver.journal; starts empty at step 0.
-  explicit RestartJournal(std::filesystem::path file);
+  // `file`: e.g. RUN_DIR/checkpoints/dem_solver.journal; starts empty at step 0. `limit`: bytes of forces
+  // the file may hold.
+  RestartJournal(std::filesystem::path file, std::uint64_t limit);
 
   // Drops everything and starts again at `step` (the solver has confirmed its checkpoint of that step).
   void begin(std::uint64_t step);
@@ -30,6 +35,10 @@ class RestartJournal {
   // One past the last step whose state and forces are both in the journal.
   [[nodiscard]] std::uint64_t end_step() const { return first_ + forces_.size(); }
   [[nodiscard]] bool covers(std::uint64_t step) const { return step >= first_ && step < end_step(); }
+  // True from the step whose forces would have taken the file past its limit until the next begin(): nothing
+  // is journalled, and no restart can be fed.
+  [[nodiscard]] bool dropped() const { return dropped_; }
+  [[nodiscard]] std::uint64_t limit() const { return limit_; }
 
   // The forces of a step the journal covers (asserted); FileError when the file cannot be read back.
   [[nodiscard]] sabo::v1::StepForces forces(std::uint64_t step);
@@ -55,6 +64,8 @@ class RestartJournal {
   std::filesystem::path path_;
   std::fstream file_;
   std::uint64_t size_ = 0;  // bytes written
+  std::uint64_t limit_ = 0;
+  bool dropped_ = false;
   std::uint64_t first_ = 0;
   std::vector<std::vector<std::uint64_t>> states_;
   std::vector<Span> forces_;

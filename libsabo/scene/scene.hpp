@@ -104,8 +104,9 @@ struct RunSettings {
   // s between checkpoints; absent: end_time / 10; 0: none (checkpoint_period() resolves it).
   std::optional<double> checkpoint_interval;
   std::size_t checkpoints_kept = 2;
-  bool restart = true;           // "auto": a solver that dies is restarted from its newest checkpoint
-  std::size_t max_restarts = 3;  // per process
+  bool restart = true;                 // "auto": a solver that dies is restarted from its newest checkpoint
+  std::size_t max_restarts = 3;        // per process
+  double restart_journal_limit = 4.0;  // GB of forces the coupler keeps per solver since its newest checkpoint
   [[nodiscard]] double checkpoint_period() const { return checkpoint_interval.value_or(end_time / 10); }
 };
 

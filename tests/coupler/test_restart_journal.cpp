@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <iostream>
 
 #include "coupler/restart_journal.hpp"
 #include "tests/support/scratch.hpp"
@@ -39,8 +41,10 @@ sabo::v1::StepForces forces_of(std::uint64_t step) {
 
 }  // namespace
 
+constexpr std::uint64_t kLimit = 1'000'000'000;  // bytes: far above these tests' journals
+
 TEST(RestartJournal, GivesBackTheForcesAndNamesTheFirstDifferingField) {
-  RestartJournal journal(sabo::testing::scratch("journal/dem_solver.journal"));
+  RestartJournal journal(sabo::testing::scratch("journal/dem_solver.journal"), kLimit);
   for (std::uint64_t step = 0; step < 5; ++step) {
     journal.add_state(state_of(step));
     journal.add_forces(forces_of(step));
@@ -66,7 +70,7 @@ TEST(RestartJournal, GivesBackTheForcesAndNamesTheFirstDifferingField) {
 }
 
 TEST(RestartJournal, StartsAgainAtACheckpoint) {
-  RestartJournal journal(sabo::testing::scratch("journal/fem_solver.journal"));
+  RestartJournal journal(sabo::testing::scratch("journal/fem_solver.journal"), kLimit);
   for (std::uint64_t step = 0; step < 3; ++step) {
     journal.add_state(state_of(step));
     journal.add_forces(forces_of(step));
@@ -92,4 +96,26 @@ TEST(RestartJournal, StartsAgainAtACheckpoint) {
   }
   EXPECT_EQ(std::filesystem::file_size(journal.path()), interval_bytes)
       << "the journal file holds at most the largest interval since a checkpoint";
+}
+
+TEST(RestartJournal, PastItsLimitItIsDroppedUntilTheNextCheckpoint) {
+  // Room for two steps' forces and not three: the third drops the journal and empties its file.
+  const std::uint64_t step_bytes = forces_of(0).SerializeAsString().size();
+  RestartJournal journal(sabo::testing::scratch("journal/sph_solver.journal"), 2 * step_bytes + step_bytes / 2);
+  for (std::uint64_t step = 0; step < 5; ++step) {
+    journal.add_state(state_of(step));
+    journal.add_forces(forces_of(step));
+    EXPECT_EQ(journal.dropped(), step >= 2) << "step " << step;
+  }
+  std::cout << "a journal of " << journal.limit() << " bytes, " << step_bytes << " a step: dropped at step 2, its file "
+            << std::filesystem::file_size(journal.path()) << " bytes (expected 0)\n";
+  EXPECT_EQ(std::filesystem::file_size(journal.path()), 0u);
+  EXPECT_FALSE(journal.covers(1));
+  // A checkpoint takes it up again.
+  journal.begin(5);
+  EXPECT_FALSE(journal.dropped());
+  journal.add_state(state_of(5));
+  journal.add_forces(forces_of(5));
+  EXPECT_TRUE(journal.covers(5));
+  EXPECT_EQ(journal.forces(5).SerializeAsString(), forces_of(5).SerializeAsString());
 }

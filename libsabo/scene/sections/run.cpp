@@ -106,6 +106,15 @@ void Schema::build_run() {
           .def(RunSettings{}.max_restarts)
           .ge(0)
           .doc("Restarts allowed per solver process in one run; one more death stops the run."),
+      K("restart_journal_limit", Type::number)
+          .def(RunSettings{}.restart_journal_limit)
+          .unit("GB")
+          .gt(0)
+          .doc("Disk the coupler's restart journal of one solver may take (`RUN_DIR/checkpoints/<role>.journal`: "
+               "the StepForces sent to it since its newest checkpoint, which a restart feeds it again). Past it the "
+               "journal is dropped, its file emptied and a warning logged; the solver cannot be restarted until its "
+               "next checkpoint. A scene whose solver takes many MB an exchange (wall particles) wants checkpoints "
+               "often enough to stay below it."),
   };
 }
 
@@ -242,6 +251,7 @@ void Builder::read_run(const toml::table& table) {
     }
   }
   if (auto v = r.integer("max_restarts")) run.max_restarts = static_cast<std::size_t>(*v);
+  if (auto v = r.number("restart_journal_limit")) run.restart_journal_limit = *v;
 }
 
 void Builder::read_solvers(Reader& root) {
