@@ -85,6 +85,13 @@ void Coupler::secure() {
 
 Coupler::~Coupler() = default;
 
+std::string Coupler::journal_dropped(const Peer& peer) const {
+  return fmt::format(
+      "its restart journal passed run.restart_journal_limit = {} GB after its checkpoint of step {} "
+      "and was dropped until its next checkpoint",
+      scene_.run.restart_journal_limit, peer.journal->first_step());
+}
+
 void Coupler::fail(const std::string& process, const std::string& message) {
   failure_ = fmt::format("{}: {}", process, message);
   throw Error(failure_);
@@ -248,11 +255,7 @@ void Coupler::check_lost_peers(std::uint64_t step) {
       continue;
     }
     peer.said_goodbye = true;  // it will not say goodbye: do not wait for it
-    fail(peer.name(), peer.journal ? message + fmt::format("; it cannot be restarted: its restart journal passed "
-                                                           "run.restart_journal_limit = {} GB since its checkpoint of "
-                                                           "step {} and was dropped",
-                                                           scene_.run.restart_journal_limit, peer.journal->first_step())
-                                   : message);
+    fail(peer.name(), peer.journal ? message + "; it cannot be restarted: " + journal_dropped(peer) : message);
   }
 }
 
@@ -577,35 +580,25 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
       peer->journal->add_forces(f);
       if (peer->journal->dropped()) {
         spdlog::warn(
-            "the restart journal of the {} passed run.restart_journal_limit = {} GB at step {} (since its checkpoint "
-            "of step {}): dropped until its next checkpoint, and the {} cannot be restarted until then. Fix: "
-            "checkpoints more often (run.checkpoint_interval), or a larger run.restart_journal_limit",
-            role_name(peer->role), scene_.run.restart_journal_limit, f.step(), peer->journal->first_step(),
-            role_name(peer->role));
+            "the {} at step {}: {}, and it cannot be restarted until then. Fix: checkpoints more often "
+            "(run.checkpoint_interval), or a larger run.restart_journal_limit",
+            peer->name(), f.step(), journal_dropped(*peer));
       }
     }
-    if (peer->journal && !peer->journal->dropped()) {
+    try {
+      socket_.send(f, peer->buffer, peer->identity);
+    } catch (const LibraryError& error) {
+      if (!peer->journal) throw;
       // A solver that died after its state: its replacement gets these forces in the catch-up.
-      try {
-        socket_.send(f, peer->buffer, peer->identity);
-      } catch (const LibraryError& error) {
+      if (!peer->journal->dropped()) {
         spdlog::warn("could not send the forces of step {} to {} (it may have died; it can be restarted): {}", step,
                      peer->name(), error.what());
+      } else {
+        fail(peer->name(), fmt::format("could not send the forces of step {} to {} ({}), and it cannot be restarted: "
+                                       "{}. Fix: checkpoints more often (run.checkpoint_interval), or a larger "
+                                       "run.restart_journal_limit",
+                                       step, peer->name(), error.what(), journal_dropped(*peer)));
       }
-    } else if (peer->journal) {
-      try {
-        socket_.send(f, peer->buffer, peer->identity);
-      } catch (const LibraryError& error) {
-        fail(peer->name(),
-             fmt::format("could not send the forces of step {} to {} ({}), and it cannot be restarted: its restart "
-                         "journal passed run.restart_journal_limit = {} GB since its checkpoint of step {} and was "
-                         "dropped. Fix: checkpoints more often (run.checkpoint_interval), or a larger "
-                         "run.restart_journal_limit",
-                         step, peer->name(), error.what(), scene_.run.restart_journal_limit,
-                         peer->journal->first_step()));
-      }
-    } else {
-      socket_.send(f, peer->buffer, peer->identity);
     }
   }
   send_seconds_ += seconds_since(start);

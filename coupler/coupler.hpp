@@ -127,6 +127,8 @@ class Coupler {
   void restore_surface();
   void restore_state();
   [[noreturn]] void fail(const std::string& process, const std::string& message);
+  // Why a peer whose restart journal was dropped (RestartJournal::dropped()) cannot be restarted.
+  [[nodiscard]] std::string journal_dropped(const Peer& peer) const;
 
   const scene::Scene& scene_;
   CouplerOptions options_;

@@ -181,10 +181,7 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
     return;
   }
   if (peer.journal->dropped()) {
-    refuse(
-        fmt::format("{} resumes at step {}, but its restart journal passed run.restart_journal_limit = {} GB "
-                    "after its checkpoint of step {} and was dropped: it cannot rejoin before its next checkpoint",
-                    name, from, scene_.run.restart_journal_limit, peer.journal->first_step()));
+    refuse(fmt::format("{} resumes at step {}, but it cannot rejoin: {}", name, from, journal_dropped(peer)));
     return;
   }
   if (from < peer.journal->first_step() || from > current_step_) {

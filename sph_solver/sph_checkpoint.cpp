@@ -41,14 +41,7 @@ void SphModel::save_state(io::hdf5::Group& group) const {
   io::write_array(group, "energies",
                   std::vector<double>{energies_.kinetic, energies_.potential, energies_.elastic, energies_.wall_held,
                                       energies_.inflow});
-  // The inflows' emission (inflow.hpp), kInflowValues per inflow; counts as doubles (exact).
-  std::vector<double> inflows;
-  for (const InflowState& inflow : inflows_) {
-    inflows.insert(inflows.end(),
-                   {inflow.advance, inflow.speed, inflow.previous_speed, static_cast<double>(inflow.entered),
-                    static_cast<double>(inflow.released), inflow.ended ? 1.0 : 0.0});
-  }
-  io::write_array(group, "inflows", inflows);
+  io::write_array(group, "inflows", inflow_values());  // kInflowValues an inflow
   group.set_attribute("inflow_pending", inflow_pending_);
 }
 
@@ -87,18 +80,7 @@ void SphModel::load_state(const io::hdf5::Group& group) {
   mean_neighbours_ = group.double_attribute("mean_neighbours");
   const auto energies = io::read_array<double>(group, "energies", 5);
   energies_ = {energies[0], energies[1], energies[2], energies[3], energies[4]};
-  constexpr std::size_t kInflowValues = 6;
-  const auto inflows = io::read_array<double>(group, "inflows", kInflowValues * inflows_.size());
-  for (std::size_t k = 0; k < inflows_.size(); ++k) {
-    const double* v = &inflows[kInflowValues * k];
-    InflowState& inflow = inflows_[k];
-    inflow.advance = v[0];
-    inflow.speed = v[1];
-    inflow.previous_speed = v[2];
-    inflow.entered = static_cast<std::size_t>(v[3]);
-    inflow.released = static_cast<std::size_t>(v[4]);
-    inflow.ended = v[5] != 0;
-  }
+  set_inflow_values(io::read_array<double>(group, "inflows", kInflowValues * inflows_.size()));
   inflow_pending_ = group.double_attribute("inflow_pending");
   forces_ready_ = false;
 }

@@ -359,6 +359,11 @@ class SphModel {
   void set_inflow_velocities(double dt);
   void advance_inflows(double dt, ExactSum& pending);
   void advance_inflows_to(InflowState& inflow);
+  // What moves on with each inflow between steps (advance, speeds, layer counts, ended), kInflowValues doubles
+  // an inflow (counts are exact in one): for checkpoints and for the ranks a loaded checkpoint is shared with.
+  static constexpr std::size_t kInflowValues = 6;
+  [[nodiscard]] std::vector<double> inflow_values() const;
+  void set_inflow_values(std::span<const double> values);
   // settle_factor_ for the step from time_ to time_ + dt.
   void update_settle_factors(double dt);
   void make_images();

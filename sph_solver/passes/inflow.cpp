@@ -4,6 +4,7 @@
 // layer entering the buffer goes to the ranks by the share of ids the first step's slabs start from, and
 // its owners follow from the next step's slabs.
 #include <algorithm>
+#include <cassert>
 
 #include "sph_solver/sph_model.hpp"
 
@@ -94,6 +95,29 @@ void SphModel::advance_inflows(double dt, ExactSum& pending) {
     } else {
       advance_inflows_to(inflow);
     }
+  }
+}
+
+std::vector<double> SphModel::inflow_values() const {
+  std::vector<double> values;
+  for (const InflowState& inflow : inflows_) {
+    values.insert(values.end(), {inflow.advance, inflow.speed, inflow.previous_speed, double(inflow.entered),
+                                 double(inflow.released), inflow.ended ? 1.0 : 0.0});
+  }
+  return values;
+}
+
+void SphModel::set_inflow_values(std::span<const double> values) {
+  assert(values.size() == kInflowValues * inflows_.size());
+  for (std::size_t k = 0; k < inflows_.size(); ++k) {
+    const double* v = &values[kInflowValues * k];
+    InflowState& inflow = inflows_[k];
+    inflow.advance = v[0];
+    inflow.speed = v[1];
+    inflow.previous_speed = v[2];
+    inflow.entered = static_cast<std::size_t>(v[3]);
+    inflow.released = static_cast<std::size_t>(v[4]);
+    inflow.ended = v[5] != 0;
   }
 }
 

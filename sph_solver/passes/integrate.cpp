@@ -20,7 +20,8 @@ namespace {
 
 // The energies at the step. Exact sums (exact_sum.hpp): the chunks, the threads and the ranks that add
 // the terms do not change the bits.
-enum EnergyTerm : std::size_t { kKinetic, kPotential, kElastic, kWallHeld, kInflow, kEnergyTerms };
+// kInflowPending: what advance_inflows() brings in, which the next step's account takes.
+enum EnergyTerm : std::size_t { kKinetic, kPotential, kElastic, kWallHeld, kInflow, kInflowPending, kEnergyTerms };
 struct EnergySums {
   std::array<ExactSum, kEnergyTerms> term;
   void join(const EnergySums& other) {
@@ -181,8 +182,7 @@ void SphModel::integrate(double dt_previous, double dt) {
   // The inflows' account is cumulative: the last step's, what came in since (advance_inflows() below adds
   // to the next step's) and this step's work.
   const double inflow_before = energies_.inflow + inflow_pending_;
-  ExactSum pending;
-  if (!inflows_.empty()) advance_inflows(dt, pending);
+  if (!inflows_.empty()) advance_inflows(dt, totals.term[kInflowPending]);
   if (periodic) wrap_positions();
   const std::size_t lost_before = lost_;
   for (std::size_t i = 0; i < n; ++i) {
@@ -198,26 +198,22 @@ void SphModel::integrate(double dt_previous, double dt) {
     }
   }
   if (decomposed()) {
-    // Every rank's sums (its particles only), the inflows' pending energy and the losses, exactly (limbs of
-    // 32 bits in integers).
-    std::array<ExactSum*, kEnergyTerms + 1> sums{};
-    for (std::size_t t = 0; t < kEnergyTerms; ++t) sums[t] = &totals.term[t];
-    sums.back() = &pending;
-    std::vector<std::int64_t> limbs(4 * sums.size() + 1);
-    for (std::size_t t = 0; t < sums.size(); ++t) {
-      const ExactSum::Limbs own = sums[t]->limbs();
+    // Every rank's sums (its particles only) and losses, exactly (limbs of 32 bits in integers).
+    std::vector<std::int64_t> limbs(4 * kEnergyTerms + 1);
+    for (std::size_t t = 0; t < kEnergyTerms; ++t) {
+      const ExactSum::Limbs own = totals.term[t].limbs();
       std::copy(own.begin(), own.end(), limbs.begin() + static_cast<std::ptrdiff_t>(4 * t));
     }
     limbs.back() = static_cast<std::int64_t>(lost_ - lost_before);
     ranks_->sum(limbs);
-    for (std::size_t t = 0; t < sums.size(); ++t) {
+    for (std::size_t t = 0; t < kEnergyTerms; ++t) {
       ExactSum::Limbs all;
       std::copy_n(limbs.begin() + static_cast<std::ptrdiff_t>(4 * t), 4, all.begin());
-      *sums[t] = ExactSum::from_limbs(all);
+      totals.term[t] = ExactSum::from_limbs(all);
     }
     lost_ = lost_before + static_cast<std::size_t>(limbs.back());
   }
-  inflow_pending_ = pending.value();
+  inflow_pending_ = totals.term[kInflowPending].value();
   Energies energies;
   energies.kinetic = totals.term[kKinetic].value();
   energies.potential = totals.term[kPotential].value();

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <type_traits>
 #include <vector>
 
@@ -397,10 +398,8 @@ void SphModel::share_loaded_state() {
     all.insert(all.end(), {double(lost_), time_, max_mu_, max_acceleration_, min_viscous_dt_, stable_dt_,
                            mean_neighbours_, energies_.kinetic, energies_.potential, energies_.elastic,
                            energies_.wall_held, energies_.inflow, inflow_pending_});
-    for (const InflowState& inflow : inflows_) {
-      all.insert(all.end(), {inflow.advance, inflow.speed, inflow.previous_speed, double(inflow.entered),
-                             double(inflow.released), inflow.ended ? 1.0 : 0.0});
-    }
+    const std::vector<double> inflows = inflow_values();
+    all.insert(all.end(), inflows.begin(), inflows.end());
   }
   ranks_->broadcast(all, 0);
   if (ranks_->rank() != 0) {
@@ -440,15 +439,7 @@ void SphModel::share_loaded_state() {
     energies_ = {all[at], all[at + 1], all[at + 2], all[at + 3], all[at + 4]};
     at += 5;
     inflow_pending_ = all[at++];
-    for (InflowState& inflow : inflows_) {
-      inflow.advance = all[at];
-      inflow.speed = all[at + 1];
-      inflow.previous_speed = all[at + 2];
-      inflow.entered = static_cast<std::size_t>(all[at + 3]);
-      inflow.released = static_cast<std::size_t>(all[at + 4]);
-      inflow.ended = all[at + 5] != 0;
-      at += 6;
-    }
+    set_inflow_values(std::span<const double>(all).subspan(at, kInflowValues * inflows_.size()));
     forces_ready_ = false;
   } else {
     collected_active_ = active_;
