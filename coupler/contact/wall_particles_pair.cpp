@@ -34,9 +34,9 @@ std::vector<BoundaryWalls::PeriodicSpan> periodic_spans(const scene::SphSettings
 }  // namespace
 
 WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
-    : walls_(scene.sph.particle_spacing, scene.sph.kernel_support(), periodic_spans(scene.sph),
+    : walls_(scene.sph.wall_spacing(), scene.sph.kernel_support(), periodic_spans(scene.sph),
              scene.sph.free_slip_walls),
-      spacing_(scene.sph.particle_spacing) {
+      spacing_(scene.sph.wall_spacing()) {
   std::vector<std::string> deformable;
   for (const auto& structure : scene.structures) {
     if (!structure.rigid) deformable.push_back(structure.name);
@@ -54,7 +54,7 @@ void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {
   walls_.set_surface(protocol::surface_from_message(solvers.at(Role::fem).registration->surface(), "fem_solver"));
   channel_ = &replies.boundary();
   slot_ = replies.boundary().join();
-  spdlog::info("sampled the FEM surface into {} boundary particles ({} layers at dx = {} m)", walls_.sampling().size(),
+  spdlog::info("sampled the FEM surface into {} boundary particles ({} layers {} m apart)", walls_.sampling().size(),
                walls_.layers(), spacing_);
 }
 

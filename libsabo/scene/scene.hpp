@@ -395,9 +395,9 @@ inline constexpr double kMinBoundaryParticleDiameter = 2.0;
 
 // Weakly compressible SPH (sph_solver). The loader fills these from [sph]
 // and [[fluids]]; the sph_solver helper owns their keys and may add fields.
-// The coupler reads particle_spacing, smoothing_ratio, kernel and wall_model to
-// sample FEM surfaces as boundary particles (wall_model == boundary_particles:
-// ceil(kernel_support / particle_spacing) layers behind each wall surface).
+// The coupler reads particle_spacing, smoothing_ratio, kernel, wall_model and
+// wall_spacing_ratio to sample FEM surfaces as boundary particles (wall_model ==
+// boundary_particles: ceil(kernel_support / wall_spacing) layers behind each wall surface).
 struct SphSettings {
   enum class Kernel { wendland_c2, cubic_spline };
   enum class WallModel { penalty, boundary_particles };
@@ -414,6 +414,9 @@ struct SphSettings {
   // Boundary particles: the structures whose wall particles are free-slip (the fluid keeps its tangential
   // velocity there: no shear from that wall, viscous or artificial); the others are no-slip.
   std::vector<std::string> free_slip_walls;
+  // Boundary particles: the structures' wall particles sit on a lattice of this fraction of dx
+  // (wall_spacing()), volume (ratio dx)^3, as many layers as fill the kernel support.
+  double wall_spacing_ratio = 1.0;
   double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
   double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
   double artificial_viscosity = 0.01;  // Monaghan alpha
@@ -434,7 +437,8 @@ struct SphSettings {
   enum class ViscousOperator { strain_rate, morris };
   ViscousOperator viscous_operator = ViscousOperator::strain_rate;
   [[nodiscard]] double smoothing_length() const { return smoothing_ratio * particle_spacing; }
-  [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }  // both kernels: 2h
+  [[nodiscard]] double kernel_support() const { return 2.0 * smoothing_length(); }             // both kernels: 2h
+  [[nodiscard]] double wall_spacing() const { return wall_spacing_ratio * particle_spacing; }  // m
   // Layers of an inflow's buffer (InflowSection): enough that the fluid just past the section sees a full
   // kernel support of them, ceil(2h / dx) + 1.
   [[nodiscard]] std::size_t inflow_buffer_layers() const {

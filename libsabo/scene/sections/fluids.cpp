@@ -49,6 +49,17 @@ void Schema::build_sph() {
                "a smooth wall, or a symmetry plane); every other structure is no-slip (Adami et al. 2012). "
                "Pressure acts on both alike. Not with `wall_model = \"penalty\"`, whose walls slip by "
                "`[contact.sph_fem]` friction."),
+      K("wall_spacing_ratio", Type::number)
+          .def(SphSettings{}.wall_spacing_ratio)
+          .ge(0.25)
+          .le(1)
+          .doc("Boundary-particle walls: the spacing of the structures' wall particles over dx (their layers fill "
+               "the kernel support 2h at that spacing). At 1 a fluid lattice sliding along a wall at a tenth of the "
+               "sound speed or more is pumped by the wall lattice's corrugation, which the same lattice of fluid "
+               "particles meets in phase: the row beside a free-slip floor starts to bounce and falls through it "
+               "(a layer at 2.5 m/s, c = 25 m/s: through within 0.3 s). 0.5 halves the wall lattice and the row "
+               "stays put (to 5 m/s at c = 25 m/s), for about eight times the wall particles; 0.75 and 2/3 do not "
+               "cure it (docs/physics.md, \"Walls\"). Fast flows over free-slip walls (B1 at Fr = 4) need 0.5."),
       K("sound_speed", Type::number)
           .required("30.0")
           .unit("m/s")
@@ -229,6 +240,15 @@ void Builder::read_sph(Reader& root) {
   if (auto v = r.string("kernel")) sph.kernel = value_named<SphSettings::Kernel>(*v);
   if (auto v = r.string("wall_model")) sph.wall_model = value_named<SphSettings::WallModel>(*v);
   if (auto v = r.string("wall_work")) sph.wall_work = value_named<SphSettings::WallWork>(*v);
+  if (auto v = r.number("wall_spacing_ratio")) {
+    sph.wall_spacing_ratio = *v;
+    if (sph.wall_model != SphSettings::WallModel::boundary_particles && *v != 1.0) {
+      diag_.add(r.line("wall_spacing_ratio"), r.key_path("wall_spacing_ratio"), fmt::format("{}", *v),
+                "the wall particles' spacing is for boundary-particle walls, but wall_model = \"penalty\" here: "
+                "penalty walls have no particles",
+                "remove wall_spacing_ratio, or use wall_model = \"boundary_particles\"");
+    }
+  }
   if (auto v = r.strings("free_slip_walls")) {
     sph.free_slip_walls = *v;
     free_slip_where_ = {r.line("free_slip_walls"), r.key_path("free_slip_walls")};
