@@ -280,10 +280,17 @@ class SphSolver final : public solver::CoupledSolver {
     if (lost_reported_ == 0 && model_.lost_count() > 0) {
       // The first loss at once; later ones summed up at each output time (a flow leaving through an open end
       // loses particles at most steps).
+      const scene::SphSettings& sph = model_.settings();
+      const bool coarse_walls =
+          sph.wall_model == scene::SphSettings::WallModel::boundary_particles && sph.wall_spacing_ratio == 1.0;
       spdlog::warn(
           "{} SPH particles left the domain and were taken out at t = {:.6g} s; further losses are "
-          "reported at each output time",
-          model_.lost_count(), model_.time());
+          "reported at each output time{}",
+          model_.lost_count(), model_.time(),
+          coarse_walls ? ". If they went through a wall rather than out of an open end: fluid sliding along wall "
+                         "particles at a tenth of the sound speed falls through them when they sit at dx; set "
+                         "sph.wall_spacing_ratio = 0.5 (docs/physics.md, \"Walls\")"
+                       : "");
       lost_reported_ = model_.lost_count();
     }
   }
