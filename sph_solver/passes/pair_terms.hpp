@@ -190,7 +190,7 @@ inline float wall_approach(float full, float dx, float dy, float dz, float rx, f
   return full + (normal - full * (sx * sx + sy * sy + sz * sz));
 }
 
-// Acceleration t of fluid particle i (density rho_i, p_i / rho_i^2 = pr_i, taken at 0 or above, viscosity
+// Acceleration t of fluid particle i (density rho_i, p_i / rho_i^2 = pr_i, viscosity
 // eta_i, stress s_i) from wall particle b (mass m_b, density rho_b, pr_b), r = x_i - x_b,
 // vr = (v_i - v_wall).r, u = v_i - v_b (no-slip wall velocity), s_b the wall's stress
 // (the fluid's, extrapolated in boundary_state). One function for both sides of the
@@ -203,9 +203,7 @@ template <class T>
 inline void wall_pair(float m_b, float rho_b, float pr_b, float rho_i, float pr_i, float eta_i, const Sym6& s_i,
                       const Sym6& s_b, const Mat9& t_i, float f, float rx, float ry, float rz, float r2, float vr,
                       float inverse_r2, float ux, float uy, float uz, float alpha_hc, float& tx, float& ty, float& tz) {
-  // The fluid's own pressure at 0 or above, as the wall's (boundary_state): a particle in tension, where the
-  // fluid thins, would otherwise be drawn into the wall (docs/physics.md, "Walls").
-  const float sf = pair_scalar(m_b, std::max(pr_i, 0.0f), pr_b, vr, inverse_r2, rho_i, rho_b, alpha_hc) * f;
+  const float sf = pair_scalar(m_b, pr_i, pr_b, vr, inverse_r2, rho_i, rho_b, alpha_hc) * f;
   tx = sf * rx;
   ty = sf * ry;
   tz = sf * rz;
