@@ -246,7 +246,7 @@ def run_case(surge, work, name):
     figures = measure(out, surge)
     figures.update({"wall_s": wall, "steps": summary.get("steps"), "run_dir": out, "lost": particles_lost(out)})
     if figures["lost"]:
-        print("{}: {} particles left the domain (over the wall?): the plateau is not the surge's".format(
+        print("{}: {} particles left the domain (through the floor or over the wall): the plateau is not the surge's".format(
             name, figures["lost"]), file=sys.stderr)
     return figures
 

@@ -27,8 +27,8 @@ class BoundaryWalls {
     int axis = 0;
     double min = 0, max = 0;
   };
-  // spacing: dx (m); support: the SPH kernel's support radius (m); the walls
-  // get ceil(support / dx) layers. Along a periodic axis the walls keep only the
+  // spacing: the wall particles' spacing (m; scene sph.wall_spacing()); support: the SPH kernel's
+  // support radius (m); the walls get ceil(support / spacing) layers. Along a periodic axis the walls keep only the
   // particles inside the span: beyond a seam, the fluid sees the images of the
   // particles of the other end (a corner fill that spilled past it would double them).
   // free_slip_parts: the structure parts whose particles are free-slip for the fluid (scene
@@ -65,6 +65,7 @@ class BoundaryWalls {
   [[nodiscard]] const geometry::SurfaceSampling& sampling() const { return sampling_; }
   [[nodiscard]] const geometry::SurfaceMesh& surface() const { return surface_; }
   [[nodiscard]] std::size_t layers() const { return layers_; }
+  [[nodiscard]] double spacing() const { return spacing_; }  // m
   // What carries over from one step to the next, for checkpoints: the selections of the last two
   // steps (the returned forces refer to them) and the node velocities (the next acceleration).
   struct History {

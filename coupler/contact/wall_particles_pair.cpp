@@ -35,8 +35,7 @@ std::vector<BoundaryWalls::PeriodicSpan> periodic_spans(const scene::SphSettings
 
 WallParticlesPair::WallParticlesPair(const scene::Scene& scene)
     : walls_(scene.sph.wall_spacing(), scene.sph.kernel_support(), periodic_spans(scene.sph),
-             scene.sph.free_slip_walls),
-      spacing_(scene.sph.wall_spacing()) {
+             scene.sph.free_slip_walls) {
   std::vector<std::string> deformable;
   for (const auto& structure : scene.structures) {
     if (!structure.rigid) deformable.push_back(structure.name);
@@ -55,7 +54,7 @@ void WallParticlesPair::start(const Solvers& solvers, Replies& replies) {
   channel_ = &replies.boundary();
   slot_ = replies.boundary().join();
   spdlog::info("sampled the FEM surface into {} boundary particles ({} layers {} m apart)", walls_.sampling().size(),
-               walls_.layers(), spacing_);
+               walls_.layers(), walls_.spacing());
 }
 
 void WallParticlesPair::check_state(const SolverView& solver) const {

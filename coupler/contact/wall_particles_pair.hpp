@@ -38,7 +38,6 @@ class WallParticlesPair final : public ContactPair {
 
  private:
   BoundaryWalls walls_;
-  double spacing_;
   Holding holding_;  // not allowed when a structure among the walls is deformable
   const BoundaryChannel* channel_ = nullptr;
   std::size_t slot_ = 0;

@@ -344,7 +344,6 @@ class SlidingLayerTest(RealRunTestCase):
         self.assertLess(drift, 1e-3)
 
 
-
 class FastLayerTest(RealRunTestCase):
     """A water layer sliding at a tenth of the sound speed over a free-slip floor (configs/tests/sph_fast_layer.toml):
     a uniform flow, which must stay uniform. With the floor's particles at dx / 2 (the scene's
