@@ -487,6 +487,32 @@ void assign_vectors(google::protobuf::RepeatedField<double>& field,
     for (const Vec3& v : part->*member) *out++ = v.x(), *out++ = v.y(), *out++ = v.z();
   }
 }
+
+// Appends to f the particles of `index` (a state's) that carry a force or a torque (3 values each per index;
+// torque may be empty: none given), with zero torques where `with_torque` and none were given.
+void add_loaded_particles(const google::protobuf::RepeatedField<std::uint32_t>& index, std::span<const double> force,
+                          std::span<const double> torque, bool with_torque, sabo::v1::StepForces& f) {
+  // Only the particles with a force or a torque: most of a slurry's interest region touches nothing, and a
+  // particle a StepForces leaves out gets none (docs/protocol.md).
+  const auto row_is_zero = [](std::span<const double> values, std::size_t k) {
+    return values.empty() || (values[3 * k] == 0.0 && values[3 * k + 1] == 0.0 && values[3 * k + 2] == 0.0);
+  };
+  const auto n = static_cast<std::size_t>(index.size());
+  assert(force.size() == 3 * n && (torque.empty() || torque.size() == 3 * n));
+  for (std::size_t k = 0; k < n; ++k) {
+    if (row_is_zero(force, k) && row_is_zero(torque, k)) continue;
+    f.add_index(index[static_cast<int>(k)]);
+    f.mutable_force()->Add(force.begin() + static_cast<std::ptrdiff_t>(3 * k),
+                           force.begin() + static_cast<std::ptrdiff_t>(3 * k + 3));
+    if (!with_torque) continue;
+    if (torque.empty()) {
+      for (int c = 0; c < 3; ++c) f.add_torque(0.0);
+    } else {
+      f.mutable_torque()->Add(torque.begin() + static_cast<std::ptrdiff_t>(3 * k),
+                              torque.begin() + static_cast<std::ptrdiff_t>(3 * k + 3));
+    }
+  }
+}
 }  // namespace
 
 void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output, bool stop, bool checkpoint) {
@@ -512,17 +538,8 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
     f.set_checkpoint(checkpoint);
     if (peer->registration.exposes_particles()) {
       const Role role = peer->role;
-      f.mutable_index()->CopyFrom(peer->state.index());
-      const auto& force = replies_.particle_force(role);
-      f.mutable_force()->Assign(force.begin(), force.end());
-      if (peer->registration.exposes_angular_velocity()) {
-        const auto& torque = replies_.particle_torque(role);
-        if (torque.empty()) {
-          f.mutable_torque()->Resize(3 * peer->state.index_size(), 0.0);
-        } else {
-          f.mutable_torque()->Assign(torque.begin(), torque.end());
-        }
-      }
+      add_loaded_particles(peer->state.index(), replies_.particle_force(role), replies_.particle_torque(role),
+                           peer->registration.exposes_angular_velocity(), f);
       // What the pairs need of this solver at the next step: the union of their regions.
       InterestRequest interest;
       for (const auto& pair_slot : pairs_) {
@@ -574,10 +591,23 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
       f.set_interest_all(true);
     }
     check_forces(*peer, f);
-    if (recorder_) recorder_->record_forces(peer->name(), f);
     if (checkpoint && peer->registration.checkpoints()) peer->checkpoint_step = step + 1;
+    try {
+      socket_.send(f, peer->buffer, peer->identity);
+    } catch (const LibraryError& error) {
+      if (!peer->journal) throw;
+      // A solver that died after its state: its replacement gets these forces in the catch-up (journalled
+      // below).
+      peer->send_error = error.what();
+    }
+  }
+  // What only the coupler keeps, once every solver has its forces and computes: the recording and the
+  // restart journal (from the bytes the socket sent, when it sent them without a copy).
+  for (auto& peer : peers_) {
+    const auto& f = peer->forces;
+    if (recorder_) recorder_->record_forces(peer->name(), f);
     if (peer->journal && !peer->journal->dropped()) {
-      peer->journal->add_forces(f);
+      peer->journal->add_forces(f, peer->send_error ? std::span<const std::uint8_t>() : peer->buffer.last_body());
       if (peer->journal->dropped()) {
         spdlog::warn(
             "the {} at step {}: {}, and it cannot be restarted until then. Fix: checkpoints more often "
@@ -585,20 +615,16 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
             peer->name(), f.step(), journal_dropped(*peer));
       }
     }
-    try {
-      socket_.send(f, peer->buffer, peer->identity);
-    } catch (const LibraryError& error) {
-      if (!peer->journal) throw;
-      // A solver that died after its state: its replacement gets these forces in the catch-up.
-      if (!peer->journal->dropped()) {
-        spdlog::warn("could not send the forces of step {} to {} (it may have died; it can be restarted): {}", step,
-                     peer->name(), error.what());
-      } else {
-        fail(peer->name(), fmt::format("could not send the forces of step {} to {} ({}), and it cannot be restarted: "
-                                       "{}. Fix: checkpoints more often (run.checkpoint_interval), or a larger "
-                                       "run.restart_journal_limit",
-                                       step, peer->name(), error.what(), journal_dropped(*peer)));
-      }
+    if (!peer->send_error) continue;
+    const std::string error = *std::exchange(peer->send_error, std::nullopt);
+    if (!peer->journal->dropped()) {
+      spdlog::warn("could not send the forces of step {} to {} (it may have died; it can be restarted): {}", step,
+                   peer->name(), error);
+    } else {
+      fail(peer->name(), fmt::format("could not send the forces of step {} to {} ({}), and it cannot be restarted: "
+                                     "{}. Fix: checkpoints more often (run.checkpoint_interval), or a larger "
+                                     "run.restart_journal_limit",
+                                     step, peer->name(), error, journal_dropped(*peer)));
     }
   }
   send_seconds_ += seconds_since(start);
@@ -850,7 +876,6 @@ int Coupler::run() {
       if (!last) lock_step_equivalent_ += dt / plan.lock_step_dt;
       dt_min_ = std::min(dt_min_, dt);
       dt_max_ = std::max(dt_max_, dt);
-      account(step, time_, dt, output);
       if (last) events_.emit({{"event", "stopping"}, {"reason", "end_time reached"}});
       // Checkpoints of the state after this step, t_{n+1}, every checkpoint_period() of simulated time (none of
       // the final state: nothing would resume from it).
@@ -860,6 +885,8 @@ int Coupler::run() {
       while (checkpoint && next_checkpoint_time_ <= time_ + dt + 1e-9 * period) next_checkpoint_time_ += period;
       if (checkpoint) ++checkpoints_;
       send_forces(step, plan, output, last, checkpoint);
+      // The run's own files, while the solvers compute.
+      account(step, time_, dt, output);
       for (auto& peer : peers_) peer->has_state = false;
       if (recorder_) recorder_->end_step(step);
       steps_ = step + 1;

@@ -40,6 +40,7 @@ struct Coupler::Peer {
   // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.
   std::unique_ptr<RestartJournal> journal;
   std::optional<std::uint64_t> checkpoint_step;  // the step of the checkpoint it was last asked for
+  std::optional<std::string> send_error;         // its forces of this step could not be sent (send_forces)
   bool catching_up = false;
   std::uint64_t resumed_at = 0;  // step of the checkpoint its replacement started from
   std::chrono::steady_clock::time_point restarted_wall;

@@ -45,7 +45,7 @@ void RestartJournal::remove() {
   forces_.clear();
 }
 
-RestartJournal::Span RestartJournal::append(const std::string& bytes) {
+RestartJournal::Span RestartJournal::append(std::span<const char> bytes) {
   file_.seekp(static_cast<std::streamoff>(size_));
   file_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (!file_) throw FileError(fmt::format("{}: cannot append to the restart journal (disk full?)", path_.string()));
@@ -140,14 +140,18 @@ void RestartJournal::add_state(const sabo::v1::StepState& state) {
   states_.push_back(digests(state));
 }
 
-void RestartJournal::add_forces(const sabo::v1::StepForces& forces) {
+void RestartJournal::add_forces(const sabo::v1::StepForces& forces, std::span<const std::uint8_t> serialized) {
   if (dropped_) return;
   assert(forces.step() == first_ + forces_.size() && states_.size() == forces_.size() + 1);
-  // Into a buffer kept between steps: a fresh string of hundreds of kB a step is fresh pages to fault in.
-  if (!forces.SerializeToString(&scratch_)) {
-    throw FileError(fmt::format("{}: the forces of step {} do not serialize", path_.string(), forces.step()));
+  std::span<const char> bytes(reinterpret_cast<const char*>(serialized.data()), serialized.size());
+  if (serialized.empty()) {
+    // Into a buffer kept between steps: a fresh string of hundreds of kB a step is fresh pages to fault in.
+    if (!forces.SerializeToString(&scratch_)) {
+      throw FileError(fmt::format("{}: the forces of step {} do not serialize", path_.string(), forces.step()));
+    }
+    bytes = scratch_;
   }
-  if (size_ + scratch_.size() > limit_) {
+  if (size_ + bytes.size() > limit_) {
     // Dropped until the next checkpoint: the file emptied (its space given back), nothing kept.
     dropped_ = true;
     states_.clear();
@@ -158,7 +162,7 @@ void RestartJournal::add_forces(const sabo::v1::StepForces& forces) {
     std::filesystem::resize_file(path_, 0, error);
     return;
   }
-  forces_.push_back(append(scratch_));
+  forces_.push_back(append(bytes));
 }
 
 std::string RestartJournal::first_difference(const sabo::v1::StepState& state) const {

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -28,8 +29,9 @@ class RestartJournal {
   void begin(std::uint64_t step);
   // The state the solver sent for step `state.step()`, which must be the next step of the journal.
   void add_state(const sabo::v1::StepState& state);
-  // The forces sent for that step.
-  void add_forces(const sabo::v1::StepForces& forces);
+  // The forces sent for that step; `serialized`: their bytes when the caller has them already (the socket's
+  // send buffer), else empty and the journal serializes them.
+  void add_forces(const sabo::v1::StepForces& forces, std::span<const std::uint8_t> serialized = {});
 
   [[nodiscard]] std::uint64_t first_step() const { return first_; }
   // One past the last step whose state and forces are both in the journal.
@@ -58,7 +60,7 @@ class RestartJournal {
   struct Span {
     std::uint64_t offset = 0, size = 0;
   };
-  Span append(const std::string& bytes);
+  Span append(std::span<const char> bytes);
   std::string read(const Span& span);
 
   std::filesystem::path path_;

@@ -37,6 +37,7 @@ SendBuffer::SendBuffer() : state_(std::make_shared<State>()) {}
 
 zmq::message_t SendBuffer::wrap(const google::protobuf::MessageLite& message) {
   const std::size_t size = message.ByteSizeLong();
+  last_size_ = 0;
   if (size < kZeroCopyThreshold) {
     zmq::message_t copy(size);
     message.SerializeWithCachedSizesToArray(static_cast<std::uint8_t*>(copy.data()));
@@ -49,8 +50,13 @@ zmq::message_t SendBuffer::wrap(const google::protobuf::MessageLite& message) {
   if (state_->bytes.size() < size) state_->bytes.resize(size + size / 8);
   message.SerializeWithCachedSizesToArray(state_->bytes.data());
   state_->in_flight.store(true, std::memory_order_release);
+  last_size_ = size;
   auto* hint = new ReleaseHint{state_, &state_->in_flight};
   return zmq::message_t(state_->bytes.data(), size, &release_buffer, hint);
+}
+
+std::span<const std::uint8_t> SendBuffer::last_body() const {
+  return {state_->bytes.data(), last_size_};
 }
 
 void Inbound::parse(google::protobuf::MessageLite& out) const {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 #include <zmq.hpp>
@@ -24,6 +25,10 @@ class SendBuffer {
   SendBuffer();
   // Serializes `message` into the buffer and returns a ZeroMQ message over it.
   zmq::message_t wrap(const google::protobuf::MessageLite& message);
+  // The body of the last wrap() when it was handed over without a copy (ZeroMQ only reads it), valid until
+  // the next wrap(); empty when it was copied (a small body) or before the first: a caller that needs the
+  // bytes as well (the coupler's restart journal) need not serialize the message a second time.
+  [[nodiscard]] std::span<const std::uint8_t> last_body() const;
 
  private:
   struct State {
@@ -31,6 +36,7 @@ class SendBuffer {
     std::vector<std::uint8_t> bytes;
   };
   std::shared_ptr<State> state_;
+  std::size_t last_size_ = 0;  // of the last zero-copy body; 0: the last was copied
 };
 
 // One received message: the peer identity (ROUTER only), header and body.

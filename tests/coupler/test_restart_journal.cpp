@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "coupler/restart_journal.hpp"
+#include "libsabo/protocol/socket.hpp"
 #include "tests/support/scratch.hpp"
 
 using sabo::coupler::RestartJournal;
@@ -118,4 +119,24 @@ TEST(RestartJournal, PastItsLimitItIsDroppedUntilTheNextCheckpoint) {
   journal.add_forces(forces_of(5));
   EXPECT_TRUE(journal.covers(5));
   EXPECT_EQ(journal.forces(5).SerializeAsString(), forces_of(5).SerializeAsString());
+}
+
+TEST(RestartJournal, TakesTheBytesTheSocketSentWithoutSerializingAgain) {
+  // The coupler hands the journal the body its send buffer handed to ZeroMQ (a large body, sent without a
+  // copy); the journal gives back what was sent, as when it serializes the forces itself.
+  sabo::protocol::SendBuffer buffer;
+  sabo::v1::StepForces large = forces_of(0);
+  for (int k = 0; k < 20'000; ++k) large.add_force(1e-3 * k);
+  zmq::message_t body = buffer.wrap(large);
+  ASSERT_EQ(buffer.last_body().size(), body.size()) << "a body of " << body.size() << " bytes goes without a copy";
+  RestartJournal journal(sabo::testing::scratch("journal_bytes/sph_solver.journal"), kLimit);
+  journal.add_state(state_of(0));
+  journal.add_forces(large, buffer.last_body());
+  journal.add_state(state_of(1));
+  const sabo::v1::StepForces small = forces_of(1);
+  (void)buffer.wrap(small);
+  EXPECT_TRUE(buffer.last_body().empty()) << "a small body is copied; the journal serializes it";
+  journal.add_forces(small, buffer.last_body());
+  EXPECT_EQ(journal.forces(0).SerializeAsString(), large.SerializeAsString());
+  EXPECT_EQ(journal.forces(1).SerializeAsString(), small.SerializeAsString());
 }

@@ -20,8 +20,9 @@ TERRAIN_ROLL = "configs/tests/terrain_roll.toml"
 
 
 def particle_states(run_dir):
-    """The dem_solver's recorded states: per recorded step, the indices, positions and velocities,
-    and the contact forces the coupler sent back (traffic.h5 layout: docs/traffic.md)."""
+    """The dem_solver's recorded states: per recorded step, the indices, positions and velocities, and the
+    contact force the coupler sent back to each of those particles, zero where it sent none (a StepForces
+    lists only the particles that carry a force; traffic.h5 layout: docs/traffic.md)."""
     with h5py.File(os.path.join(run_dir, "traffic.h5"), "r", swmr=True) as traffic:
         state = traffic["dem_solver/state"]
         forces = traffic["dem_solver/forces"]
@@ -34,8 +35,22 @@ def particle_states(run_dir):
             "position": state["position"][()].reshape(-1, 3),
             "velocity": state["velocity"][()].reshape(-1, 3),
             "force_step": forces["step"][()],
-            "force": forces["force"][()].reshape(-1, 3),
         }
+        sent_index, sent_force = forces["index"][()], forces["force"][()]
+        index_offset, index_count = forces["index_offset"][()], forces["index_count"][()]
+        force_offset = forces["force_offset"][()]
+    force = np.zeros_like(out["position"])
+    by_step = {int(step): k for k, step in enumerate(out["force_step"])}
+    for i, step in enumerate(out["step"]):
+        k = by_step.get(int(step))
+        if k is None:
+            continue
+        first, count = int(out["offset"][i]), int(out["count"][i])
+        rows = {int(index): first + r for r, index in enumerate(out["index"][first:first + count])}
+        for r in range(int(index_count[k])):
+            at = int(force_offset[k]) + 3 * r
+            force[rows[int(sent_index[int(index_offset[k]) + r])]] = sent_force[at:at + 3]
+    out["force"] = force
     return out
 
 
