@@ -10,6 +10,7 @@ curve (`--plot`, needs matplotlib).
 
     bench/surge_wall.py                                   # Fr = 1, 2, 4 at h = 8 dx
     bench/surge_wall.py --froude 1 --spacings 6 --keep /tmp/surge --plot /tmp/alpha.png
+    bench/surge_wall.py --replot fr12.json fr4.json --plot /tmp/alpha.png   # runs of several invocations
 
 The channel is periodic across its width (`sph.periodic_y`, 8 spacings: a slice of an infinitely wide
 surge); floor and wall are rigid planes sampled as boundary particles. The block is long enough that the
@@ -261,11 +262,15 @@ def plot_alpha(results, path):
     ax.plot(list(ALPHA_TABLE), list(ALPHA_TABLE.values()), "ks", mfc="none", label="docs/benchmarks.md table")
     ax.fill_between(froudes, [(1 - TOLERANCE) * alpha_theory(fr) for fr in froudes],
                     [(1 + TOLERANCE) * alpha_theory(fr) for fr in froudes], color="0.85", label="±10 %")
-    for spacings, free_slip in sorted({(r["spacings"], r.get("free_slip", False)) for r in results}):
-        chosen = [r for r in results if r["spacings"] == spacings and r.get("free_slip", False) == free_slip]
-        ax.plot([r["froude"] for r in chosen], [r["alpha"] for r in chosen], "o",
-                label="Sabo, h = {} dx, {} walls (force plateau)".format(spacings,
-                                                                        "free-slip" if free_slip else "no-slip"))
+    def variant(r):
+        return r["spacings"], r.get("free_slip", False), r.get("wall_spacing_ratio", 1.0)
+
+    markers = "osD^v<>"
+    for k, (spacings, free_slip, ratio) in enumerate(sorted({variant(r) for r in results})):
+        chosen = [r for r in results if variant(r) == (spacings, free_slip, ratio)]
+        ax.plot([r["froude"] for r in chosen], [r["alpha"] for r in chosen], markers[k % len(markers)],
+                label="Sabo, h = {} dx, {} walls, wall particles at {}".format(
+                    spacings, "free-slip" if free_slip else "no-slip", "dx" if ratio == 1 else "{:g} dx".format(ratio)))
     ax.set_xlabel("Froude number Fr = v / sqrt(g h)")
     ax.set_ylabel("alpha = F / (rho v² h) per unit width")
     ax.set_title("B1: surge on a rigid wall")
@@ -298,7 +303,28 @@ def main():
     parser.add_argument("--keep", help="folder for the scenes and run folders (default: a temporary one)")
     parser.add_argument("--json", help="also write the figures here")
     parser.add_argument("--plot", help="draw alpha(Fr) into this PNG")
+    parser.add_argument("--replot", nargs="+", metavar="JSON",
+                        help="run nothing: draw --plot from the figures that earlier runs wrote with --json (runs "
+                             "of several invocations in one figure)")
     args = parser.parse_args()
+    if args.replot:
+        if not args.plot:
+            parser.error("--replot draws a figure: name it with --plot FILE.png")
+        results = []
+        for path in args.replot:
+            try:
+                with open(path, encoding="utf-8") as handle:
+                    figures = json.load(handle)
+            except (OSError, ValueError) as error:
+                parser.error("--replot {}: {} (a list of figures written by --json)".format(path, error))
+            if not isinstance(figures, list) or not all(
+                    isinstance(r, dict) and {"froude", "alpha", "spacings"} <= r.keys() for r in figures):
+                parser.error("--replot {}: not a list of figures with froude, alpha and spacings (what --json "
+                             "writes)".format(path))
+            results.extend(figures)
+        plot_alpha(results, args.plot)
+        print("wrote {}".format(args.plot), file=sys.stderr)
+        return
     work = args.keep or tempfile.mkdtemp(prefix="sabo_surge_")
     os.makedirs(work, exist_ok=True)
     results = []
@@ -313,7 +339,8 @@ def main():
                 "" if args.width_spacings == 8 else "_w{}".format(args.width_spacings),
                 "" if args.wall_spacing_ratio == 0.5 else "_walls{:g}".format(args.wall_spacing_ratio))
             figures = run_case(surge, work, name)
-            figures.update({"froude": froude, "spacings": spacings, "free_slip": args.free_slip, "length": surge.length,
+            figures.update({"froude": froude, "spacings": spacings, "free_slip": args.free_slip,
+                            "wall_spacing_ratio": args.wall_spacing_ratio, "length": surge.length,
                             "expected": surge.expected_force(), "alpha_theory": surge.alpha,
                             "bore_expected": surge.ratio * surge.depth, "window": [surge.settled, surge.plateau_end]})
             results.append(figures)

@@ -5,11 +5,15 @@ The wall's force plateau per unit width against alpha rho v^2 h (Armanini & Scot
 tolerance 10 %), the bore's height behind the wall, read by a line gauge, against r h, and the wall's force
 against the pressure a line gauge reads one spacing in front of it. The full cases
 (Fr = 1, 2, 4 with the longer plateau, the plot of alpha(Fr)) are bench/surge_wall.py's, figures in bench/RESULTS.md."""
+import json
 import os
+import subprocess
 import sys
+import tempfile
 import unittest
 
 from e2e_support import ROOT, RealRunTestCase
+from test_plot import png_size
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from surge_wall import Surge, measure, TOLERANCE  # noqa: E402
@@ -39,6 +43,39 @@ class SurgeWallTest(RealRunTestCase):
         self.assertLess(abs(profile), 0.10)
         print("B1 Fr = 1: impact peak {:.1f} N/m = {:.1f} x the plateau".format(
             figures["peak"], figures["peak"] / figures["plateau"]))
+
+
+class SurgeWallReplotTest(unittest.TestCase):
+    """`bench/surge_wall.py --replot`: the alpha(Fr) figure from the figures that runs of several invocations wrote
+    (--json), and a clear error for a file that is not such a list."""
+
+    def test_replot_draws_the_runs_of_several_invocations(self):
+        script = os.path.join(ROOT, "bench", "surge_wall.py")
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = []
+            for k, (froude, alpha, ratio) in enumerate([(1.0, 2.31, 0.5), (4.0, 1.17, 0.5), (2.0, 1.41, 1.0)]):
+                paths.append(os.path.join(tmp, "run{}.json".format(k)))
+                with open(paths[-1], "w", encoding="utf-8") as handle:
+                    json.dump([{"froude": froude, "alpha": alpha, "spacings": 8, "free_slip": True,
+                                "wall_spacing_ratio": ratio}], handle)
+            png = os.path.join(tmp, "alpha.png")
+            done = subprocess.run(["/usr/bin/python3", script, "--replot"] + paths + ["--plot", png],
+                                  capture_output=True, text=True, timeout=120)
+            self.assertEqual(done.returncode, 0, done.stderr)
+            self.assertEqual(png_size(png), (720, 540))
+            bad = os.path.join(tmp, "bad.json")
+            with open(bad, "w", encoding="utf-8") as handle:
+                handle.write("{not json")
+            done = subprocess.run(["/usr/bin/python3", script, "--replot", bad, "--plot", png],
+                                  capture_output=True, text=True, timeout=120)
+            self.assertEqual(done.returncode, 2)
+            self.assertIn("--replot {}".format(bad), done.stderr)
+            with open(bad, "w", encoding="utf-8") as handle:
+                json.dump({"froude": 1.0}, handle)
+            done = subprocess.run(["/usr/bin/python3", script, "--replot", bad, "--plot", png],
+                                  capture_output=True, text=True, timeout=120)
+            self.assertEqual(done.returncode, 2)
+            self.assertIn("not a list of figures with froude, alpha and spacings", done.stderr)
 
 
 if __name__ == "__main__":
