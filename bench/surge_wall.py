@@ -92,9 +92,9 @@ class Surge:
         self.end_time = self.plateau_end + 1.0 * self.time_unit
         # The jet runs up the wall to about v^2 / 2g = Fr^2 h / 2 and its splash about twice that: the wall and the
         # domain stand above it, so that no water leaves over the wall (at (Fr^2 + r + 2) h, a Fr = 4 surge lost a
-        # third of its water over it, and with it the plateau). A whole number of spacings: at 676.04 wall spacings
-        # the wall particles sent below the wall's foot had holes, through which a Fr = 4 surge's impact pushed 976
-        # particles at h = 8 dx (docs/physics.md, concave corners).
+        # third of its water over it, and with it the plateau). A whole number of spacings, so that the wall's
+        # lattice of wall particles coincides with the floor's in the corner (at 676.04 wall spacings a Fr = 4
+        # surge lost 976 particles below the wall's foot; the cause is not known: docs/physics.md, concave corners).
         self.wall_height = math.ceil((2.0 * froude ** 2 + self.ratio + 4.0) * depth / self.spacing) * self.spacing
         self.sound_speed = 10.0 * max(self.speed, math.sqrt(GRAVITY * self.ratio * depth))
         self.output_interval = self.time_unit / 8.0
