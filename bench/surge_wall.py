@@ -281,6 +281,7 @@ def plot_alpha(results, path):
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+    print("wrote {}".format(path), file=sys.stderr)
 
 
 def main():
@@ -325,7 +326,6 @@ def main():
                              "writes)".format(path))
             results.extend(figures)
         plot_alpha(results, args.plot)
-        print("wrote {}".format(args.plot), file=sys.stderr)
         return
     work = args.keep or tempfile.mkdtemp(prefix="sabo_surge_")
     os.makedirs(work, exist_ok=True)
@@ -369,7 +369,6 @@ def main():
             json.dump(results, handle, indent=1)
     if args.plot:
         plot_alpha(results, args.plot)
-        print("wrote {}".format(args.plot), file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -49,8 +49,11 @@ class SurgeWallReplotTest(unittest.TestCase):
     """`bench/surge_wall.py --replot`: the alpha(Fr) figure from the figures that runs of several invocations wrote
     (--json), and a clear error for a file that is not such a list."""
 
+    def replot(self, paths, png):
+        return subprocess.run(["/usr/bin/python3", os.path.join(ROOT, "bench", "surge_wall.py"), "--replot"] + paths
+                              + ["--plot", png], capture_output=True, text=True, timeout=120)
+
     def test_replot_draws_the_runs_of_several_invocations(self):
-        script = os.path.join(ROOT, "bench", "surge_wall.py")
         with tempfile.TemporaryDirectory() as tmp:
             paths = []
             for k, (froude, alpha, ratio) in enumerate([(1.0, 2.31, 0.5), (4.0, 1.17, 0.5), (2.0, 1.41, 1.0)]):
@@ -59,24 +62,20 @@ class SurgeWallReplotTest(unittest.TestCase):
                     json.dump([{"froude": froude, "alpha": alpha, "spacings": 8, "free_slip": True,
                                 "wall_spacing_ratio": ratio}], handle)
             png = os.path.join(tmp, "alpha.png")
-            done = subprocess.run(["/usr/bin/python3", script, "--replot"] + paths + ["--plot", png],
-                                  capture_output=True, text=True, timeout=120)
+            done = self.replot(paths, png)
             self.assertEqual(done.returncode, 0, done.stderr)
             self.assertEqual(png_size(png), (720, 540))
             bad = os.path.join(tmp, "bad.json")
             with open(bad, "w", encoding="utf-8") as handle:
                 handle.write("{not json")
-            done = subprocess.run(["/usr/bin/python3", script, "--replot", bad, "--plot", png],
-                                  capture_output=True, text=True, timeout=120)
+            done = self.replot([bad], png)
             self.assertEqual(done.returncode, 2)
             self.assertIn("--replot {}".format(bad), done.stderr)
             with open(bad, "w", encoding="utf-8") as handle:
                 json.dump({"froude": 1.0}, handle)
-            done = subprocess.run(["/usr/bin/python3", script, "--replot", bad, "--plot", png],
-                                  capture_output=True, text=True, timeout=120)
+            done = self.replot([bad], png)
             self.assertEqual(done.returncode, 2)
             self.assertIn("not a list of figures with froude, alpha and spacings", done.stderr)
-
 
 if __name__ == "__main__":
     unittest.main()
