@@ -12,7 +12,8 @@
 // 2, "settled": --steps steps at --dt on the settled pile, the figure to compare
 // with LIGGGHTS. Also reported: contacts and Verlet-list pairs per sphere, list
 // builds, the largest overlap over the radius, the energy (which never rises) and the
-// CPU seconds of both phases (all threads; steadier than wall time on a shared machine).
+// CPU seconds of both phases (all threads; steadier than wall time on a shared machine) and a hash of the
+// final state's bits (to compare builds and thread counts).
 //
 //   bench_dem_box --spheres 30000
 #include <fmt/format.h>
@@ -25,6 +26,7 @@
 #include <cstdint>
 #include <ctime>
 #include <numbers>
+#include <span>
 
 #include "dem_solver/dem_model.hpp"
 
@@ -129,6 +131,21 @@ int main(int argc, char** argv) {
   }
   double largest_speed = 0;
   for (const auto& v : model.velocities()) largest_speed = std::max(largest_speed, v.norm());
+  // The final state's bits (positions, velocities, spins, energies), FNV-1a: two builds or thread counts that
+  // print the same hash computed the same numbers.
+  std::uint64_t state_hash = 14695981039346656037ULL;
+  auto hash_bytes = [&](const void* data, std::size_t bytes) {
+    const auto* byte = static_cast<const unsigned char*>(data);
+    for (std::size_t k = 0; k < bytes; ++k) state_hash = (state_hash ^ byte[k]) * 1099511628211ULL;
+  };
+  const dem::DemModel& state = model;
+  for (const std::span<const Vec3> values : {state.positions(), state.velocities(), state.angular_velocities()}) {
+    hash_bytes(values.data(), values.size_bytes());
+  }
+  const dem::Energies energies = model.energies();
+  for (const double value : {energies.kinetic, energies.potential, energies.elastic, energies.dissipated}) {
+    hash_bytes(&value, sizeof value);
+  }
   const double n = static_cast<double>(model.size());
   fmt::print(
       "{{\"bench\": \"dem_box\", \"spheres\": {}, \"threads\": {}, \"box_side_m\": {:.4f}, \"settle_steps\": {}, "
@@ -137,11 +154,12 @@ int main(int argc, char** argv) {
       "\"wall_contacts\": {}, \"neighbour_pairs_per_sphere\": {:.3f}, \"neighbour_builds_settled\": {}, "
       "\"largest_overlap_over_radius\": {:.4e}, \"largest_speed_m_per_s\": {:.3e}, "
       "\"energy_rise_over_initial_J\": {:.3e}, \"setup_seconds\": {:.3f}, \"settle_seconds\": {:.3f}, "
-      "\"settle_cpu_seconds\": {:.3f}, \"settled_cpu_seconds\": {:.3f}}}\n",
+      "\"settle_cpu_seconds\": {:.3f}, \"settled_cpu_seconds\": {:.3f}, \"state_hash\": \"{:016x}\"}}\n",
       model.size(), omp_get_max_threads(), side, settle_steps, settle_dt_s,
       n * static_cast<double>(settle_steps) / settle_seconds, steps, dt_s, n * steps / settled_seconds,
       1e6 * settled_seconds / steps, 2.0 * static_cast<double>(model.contact_count()) / n, model.wall_contact_count(),
       static_cast<double>(model.neighbour_pair_count()) / n, model.neighbour_builds() - builds_before, largest_overlap,
-      largest_speed, largest_energy - initial_energy, setup_seconds, settle_seconds, settle_cpu_seconds, cpu_seconds);
+      largest_speed, largest_energy - initial_energy, setup_seconds, settle_seconds, settle_cpu_seconds, cpu_seconds,
+      state_hash);
   return 0;
 }

@@ -38,6 +38,22 @@ void set_elastic_constants(DemModel::PairLaw& law, double youngs_a, double poiss
   law.stiffness_ratio_root = std::sqrt(4.0 * law.effective_shear_modulus / law.effective_modulus);
 }
 
+// Distance from x to a wall (m) and the wall's unit normal towards x there.
+double wall_distance(const Wall& wall, const Vec3& x, Vec3& normal) {
+  if (wall.kind == Wall::Kind::plane) {
+    normal = wall.normal;
+    return (x - wall.point).dot(normal);
+  }
+  const double ex = wall.b[0] - wall.a[0], ez = wall.b[1] - wall.a[1];
+  const double length_squared = ex * ex + ez * ez;
+  double t = length_squared > 0 ? ((x.x() - wall.a[0]) * ex + (x.z() - wall.a[1]) * ez) / length_squared : 0;
+  t = std::clamp(t, 0.0, 1.0);
+  const Vec3 offset(x.x() - (wall.a[0] + t * ex), 0.0, x.z() - (wall.a[1] + t * ez));
+  const double distance = offset.norm();
+  normal = distance > 0 ? Vec3(offset / distance) : Vec3::UnitZ();
+  return distance;
+}
+
 // What one contact needs besides its law: geometry and the pair's effective inertia.
 struct ContactInput {
   Vec3 normal;               // unit, from b to a
@@ -408,6 +424,7 @@ physics::HertzMindlin DemModel::hertz_law(std::uint32_t a, std::uint32_t b) cons
 
 void DemModel::add_wall(const Wall& wall) {
   walls_.push_back(wall);
+  rebuild_ = true;  // the walls near each sphere are listed with the neighbours
   for (std::size_t m = 0; m < material_count_; ++m) {
     PairLaw law = pair_law_[m * material_count_ + m];
     if (wall.youngs_modulus > 0) {
@@ -467,6 +484,7 @@ void DemModel::add_region_walls(const scene::ParticleSet& set) {
 
 void DemModel::clear_walls() {
   walls_.clear();
+  rebuild_ = true;
   wall_law_.clear();
   wall_tangential_.clear();
   wall_rolling_.clear();
@@ -573,6 +591,22 @@ void DemModel::build_neighbours() {
   count_scratch_.assign(reverse_start_.begin(), reverse_start_.end() - 1);
   for (std::size_t s = 0; s < slots; ++s) reaction_index_[s] = count_scratch_[neighbour_[s]]++;
   reaction_.assign(slots, Reaction{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()});
+
+  // Walls within reach: a sphere farther than r + skin from a wall at the build moves more than skin / 2
+  // (and so triggers a rebuild) before it touches it. A wall in contact since the last build is within r + skin / 2.
+  wall_near_start_.assign(size() + 1, 0);
+  wall_near_.clear();
+  for (std::uint32_t i = 0; i < size(); ++i) {
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      Vec3 normal;
+      if (wall_distance(walls_[w], position_[i], normal) < radius_[i] + skin_) {
+        wall_near_.push_back(static_cast<std::uint32_t>(w));
+      } else {
+        assert(!wall_in_contact_[i * walls_.size() + w]);
+      }
+    }
+    wall_near_start_[i + 1] = static_cast<std::uint32_t>(wall_near_.size());
+  }
 }
 
 template <int kLaw, int kRolling>
@@ -662,24 +696,11 @@ void DemModel::pair_forces(double dt_previous) {
           reaction.dissipative_torque = -lever_b * n_cross_d - out.dissipative_torque;
         }
         std::uint32_t wall_contacts = 0;
-        for (std::size_t w = 0; w < wall_count; ++w) {
+        for (std::uint32_t listed = wall_near_start_[a]; listed < wall_near_start_[a + 1]; ++listed) {
+          const std::uint32_t w = wall_near_[listed];
           const std::size_t slot = a * wall_count + w;
-          const Wall& wall = walls_[w];
           Vec3 normal;
-          double distance;
-          if (wall.kind == Wall::Kind::plane) {
-            normal = wall.normal;
-            distance = (xa - wall.point).dot(normal);
-          } else {
-            const double ex = wall.b[0] - wall.a[0], ez = wall.b[1] - wall.a[1];
-            const double length_squared = ex * ex + ez * ez;
-            double t =
-                length_squared > 0 ? ((xa.x() - wall.a[0]) * ex + (xa.z() - wall.a[1]) * ez) / length_squared : 0;
-            t = std::clamp(t, 0.0, 1.0);
-            const Vec3 offset(xa.x() - (wall.a[0] + t * ex), 0.0, xa.z() - (wall.a[1] + t * ez));
-            distance = offset.norm();
-            normal = distance > 0 ? Vec3(offset / distance) : Vec3::UnitZ();
-          }
+          const double distance = wall_distance(walls_[w], xa, normal);
           if (distance >= ra || fixed_[a]) {
             if (wall_in_contact_[slot]) {
               released += wall_spring_energy_[slot];

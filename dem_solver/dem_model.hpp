@@ -275,6 +275,9 @@ class DemModel {
   std::vector<Wall> walls_;
   std::vector<PairLaw> wall_law_;  // [wall * materials + sphere material]
   std::vector<Vec3> wall_tangential_, wall_rolling_;
+  // The walls within r + skin of each sphere at the last list build: wall_near_[wall_near_start_[i] ..
+  // wall_near_start_[i+1]), ascending.
+  std::vector<std::uint32_t> wall_near_start_, wall_near_;
   std::vector<std::uint8_t> wall_in_contact_;
   std::vector<double> wall_spring_energy_;
 
