@@ -590,7 +590,8 @@ void DemModel::build_neighbours() {
   reaction_index_.resize(slots);
   count_scratch_.assign(reverse_start_.begin(), reverse_start_.end() - 1);
   for (std::size_t s = 0; s < slots; ++s) reaction_index_[s] = count_scratch_[neighbour_[s]]++;
-  reaction_.assign(slots, Reaction{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()});
+  reaction_.assign(slots, Reaction{});
+  rolling_reaction_.assign(rolling_kind_ != 0 ? slots : 0, RollingReaction{});
 
   // Walls within reach: a sphere farther than r + skin from a wall at the build moves more than skin / 2
   // (and so triggers a rebuild) before it touches it. A wall in contact since the last build is within r + skin / 2.
@@ -647,7 +648,8 @@ void DemModel::pair_forces(double dt_previous) {
               spring_energy_[s] = 0;
               tangential_[s].setZero();
               if constexpr (kRolling != 0) rolling_[s].setZero();
-              reaction_[reaction_index_[s]] = Reaction{Vec3::Zero(), Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+              reaction_[reaction_index_[s]] = Reaction{};
+              if constexpr (kRolling != 0) rolling_reaction_[reaction_index_[s]] = RollingReaction{};
             }
             continue;
           }
@@ -691,9 +693,17 @@ void DemModel::pair_forces(double dt_previous) {
           dissipative_torque += out.dissipative_torque - lever_a * n_cross_d;
           Reaction& reaction = reaction_[reaction_index_[s]];
           reaction.force = -out.force;
-          reaction.torque = -lever_b * n_cross_f - out.rolling_torque;
-          reaction.dissipative_force = -out.dissipative_force;
-          reaction.dissipative_torque = -lever_b * n_cross_d - out.dissipative_torque;
+          reaction.arm = lever_b * in.normal;
+          reaction.dissipative_force = {static_cast<float>(-out.dissipative_force.x()),
+                                        static_cast<float>(-out.dissipative_force.y()),
+                                        static_cast<float>(-out.dissipative_force.z())};
+          if constexpr (kRolling != 0) {
+            RollingReaction& rolling = rolling_reaction_[reaction_index_[s]];
+            rolling.torque = -out.rolling_torque;
+            rolling.dissipative_torque = {static_cast<float>(-out.dissipative_torque.x()),
+                                          static_cast<float>(-out.dissipative_torque.y()),
+                                          static_cast<float>(-out.dissipative_torque.z())};
+          }
         }
         std::uint32_t wall_contacts = 0;
         for (std::uint32_t listed = wall_near_start_[a]; listed < wall_near_start_[a + 1]; ++listed) {
@@ -752,23 +762,36 @@ void DemModel::pair_forces(double dt_previous) {
   // Reactions, each sphere over the slots where it is b, in slot order (zero where not in contact).
   std::size_t contacts = 0, wall_contacts = 0;  // integer sums: exact in any order
 #pragma omp parallel for schedule(static) reduction(+ : contacts, wall_contacts) if (parallel_)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto b = static_cast<std::uint32_t>(k);
-    contacts += sphere_contacts_[b];
-    wall_contacts += sphere_wall_contacts_[b];
-    Vec3 force = Vec3::Zero(), torque = Vec3::Zero(), dissipative_force = Vec3::Zero(),
-         dissipative_torque = Vec3::Zero();
-    for (std::uint32_t r = reverse_start_[b]; r < reverse_start_[b + 1]; ++r) {
-      const Reaction& reaction = reaction_[r];
-      force += reaction.force;
-      torque += reaction.torque;
-      dissipative_force += reaction.dissipative_force;
-      dissipative_torque += reaction.dissipative_torque;
-    }
-    force_[b] += force;
-    torque_[b] += torque;
-    dissipative_force_[b] += dissipative_force;
-    dissipative_torque_[b] += dissipative_torque;
+  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
+    const std::int64_t first = chunk * kChunk, last = std::min(n, first + kChunk);
+    with_best_isa([&] {
+      for (std::int64_t k = first; k < last; ++k) {
+        const auto b = static_cast<std::uint32_t>(k);
+        contacts += sphere_contacts_[b];
+        wall_contacts += sphere_wall_contacts_[b];
+        Vec3 force = Vec3::Zero(), torque = Vec3::Zero(), dissipative_force = Vec3::Zero(),
+             dissipative_torque = Vec3::Zero();
+        for (std::uint32_t r = reverse_start_[b]; r < reverse_start_[b + 1]; ++r) {
+          const Reaction& reaction = reaction_[r];
+          const Vec3 dissipative(reaction.dissipative_force[0], reaction.dissipative_force[1],
+                                 reaction.dissipative_force[2]);
+          force += reaction.force;
+          torque += reaction.arm.cross(reaction.force);
+          dissipative_force += dissipative;
+          dissipative_torque += reaction.arm.cross(dissipative);
+          if constexpr (kRolling != 0) {
+            const RollingReaction& rolling = rolling_reaction_[r];
+            torque += rolling.torque;
+            dissipative_torque +=
+                Vec3(rolling.dissipative_torque[0], rolling.dissipative_torque[1], rolling.dissipative_torque[2]);
+          }
+        }
+        force_[b] += force;
+        torque_[b] += torque;
+        dissipative_force_[b] += dissipative_force;
+        dissipative_torque_[b] += dissipative_torque;
+      }
+    });
   }
   contact_count_ = contacts;
   wall_contact_count_ = wall_contacts;
@@ -849,30 +872,34 @@ void DemModel::integrate(double dt_previous, double dt) {
     BlockSums sums;
     const std::size_t first = static_cast<std::size_t>(block) * kSumBlock;
     const std::size_t last = std::min(size(), first + kSumBlock);
-    for (std::size_t i = first; i < last; ++i) {
-      if (!fixed_[i]) {
-        const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
-        const Vec3 velocity = velocity_[i] + (dt_update / mass_[i]) * force_[i];
-        const Vec3 spin = spin_[i] + (dt_update / inertia) * torque_[i];
-        sums.kinetic += first_step
-                            ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
-                            : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
-        sums.potential -= mass_[i] * gravity_.dot(position_[i]);
-        // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
-        // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
-        sums.dissipated_power -=
-            0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
-        velocity_[i] = velocity;
-        spin_[i] = spin;
-        position_[i] += dt * velocity;
-        if (measure) largest_squared = std::max(largest_squared, (position_[i] - build_position_[i]).squaredNorm());
+    double block_largest = 0;  // m^2
+    with_best_isa([&] {
+      for (std::size_t i = first; i < last; ++i) {
+        if (!fixed_[i]) {
+          const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
+          const Vec3 velocity = velocity_[i] + (dt_update * inverse_mass_[i]) * force_[i];
+          const Vec3 spin = spin_[i] + (dt_update * inverse_inertia_[i]) * torque_[i];
+          sums.kinetic += first_step
+                              ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
+                              : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
+          sums.potential -= mass_[i] * gravity_.dot(position_[i]);
+          // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
+          // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
+          sums.dissipated_power -=
+              0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
+          velocity_[i] = velocity;
+          spin_[i] = spin;
+          position_[i] += dt * velocity;
+          if (measure) block_largest = std::max(block_largest, (position_[i] - build_position_[i]).squaredNorm());
+        }
+        force_[i].setZero();
+        torque_[i].setZero();
+        sums.elastic += sphere_elastic_[i];
+        sums.released += sphere_released_[i];
+        sphere_released_[i] = 0;
       }
-      force_[i].setZero();
-      torque_[i].setZero();
-      sums.elastic += sphere_elastic_[i];
-      sums.released += sphere_released_[i];
-      sphere_released_[i] = 0;
-    }
+    });
+    largest_squared = std::max(largest_squared, block_largest);
     block_sums_[static_cast<std::size_t>(block)] = sums;
   }
 

@@ -262,11 +262,21 @@ class DemModel {
   std::vector<double> spring_energy_;  // J, tangential + rolling springs after the last evaluation
   // What a pair puts on its higher-id sphere b, stored in reverse-list order (the slots where b is the
   // neighbour, in slot order): the force loop writes each slot's at reaction_index_[slot], the gather reads
-  // them sequentially. Zero while the pair is not in contact.
-  struct Reaction {
-    Vec3 force, torque, dissipative_force, dissipative_torque;  // N, N m
+  // them sequentially. Zero while the pair is not in contact. One cache line a slot: b's torque is arm x force,
+  // and the dissipative force (energy bookkeeping only) is kept in single precision. The rolling resistance's
+  // torques, where a scene has it, in rolling_reaction_ (same order).
+  struct alignas(64) Reaction {
+    Vec3 force = Vec3::Zero();                       // N, on b
+    Vec3 arm = Vec3::Zero();                         // m, from b's centre to the contact point
+    std::array<float, 3> dissipative_force{0, 0, 0};  // N, on b
+  };
+  static_assert(sizeof(Reaction) == 64);
+  struct RollingReaction {
+    Vec3 torque = Vec3::Zero();                       // N m, on b
+    std::array<float, 3> dissipative_torque{0, 0, 0};  // N m, on b
   };
   std::vector<Reaction> reaction_;
+  std::vector<RollingReaction> rolling_reaction_;  // empty without rolling resistance
   std::vector<std::uint32_t> reverse_start_, reaction_index_;
   // Restored histories waiting for the next build, sorted by key.
   std::vector<std::pair<std::uint64_t, ContactRecord>> pending_;
