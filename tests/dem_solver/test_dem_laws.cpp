@@ -130,6 +130,40 @@ TEST(DemLawsD1, HertzImpactOfAnAluminiumSphereOnARigidWall) {
   expect_relative("D1 test 2 contact time (s)", result.contact_time, 0.726e-3, 0.01);
 }
 
+TEST(DemLawsWalls, AWallAddedDuringARunStopsASphereNearOrFarFromIt) {
+  // Each sphere checks the walls listed near it at the last neighbour-list build. A sphere falls towards
+  // z = 0, where the floor is added during the run (with a far wall beside it); undamped Hertz, so it must
+  // come back at its speed. Far: from 0.5 m (40 skins) at 2 m/s, the floor added after 0.05 s. Near: from
+  // 1 mm at 1 cm/s, the floor added after 0.01 s, before the sphere has moved enough to rebuild the list.
+  // A wall missed by the list lets the sphere through.
+  struct Case {
+    const char* name;
+    double gap, speed, added_at, duration;
+  };
+  for (const Case& c : {Case{"far", 0.5, 2.0, 0.05, 0.5}, Case{"near", 1e-3, 0.01, 0.01, 0.5}}) {
+    scene::Scene scene = undamped_hertz_scene(2700, 70e6, 0.33);
+    const double r = 0.1;
+    scene.particle_sets.push_back(spheres({scene::Sphere{Vec3(0, 0, c.gap + r), r, Vec3(0, 0, -c.speed)}}));
+    DemModel model(scene);
+    const double dt = 5e-6;
+    double dt_previous = 0, lowest = 1.0;
+    for (double t = 0; t < c.duration; t += dt) {
+      if (std::abs(t - c.added_at) < 0.5 * dt) {
+        Wall side;
+        side.point = Vec3(-5, 0, 0);
+        side.normal = Vec3::UnitX();
+        model.add_wall(side);
+        model.add_wall(Wall{});
+      }
+      step(model, dt_previous, dt);
+      lowest = std::min(lowest, model.positions()[0].z());
+    }
+    std::cout << c.name << ": lowest centre " << lowest << " m (expected above " << 0.9 * r << ")\n";
+    expect_relative(std::string(c.name) + " rebound speed (m/s)", model.velocities()[0].z(), c.speed, 0.01);
+    EXPECT_GT(lowest, 0.9 * r) << c.name;
+  }
+}
+
 TEST(DemLawsKernel, PairForcesEqualThePhysicsFunctions) {
   // An oblique, spinning contact over a few steps: DemModel's pair force equals the library law's.
   for (const bool hertz : {false, true}) {
