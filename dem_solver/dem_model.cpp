@@ -619,10 +619,13 @@ void DemModel::pair_forces(double dt_previous) {
   const double scale = settings_.normal_stiffness_scale;
   const double tangential_ratio = settings_.tangential_stiffness_ratio;
   // Chunks of spheres, each run by the copy of the loop compiled for the CPU's best
-  // instruction set (libsabo/core/isa.hpp): about 1.17 times faster with FMA.
+  // instruction set (libsabo/core/isa.hpp): about 1.17 times faster with FMA. Handed out dynamically: the
+  // contacts per sphere differ across a bed (its floor, its surface), and a static split left one thread
+  // waiting (30 000 settled spheres on 2 threads: 1.35x the rate of the static split). Each sphere's sums do
+  // not depend on which thread runs it: the same bits.
   constexpr std::int64_t kChunk = 64;
   const std::int64_t chunks = (n + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(static) if (parallel_)
+#pragma omp parallel for schedule(dynamic, 4) if (parallel_)
   for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
     const std::int64_t first = chunk * kChunk, last = std::min(n, first + kChunk);
     with_best_isa([&] {
