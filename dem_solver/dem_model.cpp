@@ -865,6 +865,8 @@ void DemModel::integrate(double dt_previous, double dt) {
   const double dt_update = first_step ? 0.5 * dt : 0.5 * (dt_previous + dt);
 
   // Energies are summed per block of spheres, then the blocks in order: the same bits for any thread count.
+  // Compiled for the baseline instruction set (no fused multiply-add), divided rather than multiplied by inverse
+  // masses: the same bits as the Python solver of examples/python_dem (e2e_python_solver).
   const std::size_t blocks = (size() + kSumBlock - 1) / kSumBlock;
   block_sums_.resize(blocks);
   const auto block_count = static_cast<std::int64_t>(blocks);
@@ -875,34 +877,30 @@ void DemModel::integrate(double dt_previous, double dt) {
     BlockSums sums;
     const std::size_t first = static_cast<std::size_t>(block) * kSumBlock;
     const std::size_t last = std::min(size(), first + kSumBlock);
-    double block_largest = 0;  // m^2
-    with_best_isa([&] {
-      for (std::size_t i = first; i < last; ++i) {
-        if (!fixed_[i]) {
-          const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
-          const Vec3 velocity = velocity_[i] + (dt_update * inverse_mass_[i]) * force_[i];
-          const Vec3 spin = spin_[i] + (dt_update * inverse_inertia_[i]) * torque_[i];
-          sums.kinetic += first_step
-                              ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
-                              : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
-          sums.potential -= mass_[i] * gravity_.dot(position_[i]);
-          // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
-          // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
-          sums.dissipated_power -=
-              0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
-          velocity_[i] = velocity;
-          spin_[i] = spin;
-          position_[i] += dt * velocity;
-          if (measure) block_largest = std::max(block_largest, (position_[i] - build_position_[i]).squaredNorm());
-        }
-        force_[i].setZero();
-        torque_[i].setZero();
-        sums.elastic += sphere_elastic_[i];
-        sums.released += sphere_released_[i];
-        sphere_released_[i] = 0;
+    for (std::size_t i = first; i < last; ++i) {
+      if (!fixed_[i]) {
+        const double inertia = 0.4 * mass_[i] * radius_[i] * radius_[i];
+        const Vec3 velocity = velocity_[i] + (dt_update / mass_[i]) * force_[i];
+        const Vec3 spin = spin_[i] + (dt_update / inertia) * torque_[i];
+        sums.kinetic += first_step
+                            ? 0.5 * mass_[i] * velocity_[i].squaredNorm() + 0.5 * inertia * spin_[i].squaredNorm()
+                            : 0.5 * mass_[i] * velocity_[i].dot(velocity) + 0.5 * inertia * spin_[i].dot(spin);
+        sums.potential -= mass_[i] * gravity_.dot(position_[i]);
+        // Power of the dissipative forces on this sphere over the step: their impulse times the mean of the
+        // velocities before and after it (summed over both spheres of a pair: -F_d . mean relative velocity).
+        sums.dissipated_power -=
+            0.5 * (dissipative_force_[i].dot(velocity_[i] + velocity) + dissipative_torque_[i].dot(spin_[i] + spin));
+        velocity_[i] = velocity;
+        spin_[i] = spin;
+        position_[i] += dt * velocity;
+        if (measure) largest_squared = std::max(largest_squared, (position_[i] - build_position_[i]).squaredNorm());
       }
-    });
-    largest_squared = std::max(largest_squared, block_largest);
+      force_[i].setZero();
+      torque_[i].setZero();
+      sums.elastic += sphere_elastic_[i];
+      sums.released += sphere_released_[i];
+      sphere_released_[i] = 0;
+    }
     block_sums_[static_cast<std::size_t>(block)] = sums;
   }
 
