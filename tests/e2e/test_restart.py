@@ -69,17 +69,17 @@ class RestartTest(RealRunTestCase):
                 self.assertNoProcessLeft(out)
 
     def test_past_its_journal_limit_a_killed_solver_stops_the_run_and_says_why(self):
-        """A restart journal held to 1 kB (run.restart_journal_limit) is dropped at the first step after each
+        """A restart journal held to 1 byte (run.restart_journal_limit) is dropped at the first step after each
         checkpoint: the coupler says so once a drop, and a solver killed then cannot rejoin; the run stops naming
         the limit, and the journal's file is empty rather than growing."""
-        scene = self.write_scene("tank_limit", "checkpoint_interval = 0.03\nrestart_journal_limit = 1e-6")
+        scene = self.write_scene("tank_limit", "checkpoint_interval = 0.03\nrestart_journal_limit = 1e-9")
         out = os.path.join(self.tmp, "limit")
         code, sabo = self.run_and_kill(scene, out, "dem_solver", 200)
         with open(os.path.join(out, "coupler.log"), encoding="utf-8", errors="replace") as handle:
             log = handle.read()
         print(sabo.output()[-600:])
         self.assertNotEqual(code, 0)
-        self.assertIn("passed run.restart_journal_limit = 1e-06 GB", log)
+        self.assertIn("passed run.restart_journal_limit = 1e-09 GB", log)
         self.assertIn("restart_journal_limit", sabo.output())
         self.assertNoProcessLeft(out)
 
