@@ -77,5 +77,6 @@ class SurgeWallReplotTest(unittest.TestCase):
             self.assertEqual(done.returncode, 2)
             self.assertIn("not a list of figures with froude, alpha and spacings", done.stderr)
 
+
 if __name__ == "__main__":
     unittest.main()
