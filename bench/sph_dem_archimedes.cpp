@@ -45,21 +45,17 @@ int main(int argc, char** argv) {
     c.diameter_spacings = d;
     const auto r = sabo::testing::run_archimedes(c);
     results.push_back(r);
+    fmt::print(
+        "D = {} dx (dx = {:.4g} m), tank {:.4g} m wide, water {:.4g} m, {} fluid particles, {} steps to {:.3f} s: ", d,
+        r.dx, r.width, r.depth, r.fluid_particles, r.steps, r.time);
     if (r.floats) {
-      fmt::print(
-          "D = {} dx (dx = {:.4g} m), tank {:.4g} m wide, water {:.4g} m, {} fluid particles, {} steps to {:.3f} "
-          "s: submerged fraction {:.4f} against {:.4f} ({:+.2f} %), centre {:.5f} m, free surface {:.5f} m, "
-          "speed {:.2e} m/s, wall time {:.1f} s\n",
-          d, r.dx, r.width, r.depth, r.fluid_particles, r.steps, r.time, r.submerged_fraction, r.expected_fraction,
-          100 * r.error(), r.centre_height, r.surface, r.speed, r.wall_seconds);
+      fmt::print("submerged fraction {:.4f} against {:.4f} ({:+.2f} %), centre {:.5f} m, free surface {:.5f} m, ",
+                 r.submerged_fraction, r.expected_fraction, 100 * r.error(), r.centre_height, r.surface);
     } else {
-      fmt::print(
-          "D = {} dx (dx = {:.4g} m), tank {:.4g} m wide, water {:.4g} m, {} fluid particles, {} steps to {:.3f} "
-          "s: floor reaction {:.5g} N against weight - buoyancy {:.5g} N ({:+.2f} %), centre {:.5f} m, speed "
-          "{:.2e} m/s, wall time {:.1f} s\n",
-          d, r.dx, r.width, r.depth, r.fluid_particles, r.steps, r.time, r.floor_reaction, r.expected_reaction,
-          100 * r.error(), r.centre_height, r.speed, r.wall_seconds);
+      fmt::print("floor reaction {:.5g} N against weight - buoyancy {:.5g} N ({:+.2f} %), centre {:.5f} m, ",
+                 r.floor_reaction, r.expected_reaction, 100 * r.error(), r.centre_height);
     }
+    fmt::print("speed {:.2e} m/s, wall time {:.1f} s\n", r.speed, r.wall_seconds);
     runs.push_back({{"diameter_dx", d},
                     {"dx", r.dx},
                     {"fluid_particles", r.fluid_particles},

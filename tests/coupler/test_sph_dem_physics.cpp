@@ -9,7 +9,6 @@
 
 #include "tests/support/sph_dem_archimedes.hpp"
 #include "tests/support/sph_dem_harness.hpp"
-#include "tests/support/sph_scenes.hpp"
 
 using namespace sabo;
 
@@ -56,8 +55,8 @@ TEST(SphDemPhysics, BouldersFallingIntoWaterConserveMomentumAndNeverGainEnergy) 
 // Archimedes (tests/support/sph_dem_archimedes.hpp): a sphere of 500 kg/m^3 floats half submerged, one of
 // 2650 kg/m^3 rests on the floor, which carries its weight less the buoyancy. Water 0.1 m deep in a tank 0.2 m
 // (floating) or 0.16 m (resting) wide, a sphere 0.1 m across, viscosity 2 Pa s so that the heave decays within the
-// run; the sphere starts where it will rest. The penalty law's figures come from the disabled variants
-// (docs/physics.md, "SPH-DEM"); bench_sph_dem_archimedes runs the finer resolutions.
+// run; the sphere starts where it will rest. bench_sph_dem_archimedes runs the finer resolutions and the penalty
+// law (--model penalty; docs/physics.md, "SPH-DEM").
 void print(const char* law, double density, const sabo::testing::ArchimedesResult& r) {
   if (r.floats) {
     std::cout << law << ", " << density << " kg/m^3, D = " << 2 * r.radius / r.dx << " dx: centre " << r.centre_height
@@ -80,9 +79,9 @@ sabo::testing::ArchimedesResult archimedes(scene::SphDemContact::Model model, do
   return r;
 }
 
-// Floating, P1 (docs/benchmarks.md) asks 0.50 +- 0.05 from 10 spacings per diameter on: measured 0.450 at 10 dx (at the
-// edge), 0.457 at 14, 0.467 at 20 (bench_sph_dem_archimedes --density 500). The fluid stands about 0.6 dx off the
-// convex surface, so the sphere acts 0.15-0.2 dx larger; the error shrinks as about dx^0.6.
+// Floating, P1 (docs/benchmarks.md) asks 0.50 +- 0.05 from 10 spacings per diameter on: measured 0.450 at 10 dx (at
+// the edge), 0.457 at 14, 0.467 at 20, 0.473 at 28 (bench_sph_dem_archimedes --density 500). The fluid stands about
+// 0.6 dx off the convex surface, so the sphere acts 0.17-0.25 dx larger; the error shrinks as about dx^0.6.
 TEST(SphDemPhysics, ArchimedesFloatingBoulder) {
   const auto r = archimedes(scene::SphDemContact::Model::boundary_particles, 500, 14);
   EXPECT_NEAR(r.submerged_fraction, 0.5, 0.05);
@@ -103,12 +102,6 @@ TEST(SphDemPhysics, ArchimedesBoulderRestingOnTheFloorConvergesAtFirstOrder) {
   EXPECT_GT(coarse.error(), fine.error());
   EXPECT_NEAR(conv.order, 1.0, 0.4);
   EXPECT_NEAR(conv.limit, 0.0, 0.05);
-}
-TEST(SphDemPhysics, DISABLED_ArchimedesFloatingBoulderPenalty) {
-  archimedes(scene::SphDemContact::Model::penalty, 500, 10);
-}
-TEST(SphDemPhysics, DISABLED_ArchimedesBoulderRestingOnTheFloorPenalty) {
-  archimedes(scene::SphDemContact::Model::penalty, 2650, 10);
 }
 
 }  // namespace
