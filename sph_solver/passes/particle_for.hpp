@@ -31,7 +31,7 @@ inline bool in_parallel(std::size_t particles) {
 // How a body is compiled. best_isa: with_best_isa() (libsabo/core/isa.hpp), one copy per
 // instruction set with every call inlined: the single-precision pair loops, vectorised.
 // baseline: once, for x86-64 (no FMA): the loops in double precision (sorting, gather,
-// velocity gradients, wall stress, integration), whose bits then do not depend on the CPU.
+// wall stress, integration), whose bits then do not depend on the CPU.
 enum class Compile { best_isa, baseline };
 
 // body(first, last) for every chunk [first, last) of [0, size). The pair loops' bodies
