@@ -31,8 +31,8 @@ struct ViscousStep {
 
 // One neighbour slot in lane l of the velocity gradient's sums (compute_velocity_gradients): its kernel gradient
 // times its volume, g (zero outside the support: `inside` false), the velocity difference dv, and the sums
-// L += dv g^T (rows 0-8 of `lane`, row-major) and M -= g r^T (rows 9-14: xx yy zz xy yz zx).
-template <KernelKind Kind>
+// L += dv g^T (rows 0-8 of `lane`, row-major) and, with Moment, M -= g r^T (rows 9-14: xx yy zz xy yz zx).
+template <KernelKind Kind, bool Moment>
 [[gnu::always_inline]] inline void add_gradient_lane(float (&lane)[15][kLanes], std::int32_t l, bool inside, float rx,
                                                      float ry, float rz, float r2, float volume, float dvx, float dvy,
                                                      float dvz, const KernelF& kernel) {
@@ -41,8 +41,10 @@ template <KernelKind Kind>
   lane[0][l] += dvx * gx, lane[1][l] += dvx * gy, lane[2][l] += dvx * gz;
   lane[3][l] += dvy * gx, lane[4][l] += dvy * gy, lane[5][l] += dvy * gz;
   lane[6][l] += dvz * gx, lane[7][l] += dvz * gy, lane[8][l] += dvz * gz;
-  lane[9][l] -= gx * rx, lane[10][l] -= gy * ry, lane[11][l] -= gz * rz;
-  lane[12][l] -= gx * ry, lane[13][l] -= gy * rz, lane[14][l] -= gz * rx;
+  if constexpr (Moment) {
+    lane[9][l] -= gx * rx, lane[10][l] -= gy * ry, lane[11][l] -= gz * rz;
+    lane[12][l] -= gx * ry, lane[13][l] -= gy * rz, lane[14][l] -= gz * rx;
+  }
 }
 
 }  // namespace
@@ -101,8 +103,9 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
   const float *bx = bx_.data(), *by = by_.data(), *bz = bz_.data(), *bvol = bvol_.data();
   const float *bvx = bvx_.data(), *bvy = bvy_.data(), *bvz = bvz_.data();
   const KernelF kernel(kernel_);
-  // The pass for one kernel, so that the lanes compute only its gradient.
-  const auto reduce = [=, this]<KernelKind Kind>() {
+  // The pass for one kernel, with the moment matrix only for the correction (transpose): the lanes compute
+  // only what is used.
+  const auto reduce = [=, this]<KernelKind Kind, bool Moment>() {
     const auto body = [=, this](std::int64_t first, std::int64_t last, ViscousStep& step) {
       for (std::int64_t k = first; k < last; ++k) {
         const auto i = static_cast<std::size_t>(k);
@@ -124,8 +127,8 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
             const float rx = xf - fx[j], ry = yf - fy[j], rz = zf - fz[j];
             const float r2 = rx * rx + ry * ry + rz * rz;
             const bool inside = (l < valid) & (l != self) & (r2 < support2);
-            add_gradient_lane<Kind>(lane, l, inside, rx, ry, rz, r2, static_cast<float>(fm[j]) / frho[j], fvx[j] - vxf,
-                                    fvy[j] - vyf, fvz[j] - vzf, kernel);
+            add_gradient_lane<Kind, Moment>(lane, l, inside, rx, ry, rz, r2, static_cast<float>(fm[j]) / frho[j],
+                                            fvx[j] - vxf, fvy[j] - vyf, fvz[j] - vzf, kernel);
           }
         });
         for_neighbour_blocks(position, b_cell_start_, bx, [&](std::uint32_t j0, std::int32_t valid) {
@@ -135,12 +138,12 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
             const float rx = xf - bx[j], ry = yf - by[j], rz = zf - bz[j];
             const float r2 = rx * rx + ry * ry + rz * rz;
             const bool inside = (l < valid) & (r2 < support2);
-            add_gradient_lane<Kind>(lane, l, inside, rx, ry, rz, r2, bvol[j], bvx[j] - vxf, bvy[j] - vyf, bvz[j] - vzf,
-                                    kernel);
+            add_gradient_lane<Kind, Moment>(lane, l, inside, rx, ry, rz, r2, bvol[j], bvx[j] - vxf, bvy[j] - vyf,
+                                            bvz[j] - vzf, kernel);
           }
         });
-        double L[9], M[6];
-        for (int q = 0; q < 15; ++q) {
+        double L[9], M[6] = {};
+        for (int q = 0; q < (Moment ? 15 : 9); ++q) {
           double sum = 0;
           for (std::uint32_t l = 0; l < kLanes; ++l) sum += lane[q][l];
           (q < 9 ? L[q] : M[q - 9]) = sum;
@@ -204,8 +207,14 @@ void SphModel::compute_velocity_gradients(bool elastic_plastic_only) {
     };
     return particle_reduce(n, parallel, ViscousStep{}, body).dt;
   };
-  min_viscous_dt_ = kernel_.type == KernelKind::wendland_c2 ? reduce.template operator()<KernelKind::wendland_c2>()
-                                                            : reduce.template operator()<KernelKind::cubic_spline>();
+  const bool wendland = kernel_.type == KernelKind::wendland_c2;
+  if (transpose) {
+    min_viscous_dt_ = wendland ? reduce.template operator()<KernelKind::wendland_c2, true>()
+                               : reduce.template operator()<KernelKind::cubic_spline, true>();
+  } else {
+    min_viscous_dt_ = wendland ? reduce.template operator()<KernelKind::wendland_c2, false>()
+                               : reduce.template operator()<KernelKind::cubic_spline, false>();
+  }
   if (!f_image_source_.empty()) {
     for (std::size_t s = 0; s < n; ++s) {
       if (f_order_[s] < particles) continue;
