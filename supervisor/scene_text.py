@@ -11,14 +11,15 @@ from .errors import SaboError, EXIT_BAD_INPUT
 
 
 def absolute_file_keys(text: str, scene_folder: str) -> str:
-    """The scene's relative `file = "..."` paths made absolute against the recorded scene's folder (the
-    replayed scene lives elsewhere)."""
+    """The scene's relative file paths (`file`, and every `..._file` key: `profile_file`, `raster_file`,
+    `hydrograph_file`) made absolute against the scene's folder (a replayed scene or a study's variant lives
+    elsewhere)."""
     def absolute(match: re.Match) -> str:
         path = match.group(2)
         if os.path.isabs(path):
             return match.group(0)
         return f'{match.group(1)}"{os.path.normpath(os.path.join(scene_folder, path))}"'
-    return re.sub(r'(^\s*file\s*=\s*)"([^"]*)"', absolute, text, flags=re.MULTILINE)
+    return re.sub(r'(^\s*(?:file|[a-z_]+_file)\s*=\s*)"([^"]*)"', absolute, text, flags=re.MULTILINE)
 
 
 def apply_overrides(text: str, overrides: list[str]) -> str:

@@ -15,7 +15,7 @@ from supervisor.plan import parse_plan  # noqa: E402
 from supervisor.processes import describe_exit  # noqa: E402
 from supervisor.processes import start_process  # noqa: E402
 from supervisor.run import connect_endpoint, resolve_endpoint, started_by, watchdog_seconds  # noqa: E402
-from supervisor.scene_text import apply_overrides  # noqa: E402
+from supervisor.scene_text import absolute_file_keys, apply_overrides  # noqa: E402
 from supervisor.study import observed_order, pareto_front, relative_error  # noqa: E402
 
 PLAN = {"scene": "/s.toml", "end_time": 2.0, "output_interval": 0.1, "hang_timeout": 10.0, "endpoint": "ipc",
@@ -173,6 +173,16 @@ class StudyUnitsTest(unittest.TestCase):
         self.assertNotIn("end_time = 1.0", out)
         self.assertIn("[sph]\nsound_speed = 40.0\ncfl = 0.25", out)
         self.assertTrue(out.rstrip().endswith("[solvers.dem]\nbeta = 0.5"))
+
+    def test_every_file_key_is_made_absolute_against_the_scene_folder(self):
+        text = ('file = "mesh.msh"\nprofile_file = "../wenjia/profile.csv"\nraster_file = "/data/dem.tif"\n'
+                'hydrograph_file = "q.csv"\nname = "file.csv"\n')
+        out = absolute_file_keys(text, "/runs/configs/tests")
+        self.assertIn('file = "/runs/configs/tests/mesh.msh"\n', out)
+        self.assertIn('profile_file = "/runs/configs/wenjia/profile.csv"\n', out)
+        self.assertIn('raster_file = "/data/dem.tif"\n', out)  # already absolute
+        self.assertIn('hydrograph_file = "/runs/configs/tests/q.csv"\n', out)
+        self.assertIn('name = "file.csv"\n', out)  # not a path key
 
     def test_an_override_of_one_table_of_an_array_counts_from_zero(self):
         text = ('[[structures]]\nname = "floor"\nelement_size = 1.0\n\n[[structures]]\nname = "dam"\n'
