@@ -34,8 +34,6 @@ void RigidPart::step(double /*dt*/, std::span<const Vec3> /*node_force*/) {
   // Fixed in space: the contact forces are reactions of the supports.
 }
 
-namespace {
-
 MaterialParameters material_parameters(const scene::Material& m) {
   MaterialParameters p;
   p.density = m.density;
@@ -50,9 +48,15 @@ MaterialParameters material_parameters(const scene::Material& m) {
       p.cowper_symonds_p = m.cowper_symonds_p;
     }
   }
-  if (m.failure_strain) p.failure_principal_strain = *m.failure_strain;
+  if (m.failure_strain) {
+    (m.failure_measure == scene::Material::FailureMeasure::plastic_strain ? p.failure_plastic_strain
+                                                                          : p.failure_principal_strain) =
+        *m.failure_strain;
+  }
   return p;
 }
+
+namespace {
 
 HexMesh structure_mesh(const scene::Structure& structure) {
   const Aabb& box = structure.shape.box;

@@ -37,6 +37,10 @@ namespace sabo::fem {
 
 class StructureContact;
 
+// A scene material as the structures' elements take it: elastic constants, MAT_PLASTIC_KINEMATIC's plasticity
+// and its failure strain under the scene's failure_measure.
+[[nodiscard]] MaterialParameters material_parameters(const scene::Material& material);
+
 struct Energies {
   double kinetic = 0;     // J
   double potential = 0;   // J, gravity relative to z = 0

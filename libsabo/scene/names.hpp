@@ -22,6 +22,9 @@ constexpr std::array<std::string_view, 2> names(Material::Eos) {
 constexpr std::array<std::string_view, 5> names(Material::Rheology) {
   return {"inviscid", "newtonian", "bingham", "herschel_bulkley", "elastic_plastic"};
 }
+constexpr std::array<std::string_view, 2> names(Material::FailureMeasure) {
+  return {"principal_strain", "plastic_strain"};
+}
 constexpr std::array<std::string_view, 3> names(SizeDistribution) {
   return {"uniform", "normal", "sieve"};
 }

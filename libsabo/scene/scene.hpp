@@ -37,7 +37,11 @@ struct Material {
   double hardening = 0;                    // beta in [0, 1]: 0 kinematic, 1 isotropic
   std::optional<double> cowper_symonds_c;  // 1/s, > 0: strain-rate factor 1 + (rate / C)^(1/p)
   double cowper_symonds_p = 1;             // > 0
-  std::optional<double> failure_strain;    // > 0: elements erode at this maximum principal strain
+  std::optional<double> failure_strain;    // > 0: elements erode when failure_measure reaches it
+  // What failure_strain bounds: the maximum principal (total) strain, or the effective plastic strain
+  // (LS-DYNA MAT_PLASTIC_KINEMATIC's FS).
+  enum class FailureMeasure { principal_strain, plastic_strain };
+  FailureMeasure failure_measure = FailureMeasure::principal_strain;
   [[nodiscard]] double bulk_modulus() const { return youngs_modulus / (3.0 * (1.0 - 2.0 * poisson_ratio)); }
   [[nodiscard]] double shear_modulus() const { return youngs_modulus / (2.0 * (1.0 + poisson_ratio)); }
 

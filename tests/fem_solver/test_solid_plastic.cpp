@@ -6,6 +6,7 @@
 #include <cmath>
 #include <iostream>
 
+#include "fem_solver/fem_model.hpp"
 #include "fem_solver/solid_body.hpp"
 
 using sabo::Aabb;
@@ -14,6 +15,34 @@ using sabo::Vec3;
 using namespace sabo::fem;
 
 namespace {
+
+// One material point pulled in uniaxial stress at `rate` (1/s axial) in steps of dt (s); the lateral strain
+// rates keep sigma_yy = sigma_zz = 0 (a few iterations per step). Calls stop(point) after every step and
+// returns the axial strain where it first said yes, or the strain reached after `steps`.
+template <class Stop>
+double pull_uniaxial(const MaterialParameters& m, double rate, double dt, int steps, Stop&& stop) {
+  MaterialPoint point;
+  const double nu = m.poisson_ratio;
+  double lateral = -nu * rate;
+  for (int step = 0; step < steps; ++step) {
+    for (int iteration = 0; iteration < 20; ++iteration) {
+      MaterialPoint trial = point;
+      Mat3 d = Mat3::Zero();
+      d(0, 0) = rate;
+      d(1, 1) = d(2, 2) = lateral;
+      update_stress(m, d, Mat3::Zero(), dt, trial);
+      const double k = m.youngs_modulus / (1 - 2 * nu) / 3.0;  // lateral correction, elastic guess
+      lateral -= trial.stress(1, 1) / (2 * (k + m.shear_modulus() / 3.0 * 4.0) * dt) * 0.5;
+      if (std::abs(trial.stress(1, 1)) < 1e-3 * m.yield_stress) break;
+    }
+    Mat3 d = Mat3::Zero();
+    d(0, 0) = rate;
+    d(1, 1) = d(2, 2) = lateral;
+    update_stress(m, d, Mat3::Zero(), dt, point);
+    if (stop(point)) break;
+  }
+  return point.strain(0, 0);
+}
 
 MaterialParameters copper() {
   MaterialParameters m;
@@ -34,31 +63,51 @@ TEST(PlasticKinematic, UniaxialBilinearCurve) {
   for (double beta : {0.0, 1.0}) {
     MaterialParameters m = copper();
     m.hardening = beta;
-    MaterialPoint point;
-    const double nu = m.poisson_ratio, dt = 1e-6, rate = 1.0;  // 1/s axial
-    // Lateral strain rates keep sigma_yy = sigma_zz = 0: iterate a few times per step.
-    double lateral = -nu * rate;
-    for (int step = 0; step < 10000; ++step) {  // to 1% strain
-      for (int iteration = 0; iteration < 20; ++iteration) {
-        MaterialPoint trial = point;
-        Mat3 d = Mat3::Zero();
-        d(0, 0) = rate;
-        d(1, 1) = d(2, 2) = lateral;
-        update_stress(m, d, Mat3::Zero(), dt, trial);
-        const double k = m.youngs_modulus / (1 - 2 * nu) / 3.0;  // lateral correction, elastic guess
-        lateral -= trial.stress(1, 1) / (2 * (k + m.shear_modulus() / 3.0 * 4.0) * dt) * 0.5;
-        if (std::abs(trial.stress(1, 1)) < 1e-3 * m.yield_stress) break;
-      }
-      Mat3 d = Mat3::Zero();
-      d(0, 0) = rate;
-      d(1, 1) = d(2, 2) = lateral;
-      update_stress(m, d, Mat3::Zero(), dt, point);
-    }
-    const double strain = 0.01;
+    MaterialPoint last;
+    const double strain = pull_uniaxial(m, 1.0, 1e-6, 10000, [&](const MaterialPoint& p) {  // to 1% strain
+      last = p;
+      return false;
+    });
     const double expected = m.yield_stress + m.tangent_modulus * (strain - m.yield_stress / m.youngs_modulus);
-    std::cout << "beta " << beta << " uniaxial stress at 1%: measured " << point.stress(0, 0) / 1e6 << " MPa expected "
-              << expected / 1e6 << " MPa\n";
-    EXPECT_NEAR(point.stress(0, 0), expected, 0.005 * expected);
+    std::cout << "beta " << beta << " uniaxial stress at " << strain * 100 << "%: measured " << last.stress(0, 0) / 1e6
+              << " MPa expected " << expected / 1e6 << " MPa\n";
+    EXPECT_NEAR(strain, 0.01, 1e-9);
+    EXPECT_NEAR(last.stress(0, 0), expected, 0.005 * expected);
+  }
+}
+
+// The Wenjia masonry (E 8 GPa, nu 0.23, yield 8 MPa, perfectly plastic) with failure_strain 0.0033 under the
+// scene's two failure measures, pulled in uniaxial stress: the maximum principal (total) strain fails at 0.0033
+// of axial strain; the effective plastic strain (LS-DYNA MAT_PLASTIC_KINEMATIC's FS) at 0.0033 of plastic strain,
+// i.e. 0.0033 + sigma_y / E = 0.0043 of axial strain.
+TEST(PlasticKinematic, FailureMeasureOfTheScene) {
+  sabo::scene::Material masonry;
+  masonry.density = 2300;
+  masonry.youngs_modulus = 8e9;
+  masonry.poisson_ratio = 0.23;
+  masonry.yield_stress = 8e6;
+  masonry.failure_strain = 0.0033;
+  using Measure = sabo::scene::Material::FailureMeasure;
+  for (Measure measure : {Measure::principal_strain, Measure::plastic_strain}) {
+    masonry.failure_measure = measure;
+    const MaterialParameters m = material_parameters(masonry);
+    const bool plastic = measure == Measure::plastic_strain;
+    EXPECT_EQ(m.failure_plastic_strain, plastic ? 0.0033 : 0.0);
+    EXPECT_EQ(m.failure_principal_strain, plastic ? 0.0 : 0.0033);
+    double plastic_at_failure = -1;
+    const double strain = pull_uniaxial(m, 1.0, 1e-7, 100000, [&](const MaterialPoint& p) {  // to 1% at most
+      if (!failed(m, p)) return false;
+      plastic_at_failure = p.plastic_strain;
+      return true;
+    });
+    const double expected = plastic ? 0.0033 + 8e6 / 8e9 : 0.0033;
+    std::cout << (plastic ? "plastic_strain" : "principal_strain") << ": axial strain at failure measured " << strain
+              << " expected " << expected << " (plastic strain then " << plastic_at_failure << ")\n";
+    ASSERT_GE(plastic_at_failure, 0) << "never failed";
+    EXPECT_NEAR(strain, expected, 0.01 * expected);
+    if (plastic) {
+      EXPECT_NEAR(plastic_at_failure, 0.0033, 0.01 * 0.0033);
+    }
   }
 }
 

@@ -100,7 +100,8 @@ void Schema::add_plasticity_keys() {
       " Deformable structures may add plasticity and failure (LS-DYNA MAT_PLASTIC_KINEMATIC): bilinear "
       "von Mises plasticity from `yield_stress` with `tangent_modulus`, hardening mixed between kinematic "
       "(`hardening` = 0) and isotropic (1), an optional Cowper-Symonds rate factor 1 + (rate / C)^(1/p), "
-      "and erosion of elements whose maximum principal strain reaches `failure_strain`.";
+      "and erosion of elements whose maximum principal strain (or, with `failure_measure` = "
+      "\"plastic_strain\", effective plastic strain: MAT_PLASTIC_KINEMATIC's own FS) reaches `failure_strain`.";
   material.keys.push_back(
       K("yield_stress", Type::number)
           .absent("elastic (structures); required by bingham and elastic_plastic fluids; 0 for herschel_bulkley")
@@ -132,7 +133,14 @@ void Schema::add_plasticity_keys() {
   material.keys.push_back(K("failure_strain", Type::number)
                               .absent("no failure")
                               .gt(0)
-                              .doc("Maximum principal strain at which an element erodes (deformable structures)."));
+                              .doc("Strain at which an element erodes (deformable structures), measured as "
+                                   "`failure_measure` says."));
+  material.keys.push_back(
+      K("failure_measure", Type::string)
+          .def(Material{}.failure_measure)
+          .doc("What `failure_strain` bounds: `principal_strain`, the largest principal total strain (elastic "
+               "and plastic); `plastic_strain`, the effective plastic strain (LS-DYNA MAT_PLASTIC_KINEMATIC's "
+               "FS, \"effective plastic strain for eroding elements\"; needs `yield_stress`)."));
 }
 
 }  // namespace sabo::scene::schema::detail
@@ -169,6 +177,17 @@ void Builder::read_plasticity(Reader& r, Material& material) {
   material.cowper_symonds_c = r.number("cowper_symonds_c");
   if (auto v = r.number("cowper_symonds_p")) material.cowper_symonds_p = *v;
   material.failure_strain = r.number("failure_strain");
+  if (auto v = r.string("failure_measure")) material.failure_measure = value_named<Material::FailureMeasure>(*v);
+  if (r.has("failure_measure") && !material.failure_strain) {
+    diag_.add(r.line("failure_measure"), r.key_path("failure_measure"), value_text(*r.node("failure_measure")),
+              "a failure measure without failure_strain (the material never fails)",
+              "add failure_strain, or remove the key");
+  } else if (material.failure_measure == Material::FailureMeasure::plastic_strain && !material.yield_stress &&
+             material.failure_strain) {
+    diag_.add(r.line("failure_measure"), r.key_path("failure_measure"), value_text(*r.node("failure_measure")),
+              "an elastic material (no yield_stress) never strains plastically, so it would never fail",
+              "add yield_stress, or failure_measure = \"principal_strain\"");
+  }
   if (!material.yield_stress) {
     for (const char* key : {"tangent_modulus", "hardening", "cowper_symonds_c", "cowper_symonds_p"}) {
       if (r.has(key)) {

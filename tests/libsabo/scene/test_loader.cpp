@@ -773,6 +773,48 @@ TEST(SceneLoader, SphViscousOperatorAndHerschelBulkley) {
   }
 }
 
+// A deformable structure's failure strain bounds the maximum principal strain unless failure_measure names the
+// effective plastic strain (MAT_PLASTIC_KINEMATIC's FS); the key without a failure strain, and a plastic-strain
+// measure on an elastic material (it would never fail), are refused naming the key and the fix.
+TEST(SceneLoader, FailureMeasure) {
+  const auto dam_scene = [](const std::string& material_keys) {
+    return "format_version = 1\n[run]\nend_time = 2.0\noutput_interval = 0.1\n[materials.masonry]\n"
+           "density = 2300.0\nyoungs_modulus = 8e9\npoisson_ratio = 0.23\n" +
+           material_keys +
+           "[[structures]]\nname = \"dam\"\nmaterial = \"masonry\"\nrigid = false\nshape = \"box\"\n"
+           "min = [0.0, 0.0, 0.0]\nmax = [2.0, 7.0, 8.0]\nelement_size = 1.0\nfixed = [\"z-\"]\n";
+  };
+  using Measure = Material::FailureMeasure;
+  TempFolder folder;
+  const auto masonry = [](const Scene& scene) { return scene.materials.at(scene.material_index("masonry")); };
+  EXPECT_EQ(masonry(load_scene(folder.write("principal.toml", dam_scene("yield_stress = 8e6\nfailure_strain = "
+                                                                        "0.0033\n"))))
+                .failure_measure,
+            Measure::principal_strain);
+  const Material plastic = masonry(load_scene(
+      folder.write("plastic.toml", dam_scene("yield_stress = 8e6\nfailure_strain = 0.0033\nfailure_measure = "
+                                             "\"plastic_strain\"\n"))));
+  EXPECT_EQ(plastic.failure_measure, Measure::plastic_strain);
+  EXPECT_EQ(plastic.failure_strain, 0.0033);
+  const std::vector<std::pair<std::string, std::vector<std::string>>> refused{
+      {"yield_stress = 8e6\nfailure_measure = \"plastic_strain\"\n",
+       {"materials.masonry.failure_measure", "without failure_strain", "add failure_strain"}},
+      {"failure_strain = 0.0033\nfailure_measure = \"plastic_strain\"\n",
+       {"materials.masonry.failure_measure", "never strains plastically", "add yield_stress"}},
+      {"yield_stress = 8e6\nfailure_strain = 0.0033\nfailure_measure = \"plastic\"\n",
+       {"materials.masonry.failure_measure", "principal_strain", "plastic_strain"}}};
+  for (const auto& [keys, expected] : refused) {
+    try {
+      (void)load_scene(folder.write("refused.toml", dam_scene(keys)));
+      ADD_FAILURE() << "accepted: " << keys;
+    } catch (const SceneError& e) {
+      const std::string message = e.what();
+      std::cout << message << "\n";
+      for (const std::string& text : expected) EXPECT_NE(message.find(text), std::string::npos) << text;
+    }
+  }
+}
+
 TEST(SceneLoader, SolverCommandsResolve) {
   TempFolder folder;
   const auto program = folder.write("bin/my_dem", "#!/bin/sh\nexit 0\n");
