@@ -81,7 +81,8 @@ class SphRanksTest(RealRunTestCase):
         """configs/tests/inflow_channel.toml's hydrograph entering the sloping flume, its first 0.4 s, with side
         walls instead of the periodic width: the buffer's particles move with their owners."""
         self.compare("configs/tests/inflow_channel.toml", "inflow",
-                     [("end_time = 1.9\n", "end_time = 0.4\n"), ("periodic_y = [0.0, 0.07]\n", ""),
+                     [("end_time = 1.15\noutput_interval = 0.025\n", "end_time = 0.4\noutput_interval = 0.05\n"),
+                      ("periodic_y = [0.0, 0.07]\n", ""),
                       ("start_wall_height = 0.2\n", "start_wall_height = 0.2\nwall_height = 0.1\n")],
                      extra=("inflows.csv", "gauges.csv"))
 
