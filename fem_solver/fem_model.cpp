@@ -48,10 +48,12 @@ MaterialParameters material_parameters(const scene::Material& m) {
       p.cowper_symonds_p = m.cowper_symonds_p;
     }
   }
-  if (m.failure_strain && m.failure_measure == scene::Material::FailureMeasure::plastic_strain) {
-    p.failure_plastic_strain = *m.failure_strain;
-  } else if (m.failure_strain) {
-    p.failure_principal_strain = *m.failure_strain;
+  if (m.failure_strain) {
+    if (m.failure_measure == scene::Material::FailureMeasure::plastic_strain) {
+      p.failure_plastic_strain = *m.failure_strain;
+    } else {
+      p.failure_principal_strain = *m.failure_strain;
+    }
   }
   return p;
 }

@@ -65,6 +65,21 @@ class AuthenticatorTest : public ::testing::Test {
     return std::nullopt;
   }
 
+  using RefusalCases = std::vector<std::pair<const char*, protocol::ClientCredentials>>;
+
+  // Each (reason, credentials) of `cases` tried until its refusal is logged from `address`, at most three
+  // times: the guard reads the peer's address when the monitor's "accepted" event passes its relay thread,
+  // and on a loaded machine a refused connection may be gone by then (logged as from "unknown").
+  void refuse_each(const std::string& endpoint, const RefusalCases& cases, const std::string& address) {
+    for (const auto& [reason, credentials] : cases) {
+      for (int attempt = 0; attempt < 3 && !refused_from(reason, address); ++attempt) {
+        EXPECT_EQ(register_with(endpoint, credentials), std::nullopt) << reason;
+        std::this_thread::sleep_for(200ms);
+        guard_->tick();
+      }
+    }
+  }
+
   // A refusal for `reason` logged with an address that starts with `address`.
   [[nodiscard]] bool refused_from(const std::string& reason, const std::string& address) const {
     return std::any_of(guard_->refused().begin(), guard_->refused().end(), [&](const RefusedConnection& refused) {
@@ -90,20 +105,11 @@ TEST_F(AuthenticatorTest, OverTcpOnlyTheRolesCurveKeysJoinEachAsItsRole) {
   stranger.own = protocol::make_curve_keys();
   protocol::ClientCredentials wrong_server = dem;  // the keys of another run's coupler
   wrong_server.server_key = protocol::make_curve_keys().public_key;
-  // Each refusal names the peer's address, which the guard reads when the monitor's "accepted" event passes
-  // its relay thread; on a loaded machine a refused connection may be gone by then (logged as from
-  // "unknown"), so each is tried up to three times.
-  const std::vector<std::pair<const char*, protocol::ClientCredentials>> cases{
-      {"is not one of this run's", stranger},
-      {"another security mechanism", {}},  // no keys at all: the NULL mechanism
-      {"does not decrypt", wrong_server}};
-  for (const auto& [reason, credentials] : cases) {
-    for (int attempt = 0; attempt < 3 && !refused_from(reason, "127.0.0.1:"); ++attempt) {
-      EXPECT_EQ(register_with(endpoint, credentials), std::nullopt) << reason;
-      std::this_thread::sleep_for(200ms);
-      guard_->tick();
-    }
-  }
+  // Each refusal names the peer's address.
+  const RefusalCases cases{{"is not one of this run's", stranger},
+                           {"another security mechanism", {}},  // no keys at all: the NULL mechanism
+                           {"does not decrypt", wrong_server}};
+  refuse_each(endpoint, cases, "127.0.0.1:");
   EXPECT_EQ(register_with(endpoint, dem), "dem_solver");  // and the run's own still join
 
   std::this_thread::sleep_for(200ms);
@@ -126,20 +132,11 @@ TEST_F(AuthenticatorTest, OverIpcOnlyTheRunsTokenJoins) {
   protocol::ClientCredentials unknown = dem;
   unknown.user = "sph_solver";  // a role the scene does not have
   const std::string self = "pid " + std::to_string(::getpid());
-  // Each refusal names this process. The guard reads the peer's pid when the monitor's "accepted" event
-  // passes its relay thread; on a loaded machine a refused connection may be gone by then (logged as from
-  // "unknown"), so each is tried up to three times.
-  const std::vector<std::pair<const char*, protocol::ClientCredentials>> cases{
-      {"gave a token that is not this run's", wrong},
-      {"'sph_solver' is not a role of this scene", unknown},
-      {"another security mechanism", {}}};
-  for (const auto& [reason, credentials] : cases) {
-    for (int attempt = 0; attempt < 3 && !refused_from(reason, self); ++attempt) {
-      EXPECT_EQ(register_with(endpoint, credentials), std::nullopt) << reason;
-      std::this_thread::sleep_for(200ms);
-      guard_->tick();
-    }
-  }
+  // Each refusal names this process (the peer's pid).
+  const RefusalCases cases{{"gave a token that is not this run's", wrong},
+                           {"'sph_solver' is not a role of this scene", unknown},
+                           {"another security mechanism", {}}};
+  refuse_each(endpoint, cases, self);
   for (const auto& refused : guard_->refused()) std::cout << refused.address << ": " << refused.reason << "\n";
   for (const auto& [reason, credentials] : cases) EXPECT_TRUE(refused_from(reason, self)) << reason;
 }
