@@ -528,7 +528,8 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
     auto& f = peer->forces;
     f.Clear();
     f.set_step(step);
-    // A power-of-two division: substeps * dt is exchange_dt to the bit.
+    // substeps * dt is exchange_dt to the rounding of the division: the solver's time, a sum of its steps,
+    // stays within the check of its states (a relative 1e-9) as a power of two's sum did.
     const std::uint32_t substeps = plan.substeps[k];
     f.set_dt(plan.exchange_dt / substeps);
     if (substeps > 1) f.set_substeps(substeps);

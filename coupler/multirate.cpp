@@ -3,18 +3,21 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <bit>
 #include <cassert>
 #include <cmath>
 #include <limits>
 
 namespace sabo::coupler {
 
-std::uint32_t power_of_two_substeps(double interval, double step, std::uint32_t cap) {
-  assert(cap >= 1 && (cap & (cap - 1)) == 0 && "a power of two");
-  std::uint32_t m = 1;
-  // interval / m is exact for a power of two m, so the comparison is the solver's own step.
-  while (m < cap && interval / m > step) m *= 2;
+std::uint32_t substeps_within(double interval, double step, std::uint32_t cap) {
+  assert(cap >= 1);
+  if (!(interval > step)) return 1;  // within it already, or an infinite step (no limit)
+  // The ratio's ceiling, then the smallest m whose division, the solver's step, is within (the ratio and
+  // interval / m each round).
+  const double ratio = std::ceil(interval / step);
+  auto m = std::max<std::uint32_t>(static_cast<std::uint32_t>(std::min(ratio, static_cast<double>(cap))), 1);
+  while (m > 1 && interval / (m - 1) <= step) --m;
+  while (m < cap && interval / m > step) ++m;
   return m;
 }
 
@@ -50,8 +53,8 @@ RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRat
     return plan;
   }
 
-  // Register.max_substeps: 0 is one step, others the power of two at or below them.
-  const auto cap = [&](std::size_t i) { return std::bit_floor(std::max<std::uint32_t>(solvers[i].max_substeps, 1)); };
+  // Register.max_substeps: 0 is one step.
+  const auto cap = [&](std::size_t i) { return std::max<std::uint32_t>(solvers[i].max_substeps, 1); };
   dt = std::numeric_limits<double>::infinity();
   limit = {};
   for (std::size_t i = 0; i < solvers.size(); ++i) take(solvers[i].stable_step * cap(i), {Kind::solver, i});
@@ -72,7 +75,7 @@ RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRat
   plan.exchange_dt = dt;
   plan.limit = limit;
   for (std::size_t i = 0; i < solvers.size(); ++i) {
-    plan.substeps[i] = power_of_two_substeps(dt, solvers[i].stable_step, cap(i));
+    plan.substeps[i] = substeps_within(dt, solvers[i].stable_step, cap(i));
   }
   return plan;
 }

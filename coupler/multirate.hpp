@@ -1,7 +1,7 @@
 #pragma once
 // The coupled step and each solver's steps within it (docs/architecture.md, "Multirate"): lock-step
-// (paper eq. 7: every solver at the smallest stable step) or multirate (each solver at a power-of-two
-// fraction of the exchange step, with the contact forces held in between).
+// (paper eq. 7: every solver at the smallest stable step) or multirate (each solver at a whole fraction
+// of the exchange step, with the contact forces held in between).
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -12,7 +12,7 @@ namespace sabo::coupler {
 
 struct SolverRate {
   double stable_step = 0;          // s: beta * stable_dt; infinity: no limit (rigid parts only)
-  std::uint32_t max_substeps = 1;  // Register.max_substeps: 0 is read as 1, others rounded down to a power of two
+  std::uint32_t max_substeps = 1;  // Register.max_substeps: 0 is read as 1
 };
 
 struct PairRate {
@@ -48,11 +48,11 @@ struct RateLimits {
 // is exchanged at the step of the slower of its two sides (of the faster, for a pair whose forces may not be
 // held) and never above its own limit, every solver
 // at most max_substeps times its stable step; exchange_dt is the smallest of these, and each solver
-// takes the smallest power of two of steps that keeps its own step within its stable step.
+// takes the fewest steps that keep its own step within its stable step.
 [[nodiscard]] RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRate> pairs,
                                   const RateLimits& limits, bool multirate);
 
-// The smallest power of two m >= 1 with interval / m <= step, at most `cap` (a power of two).
-[[nodiscard]] std::uint32_t power_of_two_substeps(double interval, double step, std::uint32_t cap);
+// The smallest m >= 1 with interval / m <= step (as the solver computes its step), at most `cap` (>= 1).
+[[nodiscard]] std::uint32_t substeps_within(double interval, double step, std::uint32_t cap);
 
 }  // namespace sabo::coupler

@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <cassert>
 #include <chrono>
 #include <map>
@@ -284,6 +283,7 @@ struct ForcesStream {
         step(group, "step", kEntryChunk, stages, kCommit),
         dt(group, "dt", kEntryChunk, stages, kScalars),
         flags(group, "flags", kEntryChunk, stages, kScalars),
+        substeps(group, "substeps", kEntryChunk, stages, kScalars),
         interest(group, "interest", stages) {
     emplace_if(selection.force || selection.torque, index, group, "index", stages);
     emplace_if(selection.force, force, group, "force", stages);
@@ -306,10 +306,10 @@ struct ForcesStream {
     if (message.output()) bits |= kFlagOutput;
     if (message.stop()) bits |= kFlagStop;
     if (message.interest_all()) bits |= kFlagInterestAll;
-    const std::uint32_t substeps = std::max<std::uint32_t>(message.substeps(), 1);
-    assert(std::has_single_bit(substeps) && substeps <= kMaxRecordedSubsteps && "the coupler sends powers of two");
-    bits |= static_cast<std::uint8_t>(std::countr_zero(substeps) << kSubstepsShift);
     flags.push(bits);
+    const std::uint32_t steps = std::max<std::uint32_t>(message.substeps(), 1);
+    assert(steps <= kMaxRecordedSubsteps && "at most solver::kMaxSubsteps");
+    substeps.push(static_cast<std::uint8_t>(steps));
     if (index) index->push(span_of(message.index()));
     if (force) force->push(span_of(message.force()));
     if (torque) torque->push(span_of(message.torque()));
@@ -331,7 +331,7 @@ struct ForcesStream {
 
   std::uint64_t carry(const hdf5::Group& old, std::uint64_t before) {
     const std::uint64_t n = entries_before(old, before);
-    std::uint64_t bytes = dt.carry(old, n) + flags.carry(old, n) + carry_if(index, old, n);
+    std::uint64_t bytes = dt.carry(old, n) + flags.carry(old, n) + substeps.carry(old, n) + carry_if(index, old, n);
     for (auto* column : {&force, &torque, &node_force, &boundary_position, &boundary_velocity, &boundary_normal,
                          &boundary_acceleration, &boundary_volume}) {
       bytes += carry_if(*column, old, n);
@@ -344,7 +344,7 @@ struct ForcesStream {
   hdf5::Group group;
   Column<std::uint64_t> step;
   Column<double> dt;
-  Column<std::uint8_t> flags;
+  Column<std::uint8_t> flags, substeps;
   OptionalArray<std::uint32_t> index;
   OptionalArray<double> force, torque, node_force;
   OptionalArray<double> boundary_position, boundary_velocity, boundary_normal, boundary_acceleration, boundary_volume;

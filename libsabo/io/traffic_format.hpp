@@ -5,15 +5,19 @@
 
 namespace sabo::io::traffic_format {
 
-constexpr std::int64_t kFormatVersion = 1;
+// Version 2: StepForces.substeps in its own column (any whole number). Version 1 kept its log2 in bits 4-7 of
+// the flags (powers of two only); the reader reads both.
+constexpr std::int64_t kFormatVersion = 2;
+constexpr std::int64_t kOldestReadVersion = 1;
 constexpr const char* kFormatName = "sabo-traffic";
 
 constexpr std::uint8_t kFlagCheckpoint = 1;
 constexpr std::uint8_t kFlagOutput = 2;
 constexpr std::uint8_t kFlagStop = 4;
 constexpr std::uint8_t kFlagInterestAll = 8;
-// Bits 4-7: log2 of StepForces.substeps (multirate; 0: one step, as in recordings made before it).
-constexpr int kSubstepsShift = 4;
-constexpr std::uint32_t kMaxRecordedSubsteps = 1u << 15;
+// Version 1 only: bits 4-7 of the flags, log2 of StepForces.substeps (0: one step).
+constexpr int kVersion1SubstepsShift = 4;
+// The substeps column is a byte.
+constexpr std::uint32_t kMaxRecordedSubsteps = 255;
 
 }  // namespace sabo::io::traffic_format

@@ -173,12 +173,12 @@ struct TrafficReader::Impl {
                       "traffic.h5 of a run folder",
                       path.string(), kFormatName));
     }
-    const auto version = file.int_attribute("format_version");
-    if (version != kFormatVersion) {
+    version = file.int_attribute("format_version");
+    if (version < kOldestReadVersion || version > kFormatVersion) {
       throw FileError(
-          fmt::format("{}: traffic format version {} but this program reads version {}. Fix: read it "
+          fmt::format("{}: traffic format version {} but this program reads versions {} to {}. Fix: read it "
                       "with the sabo version that wrote it",
-                      path.string(), version, kFormatVersion));
+                      path.string(), version, kOldestReadVersion, kFormatVersion));
     }
     for (const auto& name : file.children()) {
       if (name == "scene") continue;
@@ -198,6 +198,7 @@ struct TrafficReader::Impl {
   }
 
   std::filesystem::path path;
+  std::int64_t version = kFormatVersion;
   hdf5::File file;
   std::map<std::string, std::unique_ptr<RoleReader>, std::less<>> roles;
 };
@@ -292,7 +293,9 @@ sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_
   message.set_output((bits & kFlagOutput) != 0);
   message.set_stop((bits & kFlagStop) != 0);
   message.set_interest_all((bits & kFlagInterestAll) != 0);
-  if (const int log2_substeps = bits >> kSubstepsShift; log2_substeps > 0) message.set_substeps(1u << log2_substeps);
+  const std::uint32_t substeps =
+      impl_->version >= 2 ? stream.scalar<std::uint8_t>("substeps", entry) : 1u << (bits >> kVersion1SubstepsShift);
+  if (substeps > 1) message.set_substeps(substeps);
   stream.array<std::uint32_t>("index", entry, message.mutable_index());
   stream.array<double>("force", entry, message.mutable_force());
   stream.array<double>("torque", entry, message.mutable_torque());

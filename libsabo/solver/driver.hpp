@@ -75,7 +75,7 @@ class CoupledSolver {
   [[nodiscard]] virtual std::optional<Instability> check_stability() const { return std::nullopt; }
   // Writes the culprits of `instability` and their neighbours into `file` (write_instability of stability.hpp).
   virtual void write_instability(const Instability& /*instability*/, const std::filesystem::path& /*file*/) const {}
-  // The most steps this solver takes per exchange with held forces (a power of two; 1: lock-step).
+  // The most steps this solver takes per exchange with held forces (1: lock-step).
   [[nodiscard]] virtual std::uint32_t max_substeps() const { return 1; }
   // Restarts: a solver that can write its whole state says so; save writes it into `group`, load
   // restores it from a group that save wrote for the same scene (FileError otherwise).

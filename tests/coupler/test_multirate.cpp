@@ -1,7 +1,7 @@
 // The coupled step and each solver's steps in it (coupler/multirate.hpp, docs/architecture.md
 // "Multirate"): lock-step is paper eq. 7; multirate exchanges each pair at its slower side's step,
-// never above the pair's own limit, and every solver takes a power of two of steps that keeps its own
-// step within its stable step.
+// never above the pair's own limit, and every solver takes the fewest steps that keep its own step within
+// its stable step.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,9 +13,9 @@
 
 using sabo::coupler::PairRate;
 using sabo::coupler::plan_rates;
-using sabo::coupler::power_of_two_substeps;
 using sabo::coupler::RateLimits;
 using sabo::coupler::SolverRate;
+using sabo::coupler::substeps_within;
 
 namespace {
 
@@ -62,14 +62,28 @@ TEST(Multirate, TheStiffestStructureNoLongerSetsTheSlurrysStep) {
   for (std::size_t i = 0; i < 3; ++i) {
     const double step = plan.exchange_dt / plan.substeps[i];
     EXPECT_LE(step, three_solvers(8.0, 9.0, 1.0)[i].stable_step) << "solver " << i;
-    // A power of two divides exactly: the solver's steps add up to the exchange step to the bit.
     EXPECT_EQ(step * plan.substeps[i], plan.exchange_dt);
   }
-  // Not a power of two of the fem's step: it takes the next power of two above the ratio.
+  // Not a whole fraction of the exchange: the fem takes the ratio's ceiling, 6 steps of 4/3 where a power of two
+  // would take 8 of 1.
   const auto odd = plan_rates(three_solvers(8.0, 9.0, 1.5), three_pairs(), kNoLimits, true);
-  EXPECT_EQ(odd.substeps[2], 8u);
-  EXPECT_LE(odd.exchange_dt / 8, 1.5);
-  EXPECT_GT(odd.exchange_dt / 4, 1.5);
+  EXPECT_EQ(odd.substeps[2], 6u);
+  EXPECT_LE(odd.exchange_dt / 6, 1.5);
+  EXPECT_GT(odd.exchange_dt / 5, 1.5);
+}
+
+TEST(Multirate, TheWenjiaDamsTakeFiveStepsWhereFourAndAHalfWouldDo) {
+  // The full-resolution Wenjia scene (bench/RESULTS.md, 6 December 2026): the boulders set a 1.133 ms exchange,
+  // the dams' hexahedra allow 0.279 ms (0.251 ms with beta 0.9). A power of two took 8 steps.
+  const std::vector<SolverRate> solvers{{.stable_step = 1.875e-3, .max_substeps = 1},
+                                        {.stable_step = 1.133e-3, .max_substeps = 64},
+                                        {.stable_step = 0.9 * 0.279e-3, .max_substeps = 64}};
+  const auto plan = plan_rates(solvers, three_pairs(), kNoLimits, true);
+  std::cout << "exchange " << plan.exchange_dt * 1e3 << " ms, fem steps " << plan.substeps[2] << " of "
+            << plan.exchange_dt / plan.substeps[2] * 1e3 << " ms (its stable step " << solvers[2].stable_step * 1e3
+            << " ms; a power of two: 8)\n";
+  EXPECT_EQ(plan.exchange_dt, 1.133e-3);
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 5}));
 }
 
 TEST(Multirate, APairsOwnLimitHoldsTheExchangeBelowItsSlowerSide) {
@@ -105,11 +119,11 @@ TEST(Multirate, ASolverThatCannotSubcycleKeepsTheExchangeAtItsStep) {
   const auto plan = plan_rates(solvers, three_pairs(), kNoLimits, true);
   EXPECT_EQ(plan.exchange_dt, 1.0);
   EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 1}));
-  // A cap that is not a power of two is read as the power of two below it.
+  // A cap of 6: the exchange at six of its steps.
   solvers[2].max_substeps = 6;
   const auto capped = plan_rates(solvers, three_pairs(), kNoLimits, true);
-  EXPECT_EQ(capped.exchange_dt, 4.0);
-  EXPECT_EQ(capped.substeps[2], 4u);
+  EXPECT_EQ(capped.exchange_dt, 6.0);
+  EXPECT_EQ(capped.substeps[2], 6u);
 }
 
 TEST(Multirate, NeverShorterThanLockStepAndStopsAtTheNextOutput) {
@@ -118,7 +132,7 @@ TEST(Multirate, NeverShorterThanLockStepAndStopsAtTheNextOutput) {
       plan_rates(solvers, three_pairs(), {.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = 3.0}, true);
   EXPECT_EQ(near.exchange_dt, 3.0);
   EXPECT_EQ(near.limit.text(), "next output");
-  EXPECT_EQ(near.substeps[2], 4u);
+  EXPECT_EQ(near.substeps[2], 3u);
   // The next output closer than lock-step's step: lock-step's step, as lock-step would take.
   const auto closer = plan_rates(solvers, three_pairs(),
                                  {.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = 0.01}, true);
@@ -130,10 +144,25 @@ TEST(Multirate, NeverShorterThanLockStepAndStopsAtTheNextOutput) {
   EXPECT_EQ(plan_rates(rigid, {}, kNoLimits, false).exchange_dt, 0.01);
 }
 
-TEST(Multirate, PowerOfTwoSubsteps) {
-  EXPECT_EQ(power_of_two_substeps(1.0, 1.0, 64), 1u);
-  EXPECT_EQ(power_of_two_substeps(1.0, 0.5, 64), 2u);
-  EXPECT_EQ(power_of_two_substeps(1.0, 0.49, 64), 4u);
-  EXPECT_EQ(power_of_two_substeps(1.0, 1e-9, 64), 64u);
-  EXPECT_EQ(power_of_two_substeps(1.0, kInf, 64), 1u);
+TEST(Multirate, SubstepsWithin) {
+  EXPECT_EQ(substeps_within(1.0, 1.0, 64), 1u);
+  EXPECT_EQ(substeps_within(1.0, 0.5, 64), 2u);
+  EXPECT_EQ(substeps_within(1.0, 0.49, 64), 3u);
+  EXPECT_EQ(substeps_within(1.0, 0.2, 64), 5u);
+  EXPECT_EQ(substeps_within(1.0, 0.2, 4), 4u);  // the cap, though its step is then above the stable one
+  EXPECT_EQ(substeps_within(1.0, 1e-9, 64), 64u);
+  EXPECT_EQ(substeps_within(1.0, 0.0, 64), 64u);
+  EXPECT_EQ(substeps_within(1.0, kInf, 64), 1u);
+  // The smallest m whose division is within, as the solver's step is computed: for every ratio up to the cap.
+  for (std::uint32_t m = 1; m <= 64; ++m) {
+    for (const double interval : {1.133e-3, 0.1, 7.0, 1.0 / 3.0}) {
+      const double step = interval / m;
+      const std::uint32_t got = substeps_within(interval, step, 64);
+      EXPECT_LE(interval / got, step) << interval << " / " << m;
+      if (got > 1) {
+        EXPECT_GT(interval / (got - 1), step) << interval << " / " << m;
+      }
+      EXPECT_LE(got, m);
+    }
+  }
 }

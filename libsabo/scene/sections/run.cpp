@@ -73,8 +73,9 @@ void Schema::build_run() {
       K("multirate", Type::boolean)
           .def(RunSettings{}.multirate)
           .doc("Each solver at its own stable step: the exchange step is that of the slower side of each contact "
-               "pair (never above the pair's own stable step), and a solver whose stable step is shorter takes a "
-               "power of two of steps in it with the contact forces held, so that momentum is exchanged exactly "
+               "pair (never above the pair's own stable step), and a solver whose stable step is shorter takes the "
+               "fewest steps in it that keep within its own, with the contact forces held, so that momentum is "
+               "exchanged exactly "
                "(docs/architecture.md, \"Multirate\"). `false`: every solver at the smallest stable step of all "
                "(paper eq. 7). Off by default: on `debris_flow_dam` it saves 17-26 % of the wall time and moves "
                "the fluid's mean load on the dam by 1.6-9 % (docs/accuracy-cost.md), and the held forces let the "

@@ -88,6 +88,8 @@ sabo::v1::StepForces make_forces(std::uint64_t step, const sabo::v1::StepState& 
   forces.set_output(step % 5 == 0);
   forces.set_stop(false);
   forces.set_checkpoint(step % 3 == 0);
+  if (step % 4 == 1) forces.set_substeps(5);  // multirate: any whole number of steps, up to the driver's 64
+  if (step % 4 == 2) forces.set_substeps(64);
   *forces.mutable_index() = state.index();
   for (int i = 0; i < state.position_size(); ++i) {
     forces.add_force(0.5 * state.position(i));
