@@ -99,10 +99,10 @@ ArchimedesResult run_archimedes(const ArchimedesCase& c) {
   const double start = r.floats ? r.depth : c.radius;
   const std::vector<scene::Sphere> ball{
       {Vec3(0.5 * r.width, 0.5 * r.width, start), c.radius, Vec3::Zero(), Vec3::Zero()}};
-  const scene::Scene scene =
-      water_tank_scene(r.dx, r.width, r.depth, c.sound_speed, c.viscosity, ball, c.density, c.model);
+  scene::Scene scene = water_tank_scene(r.dx, r.width, r.depth, c.sound_speed, c.viscosity, ball, c.density, c.model);
+  if (c.cfl > 0) scene.sph.cfl = c.cfl;
   const double g = -scene.run.gravity.z();
-  SphDemHarness run(scene, water_tank_walls(r.dx, r.width, 2 * r.depth));
+  SphDemHarness run(scene, water_tank_walls(r.dx, r.width, c.wall_height_depths * r.depth));
   add_dem_tank_walls(run.dem(), r.width);
   r.fluid_particles = run.sph().size();
   const double end_time = c.end_time > 0 ? c.end_time : (r.floats ? 0.5 : 0.2);

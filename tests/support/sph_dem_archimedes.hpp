@@ -40,6 +40,8 @@ struct ArchimedesCase {
   double sound_speed = 10;        // m/s
   double viscosity = 2;           // Pa s
   double end_time = 0;            // s; 0: 0.5 floating, 0.2 resting
+  double cfl = 0;                 // the fluid's step factor (sph.cfl); 0: the scene's, 0.25
+  double wall_height_depths = 2;  // the tank's walls' height / water depth (the water stays below 1.5)
 };
 
 struct ArchimedesResult {

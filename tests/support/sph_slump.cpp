@@ -10,6 +10,7 @@ SlumpRun run_slump(const SlumpCase& c, const std::function<void(double, double, 
   const double rho = 1000, g = 9.81, dx = c.dx;
   scene::Scene s = water_scene(dx, 10.0 * std::sqrt(g * c.height), 1.5);
   s.sph.artificial_viscosity = 0.1;
+  s.sph.cfl = c.cfl;
   s.sph.viscous_operator = c.op;
   scene::Material& m = s.materials[0];
   m.rheology = scene::Material::Rheology::bingham;

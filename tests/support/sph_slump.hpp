@@ -25,6 +25,8 @@ struct SlumpCase {
   double t_end = 0.6;            // s, at most
   double rest_speed = 0.05;      // m/s ...
   double rest_time = 0.02;       // s
+  double cfl = 0.25;             // sph.cfl; the step is the viscous one, cfl rho h^2 / (8 eta), eta about
+                                 // tau_y / yield_shear_rate where the column is unyielded
   scene::SphSettings::ViscousOperator op = scene::SphSettings::ViscousOperator::strain_rate;
 };
 
