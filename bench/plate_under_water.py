@@ -178,6 +178,30 @@ def midspan_history(run_dir):
     return history
 
 
+def whole_periods(history, since):
+    """(first, last, number of periods): the times of the first and the last deepest swing (a local minimum below
+    the mean) of the midspan history (time, w) from `since` on."""
+    window = [(t, w) for t, w in history if t >= since - 1e-12]
+    mean = sum(w for _, w in window) / len(window)
+    swings = []
+    for k in range(1, len(window) - 1):
+        t, w = window[k]
+        if w < mean and w < window[k - 1][1] and w <= window[k + 1][1]:
+            if swings and t - swings[-1][0] < 0.002:  # one swing (the period is about 4.3 ms): keep its deepest
+                if w < swings[-1][1]:
+                    swings[-1] = (t, w)
+                continue
+            swings.append((t, w))
+    return swings[0][0], swings[-1][0], len(swings) - 1
+
+
+def mean_between(history, first, last):
+    """The time average of the history (time, value) over [first, last], two of its sample times (trapezoids)."""
+    segment = [(t, v) for t, v in history if first - 1e-12 <= t <= last + 1e-12]
+    area = sum(0.5 * (v0 + v1) * (t1 - t0) for (t0, v0), (t1, v1) in zip(segment, segment[1:]))
+    return area / (segment[-1][0] - segment[0][0])
+
+
 def measure(run_dir, plate):
     history = midspan_history(run_dir)
     window = [w for t, w in history if t >= plate.measure_from - 1e-12]

@@ -24,33 +24,9 @@ from e2e_support import ROOT, RealRunTestCase, read_vtk, vtp_series
 
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from plate_under_water import (DEPTH, GRAVITY, OUTPUT_INTERVAL, REFERENCE, SPAN, TOLERANCE,  # noqa: E402
-                               WATER_DENSITY, Plate, midspan_history)
+                               WATER_DENSITY, Plate, mean_between, midspan_history, whole_periods)
 
 FRAME_INTERVAL = 0.0002  # s: the plate's frames, about 22 a period of its ringing
-
-
-def whole_periods(history, since):
-    """(first, last, number of periods): the times of the first and the last deepest swing (a local minimum below
-    the mean) of the midspan history (time, w) from `since` on."""
-    window = [(t, w) for t, w in history if t >= since - 1e-12]
-    mean = sum(w for _, w in window) / len(window)
-    swings = []
-    for k in range(1, len(window) - 1):
-        t, w = window[k]
-        if w < mean and w < window[k - 1][1] and w <= window[k + 1][1]:
-            if swings and t - swings[-1][0] < 0.002:  # one swing (the period is about 4.3 ms): keep its deepest
-                if w < swings[-1][1]:
-                    swings[-1] = (t, w)
-                continue
-            swings.append((t, w))
-    return swings[0][0], swings[-1][0], len(swings) - 1
-
-
-def mean_between(history, first, last):
-    """The time average of the history (time, value) over [first, last], two of its sample times (trapezoids)."""
-    segment = [(t, v) for t, v in history if first - 1e-12 <= t <= last + 1e-12]
-    area = sum(0.5 * (v0 + v1) * (t1 - t0) for (t0, v0), (t1, v1) in zip(segment, segment[1:]))
-    return area / (segment[-1][0] - segment[0][0])
 
 
 def plate_load(run_dir, first, last):
