@@ -31,6 +31,10 @@ constexpr double kDegenerateAreaRatio = 1e-12;
 constexpr double kPartialRefreshShare = 4.0;
 // Below this many particles a parallel region costs more than it saves.
 constexpr std::int64_t kParallelThreshold = 64;
+// A particle's static candidates are looked up for its query box grown by this fraction of its reach on
+// every side, and reused until its query box leaves that box: a larger skin lists more faces to filter,
+// a smaller one walks the grid more often. Results do not depend on it.
+constexpr double kCandidateSkin = 0.25;
 // Relative slack when comparing distances of the same point computed from different triangles.
 constexpr double kDistanceSlack = 1e-9;
 // How far outside a one-sided face (relative to its longest edge) a point behind it may project and still meet
@@ -413,6 +417,7 @@ void SurfaceContact::build_grid(double query_reach, bool points) {
     }
     grid_valid_ = true;
     moving_grid_valid_ = false;
+    ++static_generation_;
   }
   std::vector<Aabb> moving_boxes;
   moving_boxes.reserve(moving_faces_.size());
@@ -551,19 +556,39 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     // Faces whose own box misses the query box are dropped before the sort, which
     // then orders (and de-duplicates) only the few real candidates.
     const Aabb query{centre.array() - reach, centre.array() + reach};
+    StaticCandidates& cached = static_candidates_[i];
+    const bool inside =
+        (query.min.array() >= cached.box.min.array()).all() && (query.max.array() <= cached.box.max.array()).all();
+    if (cached.generation != static_generation_ || !inside) {
+      // Every static face whose box overlaps the query box overlaps this larger box, and grid_ has not
+      // changed since: filtering these by the query box gives what a query of grid_ would.
+      cached.generation = static_generation_;
+      cached.box = query.inflated(kCandidateSkin * reach);
+      cached.faces.clear();
+      grid_.for_each_in(cached.box, [&](std::uint32_t face) {
+        if (face_box_[face].overlaps(cached.box)) cached.faces.push_back(face);
+      });
+      std::sort(cached.faces.begin(), cached.faces.end());
+      cached.faces.erase(std::unique(cached.faces.begin(), cached.faces.end()), cached.faces.end());
+    }
     scratch.candidates.clear();
-    grid_.for_each_in(query, [&](std::uint32_t face) {
+    for (std::uint32_t face : cached.faces) {
       if (face_box_[face].overlaps(query)) scratch.candidates.push_back(face);
-    });
+    }
     if (!moving_faces_.empty()) {
+      const std::size_t still = scratch.candidates.size();
       moving_grid_.for_each_in(query, [&](std::uint32_t k) {
         const std::uint32_t face = moving_faces_[k];
         if (face_box_[face].overlaps(query)) scratch.candidates.push_back(face);
       });
+      if (scratch.candidates.size() > still) {
+        // The moving faces are not in grid_: sorted apart, then merged with the static ones.
+        const auto middle = scratch.candidates.begin() + static_cast<std::ptrdiff_t>(still);
+        std::sort(middle, scratch.candidates.end());
+        scratch.candidates.erase(std::unique(middle, scratch.candidates.end()), scratch.candidates.end());
+        std::inplace_merge(scratch.candidates.begin(), middle, scratch.candidates.end());
+      }
     }
-    std::sort(scratch.candidates.begin(), scratch.candidates.end());
-    scratch.candidates.erase(std::unique(scratch.candidates.begin(), scratch.candidates.end()),
-                             scratch.candidates.end());
   }
   scratch.hits.clear();
   double nearest = std::numeric_limits<double>::infinity();
@@ -822,6 +847,38 @@ void SurfaceContact::restore(History history) {
 
 // ------------------------------------------------------------------- step --
 
+void SurfaceContact::match_static_candidates(std::span<const std::uint64_t> ids) {
+  const std::size_t n = ids.size();
+  const bool same = static_candidates_.size() == n &&
+                    std::equal(ids.begin(), ids.end(), static_candidates_.begin(),
+                               [](std::uint64_t id, const StaticCandidates& c) { return id == c.id; });
+  if (same) return;
+  // Particles came, went or changed places (interest regions, new particles): each takes its own list again.
+  std::vector<StaticCandidates>& next = static_candidates_spare_;
+  next.resize(n);
+  // The previous entries in id order (usually already so: views list particles by index).
+  std::vector<std::uint32_t> order(static_candidates_.size());
+  std::iota(order.begin(), order.end(), 0U);
+  const auto id_of = [&](std::uint32_t k) { return static_candidates_[k].id; };
+  if (!std::is_sorted(order.begin(), order.end(), [&](auto a, auto b) { return id_of(a) < id_of(b); })) {
+    std::stable_sort(order.begin(), order.end(), [&](auto a, auto b) { return id_of(a) < id_of(b); });
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    next[i].id = ids[i];
+    next[i].generation = 0;
+    const auto it = std::lower_bound(order.begin(), order.end(), ids[i],
+                                     [&](std::uint32_t k, std::uint64_t id) { return id_of(k) < id; });
+    if (it == order.end() || id_of(*it) != ids[i]) continue;
+    StaticCandidates& previous = static_candidates_[*it];
+    if (previous.generation == 0) continue;  // taken by an earlier particle of the same id
+    next[i].generation = previous.generation;
+    next[i].box = previous.box;
+    std::swap(next[i].faces, previous.faces);
+    previous.generation = 0;
+  }
+  std::swap(static_candidates_, next);
+}
+
 void SurfaceContact::compute(const ParticleView& particles, double dt_previous, ContactOutput& out) {
   const std::size_t n = particles.size();
   const auto fail = [](const std::string& problem) {
@@ -901,6 +958,7 @@ void SurfaceContact::compute(const ParticleView& particles, double dt_previous, 
   if (!grid_valid_ || !moving_grid_valid_ || query_reach > grid_reach_) build_grid(query_reach, points);
 
   if (results_.size() < n) results_.resize(n);
+  if (!options_.brute_force_search) match_static_candidates(particles.id);
   const auto count = static_cast<std::int64_t>(n);
 #pragma omp parallel if (count > kParallelThreshold)
   {

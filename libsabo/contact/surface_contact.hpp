@@ -10,6 +10,11 @@
 // rebuilt only when the nodes move, the topology changes or a larger particle
 // comes. Each particle queries the box of its reach (radius * (1 +
 // potential_margin) + largest thickness / 2): cost linear in particles.
+// The faces that never move (grid_) are looked up once for a box a skin
+// (kCandidateSkin of the reach) larger, kept per particle id, and filtered by
+// the query box each step until the particle leaves that box or the grid is
+// rebuilt: the same candidates, without walking the grid every step (a large
+// face is binned in every cell it covers and was visited once per cell).
 // Faces with a thickness are two-sided, faces without are one-sided (see
 // sphere_triangle.hpp).
 //
@@ -368,6 +373,21 @@ class SurfaceContact {
   bool grid_valid_ = false;
   bool moving_grid_valid_ = false;
   double grid_reach_ = 0;  // the per-particle query reach the grid was sized for, m
+
+  // Per particle of the last view (by index, with its id): the static faces whose box overlaps `box`, sorted,
+  // from grid_ as built at `generation`. A particle whose query box lies inside `box` takes its candidates
+  // from `faces`.
+  struct StaticCandidates {
+    std::uint64_t id = 0;
+    std::uint64_t generation = 0;  // 0: none
+    Aabb box;
+    std::vector<std::uint32_t> faces;
+  };
+  // The cached candidates of the view's particles, moved to their new indices by id.
+  void match_static_candidates(std::span<const std::uint64_t> ids);
+  mutable std::vector<StaticCandidates> static_candidates_;  // written per particle by its own thread
+  std::vector<StaticCandidates> static_candidates_spare_;
+  std::uint64_t static_generation_ = 0;  // grid_'s builds
 
   std::vector<HistoryEntry> history_;  // sorted by particle id; per particle in contact order
   std::vector<HistoryEntry> next_history_;

@@ -712,6 +712,59 @@ TEST(SurfaceContact, GridSearchEqualsBruteForce) {
   EXPECT_EQ(grid.stable_dt(), all.stable_dt());
 }
 
+// The static faces' candidates are kept per particle between steps: over steps where particles move out
+// of their kept box (fails if a list is reused past its box), leave the view, come back in another order,
+// and part of the surface starts to move (a second grid, then the static grid rebuilt), every step gives the
+// brute-force search's bits.
+TEST(SurfaceContact, KeptCandidatesEqualBruteForceOverSteps) {
+  RandomScene scene(21, 400);
+  SurfaceContactOptions brute;
+  brute.brute_force_search = true;
+  SurfaceContact grid({"boulders", "gravel"}, uniform(bulk_settings()));
+  SurfaceContact all({"boulders", "gravel"}, uniform(bulk_settings()), brute);
+  grid.set_surface(scene.builder.mesh());
+  all.set_surface(scene.builder.mesh());
+  Cloud cloud = scene.cloud;
+  std::vector<double> nodes;
+  for (const Vec3& p : scene.builder.mesh().node_position) nodes.insert(nodes.end(), {p.x(), p.y(), p.z()});
+  std::size_t contacts = 0, compared = 0;
+  for (int step = 0; step < 24; ++step) {
+    // Every third step a view without every fifth particle, every fourth step in reverse order.
+    std::vector<std::size_t> members;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      if (step % 3 != 1 || i % 5 != static_cast<std::size_t>(step) % 5) members.push_back(i);
+    }
+    if (step % 4 == 3) std::reverse(members.begin(), members.end());
+    Cloud view;
+    for (std::size_t i : members) {
+      view.add(cloud.at(i), cloud.radius[i], cloud.mass[i], vec_at(cloud.velocity, i), vec_at(cloud.spin, i),
+               cloud.body[i]);
+      view.id.back() = cloud.id[i];
+    }
+    if (step >= 8) {
+      // The first nodes (part of the terrain) sink slowly: their faces move from the static grid to the moving one.
+      for (std::size_t k = 0; k < 30 && 3 * k + 2 < nodes.size(); ++k) nodes[3 * k + 2] -= 1e-3;
+      grid.update_nodes(nodes, {});
+      all.update_nodes(nodes, {});
+    }
+    ContactOutput out_grid, out_all;
+    grid.compute(view.view(), 1e-3, out_grid);
+    all.compute(view.view(), 1e-3, out_all);
+    contacts += out_grid.contact_count;
+    ASSERT_EQ(out_grid.contact_count, out_all.contact_count) << "step " << step;
+    ASSERT_TRUE(same_bits(out_grid.particle_force, out_all.particle_force)) << "step " << step;
+    ASSERT_TRUE(same_bits(out_grid.particle_torque, out_all.particle_torque)) << "step " << step;
+    ASSERT_TRUE(same_bits(out_grid.node_force, out_all.node_force)) << "step " << step;
+    ASSERT_EQ(grid.stable_dt(), all.stable_dt()) << "step " << step;
+    compared += out_grid.particle_force.size() + out_grid.node_force.size();
+    // Fast enough that a particle leaves its kept box (a quarter of its reach) within a few steps.
+    for (std::size_t i = 0; i < cloud.size(); ++i) cloud.move(i, cloud.at(i) + 0.1 * vec_at(cloud.velocity, i));
+  }
+  std::cout << "kept candidates: " << contacts << " contacts over 24 steps, " << compared
+            << " force components equal to the brute-force search's bits\n";
+  EXPECT_GT(contacts, 24u * 30u);
+}
+
 TEST(SurfaceContact, DeterministicWithOneAndTwoThreads) {
   RandomScene scene(13, 500);
   auto run = [&](int threads) {
