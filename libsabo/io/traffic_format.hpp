@@ -9,6 +9,8 @@ namespace sabo::io::traffic_format {
 // the flags (powers of two only); the reader reads both.
 constexpr std::int64_t kFormatVersion = 2;
 constexpr std::int64_t kOldestReadVersion = 1;
+// The first version with the substeps column.
+constexpr std::int64_t kSubstepsColumnVersion = 2;
 constexpr const char* kFormatName = "sabo-traffic";
 
 constexpr std::uint8_t kFlagCheckpoint = 1;

@@ -293,8 +293,9 @@ sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_
   message.set_output((bits & kFlagOutput) != 0);
   message.set_stop((bits & kFlagStop) != 0);
   message.set_interest_all((bits & kFlagInterestAll) != 0);
-  const std::uint32_t substeps =
-      impl_->version >= 2 ? stream.scalar<std::uint8_t>("substeps", entry) : 1u << (bits >> kVersion1SubstepsShift);
+  const std::uint32_t substeps = impl_->version >= kSubstepsColumnVersion
+                                     ? stream.scalar<std::uint8_t>("substeps", entry)
+                                     : 1u << (bits >> kVersion1SubstepsShift);
   if (substeps > 1) message.set_substeps(substeps);
   stream.array<std::uint32_t>("index", entry, message.mutable_index());
   stream.array<double>("force", entry, message.mutable_force());
