@@ -110,6 +110,8 @@ class InflowTest(RealRunTestCase):
         self.assertEqual(sum(1 for a in last if a >= 2), 0)
         self.assertTrue(set(middle) <= {0, 1, 2, 3})
 
+
+class InflowReplayTest(RealRunTestCase):
     def test_a_recorded_inflow_replays_to_the_bit(self):
         # A short flood (the hydrograph ends at 0.5 s, the buffer taken out within the 0.6 s), recorded whole:
         # the sph_solver replayed against it matches every field at every step (releases, entries and the

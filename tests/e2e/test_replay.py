@@ -11,7 +11,9 @@ from e2e_support import RealRunTestCase
 TANK = "configs/tests/sph_boulders_tank.toml"
 
 
-class ReplayTest(RealRunTestCase):
+class ReplayTestCase(RealRunTestCase):
+    """A recorded run and its replays; the tests are in the classes below (one ctest each)."""
+
     def recorded_run(self, name="recorded", fields_line=None):
         """A short run of the boulder tank recorded in full (or with `fields_line` in [recording])."""
         with open(self.scene_path(TANK), encoding="utf-8") as handle:
@@ -34,6 +36,8 @@ class ReplayTest(RealRunTestCase):
         folder = sorted(f for f in os.listdir(os.path.join(run_dir, "replay")) if f.startswith(role + "-"))[-1]
         return os.path.join(run_dir, "replay", folder, "replay.json")
 
+
+class ReplayProcessesTest(ReplayTestCase):
     def test_every_process_of_an_unchanged_build_matches_its_recording(self):
         run = self.recorded_run()
         for role in ("sph", "dem", "fem", "coupler"):
@@ -145,6 +149,8 @@ class ReplayTest(RealRunTestCase):
             self.assertIn("--take {}: the {}_solver takes {}".format(field, role, takes), err)
         self.assertNoProcessLeft(run, pids_file=False)
 
+
+class ReplayFieldsTest(ReplayTestCase):
     def test_a_structure_fed_its_recorded_surface_motion(self):
         """The fem_solver takes its surface nodes' motion: a stiffer block fed the recorded one diverges in its
         stable step and energies only."""
@@ -241,7 +247,7 @@ class ReplayAfterAKillTest(RealRunTestCase):
     folder holds traffic.h5 flagged open for writing, coupler.sock and no summary.json; `./sabo replay`, the
     next command that reads the folder, repairs it first and replays what was recorded."""
 
-    replay = ReplayTest.replay
+    replay = ReplayTestCase.replay
 
     def test_replay_repairs_the_folder_a_killed_supervisor_left(self):
         import signal

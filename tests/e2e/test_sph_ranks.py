@@ -25,7 +25,8 @@ LAUNCHER = '\n[solvers.sph]\nlauncher = ["mpirun", "-n", "2", "--oversubscribe"]
 ENDPOINT = ("[run]\n", '[run]\nendpoint = "tcp://127.0.0.1:*"\n')
 
 
-class SphRanksTest(RealRunTestCase):
+class SphRanksTestCase(RealRunTestCase):
+    """Runs a scene alone and on 2 ranks; the tests are in the classes below (one ctest each)."""
 
     def write_scene(self, source, name, replacements, ranks):
         with open(self.scene_path(source), encoding="utf-8") as handle:
@@ -67,6 +68,8 @@ class SphRanksTest(RealRunTestCase):
         self.assertEqual(different, [])
         self.assertEqual(summary["newton_third_law"]["violations"], 0)
 
+
+class SphRanksSameBitsTest(SphRanksTestCase):
     def test_dam_break_against_penalty_walls(self):
         self.compare("configs/tests/sph_dam_break_soft_wall.toml", "penalty",
                      [("end_time = 0.7\n", "end_time = 0.45\n"), ("output_interval = 0.01\n",
@@ -94,6 +97,8 @@ class SphRanksTest(RealRunTestCase):
                                                                    "output_interval = 0.05\n")],
                      extra=("gauges.csv",))
 
+
+class SphRanksCheckpointsReplayAndGaugesTest(SphRanksTestCase):
     def test_checkpoints_move_between_rank_counts(self):
         """A run on 2 ranks writes the sph role's checkpoints; its sph_solver replayed alone from one of them
         reproduces the recorded states (2 ranks -> 1). A run alone; its sph_solver replayed on 2 ranks from one
