@@ -687,14 +687,26 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
+// One contact searched through the grid and the same searched by brute force, on a scene's surface.
+struct GridAndBruteForce {
+  static SurfaceContactOptions brute_force() {
+    SurfaceContactOptions options;
+    options.brute_force_search = true;
+    return options;
+  }
+  SurfaceContact grid{{"boulders", "gravel"}, uniform(bulk_settings())};
+  SurfaceContact all{{"boulders", "gravel"}, uniform(bulk_settings()), brute_force()};
+  explicit GridAndBruteForce(const RandomScene& scene) {
+    grid.set_surface(scene.builder.mesh());
+    all.set_surface(scene.builder.mesh());
+  }
+};
+
 TEST(SurfaceContact, GridSearchEqualsBruteForce) {
   RandomScene scene(8, 600);
-  SurfaceContactOptions brute;
-  brute.brute_force_search = true;
-  SurfaceContact grid({"boulders", "gravel"}, uniform(bulk_settings()));
-  SurfaceContact all({"boulders", "gravel"}, uniform(bulk_settings()), brute);
-  grid.set_surface(scene.builder.mesh());
-  all.set_surface(scene.builder.mesh());
+  GridAndBruteForce search(scene);
+  SurfaceContact& grid = search.grid;
+  SurfaceContact& all = search.all;
   ContactOutput out_grid, out_all;
   grid.compute(scene.cloud.view(), 1e-4, out_grid);
   all.compute(scene.cloud.view(), 1e-4, out_all);
@@ -718,12 +730,9 @@ TEST(SurfaceContact, GridSearchEqualsBruteForce) {
 // brute-force search's bits.
 TEST(SurfaceContact, KeptCandidatesEqualBruteForceOverSteps) {
   RandomScene scene(21, 400);
-  SurfaceContactOptions brute;
-  brute.brute_force_search = true;
-  SurfaceContact grid({"boulders", "gravel"}, uniform(bulk_settings()));
-  SurfaceContact all({"boulders", "gravel"}, uniform(bulk_settings()), brute);
-  grid.set_surface(scene.builder.mesh());
-  all.set_surface(scene.builder.mesh());
+  GridAndBruteForce search(scene);
+  SurfaceContact& grid = search.grid;
+  SurfaceContact& all = search.all;
   Cloud cloud = scene.cloud;
   std::vector<double> nodes;
   for (const Vec3& p : scene.builder.mesh().node_position) nodes.insert(nodes.end(), {p.x(), p.y(), p.z()});
