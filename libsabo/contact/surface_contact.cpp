@@ -553,8 +553,7 @@ void SurfaceContact::process_particle(std::size_t i, const ParticleView& particl
     scratch.candidates.resize(surface_.triangle.size());
     std::iota(scratch.candidates.begin(), scratch.candidates.end(), 0U);
   } else {
-    // Faces whose own box misses the query box are dropped before the sort, which
-    // then orders (and de-duplicates) only the few real candidates.
+    // Faces whose own box misses the query box are dropped; the candidates come out sorted and unique.
     const Aabb query{centre.array() - reach, centre.array() + reach};
     StaticCandidates& cached = static_candidates_[i];
     const bool inside =
