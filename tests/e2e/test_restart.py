@@ -12,9 +12,10 @@ from e2e_support import RealRunTestCase, read_json
 
 TANK = "configs/tests/sph_boulders_tank.toml"
 OUTPUTS = ["forces.csv", "energy.csv", "dem.pvd", "sph.pvd", "fem.pvd"]
+ROLES = ("dem_solver", "sph_solver", "fem_solver")
 
 
-class RestartTest(RealRunTestCase):
+class RestartTestCase(RealRunTestCase):
     def write_scene(self, name, extra_run_lines=""):
         with open(self.scene_path(TANK), encoding="utf-8") as handle:
             text = handle.read()
@@ -38,36 +39,55 @@ class RestartTest(RealRunTestCase):
                                                    shallow=False)
             self.assertEqual(mismatch + errors, [], "{}/ frames differ".format(folder))
 
-    def test_each_solver_killed_at_a_random_step_is_restarted_and_the_run_is_unchanged(self):
+    def kill_three_times_and_compare(self, role):
+        """Runs the tank uninterrupted, then kills `role` at three seeded random steps, one run each: every run
+        restarts it, completes and writes the uninterrupted run's outputs."""
         scene = self.write_scene("tank", "checkpoint_interval = 0.03")
         reference = os.path.join(self.tmp, "reference")
         sabo = self.run_sabo(scene, reference)
         self.assertEqual(sabo.wait(180), 0, sabo.output())
         steps = read_json(os.path.join(reference, "summary.json"))["steps"]
+        # The kill follows the coupler's progress events, one every 0.5 s: on a quiet machine the last 150 steps
+        # can pass between two of them, and a kill at the first event past at_step then lands after the run's
+        # last step. 350 steps leave two or more events after any at_step. One seeded sequence for all the roles.
         randomness = random.Random(19)
-        for role in ("dem_solver", "sph_solver", "fem_solver"):
-            for trial in range(3):
-                # The kill follows the coupler's progress events, one every 0.5 s: on a quiet machine the last
-                # 150 steps can pass between two of them, and a kill at the first event past at_step then lands
-                # after the run's last step. 350 steps leave two or more events after any at_step.
-                at_step = randomness.randrange(100, steps - 350)
-                out = os.path.join(self.tmp, "{}-{}".format(role, trial))
-                code, sabo = self.run_and_kill(scene, out, role, at_step)
-                summary = read_json(os.path.join(out, "summary.json"))
-                restarts = summary["restarts"]
-                print("{} killed at step {}: exit {}, {}".format(role, at_step, code, restarts))
-                self.assertEqual(code, 0, sabo.output())
-                self.assertEqual(summary["status"], "completed")
-                self.assertEqual(len(restarts), 1)
-                self.assertEqual(restarts[0]["process"], role)
-                # From the newest checkpoint: at most one interval (0.03 s, under 100 steps) to catch up.
-                self.assertEqual(restarts[0]["catch_up_steps"], restarts[0]["at_step"] - restarts[0]["from_step"])
-                self.assertLess(restarts[0]["catch_up_steps"], 100)
-                self.assertIn("restarting it from its checkpoint of step {}".format(restarts[0]["from_step"]),
-                              sabo.output())
-                self.assertSameOutputs(reference, out)
-                self.assertNoProcessLeft(out)
+        at_steps = {r: [randomness.randrange(100, steps - 350) for _ in range(3)] for r in ROLES}
+        for trial, at_step in enumerate(at_steps[role]):
+            out = os.path.join(self.tmp, "{}-{}".format(role, trial))
+            code, sabo = self.run_and_kill(scene, out, role, at_step)
+            summary = read_json(os.path.join(out, "summary.json"))
+            restarts = summary["restarts"]
+            print("{} killed at step {}: exit {}, {}".format(role, at_step, code, restarts))
+            self.assertEqual(code, 0, sabo.output())
+            self.assertEqual(summary["status"], "completed")
+            self.assertEqual(len(restarts), 1)
+            self.assertEqual(restarts[0]["process"], role)
+            # From the newest checkpoint: at most one interval (0.03 s, under 100 steps) to catch up.
+            self.assertEqual(restarts[0]["catch_up_steps"], restarts[0]["at_step"] - restarts[0]["from_step"])
+            self.assertLess(restarts[0]["catch_up_steps"], 100)
+            self.assertIn("restarting it from its checkpoint of step {}".format(restarts[0]["from_step"]),
+                          sabo.output())
+            self.assertSameOutputs(reference, out)
+            self.assertNoProcessLeft(out)
 
+
+# One class (one ctest) per solver killed, and one for the runs that must stop.
+class RestartDemSolverTest(RestartTestCase):
+    def test_the_dem_solver_killed_at_random_steps_is_restarted_and_the_run_is_unchanged(self):
+        self.kill_three_times_and_compare("dem_solver")
+
+
+class RestartSphSolverTest(RestartTestCase):
+    def test_the_sph_solver_killed_at_random_steps_is_restarted_and_the_run_is_unchanged(self):
+        self.kill_three_times_and_compare("sph_solver")
+
+
+class RestartFemSolverTest(RestartTestCase):
+    def test_the_fem_solver_killed_at_random_steps_is_restarted_and_the_run_is_unchanged(self):
+        self.kill_three_times_and_compare("fem_solver")
+
+
+class RestartRefusedTest(RestartTestCase):
     def test_past_its_journal_limit_a_killed_solver_stops_the_run_and_says_why(self):
         """A restart journal held to 1 byte (run.restart_journal_limit) is dropped at the first step after each
         checkpoint: the coupler says so once a drop, and a solver killed then cannot rejoin; the run stops naming
