@@ -44,7 +44,9 @@ def namespaces_problem():
     return None
 
 
-class NetworkNamespaceTest(RealRunTestCase):
+class NetworkNamespaceTestCase(RealRunTestCase):
+    """Three network namespaces per test; the tests are in the classes below (one ctest each)."""
+
     @classmethod
     def setUpClass(cls):
         problem = namespaces_problem()
@@ -117,6 +119,8 @@ class NetworkNamespaceTest(RealRunTestCase):
             time.sleep(0.02)
         self.fail("no {} within {} s".format(what, timeout_s))
 
+
+class NetworkNamespaceSameBitsTest(NetworkNamespaceTestCase):
     def test_a_solver_on_another_host_gives_the_same_bits_and_strangers_are_refused(self):
         reference = os.path.join(self.tmp, "reference")
         local = self.run_sabo(self.scene_path(CHUTE_SMALL), reference)
@@ -160,6 +164,8 @@ class NetworkNamespaceTest(RealRunTestCase):
                         security)
         self.assertNoProcessLeft(out)
 
+
+class NetworkNamespaceLostHostTest(NetworkNamespaceTestCase):
     def test_a_solver_whose_host_vanishes_is_reported_within_10_s(self):
         out = os.path.join(self.tmp, "vanished")
         sabo = self.run_in_a(self.write_scene("vanished", end_time=12.0), out)
