@@ -2,7 +2,7 @@
 // Recording of the coupler's interface traffic into traffic.h5 (docs/design.md, "The traffic log")
 // and reading it back. The layout is documented in docs/traffic.md:
 //
-//   /                       attrs: format = "sabo-traffic", format_version = 2,
+//   /                       attrs: format = "sabo-traffic", format_version (traffic_format.hpp),
 //                                  fields, every, first_step, last_step (-1: none)
 //   /scene                  uint8: the scene file's text
 //   /<role>/                one group per role ("sph_solver", "dem_solver", "fem_solver")

@@ -247,8 +247,6 @@ class ReplayAfterAKillTest(RealRunTestCase):
     folder holds traffic.h5 flagged open for writing, coupler.sock and no summary.json; `./sabo replay`, the
     next command that reads the folder, repairs it first and replays what was recorded."""
 
-    replay = ReplayTestCase.replay
-
     def test_replay_repairs_the_folder_a_killed_supervisor_left(self):
         import signal
         import h5py
