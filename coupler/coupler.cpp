@@ -173,21 +173,49 @@ Coupler::Peer* Coupler::route(const protocol::Inbound& inbound, MessageType expe
 void Coupler::accept_state(Peer& peer, std::uint64_t step) {
   if (peer.has_state) fail(peer.name(), fmt::format("sent two states for step {}", step));
   try {
-    inbound_.parse(peer.state);
+    inbound_.parse(peer.incoming);
   } catch (const ProtocolError& error) {
     fail(peer.name(), error.what());
   }
-  if (peer.state.step() != step) {
+  if (peer.incoming.step() != step) {
     fail(peer.name(),
-         fmt::format("sent the state of step {} while the coupler is at step {}", peer.state.step(), step));
+         fmt::format("sent the state of step {} while the coupler is at step {}", peer.incoming.step(), step));
   }
-  validate_state(peer);
+  peer.reported_compute = peer.incoming.compute_seconds();
+  peer.reported_wait = peer.incoming.wait_seconds();
+  const bool held = peer.incoming.held();
+  if (held) {
+    validate_held_state(peer);
+  } else {
+    peer.state.Swap(&peer.incoming);
+    validate_state(peer);
+  }
   peer.has_state = true;
-  if (recorder_) recorder_->record_state(peer.name(), peer.state);
+  const sabo::v1::StepState& message = held ? peer.incoming : peer.state;
+  if (recorder_) recorder_->record_state(peer.name(), message);
   if (peer.journal) {
     // The state after a checkpoint proves the solver has written it: the journal starts again there.
     if (peer.checkpoint_step && *peer.checkpoint_step == step) peer.journal->begin(step);
-    peer.journal->add_state(peer.state);
+    peer.journal->add_state(message);
+  }
+}
+
+bool Coupler::steps_now(const Peer& peer, std::uint64_t step) {
+  return step >= peer.next_step_exchange;
+}
+
+void Coupler::validate_held_state(const Peer& peer) {
+  const auto& s = peer.incoming;
+  auto invalid = [&](const std::string& what) {
+    fail(peer.name(), fmt::format("held state of step {}: {}", s.step(), what));
+  };
+  if (steps_now(peer, s.step())) invalid("it steps at this exchange (a held state answers a hold only)");
+  if (s.index_size() != 0 || s.position_size() != 0 || s.node_position_size() != 0 || s.has_topology() ||
+      s.has_particle_table() || s.boundary_force_size() != 0) {
+    invalid("it carries entities (a held state has step, time, stable_dt and the timings only)");
+  }
+  if (!(std::abs(s.time() - peer.ahead_time) <= 1e-9 * std::max(std::abs(peer.ahead_time), scene_.run.end_time))) {
+    invalid(fmt::format("time = {} s, while its last step reached {} s", s.time(), peer.ahead_time));
   }
 }
 
@@ -291,10 +319,12 @@ void Coupler::validate_state(const Peer& peer) {
   }
   if (auto problem = stable_dt_problem(s.stable_dt(), scene_.run.end_time)) invalid(*problem);
   // Every solver adds the same dt_n to its time, so t_n is the coupler's sum (to round-off for a solver
-  // that sums otherwise).
-  if (!(std::abs(s.time() - expected_time_) <= 1e-9 * std::max(std::abs(expected_time_), scene_.run.end_time))) {
-    invalid(fmt::format("time = {} s, while t_n is {} s (the sum of the steps the coupler sent)", s.time(),
-                        expected_time_));
+  // that sums otherwise). A solver on hold is at the end of its last step's interval.
+  const bool steps = steps_now(peer, s.step());
+  const double expected = steps ? expected_time_ : peer.ahead_time;
+  if (!(std::abs(s.time() - expected) <= 1e-9 * std::max(std::abs(expected), scene_.run.end_time))) {
+    invalid(fmt::format("time = {} s, while {} is {} s ({})", s.time(), steps ? "t_n" : "its step's end", expected,
+                        steps ? "the sum of the steps the coupler sent" : "it holds at this exchange"));
   }
   const auto& e = s.energies();
   for (const auto& [what, value] : {std::pair{"kinetic", e.kinetic()}, std::pair{"potential", e.potential()},
@@ -324,6 +354,7 @@ void Coupler::validate_state(const Peer& peer) {
     }
     surface_revision_ = topology.revision();
     surface_nodes_ = static_cast<std::size_t>(topology.node_id_size());
+    surface_ids_stale_ = true;
     surface_topology_ = topology.SerializeAsString();  // what a resumed run's pairs start from
   }
   // Boundary particles go to the sph_solver only (docs/protocol.md, "SPH walls").
@@ -381,8 +412,9 @@ void Coupler::prepare_contacts() {
 RatePlan Coupler::plan_step() {
   std::vector<SolverRate> solvers;
   for (const auto& peer : peers_) {
-    solvers.push_back(
-        {.stable_step = peer->beta * peer->state.stable_dt(), .max_substeps = peer->registration.max_substeps()});
+    solvers.push_back({.stable_step = peer->beta * peer->state.stable_dt(),
+                       .max_substeps = peer->registration.max_substeps(),
+                       .holds = peer->registration.holds() && scene_.run.hold_exchanges});
   }
   const auto index_of = [&](Role role) {
     const auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
@@ -395,7 +427,8 @@ RatePlan Coupler::plan_step() {
     pairs.push_back({.a = index_of(roles[0]),
                      .b = index_of(roles[1]),
                      .stable_dt = slot.pair->stable_dt(),
-                     .held = slot.pair->holding().allowed});
+                     .held = slot.pair->holding().allowed,
+                     .every_exchange = slot.pair->every_exchange()});
   }
   // Only rigid parts and nothing else that limits the step: take output-sized steps.
   const double until_output = std::min(next_output_time_, scene_.run.end_time) - time_;
@@ -429,13 +462,34 @@ RatePlan Coupler::plan_step() {
   return plan;
 }
 
+void Coupler::mark_evaluated_pairs(std::uint64_t step) {
+  for (auto& slot : pairs_) {
+    const auto roles = slot.pair->roles();
+    const Peer* a = nullptr;
+    const Peer* b = nullptr;
+    for (const auto& peer : peers_) {
+      if (peer->role == roles[0]) a = peer.get();
+      if (peer->role == roles[1]) b = peer.get();
+    }
+    assert(a != nullptr && b != nullptr && "a pair joins registered solvers");
+    slot.evaluated = steps_now(*a, step) && steps_now(*b, step);
+  }
+}
+
 void Coupler::compute_contacts(const StepClock& clock) {
   if (pairs_.empty()) return;
   const auto start = Clock::now();
   std::size_t contacts = 0;
   for (auto& slot : pairs_) {
+    if (!slot.evaluated) {
+      contacts += slot.pair->contact_count();
+      continue;
+    }
     const auto pair_start = Clock::now();
-    slot.pair->compute(solvers_, clock);
+    // A pair evaluated less often than every exchange sees its own last interval as dt_{n-1}.
+    StepClock own = clock;
+    own.dt_previous = slot.dt_previous;
+    slot.pair->compute(solvers_, own);
     contacts += slot.pair->contact_count();
     slot.seconds += seconds_since(pair_start);
   }
@@ -443,11 +497,28 @@ void Coupler::compute_contacts(const StepClock& clock) {
   contact_seconds_ += seconds_since(start);
 }
 
+const SurfaceNodes& Coupler::surface_ids() {
+  if (!surface_ids_stale_) return surface_ids_;
+  if (!surface_topology_.empty()) {
+    sabo::v1::SurfaceTopology topology;
+    topology.ParseFromString(surface_topology_);
+    surface_ids_.assign(topology.node_id());
+  } else {
+    const auto fem =
+        std::find_if(peers_.begin(), peers_.end(), [](const auto& p) { return p->registration.exposes_surface(); });
+    assert(fem != peers_.end() && "held node forces come from a pair with the surface");
+    surface_ids_.assign((*fem)->registration.surface().node_id());
+  }
+  surface_ids_stale_ = false;
+  return surface_ids_;
+}
+
 void Coupler::check_newton_third_law(std::uint64_t step) {
   // Each pair's forces on its two sides, and all of them together: every force the coupler hands out
   // has its reaction.
   NewtonBalance total;
   for (auto& slot : pairs_) {
+    if (!slot.evaluated) continue;  // its forces are those it was checked with
     const NewtonBalance balance = slot.pair->newton_balance();
     if (balance.scale > 0) slot.max_residual = std::max(slot.max_residual, balance.sum.norm() / balance.scale);
     total.sum += balance.sum;
@@ -490,7 +561,7 @@ void assign_vectors(google::protobuf::RepeatedField<double>& field,
 
 // Appends to f the particles of `index` (a state's) that carry a force or a torque (3 values each per index;
 // torque may be empty: none given), with zero torques where `with_torque` and none were given.
-void add_loaded_particles(const google::protobuf::RepeatedField<std::uint32_t>& index, std::span<const double> force,
+void add_loaded_particles(std::span<const std::uint32_t> index, std::span<const double> force,
                           std::span<const double> torque, bool with_torque, sabo::v1::StepForces& f) {
   // Only the particles with a force or a torque: most of a slurry's interest region touches nothing, and a
   // particle a StepForces leaves out gets none (docs/protocol.md).
@@ -501,7 +572,7 @@ void add_loaded_particles(const google::protobuf::RepeatedField<std::uint32_t>& 
   assert(force.size() == 3 * n && (torque.empty() || torque.size() == 3 * n));
   for (std::size_t k = 0; k < n; ++k) {
     if (row_is_zero(force, k) && row_is_zero(torque, k)) continue;
-    f.add_index(index[static_cast<int>(k)]);
+    f.add_index(index[k]);
     f.mutable_force()->Add(force.begin() + static_cast<std::ptrdiff_t>(3 * k),
                            force.begin() + static_cast<std::ptrdiff_t>(3 * k + 3));
     if (!with_torque) continue;
@@ -515,32 +586,96 @@ void add_loaded_particles(const google::protobuf::RepeatedField<std::uint32_t>& 
 }
 }  // namespace
 
-void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output, bool stop, bool checkpoint) {
-  const auto start = Clock::now();
+void Coupler::scatter_pairs(std::uint64_t step) {
   replies_.begin_step(solvers_, surface_nodes_);
+  const auto peer_of = [&](Role role) -> const Peer& {
+    return **std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
+  };
   for (auto& slot : pairs_) {
     const auto pair_start = Clock::now();
-    slot.pair->scatter(solvers_, plan.exchange_dt, replies_);
+    const auto roles = slot.pair->roles();
+    const Peer& a = peer_of(roles[0]);
+    const Peer& b = peer_of(roles[1]);
+    if (slot.evaluated) {
+      slot.interval = std::max(a.interval, b.interval);
+      const double dt = slot.interval * plan_.exchange_dt;
+      slot.held.clear();
+      if (a.interval == b.interval) {
+        slot.pair->scatter(solvers_, dt, replies_);
+      } else {
+        // Held for its faster side: what it gives that side is kept by entity for that side's next exchanges.
+        scratch_replies_.begin_step(solvers_, surface_nodes_);
+        slot.pair->scatter(solvers_, dt, scratch_replies_);
+        const Peer& faster = a.interval < b.interval ? a : b;
+        const bool surface = faster.registration.exposes_surface();
+        slot.held.push_back(
+            scratch_replies_.held(solvers_, faster.role, surface, surface ? surface_ids() : SurfaceNodes{}));
+        replies_.add(scratch_replies_);
+      }
+      slot.dt_previous = dt;
+    } else {
+      for (const HeldForces& held : slot.held) {
+        const Peer& side = held.role == a.role ? a : b;
+        if (!steps_now(side, step)) continue;
+        const std::size_t lost = replies_.add_held(solvers_, held, held.surface ? surface_ids() : SurfaceNodes{});
+        if (lost > 0 && held_forces_lost_ == 0) {
+          spdlog::warn(
+              "step {}: {} held {} forces found no surface node (eroded since the pair was evaluated); they are "
+              "dropped (warned once)",
+              step, lost, slot.pair->name());
+        }
+        held_forces_lost_ += lost;
+      }
+    }
     slot.seconds += seconds_since(pair_start);
   }
+}
+
+void Coupler::send_forces(std::uint64_t step, bool output, bool stop, bool checkpoint) {
+  const auto start = Clock::now();
+  scatter_pairs(step);
   for (std::size_t k = 0; k < peers_.size(); ++k) {
     Peer* const peer = peers_[k].get();
     auto& f = peer->forces;
     f.Clear();
     f.set_step(step);
-    // substeps * dt is exchange_dt to the rounding of the division: the solver's time, a sum of its steps,
-    // stays within the check of its states (a relative 1e-9) as a power of two's sum did.
-    const std::uint32_t substeps = plan.substeps[k];
-    f.set_dt(plan.exchange_dt / substeps);
-    if (substeps > 1) f.set_substeps(substeps);
-    if (!stop) peer->solver_steps += substeps;
-    f.set_output(output);
-    f.set_stop(stop);
     f.set_checkpoint(checkpoint);
+    const bool steps = steps_now(*peer, step);
+    if (steps) {
+      // Its interval in this block, and the fewest steps within its stable step (its own step may have changed
+      // since the block began). substeps * dt is the interval to the rounding of the division: the solver's
+      // time, a sum of its steps, stays within the check of its states (a relative 1e-9).
+      peer->interval = plan_.intervals[k];
+      const double interval = peer->interval * plan_.exchange_dt;
+      const std::uint32_t substeps =
+          step == block_start_ ? plan_.substeps[k]
+                               : substeps_within(interval, peer->beta * peer->state.stable_dt(),
+                                                 std::max<std::uint32_t>(peer->registration.max_substeps(), 1));
+      f.set_dt(interval / substeps);
+      if (substeps > 1) f.set_substeps(substeps);
+      if (peer->interval > 1) f.set_holds(peer->interval - 1);
+      if (!stop) peer->solver_steps += substeps;
+      peer->next_step_exchange = step + peer->interval;
+      peer->ahead_time = expected_time_ + interval;
+      f.set_output(output);
+      f.set_stop(stop);
+    } else {
+      f.set_hold(true);
+      ++peer->holds;
+    }
     if (peer->registration.exposes_particles()) {
       const Role role = peer->role;
-      add_loaded_particles(peer->state.index(), replies_.particle_force(role), replies_.particle_torque(role),
-                           peer->registration.exposes_angular_velocity(), f);
+      if (steps) {
+        const bool with_torque = peer->registration.exposes_angular_velocity();
+        const auto& index = peer->state.index();
+        add_loaded_particles({index.data(), static_cast<std::size_t>(index.size())}, replies_.particle_force(role),
+                             replies_.particle_torque(role), with_torque, f);
+        // Held forces on particles its state left out.
+        const auto& extra = replies_.extra_particles(role);
+        add_loaded_particles(extra.index, extra.force,
+                             with_torque ? std::span<const double>(extra.torque) : std::span<const double>(),
+                             with_torque, f);
+      }
       // What the pairs need of this solver at the next step: the union of their regions.
       InterestRequest interest;
       for (const auto& pair_slot : pairs_) {
@@ -551,7 +686,7 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
       }
       if (interest.all) interest.boxes.clear();
       set_interest(f, interest);
-      if (role == Role::sph && replies_.boundary().active()) {
+      if (steps && role == Role::sph && replies_.boundary().active()) {
         const BoundaryChannel& b = replies_.boundary();
         using P = physics::BoundaryParticles;
         assign_vectors(*f.mutable_boundary_position(), b.parts(), b.size(), &P::position);
@@ -585,7 +720,7 @@ void Coupler::send_forces(std::uint64_t step, const RatePlan& plan, bool output,
         }
       }
     } else if (peer->registration.exposes_surface()) {
-      if (replies_.has_node_forces()) {
+      if (steps && replies_.has_node_forces()) {
         f.mutable_node_force()->Assign(replies_.node_force().begin(), replies_.node_force().end());
       }
       // The coupler keeps the whole surface current.
@@ -665,8 +800,9 @@ void Coupler::account(std::uint64_t step, double time, double dt, bool output) {
   if (sensors_ && output) sensors_->write(time);
 
   // A solver's energies in the state of step n describe step n - 1 (its kinetic
-  // energy needs v_{n-1/2}), so they are paired with the contact energy of step n - 1.
-  if (step > 0) {
+  // energy needs v_{n-1/2}), so they are paired with the contact energy of step n - 1. With hold exchanges
+  // only the exchange after a block's start has every solver's state of its time.
+  if (step > 0 && previous_block_start_) {
     EnergySample sample;
     sample.time = previous_time_;
     for (const auto& peer : peers_) {
@@ -862,32 +998,46 @@ int Coupler::run() {
       time_ = expected_time_;
       double step_compute = 0;
       for (auto& peer : peers_) {
-        step_compute = std::max(step_compute, peer->state.compute_seconds());
-        peer->compute_seconds += peer->state.compute_seconds();
+        step_compute = std::max(step_compute, peer->reported_compute);
+        peer->compute_seconds += peer->reported_compute;
       }
       critical_compute_seconds_ += step_compute;
 
-      const bool last = time_ >= scene_.run.end_time - end_tolerance;
-      const bool output = last || time_ >= next_output_time_ - 1e-9 * scene_.run.output_interval;
-      advance_output_time();
+      // A block of exchanges starts where every solver steps (every exchange without hold exchanges): its plan
+      // is made there, after the pairs, whose limits it takes.
+      const bool block_start = step - block_start_ >= block_length_;
+      if (block_start) {
+        block_start_ = step;
+        for (auto& peer : peers_) peer->next_step_exchange = step;
+      }
+      const bool last = block_start && time_ >= scene_.run.end_time - end_tolerance;
+      const bool output = block_start && (last || time_ >= next_output_time_ - 1e-9 * scene_.run.output_interval);
+      if (block_start) advance_output_time();
+      mark_evaluated_pairs(step);
       compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous_});
       check_newton_third_law(step);
-      const RatePlan plan = plan_step();
-      const double dt = plan.exchange_dt;
-      if (!last) lock_step_equivalent_ += dt / plan.lock_step_dt;
+      if (block_start) {
+        plan_ = plan_step();
+        block_length_ = *std::max_element(plan_.intervals.begin(), plan_.intervals.end());
+      }
+      const double dt = plan_.exchange_dt;
+      if (!last) lock_step_equivalent_ += dt / plan_.lock_step_dt;
       dt_min_ = std::min(dt_min_, dt);
       dt_max_ = std::max(dt_max_, dt);
       if (last) events_.emit({{"event", "stopping"}, {"reason", "end_time reached"}});
       // Checkpoints of the state after this step, t_{n+1}, every checkpoint_period() of simulated time (none of
-      // the final state: nothing would resume from it).
+      // the final state: nothing would resume from it), where the next block starts.
       const double period = scene_.run.checkpoint_period();
-      const bool checkpoint = !last && period > 0 && time_ + dt < scene_.run.end_time - end_tolerance &&
+      const bool next_starts_block = step + 1 - block_start_ >= block_length_;
+      const bool checkpoint = !last && next_starts_block && period > 0 &&
+                              time_ + dt < scene_.run.end_time - end_tolerance &&
                               time_ + dt >= next_checkpoint_time_ - 1e-9 * period;
       while (checkpoint && next_checkpoint_time_ <= time_ + dt + 1e-9 * period) next_checkpoint_time_ += period;
       if (checkpoint) ++checkpoints_;
-      send_forces(step, plan, output, last, checkpoint);
+      send_forces(step, output, last, checkpoint);
       // The run's own files, while the solvers compute.
       account(step, time_, dt, output);
+      previous_block_start_ = block_start;
       for (auto& peer : peers_) peer->has_state = false;
       if (recorder_) recorder_->end_step(step);
       steps_ = step + 1;

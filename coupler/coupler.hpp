@@ -98,9 +98,19 @@ class Coupler {
   // The exchange step of this step and each solver's steps in it (multirate.hpp); logs a pair whose own
   // limit holds the exchange below its slower side's step, once.
   RatePlan plan_step();
+  // Which pairs are evaluated at this exchange: those whose sides both step (all of them at a block's start).
+  void mark_evaluated_pairs(std::uint64_t step);
   void compute_contacts(const StepClock& clock);
+  // The surface's node ids now (held forces on nodes are kept by id).
+  const SurfaceNodes& surface_ids();
   void check_newton_third_law(std::uint64_t step);
-  void send_forces(std::uint64_t step, const RatePlan& plan, bool output, bool stop, bool checkpoint);
+  void send_forces(std::uint64_t step, bool output, bool stop, bool checkpoint);
+  // The pairs' forces of this exchange into replies_: those evaluated scatter (a pair held for one side keeps
+  // that side's part, HeldForces), the others give their held forces again to a side that steps.
+  void scatter_pairs(std::uint64_t step);
+  // Whether `peer` steps at exchange `step` (it holds before its next_step_exchange).
+  [[nodiscard]] static bool steps_now(const Peer& peer, std::uint64_t step);
+  void validate_held_state(const Peer& peer);
   // Ends the run (naming the entity) when a force about to be sent is not finite.
   void check_forces(const Peer& peer, const sabo::v1::StepForces& forces);
   void account(std::uint64_t step, double time, double dt, bool output);
@@ -159,9 +169,27 @@ class Coupler {
     std::optional<std::size_t> source;  // column of its loads in forces.csv
     double seconds = 0;                 // wall time in compute and scatter
     double max_residual = 0;            // largest relative Newton residual
+    // Hold exchanges: evaluated at this exchange; the exchanges its interval spans (the larger of its sides');
+    // dt_{n-1} as it sees it (its last interval); what it gave its faster side, given again until the next
+    // evaluation.
+    bool evaluated = true;
+    std::uint32_t interval = 1;
+    double dt_previous = 0;
+    std::vector<HeldForces> held;
   };
   std::vector<PairSlot> pairs_;
   Replies replies_;
+  Replies scratch_replies_;  // a pair held for one side scatters here first (scatter_pairs)
+  // Hold exchanges: the plan of the block of exchanges in progress (a block starts where every solver steps),
+  // its first exchange and its length (0: the next exchange starts one); whether the previous exchange
+  // started one (energy.csv samples there: every state describes its time).
+  RatePlan plan_;
+  std::uint64_t block_start_ = 0;
+  std::uint32_t block_length_ = 0;
+  bool previous_block_start_ = true;
+  SurfaceNodes surface_ids_;
+  bool surface_ids_stale_ = true;
+  std::uint64_t held_forces_lost_ = 0;      // held forces on surface nodes that eroded away
   std::vector<std::string> force_sources_;  // forces.csv sources, in pair order: "particles", "fluid"
 
   std::unique_ptr<io::TrafficRecorder> recorder_;

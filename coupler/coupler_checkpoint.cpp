@@ -53,6 +53,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     group.set_attribute("checkpoints_written", static_cast<std::int64_t>(checkpoints_));
     group.set_attribute("previous_time", previous_time_);
     group.set_attribute("previous_output", previous_output_ ? 1 : 0);
+    group.set_attribute("previous_block_start", previous_block_start_ ? 1 : 0);
     group.set_attribute("previous_contact_elastic", previous_contact_elastic_);
     group.set_attribute("contact_dissipated", contact_dissipated_);
     group.set_attribute("surface_nodes", static_cast<std::int64_t>(surface_nodes_));
@@ -89,6 +90,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     for (const auto& peer : peers_) {
       stats.set_attribute(std::string(peer->name()) + "_compute_seconds", peer->compute_seconds);
       stats.set_attribute(std::string(peer->name()) + "_solver_steps", static_cast<std::int64_t>(peer->solver_steps));
+      stats.set_attribute(std::string(peer->name()) + "_hold_exchanges", static_cast<std::int64_t>(peer->holds));
     }
 
     if (forces_csv_) {
@@ -115,6 +117,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
       slot.pair->save_history(pair);
       pair.set_attribute("coupler_seconds", slot.seconds);
       pair.set_attribute("coupler_max_residual", slot.max_residual);
+      pair.set_attribute("coupler_dt_previous", slot.dt_previous);
     }
   });
   spdlog::debug("wrote {}", path.string());
@@ -156,6 +159,7 @@ void Coupler::restore_surface() {
   surface_nodes_ = static_cast<std::size_t>(group.int_attribute("surface_nodes"));
   surface_revision_ = static_cast<std::uint64_t>(group.int_attribute("surface_revision"));
   surface_topology_.assign(topology.begin(), topology.end());
+  surface_ids_stale_ = true;
   if (surface_topology_.empty()) return;  // the registered surface is the current one
   auto fem =
       std::find_if(peers_.begin(), peers_.end(), [](const auto& p) { return p->registration.exposes_surface(); });
@@ -185,6 +189,9 @@ void Coupler::restore_state() {
   checkpoints_ = static_cast<std::uint64_t>(group.int_attribute("checkpoints_written"));
   previous_time_ = group.double_attribute("previous_time");
   previous_output_ = group.int_attribute("previous_output") != 0;
+  // Checkpoints written before hold exchanges: every exchange started a block.
+  previous_block_start_ =
+      !group.has_attribute("previous_block_start") || group.int_attribute("previous_block_start") != 0;
   previous_contact_elastic_ = group.double_attribute("previous_contact_elastic");
   contact_dissipated_ = group.double_attribute("contact_dissipated");
 
@@ -212,6 +219,8 @@ void Coupler::restore_state() {
     if (stats.has_attribute(key)) peer->compute_seconds = stats.double_attribute(key);
     const std::string steps_key = std::string(peer->name()) + "_solver_steps";
     if (stats.has_attribute(steps_key)) peer->solver_steps = static_cast<std::uint64_t>(stats.int_attribute(steps_key));
+    const std::string holds_key = std::string(peer->name()) + "_hold_exchanges";
+    if (stats.has_attribute(holds_key)) peer->holds = static_cast<std::uint64_t>(stats.int_attribute(holds_key));
   }
   steps_ = *resume_step_;
 
@@ -235,6 +244,9 @@ void Coupler::restore_state() {
     slot.pair->restore_history(pair);
     slot.seconds = pair.double_attribute("coupler_seconds");
     slot.max_residual = pair.double_attribute("coupler_max_residual");
+    // dt_{n-1} as the pair sees it: its last interval (the coupler's before hold exchanges).
+    slot.dt_previous =
+        pair.has_attribute("coupler_dt_previous") ? pair.double_attribute("coupler_dt_previous") : dt_previous_;
   }
   resumes_.push_back({{"from_step", *resume_step_},
                       {"time", expected_time_},

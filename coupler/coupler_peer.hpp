@@ -29,13 +29,22 @@ struct Coupler::Peer {
   [[nodiscard]] const char* name() const { return role_name(role); }
   double beta = 1.0;
   sabo::v1::Register registration;
-  sabo::v1::StepState state;
+  sabo::v1::StepState state;     // its last whole state
+  sabo::v1::StepState incoming;  // the message being accepted; a held state stays here
   sabo::v1::StepForces forces;
   protocol::SendBuffer buffer;
   bool has_state = false;
   bool said_goodbye = false;
   sabo::v1::Goodbye goodbye;
-  double compute_seconds = 0;      // reported in StepState, summed
+  double compute_seconds = 0;   // reported in StepState, summed
+  double reported_compute = 0;  // s: compute_seconds of its last message, held or whole
+  double reported_wait = 0;     // s: wait_seconds of its last message
+  // Hold exchanges (docs/architecture.md, "Multirate"): the exchange at which it steps next (it holds at
+  // those before), the time its states carry until then, and the exchanges its step spans.
+  std::uint64_t next_step_exchange = 0;
+  double ahead_time = 0;
+  std::uint32_t interval = 1;
+  std::uint64_t holds = 0;         // hold exchanges answered, summed
   std::uint64_t solver_steps = 0;  // steps it took (multirate: several per exchange), summed from StepForces
   // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.
   std::unique_ptr<RestartJournal> journal;

@@ -24,11 +24,14 @@ nlohmann::json Coupler::multirate_summary() const {
     const double steps = static_cast<double>(peer->solver_steps);
     solvers[peer->name()] = {{"steps", peer->solver_steps},
                              {"exchanges", steps_ > 0 ? steps_ - 1 : 0},
+                             {"hold_exchanges", peer->holds},
                              {"lock_step_steps", lock_steps},
                              {"steps_saved", lock_steps - steps}};
     saved += lock_steps - steps;
   }
-  return {{"enabled", scene_.run.multirate}, {"solvers", solvers}, {"steps_saved", saved}};
+  nlohmann::json out = {{"enabled", scene_.run.multirate}, {"solvers", solvers}, {"steps_saved", saved}};
+  if (held_forces_lost_ > 0) out["held_forces_lost"] = held_forces_lost_;
+  return out;
 }
 
 void Coupler::write_summary(const std::string& status) {
@@ -46,7 +49,7 @@ void Coupler::write_summary(const std::string& status) {
         {"name", peer->registration.name()},
         {"compute_seconds", have_goodbye ? peer->goodbye.compute_seconds() : peer->compute_seconds},
         {"checkpoint_seconds", have_goodbye ? peer->goodbye.checkpoint_seconds() : 0.0},
-        {"wait_seconds", have_goodbye ? peer->goodbye.wait_seconds() : peer->state.wait_seconds()},
+        {"wait_seconds", have_goodbye ? peer->goodbye.wait_seconds() : peer->reported_wait},
         {"steps", have_goodbye ? peer->goodbye.steps() : steps_},
         {"solver_steps", peer->solver_steps},
         {"exit", peer->said_goodbye ? peer->goodbye.reason() : std::string("no goodbye")}};

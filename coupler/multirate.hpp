@@ -1,7 +1,7 @@
 #pragma once
 // The coupled step and each solver's steps within it (docs/architecture.md, "Multirate"): lock-step
 // (paper eq. 7: every solver at the smallest stable step) or multirate (each solver at a whole fraction
-// of the exchange step, with the contact forces held in between).
+// of its own interval, a power of two of exchanges, with the contact forces held in between).
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -13,12 +13,14 @@ namespace sabo::coupler {
 struct SolverRate {
   double stable_step = 0;          // s: beta * stable_dt; infinity: no limit (rigid parts only)
   std::uint32_t max_substeps = 1;  // Register.max_substeps: 0 is read as 1
+  bool holds = false;              // Register.holds: it may step less often than it exchanges (hold exchanges)
 };
 
 struct PairRate {
-  std::size_t a = 0, b = 0;  // indices of the two solvers it joins
-  double stable_dt = 0;      // s: the pair's own limit (eq. 7 contact term); infinity: none
-  bool held = true;          // false: its forces may not be held (ContactPair::holding): its faster side's step
+  std::size_t a = 0, b = 0;     // indices of the two solvers it joins
+  double stable_dt = 0;         // s: the pair's own limit (eq. 7 contact term); infinity: none
+  bool held = true;             // false: its forces may not be held (ContactPair::holding): its faster side's step
+  bool every_exchange = false;  // both sides step at every exchange (boundary particles: they go out every step)
 };
 
 // What set a plan's exchange step; text(): "solver 2", "pair 0", "max_dt", "next output", "nothing".
@@ -29,11 +31,18 @@ struct StepLimit {
   [[nodiscard]] std::string text() const;
 };
 
+// The largest number of exchanges one step interval of a solver spans (a power of two).
+constexpr std::uint32_t kMaxHeldExchanges = 64;
+
 struct RatePlan {
-  double exchange_dt = 0;               // s: the interval between two exchanges, Delta_n
-  std::vector<std::uint32_t> substeps;  // per solver: steps of exchange_dt / substeps in it
-  double lock_step_dt = 0;              // s: what lock-step would take now (eq. 7)
-  StepLimit limit;                      // what set exchange_dt (nothing: the fallback, output_interval)
+  double exchange_dt = 0;  // s: the interval between two exchanges, Delta_n (the tick)
+  // Per solver: the exchanges its interval spans, k_i (a power of two; 1 in lock-step and for a solver that
+  // does not hold). It steps at the first of them and holds at the k_i - 1 others.
+  std::vector<std::uint32_t> intervals;
+  // Per solver: steps of k_i exchange_dt / substeps in its interval.
+  std::vector<std::uint32_t> substeps;
+  double lock_step_dt = 0;  // s: what lock-step would take now (eq. 7)
+  StepLimit limit;          // what set exchange_dt (nothing: the fallback, output_interval)
 };
 
 struct RateLimits {
@@ -46,9 +55,14 @@ struct RateLimits {
 
 // Lock-step: exchange_dt = min(stable steps, pair limits, max_dt), one step each. Multirate: each pair
 // is exchanged at the step of the slower of its two sides (of the faster, for a pair whose forces may not be
-// held) and never above its own limit, every solver
-// at most max_substeps times its stable step; exchange_dt is the smallest of these, and each solver
-// takes the fewest steps that keep its own step within its stable step.
+// held) and never above its own limit, every solver at most max_substeps times its stable step: that gives
+// each solver its interval I_i, the smallest over its pairs. Without hold exchanges (no solver holds, or all
+// intervals alike) exchange_dt is the smallest interval and every solver exchanges each time. With them the
+// plan is one of two grids of power-of-two intervals: the finest interval as the tick, each solver at the
+// largest power of two of it within its interval; or the slowest solver's interval halved until it is within
+// the finest. The second is taken when what it gains the slowest solver (as a ratio of its steps) exceeds
+// what it costs the others (the tick's ratio). Each solver takes the fewest steps that keep its own step
+// within its stable step.
 [[nodiscard]] RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRate> pairs,
                                   const RateLimits& limits, bool multirate);
 

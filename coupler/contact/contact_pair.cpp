@@ -91,6 +91,7 @@ void Replies::begin_step(const Solvers& solvers, std::size_t surface_nodes) {
     reply.force.assign(n, 0.0);
     reply.torque.clear();
     reply.force_written = reply.torque_written = false;
+    reply.extra = {};
   }
   node_force_.assign(3 * surface_nodes, 0.0);
   node_force_written_ = false;
@@ -122,6 +123,114 @@ void Replies::add_node_forces(std::span<const double> node_force) {
   assert(node_force.size() == node_force_.size());
   for (std::size_t k = 0; k < node_force.size(); ++k) node_force_[k] += node_force[k];
   node_force_written_ = true;
+}
+
+void SurfaceNodes::assign(const google::protobuf::RepeatedField<std::uint64_t>& ids) {
+  id.assign(ids.begin(), ids.end());
+  row.clear();
+  row.reserve(id.size());
+  for (std::size_t k = 0; k < id.size(); ++k) row.emplace(id[k], k);
+}
+
+void Replies::add(const Replies& other) {
+  for (const Role role : kRoles) {
+    const ParticleReply& from = other.of(role);
+    if (!from.force_written) continue;
+    add_particle_forces(role, from.force,
+                        from.torque_written ? std::span<const double>(from.torque) : std::span<const double>());
+  }
+  if (other.node_force_written_) add_node_forces(other.node_force_);
+}
+
+HeldForces Replies::held(const Solvers& solvers, Role role, bool surface, const SurfaceNodes& nodes) const {
+  HeldForces out{.role = role, .surface = surface, .index = {}, .node_id = {}, .force = {}, .torque = {}};
+  const auto nonzero = [](const std::vector<double>& values, std::size_t k) {
+    return !values.empty() && (values[3 * k] != 0.0 || values[3 * k + 1] != 0.0 || values[3 * k + 2] != 0.0);
+  };
+  const auto push = [](std::vector<double>& into, const std::vector<double>& values, std::size_t k) {
+    if (values.empty()) {
+      into.insert(into.end(), {0.0, 0.0, 0.0});
+    } else {
+      into.insert(into.end(), values.begin() + static_cast<std::ptrdiff_t>(3 * k),
+                  values.begin() + static_cast<std::ptrdiff_t>(3 * k + 3));
+    }
+  };
+  if (surface) {
+    if (!node_force_written_) return out;
+    assert(node_force_.size() == 3 * nodes.id.size());
+    for (std::size_t k = 0; k < nodes.id.size(); ++k) {
+      if (!nonzero(node_force_, k)) continue;
+      out.node_id.push_back(nodes.id[k]);
+      push(out.force, node_force_, k);
+    }
+    return out;
+  }
+  const ParticleReply& reply = of(role);
+  if (!reply.force_written) return out;
+  const auto& index = solvers.at(role).state->index();
+  for (std::size_t k = 0; k < static_cast<std::size_t>(index.size()); ++k) {
+    if (!nonzero(reply.force, k) && !nonzero(reply.torque, k)) continue;
+    out.index.push_back(index[static_cast<int>(k)]);
+    push(out.force, reply.force, k);
+    if (reply.torque_written) push(out.torque, reply.torque, k);
+  }
+  return out;
+}
+
+std::size_t Replies::add_held(const Solvers& solvers, const HeldForces& held, const SurfaceNodes& nodes) {
+  std::size_t lost = 0;
+  if (held.surface) {
+    if (held.node_id.empty()) return 0;
+    for (std::size_t k = 0; k < held.node_id.size(); ++k) {
+      const auto it = nodes.row.find(held.node_id[k]);
+      if (it == nodes.row.end()) {
+        ++lost;
+        continue;
+      }
+      for (int c = 0; c < 3; ++c) node_force_[3 * it->second + c] += held.force[3 * k + c];
+    }
+    node_force_written_ = true;
+    return lost;
+  }
+  if (held.index.empty()) return 0;
+  ParticleReply& reply = particles_[static_cast<std::size_t>(held.role)];
+  const auto& index = solvers.at(held.role).state->index();
+  std::uint32_t largest = 0;
+  for (const std::uint32_t i : index) largest = std::max(largest, i);
+  for (const std::uint32_t i : held.index) largest = std::max(largest, i);
+  std::vector<std::int64_t> row(static_cast<std::size_t>(largest) + 1, -1);
+  for (int k = 0; k < index.size(); ++k) row[index[k]] = k;
+  const bool torque = !held.torque.empty();
+  if (torque && !reply.torque_written) {
+    reply.torque.assign(reply.force.size(), 0.0);
+    reply.torque_written = true;
+  }
+  // Rows of their own for particles the state left out, one per index.
+  std::unordered_map<std::uint32_t, std::size_t> extra_row;
+  for (std::size_t k = 0; k < reply.extra.index.size(); ++k) extra_row.emplace(reply.extra.index[k], k);
+  for (std::size_t k = 0; k < held.index.size(); ++k) {
+    const std::int64_t at = row[held.index[k]];
+    if (at >= 0) {
+      const auto r = static_cast<std::size_t>(at);
+      for (std::size_t c = 0; c < 3; ++c) {
+        reply.force[3 * r + c] += held.force[3 * k + c];
+        if (torque) reply.torque[3 * r + c] += held.torque[3 * k + c];
+      }
+      continue;
+    }
+    auto [it, added] = extra_row.emplace(held.index[k], reply.extra.index.size());
+    if (added) {
+      reply.extra.index.push_back(held.index[k]);
+      reply.extra.force.insert(reply.extra.force.end(), {0.0, 0.0, 0.0});
+      reply.extra.torque.insert(reply.extra.torque.end(), {0.0, 0.0, 0.0});
+    }
+    for (std::size_t c = 0; c < 3; ++c) {
+      reply.extra.force[3 * it->second + c] += held.force[3 * k + c];
+      if (torque) reply.extra.torque[3 * it->second + c] += held.torque[3 * k + c];
+    }
+  }
+  reply.force_written = true;
+  return lost;
 }
 
 }  // namespace sabo::coupler

@@ -42,6 +42,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "coupler/contact/point_load.hpp"
@@ -134,6 +135,25 @@ class BoundaryChannel {
   std::vector<const physics::BoundaryParticles*> parts_;
 };
 
+// Hold exchanges (docs/architecture.md, "Multirate"): the forces one pair put on one side at the exchange
+// where it was last evaluated, by entity (particle-table index or surface node id), given again at that
+// side's exchanges until the pair is evaluated again.
+struct HeldForces {
+  Role role = Role::dem;
+  bool surface = false;                // the surface's nodes (node_id), else the role's particles (index)
+  std::vector<std::uint32_t> index;    // particle-table indices
+  std::vector<std::uint64_t> node_id;  // surface node ids
+  std::vector<double> force, torque;   // 3 per entity (N, N m); torque empty: none
+  [[nodiscard]] bool empty() const { return index.empty() && node_id.empty(); }
+};
+
+// The surface's node ids now and each id's row (the order of its node forces).
+struct SurfaceNodes {
+  std::vector<std::uint64_t> id;
+  std::unordered_map<std::uint64_t, std::size_t> row;
+  void assign(const google::protobuf::RepeatedField<std::uint64_t>& ids);
+};
+
 // The replies of one step, built up pair by pair in the factory's order; the
 // coupler turns them into StepForces.
 class Replies {
@@ -147,6 +167,21 @@ class Replies {
   void add_particle_forces(Role role, std::span<const double> force, std::span<const double> torque);
   // 3 doubles per surface node (N).
   void add_node_forces(std::span<const double> node_force);
+  // Hold exchanges: adds everything `other` (begun for the same states) holds but its boundary particles.
+  void add(const Replies& other);
+  // What this reply gives `role`'s particles (or, `surface`, the surface's nodes), by entity: the rows that
+  // carry a force or a torque.
+  [[nodiscard]] HeldForces held(const Solvers& solvers, Role role, bool surface, const SurfaceNodes& nodes) const;
+  // Adds held forces: a particle's to its row of the state, or, when the state left it out, to a row of its
+  // own (extra_particles); a node's to its row of the surface now. Returns the forces that found no entity
+  // (surface nodes gone with eroded elements).
+  std::size_t add_held(const Solvers& solvers, const HeldForces& held, const SurfaceNodes& nodes);
+  struct ExtraParticles {
+    std::vector<std::uint32_t> index;
+    std::vector<double> force, torque;  // torque: 3 per index, or empty
+  };
+  // Held forces on particles outside the role's state, in the order they came.
+  [[nodiscard]] const ExtraParticles& extra_particles(Role role) const { return of(role).extra; }
   [[nodiscard]] BoundaryChannel& boundary() { return boundary_; }
   [[nodiscard]] const BoundaryChannel& boundary() const { return boundary_; }
 
@@ -160,6 +195,7 @@ class Replies {
   struct ParticleReply {
     std::vector<double> force, torque;
     bool force_written = false, torque_written = false;
+    ExtraParticles extra;
   };
   [[nodiscard]] const ParticleReply& of(Role role) const { return particles_[static_cast<std::size_t>(role)]; }
   std::array<ParticleReply, 3> particles_;
@@ -198,6 +234,9 @@ class ContactPair {
     static const Holding allowed;
     return allowed;
   }
+  // Hold exchanges: true when both its sides must step at every exchange (a pair that sends boundary
+  // particles: the sph_solver takes them at every step, and the fluid's force on them comes back a step later).
+  [[nodiscard]] virtual bool every_exchange() const { return false; }
   [[nodiscard]] virtual NewtonBalance newton_balance() const = 0;
   // J in the pair's springs at x_n, and W dissipated by its dashpots and slip in step n (acts over dt_n).
   struct Energy {

@@ -31,6 +31,7 @@ class SphDemBoundaryPair final : public ContactPair {
   void compute(const Solvers& solvers, const StepClock& clock) override;
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
   [[nodiscard]] InterestRequest interest(Role role) const override;
+  [[nodiscard]] bool every_exchange() const override { return true; }
   [[nodiscard]] NewtonBalance newton_balance() const override { return balance_; }
   [[nodiscard]] std::size_t contact_count() const override { return boulders_touched_; }
   [[nodiscard]] nlohmann::json effect() const override;

@@ -19,6 +19,7 @@ class WallParticlesPair final : public ContactPair {
   void compute(const Solvers& solvers, const StepClock& clock) override;
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
   [[nodiscard]] InterestRequest interest(Role role) const override;
+  [[nodiscard]] bool every_exchange() const override { return true; }
   [[nodiscard]] NewtonBalance newton_balance() const override;
   // Not on a deformable structure: there the walls' acceleration enters their pressure (the fluid's added
   // mass), and that force held over several of the structure's steps feeds its vibration (C1 in

@@ -208,6 +208,7 @@ struct StateStream {
         time(group, "time", kEntryChunk, stages, kScalars),
         stable_dt(group, "stable_dt", kEntryChunk, stages, kScalars),
         timing(group, "timing", kEntryChunk * 2, stages, kScalars),
+        held(group, "held", kEntryChunk, stages, kScalars),
         particle_table(group, "particle_table", stages),
         topology(group, "topology", stages) {
     if (selection.energies) energies.emplace(group, "energies", kEntryChunk * 4, stages, kScalars);
@@ -227,6 +228,7 @@ struct StateStream {
     stable_dt.push(message.stable_dt());
     timing.push(message.compute_seconds());
     timing.push(message.wait_seconds());
+    held.push(static_cast<std::uint8_t>(message.held() ? 1 : 0));
     if (energies) {
       const auto& e = message.energies();
       const std::array<double, 4> values{e.kinetic(), e.potential(), e.elastic(), e.dissipated()};
@@ -256,7 +258,7 @@ struct StateStream {
   // The states of steps before `before` in `old`, this stream's group of a recording being continued.
   std::uint64_t carry(const hdf5::Group& old, std::uint64_t before) {
     const std::uint64_t n = entries_before(old, before);
-    std::uint64_t bytes = time.carry(old, n) + stable_dt.carry(old, n) + timing.carry(old, 2 * n);
+    std::uint64_t bytes = time.carry(old, n) + stable_dt.carry(old, n) + timing.carry(old, 2 * n) + held.carry(old, n);
     if (energies) bytes += energies->carry(old, 4 * n);
     bytes += carry_if(index, old, n);
     for (auto* column : {&position, &velocity, &angular_velocity, &node_position, &node_velocity, &boundary_force}) {
@@ -270,6 +272,7 @@ struct StateStream {
   hdf5::Group group;
   Column<std::uint64_t> step;
   Column<double> time, stable_dt, timing;
+  Column<std::uint8_t> held;
   std::optional<Column<double>> energies;
   OptionalArray<std::uint32_t> index;
   OptionalArray<double> position, velocity, angular_velocity, node_position, node_velocity, boundary_force;
@@ -284,6 +287,7 @@ struct ForcesStream {
         dt(group, "dt", kEntryChunk, stages, kScalars),
         flags(group, "flags", kEntryChunk, stages, kScalars),
         substeps(group, "substeps", kEntryChunk, stages, kScalars),
+        holds(group, "holds", kEntryChunk, stages, kScalars),
         interest(group, "interest", stages) {
     emplace_if(selection.force || selection.torque, index, group, "index", stages);
     emplace_if(selection.force, force, group, "force", stages);
@@ -306,10 +310,13 @@ struct ForcesStream {
     if (message.output()) bits |= kFlagOutput;
     if (message.stop()) bits |= kFlagStop;
     if (message.interest_all()) bits |= kFlagInterestAll;
+    if (message.hold()) bits |= kFlagHold;
     flags.push(bits);
     const std::uint32_t steps = std::max<std::uint32_t>(message.substeps(), 1);
     assert(steps <= kMaxRecordedSubsteps && "at most solver::kMaxSubsteps");
     substeps.push(static_cast<std::uint8_t>(steps));
+    assert(message.holds() <= kMaxRecordedHolds && "at most coupler::kMaxHeldExchanges - 1");
+    holds.push(static_cast<std::uint8_t>(message.holds()));
     if (index) index->push(span_of(message.index()));
     if (force) force->push(span_of(message.force()));
     if (torque) torque->push(span_of(message.torque()));
@@ -331,7 +338,8 @@ struct ForcesStream {
 
   std::uint64_t carry(const hdf5::Group& old, std::uint64_t before) {
     const std::uint64_t n = entries_before(old, before);
-    std::uint64_t bytes = dt.carry(old, n) + flags.carry(old, n) + substeps.carry(old, n) + carry_if(index, old, n);
+    std::uint64_t bytes =
+        dt.carry(old, n) + flags.carry(old, n) + substeps.carry(old, n) + holds.carry(old, n) + carry_if(index, old, n);
     for (auto* column : {&force, &torque, &node_force, &boundary_position, &boundary_velocity, &boundary_normal,
                          &boundary_acceleration, &boundary_volume}) {
       bytes += carry_if(*column, old, n);
@@ -344,7 +352,7 @@ struct ForcesStream {
   hdf5::Group group;
   Column<std::uint64_t> step;
   Column<double> dt;
-  Column<std::uint8_t> flags, substeps;
+  Column<std::uint8_t> flags, substeps, holds;
   OptionalArray<std::uint32_t> index;
   OptionalArray<double> force, torque, node_force;
   OptionalArray<double> boundary_position, boundary_velocity, boundary_normal, boundary_acceleration, boundary_volume;

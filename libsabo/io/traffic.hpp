@@ -11,7 +11,7 @@
 //     state/                StepState messages (solver -> coupler), one entry per recorded step in
 //       step uint64, time float64, stable_dt float64
 //       energies float64 (4 per step: kinetic, potential, elastic, dissipated)
-//       timing float64 (2 per step: compute_seconds, wait_seconds)
+//       timing float64 (2 per step: compute_seconds, wait_seconds), held uint8 (1: a held state)
 //       <field>, <field>_offset, <field>_count   for each array field: the values of every
 //                                                recorded step concatenated, and per step
 //                                                where its slice starts and how long it is
@@ -20,7 +20,8 @@
 //         optional field), particle_table and topology uint8 (serialized, present only
 //         in steps where the message carried them)
 //     forces/                StepForces messages (coupler -> solver)
-//       step uint64, dt float64, flags uint8 (1 checkpoint, 2 output, 4 stop, 8 interest_all)
+//       step uint64, dt float64, flags uint8 (1 checkpoint, 2 output, 4 stop, 8 interest_all, 16 hold),
+//       substeps uint8, holds uint8
 //       <field>, <field>_offset, <field>_count   for index uint32, force, torque, node_force,
 //                                                interest float64 (6 per box), boundary_position,
 //                                                boundary_velocity, boundary_normal,

@@ -258,6 +258,7 @@ sabo::v1::StepState TrafficReader::state(const std::string& role, std::uint64_t 
   message.set_stable_dt(stream.scalar<double>("stable_dt", entry));
   message.set_compute_seconds(stream.scalar<double>("timing", entry, 2, 0));
   message.set_wait_seconds(stream.scalar<double>("timing", entry, 2, 1));
+  if (impl_->version >= kHoldColumnsVersion && stream.scalar<std::uint8_t>("held", entry) != 0) message.set_held(true);
   if (stream.has("energies")) {
     auto* energies = message.mutable_energies();
     energies->set_kinetic(stream.scalar<double>("energies", entry, 4, 0));
@@ -297,6 +298,11 @@ sabo::v1::StepForces TrafficReader::forces(const std::string& role, std::uint64_
                                      ? stream.scalar<std::uint8_t>("substeps", entry)
                                      : 1u << (bits >> kVersion1SubstepsShift);
   if (substeps > 1) message.set_substeps(substeps);
+  if (impl_->version >= kHoldColumnsVersion) {
+    message.set_hold((bits & kFlagHold) != 0);
+    const std::uint32_t holds = stream.scalar<std::uint8_t>("holds", entry);
+    if (holds > 0) message.set_holds(holds);
+  }
   stream.array<std::uint32_t>("index", entry, message.mutable_index());
   stream.array<double>("force", entry, message.mutable_force());
   stream.array<double>("torque", entry, message.mutable_torque());

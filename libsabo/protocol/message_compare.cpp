@@ -168,6 +168,11 @@ void MessageComparison::compare_states(const sabo::v1::Register& registration, c
   if (replayed.step() != step) {
     structural(step, time, "step", fmt::format("recorded step {}, replayed step {}", step, replayed.step()));
   }
+  if (replayed.held() != recorded.held()) {
+    structural(step, time, "step",
+               fmt::format("recorded a {} state, replayed a {} one (hold exchanges)",
+                           recorded.held() ? "held" : "whole", replayed.held() ? "held" : "whole"));
+  }
   scalar(step, time, "time", "", recorded.time(), replayed.time());
   scalar(step, time, "stable_dt", "", recorded.stable_dt(), replayed.stable_dt());
   if (!std::equal(recorded.index().begin(), recorded.index().end(), replayed.index().begin(), replayed.index().end())) {
@@ -227,9 +232,11 @@ void MessageComparison::compare_forces(const sabo::v1::Register& registration, c
   }
   scalar(step, time, "dt", "", recorded.dt(), replayed.dt());
   const auto flags = [](const sabo::v1::StepForces& f) {
-    return (f.checkpoint() ? 1 : 0) | (f.output() ? 2 : 0) | (f.stop() ? 4 : 0) | (f.interest_all() ? 8 : 0);
+    return (f.checkpoint() ? 1 : 0) | (f.output() ? 2 : 0) | (f.stop() ? 4 : 0) | (f.interest_all() ? 8 : 0) |
+           (f.hold() ? 16 : 0);
   };
   scalar(step, time, "flags", "", flags(recorded), flags(replayed));
+  scalar(step, time, "flags", "holds", recorded.holds(), replayed.holds());
   if (!std::equal(recorded.index().begin(), recorded.index().end(), replayed.index().begin(), replayed.index().end())) {
     structural(step, time, "index",
                fmt::format("{} particles recorded, {} replayed", recorded.index_size(), replayed.index_size()));

@@ -105,6 +105,8 @@ struct RunSettings {
   // Each solver at a power-of-two fraction of the exchange step, contact forces held between exchanges
   // (docs/architecture.md, "Multirate"); false: every solver at the smallest stable step (paper eq. 7).
   bool multirate = false;
+  // With multirate: a solver may step less often than it exchanges (docs/protocol.md, "Hold exchanges").
+  bool hold_exchanges = true;
   // s between checkpoints; absent: end_time / 10; 0: none (checkpoint_period() resolves it).
   std::optional<double> checkpoint_interval;
   std::size_t checkpoints_kept = 2;

@@ -171,6 +171,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   solver.describe(registration);
   registration.set_checkpoints(solver.can_checkpoint());
   registration.set_max_substeps(solver.max_substeps());
+  registration.set_holds(solver.can_hold());
   registration.set_takes_state(solver.can_take_state());
 
   const std::string role_text = role_name(role);
@@ -213,27 +214,80 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
 
     sabo::v1::StepState state;
     double compute_since_last = 0;
+    const auto write_checkpoint = [&](std::uint64_t at) {
+      const auto checkpoint_start = Clock::now();
+      checkpoints.write(at, time, [&](io::hdf5::File& file) {
+        file.set_attribute("dt_previous", dt_previous);
+        io::hdf5::Group driver = file.create_group("driver");
+        interest.save(driver);
+        io::hdf5::Group group = file.create_group("solver");
+        solver.save_checkpoint(group);
+      });
+      checkpoint_seconds += seconds_since(checkpoint_start);
+    };
+    // Hold exchanges still to answer after the last step, and how many there were.
+    std::uint32_t holds_left = 0, holds_announced = 0;
     for (;; ++step) {
       auto start = Clock::now();
       state.Clear();
       state.set_step(step);
       state.set_time(time);
       state.set_stable_dt(solver.stable_dt());
-      solver.fill_state(interest, state);
+      // A hold: the whole state at the first (the step just taken), a held one at the others.
+      const bool hold = holds_left > 0;
+      if (hold && holds_left < holds_announced) {
+        state.set_held(true);
+      } else {
+        solver.fill_state(interest, state);
+      }
       compute_since_last += seconds_since(start);
       state.set_compute_seconds(compute_since_last);
       state.set_wait_seconds(link.wait_seconds());
       link.send_state(state);
 
       start = Clock::now();
-      solver.compute_internal_forces(dt_previous);
-      const double overlapped = seconds_since(start);
+      double overlapped = 0;
+      if (!hold) {
+        solver.compute_internal_forces(dt_previous);
+        overlapped = seconds_since(start);
+      }
 
       const auto& forces = link.receive_forces(step);
 
       start = Clock::now();
-      solver.apply_coupling_forces(forces);
+      if (forces.hold() != hold) {
+        throw ProtocolError(
+            hold ? fmt::format("StepForces of step {} is not a hold, while the StepForces of step {} announced {} "
+                               "hold exchanges",
+                               step, step - (holds_announced - holds_left) - 1, holds_announced)
+                 : fmt::format("StepForces of step {} is a hold that no StepForces announced", step));
+      }
       interest.update(forces.interest(), forces.interest_all());
+      if (hold) {
+        if (forces.output() || forces.has_taken() || forces.holds() > 0 || forces.index_size() > 0 ||
+            forces.node_force_size() > 0 || (forces.checkpoint() && holds_left > 1)) {
+          throw ProtocolError(fmt::format(
+              "StepForces of step {} is a hold with {}: a hold carries interest regions, stop, and a checkpoint "
+              "at the last hold only",
+              step,
+              forces.output()       ? "output set"
+              : forces.has_taken()  ? "recorded state to take"
+              : forces.holds() > 0  ? "holds of its own"
+              : forces.checkpoint() ? "a checkpoint before the last hold"
+                                    : "forces"));
+        }
+        --holds_left;
+        if (forces.stop()) {
+          compute_seconds += seconds_since(start);
+          ++step;
+          break;
+        }
+        if (forces.checkpoint() && solver.can_checkpoint()) write_checkpoint(step + 1);
+        compute_since_last = seconds_since(start);
+        compute_seconds += compute_since_last;
+        continue;
+      }
+      solver.apply_coupling_forces(forces);
       if (forces.output()) solver.write_output(step, time);
       if (forces.stop()) {
         compute_seconds += overlapped + seconds_since(start);
@@ -247,6 +301,12 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
             fmt::format("StepForces of step {} asks for {} steps of dt = {:.6g} s; this solver "
                         "registered max_substeps = {}",
                         step, substeps, forces.dt(), registration.max_substeps()));
+      }
+      if (forces.holds() > 0 && (!registration.holds() || forces.checkpoint())) {
+        throw ProtocolError(fmt::format("StepForces of step {} announces {} hold exchanges{}", step, forces.holds(),
+                                        forces.checkpoint()
+                                            ? " and asks for a checkpoint (a checkpoint comes at the last hold)"
+                                            : "; this solver registered holds = false"));
       }
       for (std::uint32_t k = 0; k < substeps; ++k) {
         if (k > 0) {
@@ -269,6 +329,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         }
       }
       substeps_taken += substeps;
+      holds_left = holds_announced = forces.holds();
       if (forces.has_taken()) {
         if (!registration.takes_state()) {
           throw ProtocolError(
@@ -278,17 +339,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         }
         solver.take_state(forces.taken());
       }
-      if (forces.checkpoint() && solver.can_checkpoint()) {
-        const auto checkpoint_start = Clock::now();
-        checkpoints.write(step + 1, time, [&](io::hdf5::File& file) {
-          file.set_attribute("dt_previous", dt_previous);
-          io::hdf5::Group driver = file.create_group("driver");
-          interest.save(driver);
-          io::hdf5::Group group = file.create_group("solver");
-          solver.save_checkpoint(group);
-        });
-        checkpoint_seconds += seconds_since(checkpoint_start);
-      }
+      if (forces.checkpoint() && solver.can_checkpoint()) write_checkpoint(step + 1);
       compute_since_last = overlapped + seconds_since(start);
       compute_seconds += compute_since_last;
     }

@@ -55,6 +55,12 @@ class Interest {
 // by m - 1 further steps, each compute_internal_forces(dt_n), apply_coupling_forces() with the
 // same forces (held) and integrate(dt_n, dt_n); the next state is at t_n + m dt_n. A solver
 // whose held inputs would not be exact over several steps says so with max_substeps() = 1.
+// Hold exchanges (docs/protocol.md): with StepForces.holds = h > 0 the next h exchanges are holds
+// (StepForces.hold): the driver answers each at once without a step (no compute_internal_forces, no
+// integrate), sending the whole state at the first and a held StepState at the others; its next whole
+// StepState after them is followed by compute_internal_forces as at any step. A checkpoint is written at
+// the last hold only (the state of the exchange after it). A solver that can hold says so with can_hold()
+// (by default: one that can take several steps per exchange).
 // A solver started with --resume FILE is built from the scene as usual, then
 // load_checkpoint() puts it back at step n + 1: from there it must produce
 // the same bits as the process that wrote the file.
@@ -77,6 +83,8 @@ class CoupledSolver {
   virtual void write_instability(const Instability& /*instability*/, const std::filesystem::path& /*file*/) const {}
   // The most steps this solver takes per exchange with held forces (1: lock-step).
   [[nodiscard]] virtual std::uint32_t max_substeps() const { return 1; }
+  // Whether it may answer hold exchanges (step less often than it exchanges).
+  [[nodiscard]] virtual bool can_hold() const { return max_substeps() > 1; }
   // Restarts: a solver that can write its whole state says so; save writes it into `group`, load
   // restores it from a group that save wrote for the same scene (FileError otherwise).
   [[nodiscard]] virtual bool can_checkpoint() const { return false; }

@@ -193,6 +193,27 @@ TEST_F(Fixture, InvalidStateEndsTheRunNamingTheSolver) {
       std::string::npos);
 }
 
+// Hold exchanges (docs/protocol.md): a held state answers a hold only. One sent where the solver steps (here its
+// first state, which every solver must send whole) ends the run naming the solver and why.
+TEST_F(Fixture, AHeldStateWhereTheSolverStepsEndsTheRun) {
+  auto coupler = start_coupler();
+  protocol::SolverLink link(endpoint, 5000ms);
+  link.register_solver(dem_registration());
+  sabo::v1::StepState state;
+  state.set_step(0);
+  state.set_stable_dt(1e-3);
+  state.set_held(true);
+  link.send_state(state);
+  EXPECT_THROW(link.receive_forces(0), StopRequested);
+  EXPECT_EQ(coupler.get(), coupler::kSolverFailed);
+  const auto all = events();
+  const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
+  ASSERT_NE(error, all.end());
+  std::cout << "error event: " << error->dump() << "\n";
+  EXPECT_NE((*error)["message"].get<std::string>().find("held state of step 0: it steps at this exchange"),
+            std::string::npos);
+}
+
 // Issue 18, item 1: a client that connects, sends one frame and leaves at once used to end the run (the reply
 // to a peer that has gone fails under ZMQ_ROUTER_MANDATORY). Now the reply is dropped and the run goes on, for
 // a garbage frame, a state from an unregistered peer and a registration that does not parse alike.

@@ -4,6 +4,7 @@
 // its stable step.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -165,4 +166,109 @@ TEST(Multirate, SubstepsWithin) {
       EXPECT_LE(got, m);
     }
   }
+}
+
+// Hold exchanges (docs/architecture.md, "Multirate"): a solver whose interval spans several exchanges steps at
+// the first and holds at the others.
+namespace {
+
+std::vector<SolverRate> holding(std::vector<SolverRate> solvers) {
+  for (auto& s : solvers) s.holds = true;
+  return solvers;
+}
+
+// Every solver's interval is a whole number of exchanges within its limits, and the intervals nest.
+void expect_consistent(const sabo::coupler::RatePlan& plan, const std::vector<SolverRate>& solvers) {
+  const std::uint32_t block = *std::max_element(plan.intervals.begin(), plan.intervals.end());
+  for (std::size_t i = 0; i < solvers.size(); ++i) {
+    const std::uint32_t k = plan.intervals[i];
+    EXPECT_EQ(k & (k - 1), 0u) << "solver " << i << ": a power of two";
+    EXPECT_EQ(block % k, 0u) << "solver " << i;
+    EXPECT_LE(k * plan.exchange_dt / plan.substeps[i], solvers[i].stable_step) << "solver " << i;
+  }
+}
+
+}  // namespace
+
+TEST(Multirate, HoldExchangesGiveTheSlurryItsOwnStepOnTheWenjiaScene) {
+  // Full resolution (bench/RESULTS.md, 6 December 2026): the slurry 1.875 ms, the boulders 1.133 ms (their
+  // step and their contact with the structures), the dams 0.251 ms; the sph-dem penalty pair allows 2.77 ms.
+  const auto solvers = holding({{.stable_step = 1.875e-3, .max_substeps = 64},
+                                {.stable_step = 1.133e-3, .max_substeps = 64},
+                                {.stable_step = 0.251e-3, .max_substeps = 64}});
+  auto pairs = three_pairs();
+  pairs[2].stable_dt = 2.77e-3;
+  pairs[1].stable_dt = 1.133e-3;
+  const auto plan = plan_rates(solvers, pairs, kNoLimits, true);
+  std::cout << "exchange " << plan.exchange_dt * 1e3 << " ms; sph every " << plan.intervals[0]
+            << " exchanges (its step " << plan.intervals[0] * plan.exchange_dt * 1e3
+            << " ms, expected 1.875), dem every " << plan.intervals[1] << ", fem " << plan.substeps[2]
+            << " steps an exchange\n";
+  // The slurry's interval halved once is within the boulders' 1.133 ms: it gains 1.875 / 1.133 = 1.65 times
+  // fewer steps for 1.133 / 0.9375 = 1.21 times more exchanges of the others.
+  EXPECT_EQ(plan.exchange_dt, 1.875e-3 / 2);
+  EXPECT_EQ(plan.intervals, (std::vector<std::uint32_t>{2, 1, 1}));
+  EXPECT_EQ(plan.substeps, (std::vector<std::uint32_t>{1, 1, 4}));
+  EXPECT_EQ(plan.limit.text(), "pair 0");
+  expect_consistent(plan, solvers);
+  // Without hold exchanges (solvers that do not hold): every solver at the boulders' 1.133 ms, as before.
+  auto lock = solvers;
+  for (auto& s : lock) s.holds = false;
+  const auto without = plan_rates(lock, pairs, kNoLimits, true);
+  EXPECT_EQ(without.exchange_dt, 1.133e-3);
+  EXPECT_EQ(without.intervals, (std::vector<std::uint32_t>{1, 1, 1}));
+  EXPECT_EQ(without.substeps, (std::vector<std::uint32_t>{1, 1, 5}));
+}
+
+TEST(Multirate, HoldExchangesOnTheFinestGridWhereHalvingTheSlowestCostsMore) {
+  // The slurry barely slower than the rest: halving it would double the others' exchanges for 6 % fewer
+  // slurry steps. The finest interval stays the exchange; nobody holds.
+  const auto close = plan_rates(holding(three_solvers(1.2, 1.133, 0.5)), three_pairs(), kNoLimits, true);
+  EXPECT_EQ(close.exchange_dt, 1.133);
+  EXPECT_EQ(close.intervals, (std::vector<std::uint32_t>{1, 1, 1}));
+  // 4.5 times slower: four exchanges of the finest (a 4.5 / 4 gain against 1 / 0.5625 for halving it thrice).
+  const auto solvers = holding(three_solvers(4.5, 1.0, 0.5));
+  auto pairs = three_pairs();
+  pairs[1].stable_dt = 1.0;
+  const auto far = plan_rates(solvers, pairs, kNoLimits, true);
+  EXPECT_EQ(far.exchange_dt, 1.0);
+  EXPECT_EQ(far.intervals, (std::vector<std::uint32_t>{4, 1, 1}));
+  EXPECT_EQ(far.substeps, (std::vector<std::uint32_t>{1, 1, 2}));
+  expect_consistent(far, solvers);
+}
+
+TEST(Multirate, OnlyASolverThatHoldsAndNoBoundaryParticlePairHolds) {
+  auto solvers = holding(three_solvers(8.0, 3.0, 1.0));
+  auto pairs = three_pairs();
+  pairs[1].stable_dt = 1.0;
+  const auto plan = plan_rates(solvers, pairs, kNoLimits, true);
+  EXPECT_EQ(plan.intervals[0], 8u);
+  // The slurry registered holds = false: it exchanges at every step of the exchange it gets.
+  solvers[0].holds = false;
+  const auto no_hold = plan_rates(solvers, pairs, kNoLimits, true);
+  EXPECT_EQ(no_hold.intervals[0], 1u);
+  // A pair with boundary particles between the slurry and the boulders: both step at every exchange.
+  solvers[0].holds = true;
+  pairs[2].every_exchange = true;
+  const auto walls = plan_rates(solvers, pairs, kNoLimits, true);
+  EXPECT_EQ(walls.intervals[0], 1u);
+  EXPECT_EQ(walls.intervals[1], 1u);
+  // Lock-step never holds.
+  EXPECT_EQ(plan_rates(holding(three_solvers(8.0, 3.0, 1.0)), three_pairs(), kNoLimits, false).intervals,
+            (std::vector<std::uint32_t>{1, 1, 1}));
+}
+
+TEST(Multirate, ABlockOfHoldExchangesEndsAtTheNextOutput) {
+  const auto solvers = holding(three_solvers(8.0, 3.0, 1.0));
+  auto pairs = three_pairs();
+  pairs[1].stable_dt = 1.0;
+  const auto plan =
+      plan_rates(solvers, pairs, {.max_dt = std::nullopt, .fallback_dt = 0.01, .until_next_output = 6.0}, true);
+  const std::uint32_t block = *std::max_element(plan.intervals.begin(), plan.intervals.end());
+  std::cout << "block of " << block << " exchanges of " << plan.exchange_dt << " s\n";
+  EXPECT_LE(block * plan.exchange_dt, 6.0);
+  // The slurry's 8 cut to the 6 left: halved three times (0.75) it gains 6 / 4 = 1.5 against 1 / 0.75 = 1.33.
+  EXPECT_EQ(plan.exchange_dt, 0.75);
+  EXPECT_EQ(plan.intervals[0], 8u);
+  expect_consistent(plan, solvers);
 }

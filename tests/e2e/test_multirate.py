@@ -98,7 +98,7 @@ class MultirateSphereOnBlockTest(RealRunTestCase):
         one written back into that form) replays the fem_solver's two steps per exchange to the bit."""
         run = self.run_case("version_1", True, 2 * EXCHANGE)["out"]
         with h5py.File(os.path.join(run, "traffic.h5"), "r+") as traffic:
-            self.assertEqual(traffic.attrs["format_version"], 2)
+            self.assertEqual(traffic.attrs["format_version"], 3)
             for role in ("dem_solver", "fem_solver"):
                 forces = traffic[role]["forces"]
                 substeps = forces["substeps"][()]

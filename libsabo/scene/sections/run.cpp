@@ -83,6 +83,12 @@ void Schema::build_run() {
                "boulder's step is far below the fluid's. SPH boundary particles on a deformable structure are "
                "never held (their pair keeps its faster side's step: held, the fluid's added mass fed C1's plate "
                "until it failed)."),
+      K("hold_exchanges", Type::boolean)
+          .def(RunSettings{}.hold_exchanges)
+          .doc("With `multirate`: a solver whose step spans several exchanges steps at the first and holds at the "
+               "others (docs/protocol.md, \"Hold exchanges\"), so that the slurry steps at its own step although "
+               "boulders or structures set a shorter exchange; each pair is evaluated where both its solvers step. "
+               "`false`: every solver steps at every exchange (the exchange is then the finest interval of all)."),
       K("checkpoint_interval", Type::number)
           .absent("a tenth of `end_time`")
           .example("0.5")
@@ -205,6 +211,7 @@ void Builder::read_run(const toml::table& table) {
   if (auto v = r.number("end_time")) run.end_time = *v;
   if (auto v = r.number("output_interval")) run.output_interval = *v;
   if (auto v = r.boolean("multirate")) run.multirate = *v;
+  if (auto v = r.boolean("hold_exchanges")) run.hold_exchanges = *v;
   run.endpoint_origin = origin(r.line("endpoint"), r.node("endpoint") != nullptr ? r.key_path("endpoint") : "run");
   if (auto v = r.string("endpoint")) {
     const auto address = valid_endpoint(*v) && v->starts_with("tcp://") ? ipv4_problem(*v) : std::nullopt;

@@ -68,6 +68,7 @@ sabo::v1::StepState make_surface_state(std::uint64_t step) {
   state.set_time(1e-4 * static_cast<double>(step));
   state.set_stable_dt(1e300);
   state.mutable_energies();
+  if (step % 5 == 2) state.set_held(true);  // the recorder keeps the flag whatever else the state holds
   for (int i = 0; i < 30; ++i) {
     state.add_node_position(static_cast<double>(step) + i);
     state.add_node_velocity(0.0);
@@ -90,6 +91,8 @@ sabo::v1::StepForces make_forces(std::uint64_t step, const sabo::v1::StepState& 
   forces.set_checkpoint(step % 3 == 0);
   if (step % 4 == 1) forces.set_substeps(5);  // multirate: any whole number of steps, up to the driver's 64
   if (step % 4 == 2) forces.set_substeps(64);
+  if (step % 4 == 3) forces.set_holds(3);  // hold exchanges: the next three are holds
+  if (step % 7 == 4) forces.set_hold(true);
   *forces.mutable_index() = state.index();
   for (int i = 0; i < state.position_size(); ++i) {
     forces.add_force(0.5 * state.position(i));
