@@ -186,6 +186,12 @@ void Coupler::accept_state(Peer& peer, std::uint64_t step) {
   const bool held = peer.incoming.held();
   if (held) {
     validate_held_state(peer);
+    // The first hold after a step carries that step's energies: the energy balance reads them from the
+    // peer's state (the pairs read nothing else of a held state).
+    if (peer.incoming.has_energies()) {
+      peer.state.mutable_energies()->CopyFrom(peer.incoming.energies());
+      peer.state.mutable_part_energies()->CopyFrom(peer.incoming.part_energies());
+    }
   } else {
     peer.state.Swap(&peer.incoming);
     validate_state(peer);
@@ -212,7 +218,13 @@ void Coupler::validate_held_state(const Peer& peer) {
   if (steps_now(peer, s.step())) invalid("it steps at this exchange (a held state answers a hold only)");
   if (s.index_size() != 0 || s.position_size() != 0 || s.node_position_size() != 0 || s.has_topology() ||
       s.has_particle_table() || s.boundary_force_size() != 0) {
-    invalid("it carries entities (a held state has step, time, stable_dt and the timings only)");
+    invalid(
+        "it carries entities (a held state has step, time, stable_dt, the timings and, at the first hold, the "
+        "energies only)");
+  }
+  const auto& e = s.energies();
+  for (const double value : {e.kinetic(), e.potential(), e.elastic(), e.dissipated(), e.inflow()}) {
+    if (!std::isfinite(value)) invalid(fmt::format("an energy is {} J (the solver has blown up)", value));
   }
   if (!(std::abs(s.time() - peer.ahead_time) <= 1e-9 * std::max(std::abs(peer.ahead_time), scene_.run.end_time))) {
     invalid(fmt::format("time = {} s, while its last step reached {} s", s.time(), peer.ahead_time));

@@ -212,7 +212,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
     spdlog::info("registered with the coupler at {} (protocol {})", options.coupler_endpoint, reply.protocol_version());
     if (!resumed) interest.update(reply.interest(), reply.interest_all());
 
-    sabo::v1::StepState state;
+    sabo::v1::StepState state, whole;
     double compute_since_last = 0;
     const auto write_checkpoint = [&](std::uint64_t at) {
       const auto checkpoint_start = Clock::now();
@@ -233,10 +233,17 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       state.set_step(step);
       state.set_time(time);
       state.set_stable_dt(solver.stable_dt());
-      // A hold: the whole state at the first (the step just taken), a held one at the others.
+      // A hold: a held state, with the energies of the step just taken at the first (the coupler's energy
+      // balance takes them there, where every solver's state describes the block's start).
       const bool hold = holds_left > 0;
-      if (hold && holds_left < holds_announced) {
+      if (hold) {
         state.set_held(true);
+        if (holds_left == holds_announced) {
+          whole.Clear();
+          solver.fill_state(interest, whole);
+          state.mutable_energies()->Swap(whole.mutable_energies());
+          state.mutable_part_energies()->Swap(whole.mutable_part_energies());
+        }
       } else {
         solver.fill_state(interest, state);
       }

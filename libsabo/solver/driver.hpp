@@ -57,7 +57,7 @@ class Interest {
 // whose held inputs would not be exact over several steps says so with max_substeps() = 1.
 // Hold exchanges (docs/protocol.md): with StepForces.holds = h > 0 the next h exchanges are holds
 // (StepForces.hold): the driver answers each at once without a step (no compute_internal_forces, no
-// integrate), sending the whole state at the first and a held StepState at the others; its next whole
+// integrate), sending held StepStates (the first with the energies of the step just taken); its next whole
 // StepState after them is followed by compute_internal_forces as at any step. A checkpoint is written at
 // the last hold only (the state of the exchange after it). A solver that can hold says so with can_hold()
 // (by default: one that can take several steps per exchange).
