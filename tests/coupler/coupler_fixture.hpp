@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -61,6 +62,16 @@ struct CouplerFixture : ::testing::Test {
     char line[4096];
     while (std::fgets(line, sizeof line, events_file) != nullptr) out.push_back(nlohmann::json::parse(line));
     return out;
+  }
+
+  // The run's first error event (printed), or an empty object when there is none.
+  nlohmann::json first_error() const {
+    for (const auto& event : events()) {
+      if (event["event"] != "error") continue;
+      std::cout << "error event: " << event.dump() << "\n";
+      return event;
+    }
+    return nlohmann::json::object();
   }
 };
 

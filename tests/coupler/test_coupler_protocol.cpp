@@ -161,13 +161,11 @@ TEST_F(Fixture, SilentSolverIsReportedAsHung) {
   EXPECT_EQ(code, coupler::kSolverFailed);
   std::cout << "hang detected after " << waited << " s (hang_timeout 1 s)\n";
   EXPECT_LT(waited, 2.0);
-  const auto all = events();
-  const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
-  ASSERT_NE(error, all.end());
-  std::cout << "error event: " << error->dump() << "\n";
-  EXPECT_EQ((*error)["process"], "dem_solver");
-  EXPECT_NE((*error)["message"].get<std::string>().find("hang_timeout"), std::string::npos);
-  EXPECT_NE((*error)["message"].get<std::string>().find("pid"), std::string::npos);
+  const auto error = first_error();
+  ASSERT_TRUE(error.contains("message"));
+  EXPECT_EQ(error["process"], "dem_solver");
+  EXPECT_NE(error["message"].get<std::string>().find("hang_timeout"), std::string::npos);
+  EXPECT_NE(error["message"].get<std::string>().find("pid"), std::string::npos);
 }
 
 TEST_F(Fixture, InvalidStateEndsTheRunNamingTheSolver) {
@@ -183,13 +181,11 @@ TEST_F(Fixture, InvalidStateEndsTheRunNamingTheSolver) {
   link.send_state(state);
   EXPECT_THROW(link.receive_forces(0), StopRequested);  // the coupler stops the run
   EXPECT_EQ(coupler.get(), coupler::kSolverFailed);
-  const auto all = events();
-  const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
-  ASSERT_NE(error, all.end());
-  std::cout << "error event: " << error->dump() << "\n";
+  const auto error = first_error();
+  ASSERT_TRUE(error.contains("message"));
   // Issue 18, item 3: the entity is named (it was "non-finite position or velocity").
   EXPECT_NE(
-      (*error)["message"].get<std::string>().find("non-finite position: position_x = nan of particle index 0 (id 0)"),
+      error["message"].get<std::string>().find("non-finite position: position_x = nan of particle index 0 (id 0)"),
       std::string::npos);
 }
 
@@ -206,11 +202,9 @@ TEST_F(Fixture, AHeldStateWhereTheSolverStepsEndsTheRun) {
   link.send_state(state);
   EXPECT_THROW(link.receive_forces(0), StopRequested);
   EXPECT_EQ(coupler.get(), coupler::kSolverFailed);
-  const auto all = events();
-  const auto error = std::find_if(all.begin(), all.end(), [](const auto& e) { return e["event"] == "error"; });
-  ASSERT_NE(error, all.end());
-  std::cout << "error event: " << error->dump() << "\n";
-  EXPECT_NE((*error)["message"].get<std::string>().find("held state of step 0: it steps at this exchange"),
+  const auto error = first_error();
+  ASSERT_TRUE(error.contains("message"));
+  EXPECT_NE(error["message"].get<std::string>().find("held state of step 0: it steps at this exchange"),
             std::string::npos);
 }
 

@@ -1,5 +1,6 @@
 """Shared helpers of the end-to-end tests: run `./sabo`, wait for events, find leftover processes."""
 import csv
+import filecmp
 import json
 import os
 import shutil
@@ -349,6 +350,25 @@ class RealRunTestCase(E2eTestCase):
         path = os.path.join(ROOT, relative)
         self.assertTrue(os.path.isfile(path), "missing test scene {}".format(relative))
         return path
+
+    def assertSameRunOutputs(self, reference, run, files=None, expected=()):
+        """The files `files` of two run folders (None: every .csv and .pvd of `reference`, among them
+        `expected`) and every frame of their dem/, sph/ and fem/ (those `reference` has) are the same bits."""
+        names = list(files) if files is not None else sorted(
+            name for name in os.listdir(reference) if name.endswith((".csv", ".pvd")))
+        for name in expected:
+            self.assertIn(name, names)
+        for name in names:
+            self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
+                            "{} differs from {}".format(os.path.join(run, name), os.path.join(reference, name)))
+        for folder in ("dem", "sph", "fem"):
+            if not os.path.isdir(os.path.join(reference, folder)):
+                continue
+            frames = sorted(os.listdir(os.path.join(reference, folder)))
+            self.assertEqual(frames, sorted(os.listdir(os.path.join(run, folder))), folder)
+            _, mismatch, errors = filecmp.cmpfiles(os.path.join(reference, folder), os.path.join(run, folder), frames,
+                                                   shallow=False)
+            self.assertEqual(mismatch + errors, [], "{}/ frames differ".format(folder))
 
     def assertTrafficReadable(self, run_dir, roles):
         """traffic.h5 opens (as after a crash: SWMR) and has recorded steps both ways for each solver role

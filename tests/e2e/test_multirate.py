@@ -119,18 +119,9 @@ class MultirateSphereOnBlockTest(RealRunTestCase):
             self.assertIn("every field matches", out)
 
     def assertSameOutputs(self, reference, run):
-        for name in OUTPUTS:
-            self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
-                            "{} differs from {}".format(os.path.join(run, name), os.path.join(reference, name)))
-        for folder in ("dem", "fem"):
-            names = sorted(os.listdir(os.path.join(reference, folder)))
-            self.assertEqual(names, sorted(os.listdir(os.path.join(run, folder))))
-            _, mismatch, errors = filecmp.cmpfiles(os.path.join(reference, folder), os.path.join(run, folder), names,
-                                                   shallow=False)
-            self.assertEqual((mismatch, errors), ([], []), folder)
+        self.assertSameRunOutputs(reference, run, OUTPUTS)
         print("{}: {} and every frame of dem/ and fem/ are the bits of {}".format(
             os.path.basename(run), ", ".join(OUTPUTS), os.path.basename(reference)))
-
     def test_same_bits_on_one_and_two_threads_and_across_a_restart(self):
         """A subcycled run (the fem_solver at two steps per exchange) is a pure function of its input: the
         same bits with one and two OpenMP threads per solver, and when the fem_solver is killed mid-run

@@ -4,7 +4,6 @@ a seeded random step, three times per solver. The supervisor restarts it from it
 feeds it the StepForces since then and checks its states against the ones it sent before; the run completes,
 every output file (forces.csv, energy.csv, the .pvd series and each .vtp frame) is byte for byte that of an
 uninterrupted run, and summary.json names the restart. A scene with restart = "off" stops instead."""
-import filecmp
 import os
 import random
 
@@ -29,16 +28,7 @@ class RestartTestCase(RealRunTestCase):
         return scene
 
     def assertSameOutputs(self, reference, run):
-        for name in OUTPUTS:
-            self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
-                            "{} differs from the uninterrupted run's".format(name))
-        for folder in ("dem", "sph", "fem"):
-            names = sorted(os.listdir(os.path.join(reference, folder)))
-            self.assertEqual(names, sorted(os.listdir(os.path.join(run, folder))))
-            _, mismatch, errors = filecmp.cmpfiles(os.path.join(reference, folder), os.path.join(run, folder), names,
-                                                   shallow=False)
-            self.assertEqual(mismatch + errors, [], "{}/ frames differ".format(folder))
-
+        self.assertSameRunOutputs(reference, run, OUTPUTS)
     def kill_three_times_and_compare(self, role):
         """Runs the tank uninterrupted, then kills `role` at three seeded random steps, one run each: every run
         restarts it, completes and writes the uninterrupted run's outputs."""

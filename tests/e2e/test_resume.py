@@ -6,7 +6,6 @@ traffic.h5 holds the same messages (the processes' timings and registrations, wh
 The boulder tank (water, two boulders as boundary particles, the tank's walls; 751 steps, a checkpoint every
 0.03 s) is killed at seeded random steps; the breaking block (FEM erosion: the surface changes before the
 checkpoint) is resumed from a copy of a completed run's folder."""
-import filecmp
 import json
 import os
 import random
@@ -82,21 +81,7 @@ class ResumeTestCase(RealRunTestCase):
         self.fail("the run ended before step {}".format(at_step))
 
     def assertSameOutputs(self, reference, run, expected=("forces.csv",)):
-        names = [n for n in os.listdir(reference) if n.endswith((".csv", ".pvd"))]
-        for name in expected:
-            self.assertIn(name, names)
-        for name in names:
-            self.assertTrue(filecmp.cmp(os.path.join(reference, name), os.path.join(run, name), shallow=False),
-                            "{} differs from the uninterrupted run's".format(name))
-        for folder in ("dem", "sph", "fem"):
-            if not os.path.isdir(os.path.join(reference, folder)):
-                continue
-            frames = sorted(os.listdir(os.path.join(reference, folder)))
-            self.assertEqual(frames, sorted(os.listdir(os.path.join(run, folder))))
-            _, mismatch, errors = filecmp.cmpfiles(os.path.join(reference, folder), os.path.join(run, folder),
-                                                   frames, shallow=False)
-            self.assertEqual(mismatch + errors, [], "{}/ frames differ".format(folder))
-
+        self.assertSameRunOutputs(reference, run, expected=expected)
     def assertSameTraffic(self, reference, run):
         import h5py
         import numpy
