@@ -609,6 +609,7 @@ void Coupler::scatter_pairs(std::uint64_t step) {
     const Peer& a = peer_of(roles[0]);
     const Peer& b = peer_of(roles[1]);
     if (slot.evaluated) {
+      assert(slot.held_due == 0 && "the faster side got the held forces at each of its exchanges in between");
       slot.interval = std::max(a.interval, b.interval);
       const double dt = slot.interval * plan_.exchange_dt;
       slot.held.clear();
@@ -622,6 +623,7 @@ void Coupler::scatter_pairs(std::uint64_t step) {
         const bool surface = faster.registration.exposes_surface();
         slot.held.push_back(
             scratch_replies_.held(solvers_, faster.role, surface, surface ? surface_ids() : SurfaceNodes{}));
+        slot.held_due = slot.interval / faster.interval - 1;
         replies_.add(scratch_replies_);
       }
       slot.dt_previous = dt;
@@ -629,6 +631,8 @@ void Coupler::scatter_pairs(std::uint64_t step) {
       for (const HeldForces& held : slot.held) {
         const Peer& side = held.role == a.role ? a : b;
         if (!steps_now(side, step)) continue;
+        assert(slot.held_due > 0);
+        --slot.held_due;
         const std::size_t lost = replies_.add_held(solvers_, held, held.surface ? surface_ids() : SurfaceNodes{});
         if (lost > 0 && held_forces_lost_ == 0) {
           spdlog::warn(
@@ -657,7 +661,7 @@ void Coupler::send_forces(std::uint64_t step, bool output, bool stop, bool check
       // Its interval in this block, and the fewest steps within its stable step (its own step may have changed
       // since the block began). substeps * dt is the interval to the rounding of the division: the solver's
       // time, a sum of its steps, stays within the check of its states (a relative 1e-9).
-      peer->interval = plan_.intervals[k];
+      assert(peer->interval == plan_.intervals[k] && "set where the block starts");
       const double interval = peer->interval * plan_.exchange_dt;
       const std::uint32_t substeps =
           step == block_start_ ? plan_.substeps[k]
@@ -1031,6 +1035,8 @@ int Coupler::run() {
       if (block_start) {
         plan_ = plan_step();
         block_length_ = *std::max_element(plan_.intervals.begin(), plan_.intervals.end());
+        // Before the pairs scatter: a pair whose sides' intervals differ keeps its faster side's forces.
+        for (std::size_t k = 0; k < peers_.size(); ++k) peers_[k]->interval = plan_.intervals[k];
       }
       const double dt = plan_.exchange_dt;
       if (!last) lock_step_equivalent_ += dt / plan_.lock_step_dt;

@@ -176,6 +176,7 @@ class Coupler {
     std::uint32_t interval = 1;
     double dt_previous = 0;
     std::vector<HeldForces> held;
+    std::uint32_t held_due = 0;  // exchanges of the faster side still to get `held` (an internal check)
   };
   std::vector<PairSlot> pairs_;
   Replies replies_;

@@ -4,7 +4,7 @@ step although the boulders and the dams set a shorter exchange. The reduced trea
 holds at the others. Against the same scene with `hold_exchanges = false` (every solver at every exchange, as
 until 7 December 2026): the sph_solver takes at most 0.6 of the steps (0.50 measured), the front's advance over
 the second stays within 3 % (-0.16 %), the fluid's mean load on the gully within 2 % (+0.02 %) and the boulders'
-within 5 % (+2.8 %: the slurry's forces on them are held over two of their steps), the energy never rises above its
+within 5 % (+3.8 %: the slurry's forces on them are held over two of their steps), the energy never rises above its
 start and the contact forces keep Newton's third law to 1e-10. And a run with hold exchanges is a pure
 function of its input: every process replays from traffic.h5 to the bit, and the sph_solver killed mid-run and
 restarted from its checkpoint gives the same bits as the run left alone. Each check prints measured beside
