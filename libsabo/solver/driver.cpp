@@ -227,6 +227,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
     };
     // Hold exchanges still to answer after the last step, and how many there were.
     std::uint32_t holds_left = 0, holds_announced = 0;
+    bool whole_ready = false;  // `whole` holds the state to send where the solver steps again
     for (;; ++step) {
       auto start = Clock::now();
       state.Clear();
@@ -234,16 +235,25 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       state.set_time(time);
       state.set_stable_dt(solver.stable_dt());
       // A hold: a held state, with the energies of the step just taken at the first (the coupler's energy
-      // balance takes them there, where every solver's state describes the block's start).
+      // balance takes them there, where every solver's state describes the block's start). The whole state is
+      // filled there, once (a fill may report a change once, a new topology), and sent where the solver steps
+      // again: nothing moved in between, and the interest regions are those of its step (its pairs wait).
       const bool hold = holds_left > 0;
       if (hold) {
         state.set_held(true);
         if (holds_left == holds_announced) {
           whole.Clear();
           solver.fill_state(interest, whole);
-          state.mutable_energies()->Swap(whole.mutable_energies());
-          state.mutable_part_energies()->Swap(whole.mutable_part_energies());
+          whole_ready = true;
+          state.mutable_energies()->CopyFrom(whole.energies());
+          state.mutable_part_energies()->CopyFrom(whole.part_energies());
         }
+      } else if (whole_ready) {
+        whole.set_step(step);
+        whole.set_time(time);
+        whole.set_stable_dt(state.stable_dt());
+        state.Swap(&whole);
+        whole_ready = false;
       } else {
         solver.fill_state(interest, state);
       }
