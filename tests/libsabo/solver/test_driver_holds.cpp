@@ -1,0 +1,188 @@
+// The driver's side of hold exchanges (libsabo/solver/driver.hpp, docs/protocol.md "Hold exchanges"), against a
+// scripted coupler on a real ipc socket: after a step with StepForces.holds = 2 the solver answers two holds
+// without a step or a force computation, the first with the energies of its step, and sends the whole state it
+// filled then (a change reported once, as the fem_solver's new topology, included) where it steps again. A hold
+// that nobody announced, and a step where a hold was announced, end the solver with an error naming the step.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <string>
+
+#include "libsabo/protocol/socket.hpp"
+#include "libsabo/scene/scene.hpp"
+#include "libsabo/solver/driver.hpp"
+
+using namespace sabo;
+using namespace std::chrono_literals;
+
+namespace {
+
+// One particle moving with the steps; each fill after a step reports a new "topology" once.
+struct FakeSolver : solver::CoupledSolver {
+  double x = 0;
+  int fills = 0, computes = 0, steps = 0;
+  std::uint64_t revision = 0;
+  bool changed = false;
+
+  void describe(sabo::v1::Register& registration) override {
+    registration.set_name("fake solver");
+    registration.set_exposes_particles(true);
+    registration.mutable_particles()->add_id(7);
+  }
+  double stable_dt() override { return 1e-3; }
+  void fill_state(const solver::Interest& /*interest*/, sabo::v1::StepState& state) override {
+    ++fills;
+    state.add_index(0);
+    for (const double v : {x, 0.0, 0.0}) state.add_position(v);
+    for (const double v : {1.0, 0.0, 0.0}) state.add_velocity(v);
+    state.mutable_energies()->set_kinetic(x);
+    if (changed) {
+      state.mutable_topology()->set_revision(revision);
+      changed = false;
+    }
+  }
+  void compute_internal_forces(double /*dt_previous*/) override { ++computes; }
+  void apply_coupling_forces(const sabo::v1::StepForces& /*forces*/) override {}
+  void write_output(std::uint64_t /*step*/, double /*time*/) override {}
+  void integrate(double /*dt_previous*/, double dt) override {
+    x += dt;
+    ++steps;
+    ++revision;
+    changed = true;
+  }
+  [[nodiscard]] std::uint32_t max_substeps() const override { return 64; }
+  void finish() override {}
+};
+
+struct ScriptedCoupler : ::testing::Test {
+  std::filesystem::path dir;
+  std::string endpoint;
+  zmq::context_t context{1};
+  protocol::Socket socket{context, zmq::socket_type::router};
+  protocol::Inbound inbound;
+  scene::Scene scene;
+  solver::SolverOptions options;
+
+  void SetUp() override {
+    dir = std::filesystem::temp_directory_path() / ("sabo_driver_holds_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    endpoint = "ipc://" + (dir / "coupler.sock").string();
+    socket.bind(endpoint);
+    options.scene = dir / "scene.toml";
+    std::ofstream(options.scene) << "format_version = 1\n";
+    options.coupler_endpoint = endpoint;
+    options.out_dir = dir;
+  }
+  void TearDown() override { std::filesystem::remove_all(dir); }
+
+  template <class Message>
+  Message receive(sabo::v1::MessageType type) {
+    EXPECT_TRUE(socket.receive(inbound, 5000ms)) << "nothing from the solver";
+    EXPECT_EQ(inbound.header.type, type);
+    Message message;
+    inbound.parse(message);
+    return message;
+  }
+  void accept_registration() {
+    receive<sabo::v1::Register>(sabo::v1::MESSAGE_TYPE_REGISTER);
+    sabo::v1::RegisterReply reply;
+    reply.set_accepted(true);
+    reply.set_protocol_version(protocol::kProtocolVersion);
+    reply.set_end_time(1.0);
+    reply.set_interest_all(true);
+    socket.send(reply, inbound.peer);
+  }
+  sabo::v1::StepState state() { return receive<sabo::v1::StepState>(sabo::v1::MESSAGE_TYPE_STEP_STATE); }
+  void send(sabo::v1::StepForces forces) {
+    forces.set_interest_all(true);
+    socket.send(forces, inbound.peer);
+  }
+};
+
+sabo::v1::StepForces step_forces(std::uint64_t step, double dt, std::uint32_t holds) {
+  sabo::v1::StepForces forces;
+  forces.set_step(step);
+  forces.set_dt(dt);
+  forces.set_holds(holds);
+  return forces;
+}
+
+sabo::v1::StepForces hold(std::uint64_t step) {
+  sabo::v1::StepForces forces;
+  forces.set_step(step);
+  forces.set_hold(true);
+  return forces;
+}
+
+}  // namespace
+
+TEST_F(ScriptedCoupler, TwoHoldsAfterAStepThenTheWholeStateOfThatStep) {
+  FakeSolver fake;
+  auto solver_run = std::async(std::launch::async, [&] { return solver::run_solver(fake, scene, options, Role::dem); });
+  accept_registration();
+
+  EXPECT_FALSE(state().held());
+  send(step_forces(0, 3e-3, 2));  // one step of 3 ms, then two holds
+
+  const auto first = state();
+  std::cout << "hold 1: held " << first.held() << ", time " << first.time() << " s, kinetic "
+            << first.energies().kinetic() << " (expected 0.003), particles " << first.index_size() << " (expected 0)\n";
+  EXPECT_TRUE(first.held());
+  EXPECT_DOUBLE_EQ(first.time(), 3e-3);
+  EXPECT_DOUBLE_EQ(first.energies().kinetic(), 3e-3);
+  EXPECT_EQ(first.index_size(), 0);
+  EXPECT_FALSE(first.has_topology());
+  send(hold(1));
+
+  const auto second = state();
+  EXPECT_TRUE(second.held());
+  EXPECT_FALSE(second.has_energies());
+  EXPECT_DOUBLE_EQ(second.time(), 3e-3);
+  send(hold(2));
+
+  const auto whole = state();
+  std::cout << "step 3: held " << whole.held() << ", particles " << whole.index_size() << ", topology revision "
+            << whole.topology().revision() << " (expected 1: reported once, by the fill at the first hold)\n";
+  EXPECT_FALSE(whole.held());
+  EXPECT_EQ(whole.step(), 3u);
+  EXPECT_DOUBLE_EQ(whole.time(), 3e-3);
+  EXPECT_EQ(whole.index_size(), 1);
+  EXPECT_DOUBLE_EQ(whole.position(0), 3e-3);
+  ASSERT_TRUE(whole.has_topology());
+  EXPECT_EQ(whole.topology().revision(), 1u);
+  auto last = step_forces(3, 1e-3, 0);
+  last.set_stop(true);
+  send(last);
+  receive<sabo::v1::Goodbye>(sabo::v1::MESSAGE_TYPE_GOODBYE);
+  EXPECT_EQ(solver_run.get(), 0);
+  std::cout << "fills " << fake.fills << " (2), force computations " << fake.computes << " (2), steps " << fake.steps
+            << " (1)\n";
+  EXPECT_EQ(fake.fills, 2);
+  EXPECT_EQ(fake.computes, 2);
+  EXPECT_EQ(fake.steps, 1);
+}
+
+TEST_F(ScriptedCoupler, AHoldNobodyAnnouncedAndAStepWhereAHoldWasEndTheSolver) {
+  for (const bool announced : {false, true}) {
+    FakeSolver fake;
+    auto solver_run =
+        std::async(std::launch::async, [&] { return solver::run_solver(fake, scene, options, Role::dem); });
+    accept_registration();
+    state();
+    if (announced) {
+      send(step_forces(0, 1e-3, 1));
+      EXPECT_TRUE(state().held());
+      send(step_forces(1, 1e-3, 0));  // a step where the hold was announced
+    } else {
+      send(hold(0));
+    }
+    const auto error = receive<sabo::v1::Error>(sabo::v1::MESSAGE_TYPE_ERROR);
+    std::cout << "error: " << error.message() << "\n";
+    EXPECT_NE(error.message().find(announced ? "StepForces of step 1 is not a hold" : "a hold that no StepForces"),
+              std::string::npos);
+    EXPECT_EQ(solver_run.get(), 1);
+  }
+}
