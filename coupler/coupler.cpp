@@ -210,6 +210,12 @@ bool Coupler::steps_now(const Peer& peer, std::uint64_t step) {
   return step >= peer.next_step_exchange;
 }
 
+std::size_t Coupler::peer_index(Role role) const {
+  const auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
+  assert(it != peers_.end() && "a pair joins registered solvers");
+  return static_cast<std::size_t>(it - peers_.begin());
+}
+
 void Coupler::validate_held_state(const Peer& peer) {
   const auto& s = peer.incoming;
   auto invalid = [&](const std::string& what) {
@@ -428,16 +434,11 @@ RatePlan Coupler::plan_step() {
                        .max_substeps = peer->registration.max_substeps(),
                        .holds = peer->registration.holds() && scene_.run.hold_exchanges});
   }
-  const auto index_of = [&](Role role) {
-    const auto it = std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
-    assert(it != peers_.end() && "a pair joins registered solvers");
-    return static_cast<std::size_t>(it - peers_.begin());
-  };
   std::vector<PairRate> pairs;
   for (const auto& slot : pairs_) {
     const auto roles = slot.pair->roles();
-    pairs.push_back({.a = index_of(roles[0]),
-                     .b = index_of(roles[1]),
+    pairs.push_back({.a = peer_index(roles[0]),
+                     .b = peer_index(roles[1]),
                      .stable_dt = slot.pair->stable_dt(),
                      .held = slot.pair->holding().allowed,
                      .every_exchange = slot.pair->every_exchange()});
@@ -477,18 +478,11 @@ RatePlan Coupler::plan_step() {
 void Coupler::mark_evaluated_pairs(std::uint64_t step) {
   for (auto& slot : pairs_) {
     const auto roles = slot.pair->roles();
-    const Peer* a = nullptr;
-    const Peer* b = nullptr;
-    for (const auto& peer : peers_) {
-      if (peer->role == roles[0]) a = peer.get();
-      if (peer->role == roles[1]) b = peer.get();
-    }
-    assert(a != nullptr && b != nullptr && "a pair joins registered solvers");
-    slot.evaluated = steps_now(*a, step) && steps_now(*b, step);
+    slot.evaluated = steps_now(*peers_[peer_index(roles[0])], step) && steps_now(*peers_[peer_index(roles[1])], step);
   }
 }
 
-void Coupler::compute_contacts(const StepClock& clock) {
+void Coupler::compute_contacts(std::uint64_t step) {
   if (pairs_.empty()) return;
   const auto start = Clock::now();
   std::size_t contacts = 0;
@@ -498,10 +492,8 @@ void Coupler::compute_contacts(const StepClock& clock) {
       continue;
     }
     const auto pair_start = Clock::now();
-    // A pair evaluated less often than every exchange sees its own last interval as dt_{n-1}.
-    StepClock own = clock;
-    own.dt_previous = slot.dt_previous;
-    slot.pair->compute(solvers_, own);
+    // dt_{n-1} as the pair sees it: its own last interval (several exchanges where it held).
+    slot.pair->compute(solvers_, {.step = step, .time = time_, .dt_previous = slot.dt_previous});
     contacts += slot.pair->contact_count();
     slot.seconds += seconds_since(pair_start);
   }
@@ -600,37 +592,32 @@ void add_loaded_particles(std::span<const std::uint32_t> index, std::span<const 
 
 void Coupler::scatter_pairs(std::uint64_t step) {
   replies_.begin_step(solvers_, surface_nodes_);
-  const auto peer_of = [&](Role role) -> const Peer& {
-    return **std::find_if(peers_.begin(), peers_.end(), [&](const auto& p) { return p->role == role; });
-  };
   for (auto& slot : pairs_) {
     const auto pair_start = Clock::now();
     const auto roles = slot.pair->roles();
-    const Peer& a = peer_of(roles[0]);
-    const Peer& b = peer_of(roles[1]);
+    const std::size_t a = peer_index(roles[0]), b = peer_index(roles[1]);
+    const std::uint32_t interval_a = plan_.intervals[a], interval_b = plan_.intervals[b];
     if (slot.evaluated) {
       assert(slot.held_due == 0 && "the faster side got the held forces at each of its exchanges in between");
-      slot.interval = std::max(a.interval, b.interval);
-      const double dt = slot.interval * plan_.exchange_dt;
-      slot.held.clear();
-      if (a.interval == b.interval) {
+      const std::uint32_t interval = std::max(interval_a, interval_b);
+      const double dt = interval * plan_.exchange_dt;
+      slot.held.reset();
+      if (interval_a == interval_b) {
         slot.pair->scatter(solvers_, dt, replies_);
       } else {
         // Held for its faster side: what it gives that side is kept by entity for that side's next exchanges.
         scratch_replies_.begin_step(solvers_, surface_nodes_);
         slot.pair->scatter(solvers_, dt, scratch_replies_);
-        const Peer& faster = a.interval < b.interval ? a : b;
+        const Peer& faster = *peers_[interval_a < interval_b ? a : b];
         const bool surface = faster.registration.exposes_surface();
-        slot.held.push_back(
-            scratch_replies_.held(solvers_, faster.role, surface, surface ? surface_ids() : SurfaceNodes{}));
-        slot.held_due = slot.interval / faster.interval - 1;
+        slot.held = scratch_replies_.held(solvers_, faster.role, surface, surface ? surface_ids() : SurfaceNodes{});
+        slot.held_due = interval / std::min(interval_a, interval_b) - 1;
         replies_.add(scratch_replies_);
       }
       slot.dt_previous = dt;
-    } else {
-      for (const HeldForces& held : slot.held) {
-        const Peer& side = held.role == a.role ? a : b;
-        if (!steps_now(side, step)) continue;
+    } else if (slot.held) {
+      const HeldForces& held = *slot.held;
+      if (steps_now(*peers_[held.role == roles[0] ? a : b], step)) {
         assert(slot.held_due > 0);
         --slot.held_due;
         const std::size_t lost = replies_.add_held(solvers_, held, held.surface ? surface_ids() : SurfaceNodes{});
@@ -661,17 +648,17 @@ void Coupler::send_forces(std::uint64_t step, bool output, bool stop, bool check
       // Its interval in this block, and the fewest steps within its stable step (its own step may have changed
       // since the block began). substeps * dt is the interval to the rounding of the division: the solver's
       // time, a sum of its steps, stays within the check of its states (a relative 1e-9).
-      assert(peer->interval == plan_.intervals[k] && "set where the block starts");
-      const double interval = peer->interval * plan_.exchange_dt;
+      const std::uint32_t exchanges = plan_.intervals[k];
+      const double interval = exchanges * plan_.exchange_dt;
       const std::uint32_t substeps =
           step == block_start_ ? plan_.substeps[k]
                                : substeps_within(interval, peer->beta * peer->state.stable_dt(),
                                                  std::max<std::uint32_t>(peer->registration.max_substeps(), 1));
       f.set_dt(interval / substeps);
       if (substeps > 1) f.set_substeps(substeps);
-      if (peer->interval > 1) f.set_holds(peer->interval - 1);
+      if (exchanges > 1) f.set_holds(exchanges - 1);
       if (!stop) peer->solver_steps += substeps;
-      peer->next_step_exchange = step + peer->interval;
+      peer->next_step_exchange = step + exchanges;
       peer->ahead_time = expected_time_ + interval;
       f.set_output(output);
       f.set_stop(stop);
@@ -1030,13 +1017,11 @@ int Coupler::run() {
       const bool output = block_start && (last || time_ >= next_output_time_ - 1e-9 * scene_.run.output_interval);
       if (block_start) advance_output_time();
       mark_evaluated_pairs(step);
-      compute_contacts({.step = step, .time = time_, .dt_previous = dt_previous_});
+      compute_contacts(step);
       check_newton_third_law(step);
       if (block_start) {
         plan_ = plan_step();
         block_length_ = *std::max_element(plan_.intervals.begin(), plan_.intervals.end());
-        // Before the pairs scatter: a pair whose sides' intervals differ keeps its faster side's forces.
-        for (std::size_t k = 0; k < peers_.size(); ++k) peers_[k]->interval = plan_.intervals[k];
       }
       const double dt = plan_.exchange_dt;
       if (!last) lock_step_equivalent_ += dt / plan_.lock_step_dt;

@@ -100,7 +100,8 @@ class Coupler {
   RatePlan plan_step();
   // Which pairs are evaluated at this exchange: those whose sides both step (all of them at a block's start).
   void mark_evaluated_pairs(std::uint64_t step);
-  void compute_contacts(const StepClock& clock);
+  // The evaluated pairs' forces at t_n (time_), each with its own last interval as dt_{n-1}.
+  void compute_contacts(std::uint64_t step);
   // The surface's node ids now (held forces on nodes are kept by id).
   const SurfaceNodes& surface_ids();
   void check_newton_third_law(std::uint64_t step);
@@ -110,6 +111,8 @@ class Coupler {
   void scatter_pairs(std::uint64_t step);
   // Whether `peer` steps at exchange `step` (it holds before its next_step_exchange).
   [[nodiscard]] static bool steps_now(const Peer& peer, std::uint64_t step);
+  // The place in peers_ (and in a RatePlan's per-solver lists) of the solver of `role`.
+  [[nodiscard]] std::size_t peer_index(Role role) const;
   void validate_held_state(const Peer& peer);
   // Ends the run (naming the entity) when a force about to be sent is not finite.
   void check_forces(const Peer& peer, const sabo::v1::StepForces& forces);
@@ -169,13 +172,11 @@ class Coupler {
     std::optional<std::size_t> source;  // column of its loads in forces.csv
     double seconds = 0;                 // wall time in compute and scatter
     double max_residual = 0;            // largest relative Newton residual
-    // Hold exchanges: evaluated at this exchange; the exchanges its interval spans (the larger of its sides');
-    // dt_{n-1} as it sees it (its last interval); what it gave its faster side, given again until the next
-    // evaluation.
+    // Hold exchanges: evaluated at this exchange; dt_{n-1} as it sees it (its last interval, the larger of its
+    // sides'); what it gave its faster side, given again until the next evaluation.
     bool evaluated = true;
-    std::uint32_t interval = 1;
     double dt_previous = 0;
-    std::vector<HeldForces> held;
+    std::optional<HeldForces> held;
     std::uint32_t held_due = 0;  // exchanges of the faster side still to get `held` (an internal check)
   };
   std::vector<PairSlot> pairs_;

@@ -40,10 +40,9 @@ struct Coupler::Peer {
   double reported_compute = 0;  // s: compute_seconds of its last message, held or whole
   double reported_wait = 0;     // s: wait_seconds of its last message
   // Hold exchanges (docs/architecture.md, "Multirate"): the exchange at which it steps next (it holds at
-  // those before), the time its states carry until then, and the exchanges its step spans.
+  // those before) and the time its states carry until then.
   std::uint64_t next_step_exchange = 0;
   double ahead_time = 0;
-  std::uint32_t interval = 1;
   std::uint64_t holds = 0;         // hold exchanges answered, summed
   std::uint64_t solver_steps = 0;  // steps it took (multirate: several per exchange), summed from StepForces
   // Restarts (docs/restart.md): what the coupler keeps to catch a restarted process up.

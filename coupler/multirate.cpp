@@ -82,8 +82,7 @@ RatePlan plan_rates(std::span<const SolverRate> solvers, std::span<const PairRat
   }
   dt = std::numeric_limits<double>::infinity();
   limit = {};
-  for (std::size_t i = 0; i < n; ++i) take(interval[i], why[i]);
-  if (limits.max_dt) take(*limits.max_dt, {Kind::max_dt, 0});
+  for (std::size_t i = 0; i < n; ++i) take(interval[i], why[i]);  // each already within max_dt
   if (!std::isfinite(dt)) {
     // Nothing limits anything (rigid parts only): the fallback, within the next output as above.
     dt = std::max(plan.lock_step_dt, std::min(limits.fallback_dt, until));

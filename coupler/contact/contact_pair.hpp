@@ -144,7 +144,6 @@ struct HeldForces {
   std::vector<std::uint32_t> index;    // particle-table indices
   std::vector<std::uint64_t> node_id;  // surface node ids
   std::vector<double> force, torque;   // 3 per entity (N, N m); torque empty: none
-  [[nodiscard]] bool empty() const { return index.empty() && node_id.empty(); }
 };
 
 // The surface's node ids now and each id's row (the order of its node forces).
@@ -178,7 +177,7 @@ class Replies {
   std::size_t add_held(const Solvers& solvers, const HeldForces& held, const SurfaceNodes& nodes);
   struct ExtraParticles {
     std::vector<std::uint32_t> index;
-    std::vector<double> force, torque;  // torque: 3 per index, or empty
+    std::vector<double> force, torque;  // 3 per index each (torque zero where none was held)
   };
   // Held forces on particles outside the role's state, in the order they came.
   [[nodiscard]] const ExtraParticles& extra_particles(Role role) const { return of(role).extra; }

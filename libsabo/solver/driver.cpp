@@ -227,7 +227,6 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
     };
     // Hold exchanges still to answer after the last step, and how many there were.
     std::uint32_t holds_left = 0, holds_announced = 0;
-    bool whole_ready = false;  // `whole` holds the state to send where the solver steps again
     for (;; ++step) {
       auto start = Clock::now();
       state.Clear();
@@ -244,16 +243,14 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         if (holds_left == holds_announced) {
           whole.Clear();
           solver.fill_state(interest, whole);
-          whole_ready = true;
           state.mutable_energies()->CopyFrom(whole.energies());
           state.mutable_part_energies()->CopyFrom(whole.part_energies());
         }
-      } else if (whole_ready) {
+      } else if (holds_announced > 0) {  // the holds are over: `whole` is the state of the step before them
         whole.set_step(step);
         whole.set_time(time);
         whole.set_stable_dt(state.stable_dt());
         state.Swap(&whole);
-        whole_ready = false;
       } else {
         solver.fill_state(interest, state);
       }
