@@ -8,7 +8,11 @@
 // [contact.sph_dem] model = "boundary_particles") the wall particles at x_n arrive
 // in the StepForces of step n, so the SPH forces of step n are computed once they
 // are there (apply_coupling_forces), and the force on each wall particle goes back
-// in the next StepState.boundary_force, in the order received.
+// in the next StepState.boundary_force, in the order received. With
+// sph.lagged_boundary_particles the SPH forces of step n are computed while the
+// coupler works, with the wall particles of step n - 1 moved ahead one step
+// (walls_ahead()), and their forces go back with boundary_step = n - 1 in the
+// StepState of step n + 1; only step 0, with no wall particles yet, waits.
 //
 // Ranks (docs/architecture.md, "The slurry on several processes"): started by mpirun with R > 1
 // ranks, rank 0 is the coupler's correspondent (SphSolver, as alone) and the others follow it
@@ -19,9 +23,11 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <optional>
 #include <utility>
 
 #include "libsabo/core/error.hpp"
+#include "libsabo/io/checkpoint.hpp"
 #include "libsabo/scene/loader.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/energy_audit.hpp"
@@ -66,6 +72,20 @@ std::vector<double> pack_walls(const physics::BoundaryParticles& walls) {
   out.insert(out.end(), walls.volume.begin(), walls.volume.end());
   out.insert(out.end(), walls.free_slip.begin(), walls.free_slip.end());
   return out;
+}
+
+// The wall particles of the StepForces of step n - 1 at step n, dt = t_n - t_{n-1} later: each moved by the
+// leapfrog's displacement dt (v + dt a) of its half-step velocity v, and its velocity by dt a (walls at rest,
+// sent without velocities, stay). Second order in dt, like the fluid's own step.
+physics::BoundaryParticles walls_ahead(const physics::BoundaryParticles& walls, double dt) {
+  physics::BoundaryParticles ahead = walls;
+  if (walls.velocity.empty()) return ahead;
+  for (std::size_t k = 0; k < walls.size(); ++k) {
+    const Vec3 acceleration = walls.acceleration_of(k);
+    ahead.position[k] += dt * (walls.velocity[k] + dt * acceleration);
+    ahead.velocity[k] += dt * acceleration;
+  }
+  return ahead;
 }
 
 physics::BoundaryParticles unpack_walls(const std::vector<double>& in) {
@@ -149,6 +169,7 @@ class SphSolver final : public solver::CoupledSolver {
         fronts_(options.out_dir, scene),
         inflow_history_(options.out_dir, scene, model_),
         boundary_walls_(scene.sph_receives_boundary_particles()),
+        lagged_walls_(boundary_walls_ && scene.sph.lagged_boundary_particles),
         limits_(solver::stability_limits(scene, Role::sph)) {
     if (leader_.active()) {
       // Gauges and fronts sample the fluid on the grid, which each rank holds for its slab.
@@ -165,7 +186,11 @@ class SphSolver final : public solver::CoupledSolver {
     scene_max_speed_ = scene.run.max_speed.has_value();
     spdlog::info("{} SPH particles in {} fluid bodies, h = {:.4g} m, c = {:.4g} m/s, stable dt {:.3e} s, walls: {}",
                  model_.size(), scene.fluids.size(), model_.kernel().h, scene.sph.sound_speed, model_.stable_dt(),
-                 boundary_walls_ ? "boundary particles" : "penalty");
+                 boundary_walls_ ? (lagged_walls_ ? "boundary particles, lagged (the fluid's forces computed while "
+                                                    "the coupler works, with the wall particles of the step before "
+                                                    "moved ahead one step)"
+                                                  : "boundary particles")
+                                 : "penalty");
     for (const InflowState& inflow : model_.inflows()) {
       spdlog::info(
           "inflow '{}': a section of {} x {} particles ({:.4g} m^2), a buffer of {} layers, {} particles for the "
@@ -207,6 +232,8 @@ class SphSolver final : public solver::CoupledSolver {
       for (const Vec3& force : model_.boundary_forces()) {
         for (int c = 0; c < 3; ++c) f->Add(force[c]);
       }
+      // Lagged: forces on the wall particles of step n - 2 (the protocol's default, absent, is n - 1).
+      if (lagged_walls_ && state.step() == answered_walls_step_ + 2) state.set_boundary_step(answered_walls_step_);
     }
     const Energies e = model_.energies();
     // Dissipated: the energy the fluid lost beyond the work done on it (energy_audit.hpp), its
@@ -219,6 +246,9 @@ class SphSolver final : public solver::CoupledSolver {
     if (!boundary_walls_) {
       leader_.send(RankCommand::compute, {dt_previous});
       model_.compute_internal_forces(dt_previous);
+    } else if (lagged_walls_ && last_walls_) {
+      compute_with_walls(walls_ahead(last_walls_->walls, last_walls_->dt), last_walls_->step);
+      computed_ahead_ = true;
     }
   }
 
@@ -237,11 +267,13 @@ class SphSolver final : public solver::CoupledSolver {
       }
       walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
       walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
-      if (leader_.active()) leader_.send(pack_walls(walls));
-      leader_.send(RankCommand::compute, {dt_previous_});
-      model_.set_boundary(std::move(walls));
-      model_.compute_internal_forces(dt_previous_);
-      have_boundary_forces_ = true;
+      if (!lagged_walls_) {
+        compute_with_walls(std::move(walls), forces.step());
+      } else {
+        if (!computed_ahead_) compute_with_walls(walls, forces.step());  // step 0: no wall particles before
+        last_walls_ = LastWalls{std::move(walls), forces.step(), forces.dt()};
+        computed_ahead_ = false;
+      }
     }
     const std::span<const std::uint32_t> index{forces.index().data(), static_cast<std::size_t>(forces.index_size())};
     const std::span<const double> force{forces.force().data(), static_cast<std::size_t>(forces.force_size())};
@@ -327,6 +359,20 @@ class SphSolver final : public solver::CoupledSolver {
     fronts_.save(group);
     inflow_history_.save(group);
     group.set_attribute("have_boundary_forces", have_boundary_forces_ ? 1 : 0);
+    group.set_attribute("answered_walls_step", static_cast<std::int64_t>(answered_walls_step_));
+    if (last_walls_) {
+      // Lagged: the next step computes with these, moved ahead.
+      io::hdf5::Group last = group.create_group("last_walls");
+      const physics::BoundaryParticles& walls = last_walls_->walls;
+      io::write_vectors(last, "position", walls.position);
+      io::write_vectors(last, "velocity", walls.velocity);
+      io::write_vectors(last, "normal", walls.normal);
+      io::write_vectors(last, "acceleration", walls.acceleration);
+      io::write_array(last, "volume", walls.volume);
+      io::write_array(last, "free_slip", walls.free_slip);
+      last.set_attribute("step", static_cast<std::int64_t>(last_walls_->step));
+      last.set_attribute("dt", last_walls_->dt);
+    }
   }
   void load_checkpoint(const io::hdf5::Group& group) override {
     model_.load_state(group.group("model"));
@@ -338,6 +384,24 @@ class SphSolver final : public solver::CoupledSolver {
     fronts_.load(group);
     inflow_history_.load(group);
     have_boundary_forces_ = group.int_attribute("have_boundary_forces") != 0;
+    answered_walls_step_ = group.has_attribute("answered_walls_step")  // written since lagged walls exist
+                               ? static_cast<std::uint64_t>(group.int_attribute("answered_walls_step"))
+                               : 0;
+    last_walls_.reset();
+    computed_ahead_ = false;
+    if (lagged_walls_ && group.exists("last_walls")) {
+      const io::hdf5::Group last = group.group("last_walls");
+      LastWalls loaded;
+      loaded.walls.position = io::read_vectors(last, "position");
+      loaded.walls.velocity = io::read_vectors(last, "velocity");
+      loaded.walls.normal = io::read_vectors(last, "normal");
+      loaded.walls.acceleration = io::read_vectors(last, "acceleration");
+      loaded.walls.volume = io::read_array<double>(last, "volume");
+      loaded.walls.free_slip = io::read_array<std::uint8_t>(last, "free_slip");
+      loaded.step = static_cast<std::uint64_t>(last.int_attribute("step"));
+      loaded.dt = last.double_attribute("dt");
+      last_walls_ = std::move(loaded);
+    }
   }
   [[nodiscard]] std::string results() const override {
     nlohmann::json results = nlohmann::json::object();
@@ -373,6 +437,16 @@ class SphSolver final : public solver::CoupledSolver {
     return list;
   }
 
+  // Sets the wall particles of step `walls_step` (moved ahead or not) and computes the fluid's forces with them.
+  void compute_with_walls(physics::BoundaryParticles walls, std::uint64_t walls_step) {
+    if (leader_.active()) leader_.send(pack_walls(walls));
+    leader_.send(RankCommand::compute, {dt_previous_});
+    model_.set_boundary(std::move(walls));
+    model_.compute_internal_forces(dt_previous_);
+    have_boundary_forces_ = true;
+    answered_walls_step_ = walls_step;
+  }
+
   void report_losses(const char* when) {
     if (model_.lost_count() == lost_reported_) return;
     spdlog::warn("{} more SPH particles left the domain and were taken out {} ({} in all)",
@@ -388,7 +462,17 @@ class SphSolver final : public solver::CoupledSolver {
   FrontRecorder fronts_;
   InflowRecorder inflow_history_;
   bool boundary_walls_;
+  bool lagged_walls_;  // sph.lagged_boundary_particles, with boundary particles
   bool have_boundary_forces_ = false;
+  std::uint64_t answered_walls_step_ = 0;  // the step of the wall particles model_.boundary_forces() answers
+  // Lagged: the wall particles of the last StepForces, its step and its dt (s), for the next step's forces.
+  struct LastWalls {
+    physics::BoundaryParticles walls;
+    std::uint64_t step = 0;
+    double dt = 0;
+  };
+  std::optional<LastWalls> last_walls_;
+  bool computed_ahead_ = false;  // this step's forces were computed with last_walls_, moved ahead
   double dt_previous_ = 0;
   solver::StabilityLimits limits_;
   bool scene_max_speed_ = false;

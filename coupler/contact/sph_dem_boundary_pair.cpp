@@ -92,7 +92,9 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
       balance_.scale += std::abs(f.x()) + std::abs(f.y()) + std::abs(f.z());
     }
     for (const std::uint32_t o : touched_) balance_.sum += force_[o];
-    force_dt_avg_ = then.dt_avg;
+    // The fluid's step that just ended (that of the last StepForces) whatever wall particles it took: those of
+    // that step, or with lagged boundary particles those of the step before, moved ahead.
+    force_dt_avg_ = sent_[0].dt_avg;
   }
   boulders_touched_ = touched_.size();
 

@@ -9,8 +9,9 @@
 // a torque (r x f about its centre at the time they were sent).
 //
 // Impulse, not force: the fluid felt those forces over its step m (the step
-// whose StepForces carried the particles), dt_avg,m = (dt_{m-1} + dt_m) / 2,
-// and the boulder integrates them at step n > m over dt_avg,n. The boulder
+// whose StepForces carried the particles, or with lagged boundary particles
+// the step after it, which took them moved ahead), dt_avg,m = (dt_{m-1} +
+// dt_m) / 2, and the boulder integrates them at step n > m over dt_avg,n. The boulder
 // gets F dt_avg,m / dt_avg,n, so that the momentum it gains is exactly the
 // momentum the fluid lost, whatever the steps did in between.
 #include <map>

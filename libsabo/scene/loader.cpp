@@ -62,6 +62,7 @@ Scene Builder::build() {
   read_interactions(root);
   check_sph_dem();
   check_free_slip_walls();
+  check_lagged_boundary_particles();
   read_recording(root);
   read_gauges(root);
   read_fronts(root);

@@ -423,6 +423,10 @@ struct SphSettings {
   // Boundary particles: the structures' wall particles sit on a lattice of this fraction of dx
   // (wall_spacing()), volume (ratio dx)^3, as many layers as fill the kernel support.
   double wall_spacing_ratio = 1.0;
+  // Boundary particles (walls or boulders): the fluid computes its forces of step n while the coupler computes
+  // its contacts, with the wall particles of step n - 1 moved ahead one step by their velocity and acceleration,
+  // instead of waiting for those of step n (docs/protocol.md, StepState.boundary_step = n - 2).
+  bool lagged_boundary_particles = false;
   double sound_speed = 0;              // m/s: artificial sound speed c of every fluid, > 0
   double cfl = 0.25;                   // stable dt = cfl * min(h / (c + h |div v|), sqrt(h / |a|), rho h^2 / (8 eta))
   double artificial_viscosity = 0.01;  // Monaghan alpha

@@ -1,10 +1,12 @@
 """Boulders in the slurry through the real processes (`./sabo run`: coupler, sph_solver, dem_solver,
-fem_solver): SPH-DEM boundary particles in a tank of water, the same bits on one and two threads, and the
-reduced three-solver debris flow against a check dam and a house. Each check prints measured beside
+fem_solver): SPH-DEM boundary particles in a tank of water, the same bits on one and two threads, the same tank with
+lagged boundary particles, and the reduced three-solver debris flow against a check dam and a house. Each check prints measured beside
 expected."""
 import filecmp
 import os
 import unittest
+
+import h5py
 
 from e2e_support import RealRunTestCase, largest_energy_rise, load_scene, read_csv, read_json, read_vtk, vtp_series
 
@@ -66,6 +68,99 @@ class BouldersInWaterTest(RealRunTestCase):
                 compared += 1
         print("{} output files identical on 1 and 2 threads".format(compared))
         self.assertGreater(compared, 10)
+
+
+class LaggedBoundaryParticlesTest(RealRunTestCase):
+    """sph.lagged_boundary_particles: the fluid computes its forces of step n while the coupler works, with the
+    wall particles of step n - 1 moved ahead one step. The tank's boulders float and sink as without it, the
+    forces balance, the recording says which step's wall particles each answer came for, and the sph_solver
+    replays to the bit, also from a checkpoint (which keeps the wall particles it computes with next)."""
+
+    def write_tank(self, name, lagged):
+        with open(self.scene_path(TANK), encoding="utf-8") as handle:
+            text = handle.read()
+        for line in ('wall_model = "boundary_particles"\n', "end_time = 0.3\n",
+                     'fields = ["position", "velocity", "force", "torque", "energies"]\n'):
+            self.assertIn(line, text)
+        if lagged:
+            text = text.replace('wall_model = "boundary_particles"\n',
+                                'wall_model = "boundary_particles"\nlagged_boundary_particles = true\n')
+        text = text.replace("end_time = 0.3\n", "end_time = 0.3\ncheckpoint_interval = 0.05\n")
+        text = text.replace('fields = ["position", "velocity", "force", "torque", "energies"]\n', "")  # all
+        scene = os.path.join(self.tmp, name + ".toml")
+        with open(scene, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        return scene
+
+    def test_boulders_float_and_sink_as_without_it_and_the_fluid_replays_to_the_bit(self):
+        runs = {}
+        for lagged in (False, True):
+            name = "lagged" if lagged else "waiting"
+            out = os.path.join(self.tmp, name)
+            sabo = self.run_sabo(self.write_tank(name, lagged), out)
+            self.assertEqual(sabo.wait(240), 0, sabo.output())
+            runs[lagged] = out
+        with open(os.path.join(runs[True], "sph_solver.log"), encoding="utf-8") as handle:
+            self.assertIn("walls: boundary particles, lagged", handle.read())
+        scene = load_scene(self.scene_path(TANK))
+        radius = scene["particles"][0]["spheres"][0]["radius"]
+        depth = scene["fluids"][0]["max"][2]
+        # The stone falls in at 0.5 m/s and the log bobs up: at every output both are where they are without it.
+        frames = {lagged: [read_vtk(path)["Points"] for _, path in vtp_series(out, "dem")]
+                  for lagged, out in runs.items()}
+        self.assertEqual(len(frames[True]), len(frames[False]))
+        for k, name in enumerate(("log", "stone")):
+            shift = max(sum((a[k][i] - b[k][i]) ** 2 for i in range(3)) ** 0.5
+                        for a, b in zip(frames[True], frames[False]))
+            print("the {}: at most {:.3g} m from where it is without lagging over {} outputs, {:.2%} of its radius "
+                  "(expected <= 2 %)".format(name, shift, len(frames[True]), shift / radius))
+            self.assertLessEqual(shift, 0.02 * radius)
+        ends = {lagged: frames[lagged][-1] for lagged in frames}
+        self.assertLess(abs(ends[True][0][2] - depth), radius)
+        self.assertLess(abs(ends[True][1][2] - radius), 0.1 * radius)
+
+        summary = read_json(os.path.join(runs[True], "summary.json"))
+        residuals = summary["newton_third_law"]["max_relative_residual_per_pair"]
+        print("lagged: Newton residual per pair {}; the sph_solver waited {:.2f} s of {:.2f} s (waiting: "
+              "{:.2f} s)".format(residuals, summary["processes"]["sph_solver"]["wait_seconds"],
+                                 summary["wall_seconds"],
+                                 read_json(os.path.join(runs[False], "summary.json"))["processes"]["sph_solver"][
+                                     "wait_seconds"]))
+        self.assertLess(residuals["sph_dem_boundary_particles"], 1e-12)
+        self.assertEqual(summary["newton_third_law"]["violations"], 0)
+        rise, initial = largest_energy_rise(runs[True])
+        print("energy.csv: largest total - initial {:.3g} J of {:.4g} J (expected <= 1e-5 of it)".format(
+            rise, initial))
+        self.assertLessEqual(rise, 1e-5 * abs(initial))
+
+        # Each state from step 2 on answers the wall particles of two steps before; step 1 those of step 0.
+        with h5py.File(os.path.join(runs[True], "traffic.h5"), "r") as traffic:
+            state = traffic["sph_solver/state"]
+            steps = state["step"][()]
+            count = state["boundary_step_count"][()]
+            offset = state["boundary_step_offset"][()]
+            values = state["boundary_step"][()]
+            answered = [int(values[offset[k]]) if count[k] else None for k in range(len(steps))]
+        self.assertEqual(answered[:2], [None, None])
+        wrong = [(int(s), a) for s, a in zip(steps[2:], answered[2:]) if a != s - 2]
+        print("boundary_step = step - 2 in {} of {} states from step 2 on".format(len(steps) - 2 - len(wrong),
+                                                                                 len(steps) - 2))
+        self.assertEqual(wrong, [])
+
+        code, out, err = self.replay(runs[True], "sph")
+        print("replay sph: exit {}; {}".format(code, out.splitlines()[0] if out else err))
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("every field matches", out)
+        kept = sorted(int(name.split("_")[-1][:-3]) for name in os.listdir(os.path.join(runs[True], "checkpoints"))
+                      if name.startswith("sph_solver_"))
+        self.assertTrue(kept)
+        window = "{}:{}".format(kept[-1] + 1, kept[-1] + 40)
+        code, out, err = self.replay(runs[True], "sph", ["--steps", window])
+        print("replay sph --steps {}: exit {}; {}".format(window, code, out.splitlines()[0] if out else err))
+        self.assertEqual(code, 0, out + err)
+        self.assertIn("resumes from its checkpoint of step {}".format(kept[-1]), err)
+        self.assertIn("every field matches", out)
+        self.assertNoProcessLeft(runs[True], pids_file=False)
 
 
 class DebrisFlowDamTest(RealRunTestCase):

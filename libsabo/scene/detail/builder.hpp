@@ -167,6 +167,7 @@ class Builder {
   void check_sph_dem();
   // [sph] free_slip_walls names structures, with boundary-particle walls (after the structures are read).
   void check_free_slip_walls();
+  void check_lagged_boundary_particles();
   void check_fills();
   [[nodiscard]] int line_of_key(std::string path) const;
   [[nodiscard]] std::optional<std::string> value_of_key(const std::string& path) const;
@@ -183,6 +184,7 @@ class Builder {
   std::map<std::string, FluidMaterialKeys> fluid_material_keys_;
   int domain_line_ = 0;
   Where free_slip_where_{0, "sph.free_slip_walls"};
+  Where lagged_where_{0, "sph.lagged_boundary_particles"};
   int periodic_line_[2] = {0, 0};
   std::vector<std::string> material_names_;
   std::map<std::string, BodyName> bodies_;
