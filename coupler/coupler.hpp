@@ -86,6 +86,7 @@ class Coupler {
   // A state of a peer that is catching up, in inbound_: checked and answered from the journal. False when it is
   // the live step's (the catch-up is over; accept it as usual).
   bool catch_up(Peer& peer, std::uint64_t step);
+  void caught_up(Peer& peer, std::uint64_t step);  // a restarted peer is back: summary.json names its restart
   [[nodiscard]] bool restarting() const;
   // Sends a reply to a peer that has not registered (yet); false when it could not be delivered.
   template <class Message>

@@ -218,6 +218,8 @@ void Coupler::accept_replacement(const protocol::Inbound& inbound, const sabo::v
                               {"at_step", current_step_},  {"catch_up_steps", current_step_ - from}};
   if (!peer.address.empty()) restarted["address"] = peer.address;
   events_.emit(restarted);
+  // Killed after its checkpoint and before its next state, it has nothing to catch up: it is back already.
+  if (!peer.catching_up) caught_up(peer, current_step_);
 }
 
 bool Coupler::restarting() const {
@@ -234,7 +236,7 @@ bool Coupler::catch_up(Peer& peer, std::uint64_t step) {
   const std::uint64_t s = state.step();
   const bool replayed = s < step || (s == step && peer.has_state);
   if (!replayed) {  // the live step: caught up
-    peer.catching_up = false;
+    caught_up(peer, step);
     return false;
   }
   const bool known = s >= peer.journal->first_step() && (s < peer.journal->end_step() || (s == step && peer.has_state));
@@ -252,23 +254,25 @@ bool Coupler::catch_up(Peer& peer, std::uint64_t step) {
                      peer.resumed_at, s, differs, role_key(peer.role), peer.name(), peer.resumed_at));
   }
   if (s < step) socket_.send(peer.journal->forces(s), peer.buffer, peer.identity);
-  if (s + 1 == step || s == step) {
-    peer.catching_up = false;
-    const double seconds = seconds_since(peer.restarted_wall);
-    spdlog::info("{} caught up from step {} to step {} in {:.2f} s", peer.name(), peer.resumed_at, step, seconds);
-    events_.emit({{"event", "caught_up"},
-                  {"process", peer.name()},
-                  {"from_step", peer.resumed_at},
-                  {"at_step", step},
-                  {"seconds", seconds}});
-    restarts_.push_back({{"process", peer.name()},
-                         {"pid", peer.registration.pid()},
-                         {"from_step", peer.resumed_at},
-                         {"at_step", step},
-                         {"catch_up_steps", step - peer.resumed_at},
-                         {"catch_up_seconds", seconds}});
-  }
+  if (s + 1 == step || s == step) caught_up(peer, step);
   return true;
+}
+
+void Coupler::caught_up(Peer& peer, std::uint64_t step) {
+  peer.catching_up = false;
+  const double seconds = seconds_since(peer.restarted_wall);
+  spdlog::info("{} caught up from step {} to step {} in {:.2f} s", peer.name(), peer.resumed_at, step, seconds);
+  events_.emit({{"event", "caught_up"},
+                {"process", peer.name()},
+                {"from_step", peer.resumed_at},
+                {"at_step", step},
+                {"seconds", seconds}});
+  restarts_.push_back({{"process", peer.name()},
+                       {"pid", peer.registration.pid()},
+                       {"from_step", peer.resumed_at},
+                       {"at_step", step},
+                       {"catch_up_steps", step - peer.resumed_at},
+                       {"catch_up_seconds", seconds}});
 }
 
 void Coupler::wait_for_registrations() {
