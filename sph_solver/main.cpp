@@ -248,7 +248,6 @@ class SphSolver final : public solver::CoupledSolver {
       model_.compute_internal_forces(dt_previous);
     } else if (lagged_walls_ && last_walls_) {
       compute_with_walls(walls_ahead(last_walls_->walls, last_walls_->dt), last_walls_->step);
-      computed_ahead_ = true;
     }
   }
 
@@ -270,9 +269,9 @@ class SphSolver final : public solver::CoupledSolver {
       if (!lagged_walls_) {
         compute_with_walls(std::move(walls), forces.step());
       } else {
-        if (!computed_ahead_) compute_with_walls(walls, forces.step());  // step 0: no wall particles before
+        // Without wall particles of a step before (step 0, a checkpoint of step 0) nothing was computed ahead.
+        if (!last_walls_) compute_with_walls(walls, forces.step());
         last_walls_ = LastWalls{std::move(walls), forces.step(), forces.dt()};
-        computed_ahead_ = false;
       }
     }
     const std::span<const std::uint32_t> index{forces.index().data(), static_cast<std::size_t>(forces.index_size())};
@@ -388,7 +387,6 @@ class SphSolver final : public solver::CoupledSolver {
                                ? static_cast<std::uint64_t>(group.int_attribute("answered_walls_step"))
                                : 0;
     last_walls_.reset();
-    computed_ahead_ = false;
     if (lagged_walls_ && group.exists("last_walls")) {
       const io::hdf5::Group last = group.group("last_walls");
       LastWalls loaded;
@@ -472,7 +470,6 @@ class SphSolver final : public solver::CoupledSolver {
     double dt = 0;
   };
   std::optional<LastWalls> last_walls_;
-  bool computed_ahead_ = false;  // this step's forces were computed with last_walls_, moved ahead
   double dt_previous_ = 0;
   solver::StabilityLimits limits_;
   bool scene_max_speed_ = false;

@@ -184,7 +184,6 @@ class Builder {
   std::map<std::string, FluidMaterialKeys> fluid_material_keys_;
   int domain_line_ = 0;
   Where free_slip_where_{0, "sph.free_slip_walls"};
-  Where lagged_where_{0, "sph.lagged_boundary_particles"};
   int periodic_line_[2] = {0, 0};
   std::vector<std::string> material_names_;
   std::map<std::string, BodyName> bodies_;

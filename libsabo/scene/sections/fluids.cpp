@@ -259,10 +259,7 @@ void Builder::read_sph(Reader& root) {
                 "remove wall_spacing_ratio, or use wall_model = \"boundary_particles\"");
     }
   }
-  if (auto v = r.boolean("lagged_boundary_particles")) {
-    sph.lagged_boundary_particles = *v;
-    lagged_where_ = {r.line("lagged_boundary_particles"), r.key_path("lagged_boundary_particles")};
-  }
+  if (auto v = r.boolean("lagged_boundary_particles")) sph.lagged_boundary_particles = *v;
   if (auto v = r.strings("free_slip_walls")) {
     sph.free_slip_walls = *v;
     free_slip_where_ = {r.line("free_slip_walls"), r.key_path("free_slip_walls")};
@@ -304,7 +301,8 @@ void Builder::read_sph(Reader& root) {
 
 void Builder::check_lagged_boundary_particles() {
   if (!scene_.sph.lagged_boundary_particles || scene_.sph_receives_boundary_particles()) return;
-  diag_.add(lagged_where_.line, lagged_where_.key, "true",
+  const std::string key = "sph.lagged_boundary_particles";
+  diag_.add(line_of_key(key), key, "true",
             "the sph_solver receives no boundary particles here (wall_model = \"penalty\" and no particle set meets "
             "the fluid through [contact.sph_dem] model = \"boundary_particles\"), so there is nothing to lag",
             "remove lagged_boundary_particles (penalty contacts already overlap the fluid's step with the "
