@@ -6,7 +6,7 @@ column in a tank of boundary particles. A checkpoint moves between rank counts: 
 replayed alone from its checkpoint, and that of a run alone replayed on 2 ranks, reproduce the recorded states.
 A flood enters through an inflow, and a dam break runs in a channel periodic across its width, on ranks as
 alone. Replay's --take feeds recorded fields to the ranks as to one process. Gauges and fronts read the same on
-ranks."""
+ranks. Boulders of boundary particles lagged one step (sph.lagged_boundary_particles) give the same bits on ranks."""
 import filecmp
 import glob
 import json
@@ -96,6 +96,16 @@ class SphRanksSameBitsTest(SphRanksTestCase):
                      [("end_time = 0.5\n", "end_time = 0.25\n"), ("output_interval = 0.01\n",
                                                                    "output_interval = 0.05\n")],
                      extra=("gauges.csv",))
+
+
+class SphRanksLaggedBoundaryParticlesTest(SphRanksTestCase):
+    def test_boulders_in_a_tank_with_lagged_boundary_particles(self):
+        """configs/tests/sph_boulders_tank.toml, its first 0.1 s, with sph.lagged_boundary_particles: the ranks
+        compute each step with the wall particles of the step before moved ahead, as the process alone does."""
+        self.compare("configs/tests/sph_boulders_tank.toml", "lagged",
+                     [('wall_model = "boundary_particles"\n',
+                       'wall_model = "boundary_particles"\nlagged_boundary_particles = true\n'),
+                      ("end_time = 0.3\n", "end_time = 0.1\n")])
 
 
 class SphRanksCheckpointsReplayAndGaugesTest(SphRanksTestCase):
