@@ -182,6 +182,8 @@ void Coupler::accept_state(Peer& peer, std::uint64_t step) {
          fmt::format("sent the state of step {} while the coupler is at step {}", peer.incoming.step(), step));
   }
   peer.reported_compute = peer.incoming.compute_seconds();
+  // Its wait is a sum over the process's life: a restarted process starts it again.
+  peer.waited = std::max(0.0, peer.incoming.wait_seconds() - peer.reported_wait);
   peer.reported_wait = peer.incoming.wait_seconds();
   const bool held = peer.incoming.held();
   if (held) {
@@ -498,7 +500,8 @@ void Coupler::compute_contacts(std::uint64_t step) {
     slot.seconds += seconds_since(pair_start);
   }
   max_contacts_ = std::max(max_contacts_, contacts);
-  contact_seconds_ += seconds_since(start);
+  last_contact_seconds_ = seconds_since(start);
+  contact_seconds_ += last_contact_seconds_;
 }
 
 const SurfaceNodes& Coupler::surface_ids() {
@@ -999,12 +1002,16 @@ int Coupler::run() {
       // The coupler's own clock, the sum of the exchange steps it sent: each solver sums its own steps (with
       // substeps, in another order of rounding), and the first to register may be any of them.
       time_ = expected_time_;
-      double step_compute = 0;
+      const Peer* slowest = nullptr;
       for (auto& peer : peers_) {
-        step_compute = std::max(step_compute, peer->reported_compute);
+        if (slowest == nullptr || peer->reported_compute > slowest->reported_compute) slowest = peer.get();
         peer->compute_seconds += peer->reported_compute;
       }
-      critical_compute_seconds_ += step_compute;
+      if (slowest != nullptr) {
+        critical_compute_seconds_ += slowest->reported_compute;
+        critical_contact_seconds_ += std::min(last_contact_seconds_, slowest->waited);
+      }
+      last_contact_seconds_ = 0;
 
       // A block of exchanges starts where every solver steps (every exchange without hold exchanges): its plan
       // is made there, after the pairs, whose limits it takes.

@@ -79,6 +79,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     stats.set_attribute("send_seconds", send_seconds_);
     stats.set_attribute("wait_seconds", wait_seconds_);
     stats.set_attribute("critical_compute_seconds", critical_compute_seconds_);
+    stats.set_attribute("critical_contact_seconds", critical_contact_seconds_);
     stats.set_attribute("checkpoint_seconds", checkpoint_seconds_);
     stats.set_attribute(
         "wall_seconds",
@@ -208,6 +209,10 @@ void Coupler::restore_state() {
   send_seconds_ = stats.double_attribute("send_seconds");
   wait_seconds_ = stats.double_attribute("wait_seconds");
   critical_compute_seconds_ = stats.double_attribute("critical_compute_seconds");
+  // Checkpoints from before the pairs' share of the critical path was measured: all of their time, as then.
+  critical_contact_seconds_ = stats.has_attribute("critical_contact_seconds")
+                                  ? stats.double_attribute("critical_contact_seconds")
+                                  : contact_seconds_;
   checkpoint_seconds_ = stats.double_attribute("checkpoint_seconds");
   wall_before_ = stats.double_attribute("wall_seconds");
   bytes_received_before_ = static_cast<std::uint64_t>(stats.int_attribute("bytes_received"));

@@ -39,6 +39,7 @@ void Coupler::write_summary(const std::string& status) {
   const double wall = wall_before_ + seconds_since(start_wall_);
   json processes = json::object();
   processes["coupler"] = {{"contact_seconds", contact_seconds_},
+                          {"contact_seconds_on_critical_path", critical_contact_seconds_},
                           {"checkpoint_seconds", checkpoint_seconds_},
                           {"messaging_seconds", receive_seconds_ + send_seconds_},
                           {"wait_seconds", wait_seconds_ - receive_seconds_}};
@@ -57,7 +58,7 @@ void Coupler::write_summary(const std::string& status) {
   const double per_step = steps_ > 0 ? 1.0 / static_cast<double>(steps_) : 0.0;
   const std::uint64_t bytes_received = bytes_received_before_ + socket_.bytes_received();  // a resumed run: all of it
   const std::uint64_t bytes_sent = bytes_sent_before_ + socket_.bytes_sent();
-  const double overhead = std::max(0.0, wall - critical_compute_seconds_ - contact_seconds_);
+  const double overhead = std::max(0.0, wall - critical_compute_seconds_ - critical_contact_seconds_);
   json energies = json::object();
   if (energy_csv_) {
     auto sample_json = [](const EnergySample& e) {
