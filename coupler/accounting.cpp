@@ -11,6 +11,14 @@
 
 namespace sabo::coupler {
 
+double pairs_on_critical_path(const std::vector<SolverCycle>& cycles, double pair_seconds) {
+  const SolverCycle* slowest = nullptr;
+  for (const SolverCycle& c : cycles) {
+    if (slowest == nullptr || c.compute > slowest->compute) slowest = &c;
+  }
+  return slowest == nullptr ? 0.0 : std::min(pair_seconds, slowest->waited);
+}
+
 std::FILE* open_for_writing(const std::filesystem::path& file) {
   std::FILE* handle = std::fopen(file.c_str(), "w");
   if (handle == nullptr) throw FileError(fmt::format("cannot create '{}': {}", file.string(), std::strerror(errno)));

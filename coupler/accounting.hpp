@@ -13,6 +13,21 @@
 
 namespace sabo::coupler {
 
+// One solver's part of an exchange, from the state that ends it: the seconds it computed since its state
+// before (its own forces of the exchange before included, also those computed while the coupler worked), and
+// the seconds it then waited for its forces.
+struct SolverCycle {
+  double compute = 0;
+  double waited = 0;
+};
+// The seconds by which the pairs' `pair_seconds` lengthened an exchange: what the slowest solver (the one that
+// computed longest) waited for its forces, up to pair_seconds; had the forces come pair_seconds sooner, it
+// would have waited that much less. All of them when the slowest solver waits for them, none when it computes
+// its own forces meanwhile. (The longest compute + wait over all solvers against the same with each wait
+// shortened says the same, but each solver's compute + wait is the exchange's length plus its own noise, and
+// the largest of them over-counts.)
+[[nodiscard]] double pairs_on_critical_path(const std::vector<SolverCycle>& cycles, double pair_seconds);
+
 // Opens `file` for writing (created or truncated); throws FileError naming it.
 [[nodiscard]] std::FILE* open_for_writing(const std::filesystem::path& file);
 // Opens `file` to append to it (a resumed run continues its histories); FileError naming it when it cannot.

@@ -1002,15 +1002,15 @@ int Coupler::run() {
       // The coupler's own clock, the sum of the exchange steps it sent: each solver sums its own steps (with
       // substeps, in another order of rounding), and the first to register may be any of them.
       time_ = expected_time_;
-      const Peer* slowest = nullptr;
+      double step_compute = 0;
+      cycles_.clear();
       for (auto& peer : peers_) {
-        if (slowest == nullptr || peer->reported_compute > slowest->reported_compute) slowest = peer.get();
+        step_compute = std::max(step_compute, peer->reported_compute);
         peer->compute_seconds += peer->reported_compute;
+        cycles_.push_back({.compute = peer->reported_compute, .waited = peer->waited});
       }
-      if (slowest != nullptr) {
-        critical_compute_seconds_ += slowest->reported_compute;
-        critical_contact_seconds_ += std::min(last_contact_seconds_, slowest->waited);
-      }
+      critical_compute_seconds_ += step_compute;
+      critical_contact_seconds_ += pairs_on_critical_path(cycles_, last_contact_seconds_);
       last_contact_seconds_ = 0;
 
       // A block of exchanges starts where every solver steps (every exchange without hold exchanges): its plan

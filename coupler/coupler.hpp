@@ -215,10 +215,11 @@ class Coupler {
   double send_seconds_ = 0;     // building, recording and sending the replies
   double wait_seconds_ = 0;     // collecting the states, receiving included
   double critical_compute_seconds_ = 0;
-  // The pairs' seconds that lengthened the exchanges: at each, the part of the slowest solver's wait that the
-  // pairs of the exchange before took (with penalty contacts the slurry computes its own forces meanwhile).
+  // The pairs' seconds that lengthened the exchanges (pairs_on_critical_path: with penalty contacts the slurry
+  // computes its own forces meanwhile), and the pairs' seconds at the last exchange.
   double critical_contact_seconds_ = 0;
-  double last_contact_seconds_ = 0;  // the pairs' seconds at the last exchange
+  double last_contact_seconds_ = 0;
+  std::vector<SolverCycle> cycles_;  // scratch: each solver's part of the exchange
   double newton_max_residual_ = 0;
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;
