@@ -610,24 +610,39 @@ void DemModel::build_neighbours() {
   }
 }
 
+// The calling thread's spheres in a parallel region: contiguous, each thread's with as many list slots
+// (`slot_start`: a sphere's first slot, then the total) as the others. Each thread keeps its part of the bed, as a
+// rank of a domain decomposition does, and the bed's denser parts are shared out by their pairs.
+std::pair<std::int64_t, std::int64_t> DemModel::thread_spheres(const std::vector<std::uint32_t>& slot_start) {
+  assert(!slot_start.empty());
+  const auto thread = static_cast<std::size_t>(omp_get_thread_num());
+  const auto threads = static_cast<std::size_t>(omp_get_num_threads());
+  const auto spheres = static_cast<std::int64_t>(slot_start.size() - 1);
+  auto sphere_at = [&](std::size_t part) {
+    const auto slot = static_cast<std::uint32_t>(std::uint64_t{slot_start.back()} * part / threads);
+    return static_cast<std::int64_t>(std::lower_bound(slot_start.begin(), slot_start.end() - 1, slot) -
+                                     slot_start.begin());
+  };
+  return {thread == 0 ? 0 : sphere_at(thread), thread + 1 == threads ? spheres : sphere_at(thread + 1)};
+}
+
 template <int kLaw, int kRolling>
 void DemModel::pair_forces(double dt_previous) {
-  const auto n = static_cast<std::int64_t>(size());
   const std::size_t wall_count = walls_.size();
   const double linear_stiffness = settings_.normal_stiffness.value_or(0);
   const bool explicit_stiffness = settings_.normal_stiffness.has_value();
   const double scale = settings_.normal_stiffness_scale;
   const double tangential_ratio = settings_.tangential_stiffness_ratio;
-  // Chunks of spheres, each run by the copy of the loop compiled for the CPU's best
-  // instruction set (libsabo/core/isa.hpp): about 1.17 times faster with FMA. Handed out dynamically: the
-  // contacts per sphere differ across a bed (its floor, its surface), and a static split left one thread
-  // waiting (30 000 settled spheres on 2 threads: 1.35x the rate of the static split). Each sphere's sums do
-  // not depend on which thread runs it: the same bits.
-  constexpr std::int64_t kChunk = 64;
-  const std::int64_t chunks = (n + kChunk - 1) / kChunk;
-#pragma omp parallel for schedule(dynamic, 4) if (parallel_)
-  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
-    const std::int64_t first = chunk * kChunk, last = std::min(n, first + kChunk);
+  // Each thread's spheres (thread_spheres) run by the copy of the loop compiled for the CPU's best
+  // instruction set (libsabo/core/isa.hpp): about 1.17 times faster with FMA. Split by list slots: the
+  // contacts per sphere differ across a bed (its floor, its surface), and a split by spheres left one thread
+  // waiting (30 000 settled spheres on 2 threads: 1.35x); chunks of 64 spheres handed out dynamically mended
+  // that, but each thread then touched the whole bed (1.20x slower than the split by slots; bench/RESULTS.md,
+  // "DEM: each thread its part of the bed"). Each sphere's sums do not depend on which thread runs it: the same
+  // bits.
+#pragma omp parallel if (parallel_)
+  {
+    const auto [first, last] = thread_spheres(start_);
     with_best_isa([&] {
       for (std::int64_t k = first; k < last; ++k) {
         const auto a = static_cast<std::uint32_t>(k);
@@ -764,9 +779,9 @@ void DemModel::pair_forces(double dt_previous) {
   }
   // Reactions, each sphere over the slots where it is b, in slot order (zero where not in contact).
   std::size_t contacts = 0, wall_contacts = 0;  // integer sums: exact in any order
-#pragma omp parallel for schedule(static) reduction(+ : contacts, wall_contacts) if (parallel_)
-  for (std::int64_t chunk = 0; chunk < chunks; ++chunk) {
-    const std::int64_t first = chunk * kChunk, last = std::min(n, first + kChunk);
+#pragma omp parallel reduction(+ : contacts, wall_contacts) if (parallel_)
+  {
+    const auto [first, last] = thread_spheres(reverse_start_);
     with_best_isa([&] {
       for (std::int64_t k = first; k < last; ++k) {
         const auto b = static_cast<std::uint32_t>(k);

@@ -216,6 +216,8 @@ class DemModel {
  private:
   template <int kLaw, int kRolling>
   void pair_forces(double dt_previous);
+  [[nodiscard]] static std::pair<std::int64_t, std::int64_t> thread_spheres(
+      const std::vector<std::uint32_t>& slot_start);
   void settle(const scene::Scene& scene, const scene::ParticleSet& set, std::vector<scene::Sphere>& spheres,
               std::span<const scene::Sphere> obstacles);
   void build_neighbours();
@@ -266,13 +268,13 @@ class DemModel {
   // and the dissipative force (energy bookkeeping only) is kept in single precision. The rolling resistance's
   // torques, where a scene has it, in rolling_reaction_ (same order).
   struct alignas(64) Reaction {
-    Vec3 force = Vec3::Zero();                       // N, on b
-    Vec3 arm = Vec3::Zero();                         // m, from b's centre to the contact point
+    Vec3 force = Vec3::Zero();                        // N, on b
+    Vec3 arm = Vec3::Zero();                          // m, from b's centre to the contact point
     std::array<float, 3> dissipative_force{0, 0, 0};  // N, on b
   };
   static_assert(sizeof(Reaction) == 64);
   struct RollingReaction {
-    Vec3 torque = Vec3::Zero();                       // N m, on b
+    Vec3 torque = Vec3::Zero();                        // N m, on b
     std::array<float, 3> dissipative_torque{0, 0, 0};  // N m, on b
   };
   std::vector<Reaction> reaction_;
