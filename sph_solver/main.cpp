@@ -23,6 +23,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <cassert>
+#include <cmath>
 #include <optional>
 #include <utility>
 
@@ -88,7 +90,17 @@ physics::BoundaryParticles walls_ahead(const physics::BoundaryParticles& walls, 
   return ahead;
 }
 
+// Whether `in` is a whole pack_walls() list: its size is what its header says (a checkpoint keeps one, and a
+// checkpoint is user input).
+bool well_formed_walls(const std::vector<double>& in) {
+  if (in.size() < 5 || !(in[1] >= 0) || in[1] != std::floor(in[1])) return false;
+  const auto n = static_cast<std::size_t>(in[1]);
+  const std::size_t vectors = 2 + (in[2] != 0 ? 1 : 0) + (in[3] != 0 ? 1 : 0);
+  return in.size() == 5 + n * (3 * vectors + 1 + (in[4] != 0 ? 1 : 0));
+}
+
 physics::BoundaryParticles unpack_walls(const std::vector<double>& in) {
+  assert(well_formed_walls(in));
   const auto n = static_cast<std::size_t>(in[1]);
   std::size_t at = 5;
   const auto vectors = [&](bool present) {
@@ -360,15 +372,9 @@ class SphSolver final : public solver::CoupledSolver {
     group.set_attribute("have_boundary_forces", have_boundary_forces_ ? 1 : 0);
     group.set_attribute("answered_walls_step", static_cast<std::int64_t>(answered_walls_step_));
     if (last_walls_) {
-      // Lagged: the next step computes with these, moved ahead.
+      // Lagged: the next step computes with these, moved ahead; kept as the ranks receive them.
       io::hdf5::Group last = group.create_group("last_walls");
-      const physics::BoundaryParticles& walls = last_walls_->walls;
-      io::write_vectors(last, "position", walls.position);
-      io::write_vectors(last, "velocity", walls.velocity);
-      io::write_vectors(last, "normal", walls.normal);
-      io::write_vectors(last, "acceleration", walls.acceleration);
-      io::write_array(last, "volume", walls.volume);
-      io::write_array(last, "free_slip", walls.free_slip);
+      io::write_array(last, "walls", pack_walls(last_walls_->walls));
       last.set_attribute("step", static_cast<std::int64_t>(last_walls_->step));
       last.set_attribute("dt", last_walls_->dt);
     }
@@ -389,16 +395,15 @@ class SphSolver final : public solver::CoupledSolver {
     last_walls_.reset();
     if (lagged_walls_ && group.exists("last_walls")) {
       const io::hdf5::Group last = group.group("last_walls");
-      LastWalls loaded;
-      loaded.walls.position = io::read_vectors(last, "position");
-      loaded.walls.velocity = io::read_vectors(last, "velocity");
-      loaded.walls.normal = io::read_vectors(last, "normal");
-      loaded.walls.acceleration = io::read_vectors(last, "acceleration");
-      loaded.walls.volume = io::read_array<double>(last, "volume");
-      loaded.walls.free_slip = io::read_array<std::uint8_t>(last, "free_slip");
-      loaded.step = static_cast<std::uint64_t>(last.int_attribute("step"));
-      loaded.dt = last.double_attribute("dt");
-      last_walls_ = std::move(loaded);
+      const auto packed = io::read_array<double>(last, "walls");
+      if (!well_formed_walls(packed)) {
+        throw FileError(
+            fmt::format("{}: {}/walls is not a whole list of wall particles ({} values). Fix: restart "
+                        "from another checkpoint of this run",
+                        last.file_name(), last.path(), packed.size()));
+      }
+      last_walls_ = LastWalls{unpack_walls(packed), static_cast<std::uint64_t>(last.int_attribute("step")),
+                              last.double_attribute("dt")};
     }
   }
   [[nodiscard]] std::string results() const override {
