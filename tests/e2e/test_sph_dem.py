@@ -77,20 +77,11 @@ class LaggedBoundaryParticlesTest(RealRunTestCase):
     replays to the bit, also from a checkpoint (which keeps the wall particles it computes with next)."""
 
     def write_tank(self, name, lagged):
-        with open(self.scene_path(TANK), encoding="utf-8") as handle:
-            text = handle.read()
-        for line in ('wall_model = "boundary_particles"\n', "end_time = 0.3\n",
-                     'fields = ["position", "velocity", "force", "torque", "energies"]\n'):
-            self.assertIn(line, text)
-        if lagged:
-            text = text.replace('wall_model = "boundary_particles"\n',
-                                'wall_model = "boundary_particles"\nlagged_boundary_particles = true\n')
-        text = text.replace("end_time = 0.3\n", "end_time = 0.3\ncheckpoint_interval = 0.05\n")
-        text = text.replace('fields = ["position", "velocity", "force", "torque", "energies"]\n', "")  # all
-        scene = os.path.join(self.tmp, name + ".toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        return scene
+        walls = 'wall_model = "boundary_particles"\n'
+        return self.scene_variant(TANK, name, [
+            (walls, walls + ("lagged_boundary_particles = true\n" if lagged else "")),
+            ("end_time = 0.3\n", "end_time = 0.3\ncheckpoint_interval = 0.05\n"),
+            ('fields = ["position", "velocity", "force", "torque", "energies"]\n', "")])  # all fields
 
     def test_boulders_float_and_sink_as_without_it_and_the_fluid_replays_to_the_bit(self):
         runs = {}
