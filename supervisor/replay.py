@@ -26,7 +26,7 @@ from . import run_folder
 from .errors import SaboError, EXIT_BAD_INPUT, EXIT_FAILED
 from .plan import check_scene
 from .scene_text import absolute_file_keys, apply_overrides
-from .processes import start_process
+from .processes import describe_exit, start_process
 
 if TYPE_CHECKING:
     import argparse
@@ -162,6 +162,7 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
     process_log = os.path.join(folder, f"{role}.log")
     started = []
     code = None
+    failed = None
     try:
         # The side that binds the endpoint starts first: the replay for a solver, the coupler for ROLE coupler.
         if role != "coupler":
@@ -177,8 +178,8 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
             for spec, live_command in live:  # --take: the solvers not taken from the recording run live
                 started.append(start_process(spec.role, live_command, folder,
                                              os.path.join(folder, f"{spec.role}.log"), stdout_to_pipe=False))
-        report, _ = tool_process.popen.communicate()
-        code = tool_process.returncode
+        report, failed = _watch(tool_process, [p for p in started if p is not tool_process])
+        code = EXIT_PROCESS_FAILED if failed else tool_process.returncode
     finally:
         # A replay that ended its comparison lets the process finish on its own (it got stop); one that could
         # not run leaves it waiting for a coupler that will not answer.
@@ -188,7 +189,12 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
                 _stop(process)
             process.sweep()
     sys.stdout.write(report.decode("utf-8", "replace") if isinstance(report, bytes) else (report or ""))
-    if code == EXIT_PROCESS_FAILED:
+    if failed:
+        print(f"sabo: the {failed.role} {describe_exit(failed.returncode)} before the replay ended; its log: "
+              f"{failed.log_path}", file=sys.stderr)
+        for line in failed.log_tail(5):
+            print(f"  {line}", file=sys.stderr)
+    elif code == EXIT_PROCESS_FAILED:
         print(f"sabo: the {role} failed; its log: {process_log}", file=sys.stderr)
     elif code == EXIT_BAD_INPUT:
         print(f"sabo: replay could not run; see {replay_log}", file=sys.stderr)
@@ -198,6 +204,28 @@ def command_replay(root: str, build_dir: str, args: argparse.Namespace) -> int:
         except OSError:
             pass
     return code
+
+
+def _watch(tool: ManagedProcess, others: list[ManagedProcess]) -> tuple[bytes, ManagedProcess | None]:
+    """The replay tool's report, read while the processes it replays against are watched: one that ends while the
+    tool still waits for it (a damaged checkpoint, a crash, a replacement program that does not speak the
+    protocol) stops the tool within seconds instead of after its registration or hang timeout. Returns the report
+    and the process that ended first (None when the tool ended on its own)."""
+    ended = None  # (process, monotonic time its end was seen)
+    while True:
+        try:  # output read before a timeout is kept by Popen and returned by the call that completes
+            return tool.popen.communicate(timeout=0.2)[0] or b"", None
+        except subprocess.TimeoutExpired:
+            pass
+        if ended is None:
+            gone = next((p for p in others if not p.running), None)
+            if gone is not None:
+                ended = (gone, time.monotonic())
+        # A process that ends with a failure leaves nothing for the tool to wait for; one that exits 0 may have
+        # sent its last state, which the tool is still comparing.
+        elif time.monotonic() - ended[1] > (2.0 if ended[0].returncode != 0 else 10.0):
+            _stop(tool)
+            return tool.popen.communicate()[0] or b"", ended[0]
 
 
 def _taken_roles(names: list[str]) -> list[str]:

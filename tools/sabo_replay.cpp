@@ -251,7 +251,7 @@ int replay_solver(const io::TrafficReader& traffic, const std::string& role, con
       }
       if (inbound.header.type == type) return;
     }
-    throw ProtocolError(fmt::format("sent no {} within {} s", what, timeout_s));
+    throw ProtocolError(fmt::format("did not send {} within {} s", what, timeout_s));
   };
   std::string failure;
   try {
@@ -369,7 +369,7 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
       }
       if (inbound.header.type == type) return;
     }
-    throw ProtocolError(fmt::format("sent no {} within {} s", what, timeout_s));
+    throw ProtocolError(fmt::format("did not send {} within {} s", what, timeout_s));
   };
   std::string failure;
   try {

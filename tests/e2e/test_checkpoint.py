@@ -2,12 +2,14 @@
 walls) with [run] checkpoint_interval writes every process's checkpoint at the same steps and keeps the newest
 two; each solver started from its checkpoint and fed the recorded StepForces from there (`./sabo replay --resume`,
 what the coupler's catch-up after a restart does) sends the recorded states to the bit; a checkpoint of another
-role, of another scene or a damaged file is refused before the solver starts, with exit status 2."""
+role, of another scene or a damaged file is refused before the solver starts, with exit status 2, and through
+`./sabo replay` the refusal is reported within seconds."""
 import json
 import os
 import re
 import shutil
 import subprocess
+import time
 
 from e2e_support import BUILD_DIR, RealRunTestCase
 
@@ -98,3 +100,17 @@ class CheckpointTest(RealRunTestCase):
             self.assertEqual(result.returncode, 2, result.stdout)
             self.assertIn(expected, result.stdout)
             self.assertIn("Fix:" if "missing" not in checkpoint else "checkpoints", result.stdout)
+        # Through `./sabo replay --resume`, the solver's refusal is reported as soon as it exits, not after the
+        # replay's 60 s wait for a registration that cannot come.
+        started = time.monotonic()
+        sabo = self.sabo(["replay", self.run_dir, "fem", "--no-setup", "--resume", self.checkpoint("dem_solver", step)],
+                         env={"SABO_BUILD_DIR": BUILD_DIR, "SABO_PLAN_OVERRIDE": ""})
+        code = sabo.wait(120)
+        elapsed = time.monotonic() - started
+        print("replay fem --resume dem_solver's checkpoint: exit {} after {:.1f} s (expected 3 within 15 s); {}".format(
+            code, elapsed, sabo.stderr.strip().splitlines()[-3:]))
+        self.assertEqual(code, 3, sabo.stdout + sabo.stderr)
+        self.assertLess(elapsed, 15.0)
+        self.assertIn("the fem_solver exited with code 2 before the replay ended", sabo.stderr)
+        self.assertIn("a checkpoint of dem_solver, not of fem_solver", sabo.stderr)
+        self.assertNoProcessLeft(self.run_dir, pids_file=False)
