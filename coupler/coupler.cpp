@@ -18,6 +18,7 @@
 #include "coupler/sensors.hpp"
 #include "libsabo/core/signals.hpp"
 #include "libsabo/protocol/surface_codec.hpp"
+#include "libsabo/protocol/walls_ahead.hpp"
 #include "libsabo/protocol/wire.hpp"
 #include "libsabo/scene/estimate.hpp"
 
@@ -38,6 +39,8 @@ int first_non_finite(const google::protobuf::RepeatedField<double>& values) {
 }
 
 constexpr std::array<char, 3> kAxis = {'x', 'y', 'z'};
+
+void add_boundary_particles(const std::vector<const physics::BoundaryParticles*>& parts, sabo::v1::StepForces& f);
 
 }  // namespace
 
@@ -427,6 +430,11 @@ void Coupler::prepare_contacts() {
     slot.pair = std::move(pair);
     pairs_.push_back(std::move(slot));
   }
+  const auto sph = std::find_if(peers_.begin(), peers_.end(), [](const auto& p) { return p->role == Role::sph; });
+  walls_ahead_ = replies_.boundary().active() && sph != peers_.end() && (*sph)->registration.walls_ahead();
+  if (walls_ahead_) {
+    spdlog::info("boundary particles go to the sph_solver ahead of its forces: it computes while the other pairs do");
+  }
 }
 
 RatePlan Coupler::plan_step() {
@@ -485,23 +493,61 @@ void Coupler::mark_evaluated_pairs(std::uint64_t step) {
 }
 
 void Coupler::compute_contacts(std::uint64_t step) {
+  walls_sent_ahead_ = false;
   if (pairs_.empty()) return;
   const auto start = Clock::now();
   std::size_t contacts = 0;
-  for (auto& slot : pairs_) {
+  const auto compute = [&](PairSlot& slot) {
     if (!slot.evaluated) {
       contacts += slot.pair->contact_count();
-      continue;
+      return;
     }
     const auto pair_start = Clock::now();
     // dt_{n-1} as the pair sees it: its own last interval (several exchanges where it held).
     slot.pair->compute(solvers_, {.step = step, .time = time_, .dt_previous = slot.dt_previous});
     contacts += slot.pair->contact_count();
     slot.seconds += seconds_since(pair_start);
+  };
+  double sending = 0;
+  if (walls_ahead_ && steps_now(*peers_[peer_index(Role::sph)], step)) {
+    // Each pair computes from the states and its own history alone: the order changes no bit.
+    for (auto& slot : pairs_) {
+      if (slot.pair->boundary_particles() != nullptr) compute(slot);
+    }
+    const auto send_start = Clock::now();
+    send_walls_ahead(step);
+    sending = seconds_since(send_start);
+    for (auto& slot : pairs_) {
+      if (slot.pair->boundary_particles() == nullptr) compute(slot);
+    }
+  } else {
+    for (auto& slot : pairs_) compute(slot);
   }
   max_contacts_ = std::max(max_contacts_, contacts);
-  last_contact_seconds_ = seconds_since(start);
+  last_contact_seconds_ = seconds_since(start) - sending;
   contact_seconds_ += last_contact_seconds_;
+  send_seconds_ += sending;
+}
+
+void Coupler::send_walls_ahead(std::uint64_t step) {
+  walls_message_.Clear();
+  walls_message_.set_step(step);
+  walls_message_.set_walls_ahead(true);
+  walls_parts_.clear();
+  for (const auto& slot : pairs_) {
+    const physics::BoundaryParticles* particles = slot.pair->boundary_particles();
+    if (slot.evaluated && particles != nullptr) walls_parts_.push_back(particles);
+  }
+  add_boundary_particles(walls_parts_, walls_message_);
+  Peer& sph = *peers_[peer_index(Role::sph)];
+  try {
+    socket_.send(walls_message_, walls_buffer_, sph.identity);
+  } catch (const LibraryError&) {
+    // Gone after its state: sending its forces fails too, and is handled there (its replacement gets the two
+    // as one StepForces from the journal).
+    if (!sph.journal) throw;
+  }
+  walls_sent_ahead_ = true;
 }
 
 const SurfaceNodes& Coupler::surface_ids() {
@@ -591,6 +637,38 @@ void add_loaded_particles(std::span<const std::uint32_t> index, std::span<const 
     }
   }
 }
+// The boundary_* fields of `f`: the particles of `parts`, in order.
+void add_boundary_particles(const std::vector<const physics::BoundaryParticles*>& parts, sabo::v1::StepForces& f) {
+  using P = physics::BoundaryParticles;
+  std::size_t size = 0;
+  for (const P* part : parts) size += part->size();
+  assign_vectors(*f.mutable_boundary_position(), parts, size, &P::position);
+  // Walls at rest (rigid structures only) send no velocities and accelerations: empty means zero.
+  const auto moving = [&](std::vector<Vec3> P::*member) {
+    return std::any_of(parts.begin(), parts.end(), [&](const P* part) {
+      return std::any_of((part->*member).begin(), (part->*member).end(), [](const Vec3& v) { return !v.isZero(0.0); });
+    });
+  };
+  if (moving(&P::velocity)) assign_vectors(*f.mutable_boundary_velocity(), parts, size, &P::velocity);
+  assign_vectors(*f.mutable_boundary_normal(), parts, size, &P::normal);
+  if (moving(&P::acceleration)) assign_vectors(*f.mutable_boundary_acceleration(), parts, size, &P::acceleration);
+  auto* volume = f.mutable_boundary_volume();
+  volume->Reserve(static_cast<int>(size));
+  for (const P* part : parts) volume->Add(part->volume.begin(), part->volume.end());
+  const bool slips = std::any_of(parts.begin(), parts.end(), [](const P* p) { return !p->free_slip.empty(); });
+  if (slips) {
+    auto* free_slip = f.mutable_boundary_free_slip();
+    free_slip->Reserve(static_cast<int>(size));
+    for (const P* part : parts) {
+      if (part->free_slip.empty()) {
+        free_slip->Resize(free_slip->size() + static_cast<int>(part->size()), 0u);
+      } else {
+        free_slip->Add(part->free_slip.begin(), part->free_slip.end());
+      }
+    }
+  }
+}
+
 }  // namespace
 
 void Coupler::scatter_pairs(std::uint64_t step) {
@@ -693,36 +771,10 @@ void Coupler::send_forces(std::uint64_t step, bool output, bool stop, bool check
       if (interest.all) interest.boxes.clear();
       set_interest(f, interest);
       if (steps && role == Role::sph && replies_.boundary().active()) {
-        const BoundaryChannel& b = replies_.boundary();
-        using P = physics::BoundaryParticles;
-        assign_vectors(*f.mutable_boundary_position(), b.parts(), b.size(), &P::position);
-        // Walls at rest (rigid structures only) send no velocities and accelerations: empty means zero.
-        const auto moving = [&](std::vector<Vec3> P::*member) {
-          return std::any_of(b.parts().begin(), b.parts().end(), [&](const P* part) {
-            return std::any_of((part->*member).begin(), (part->*member).end(),
-                               [](const Vec3& v) { return !v.isZero(0.0); });
-          });
-        };
-        if (moving(&P::velocity)) assign_vectors(*f.mutable_boundary_velocity(), b.parts(), b.size(), &P::velocity);
-        assign_vectors(*f.mutable_boundary_normal(), b.parts(), b.size(), &P::normal);
-        if (moving(&P::acceleration)) {
-          assign_vectors(*f.mutable_boundary_acceleration(), b.parts(), b.size(), &P::acceleration);
-        }
-        auto* volume = f.mutable_boundary_volume();
-        volume->Reserve(static_cast<int>(b.size()));
-        for (const P* part : b.parts()) volume->Add(part->volume.begin(), part->volume.end());
-        const bool slips =
-            std::any_of(b.parts().begin(), b.parts().end(), [](const P* p) { return !p->free_slip.empty(); });
-        if (slips) {
-          auto* free_slip = f.mutable_boundary_free_slip();
-          free_slip->Reserve(static_cast<int>(b.size()));
-          for (const P* part : b.parts()) {
-            if (part->free_slip.empty()) {
-              free_slip->Resize(free_slip->size() + static_cast<int>(part->size()), 0u);
-            } else {
-              free_slip->Add(part->free_slip.begin(), part->free_slip.end());
-            }
-          }
+        if (walls_sent_ahead_) {
+          assert(walls_parts_ == replies_.boundary().parts() && "the walls sent ahead are the replies' list");
+        } else {
+          add_boundary_particles(replies_.boundary().parts(), f);
         }
       }
     } else if (peer->registration.exposes_surface()) {
@@ -746,10 +798,14 @@ void Coupler::send_forces(std::uint64_t step, bool output, bool stop, bool check
   // What only the coupler keeps, once every solver has its forces and computes: the recording and the
   // restart journal (from the bytes the socket sent, when it sent them without a copy).
   for (auto& peer : peers_) {
-    const auto& f = peer->forces;
+    auto& f = peer->forces;
+    // Walls ahead: recorded and journalled as the one StepForces a solver without them gets (replay, catch-up).
+    const bool joined = walls_sent_ahead_ && peer->role == Role::sph;  // sent ahead only where it steps
+    if (joined) protocol::move_boundary_particles(walls_message_, f);
     if (recorder_) recorder_->record_forces(peer->name(), f);
     if (peer->journal && !peer->journal->dropped()) {
-      peer->journal->add_forces(f, peer->send_error ? std::span<const std::uint8_t>() : peer->buffer.last_body());
+      peer->journal->add_forces(
+          f, peer->send_error || joined ? std::span<const std::uint8_t>() : peer->buffer.last_body());
       if (peer->journal->dropped()) {
         spdlog::warn(
             "the {} at step {}: {}, and it cannot be restarted until then. Fix: checkpoints more often "

@@ -101,8 +101,13 @@ class Coupler {
   RatePlan plan_step();
   // Which pairs are evaluated at this exchange: those whose sides both step (all of them at a block's start).
   void mark_evaluated_pairs(std::uint64_t step);
-  // The evaluated pairs' forces at t_n (time_), each with its own last interval as dt_{n-1}.
+  // The evaluated pairs' forces at t_n (time_), each with its own last interval as dt_{n-1}. With walls ahead
+  // the pairs that place boundary particles come first, and their particles go to the sph_solver before the
+  // others are computed (send_walls_ahead).
   void compute_contacts(std::uint64_t step);
+  // Walls ahead (docs/protocol.md): this step's boundary particles, of the evaluated pairs in pair order (the
+  // list scatter_pairs() builds again in replies_.boundary()), in a StepForces of their own to the sph_solver.
+  void send_walls_ahead(std::uint64_t step);
   // The surface's node ids now (held forces on nodes are kept by id).
   const SurfaceNodes& surface_ids();
   void check_newton_third_law(std::uint64_t step);
@@ -183,6 +188,13 @@ class Coupler {
   std::vector<PairSlot> pairs_;
   Replies replies_;
   Replies scratch_replies_;  // a pair held for one side scatters here first (scatter_pairs)
+  // Walls ahead: on when the sph_solver registered walls_ahead and a pair sends it boundary particles; the
+  // message of the step, its particles' lists (checked against the replies' list) and its send buffer.
+  bool walls_ahead_ = false;
+  bool walls_sent_ahead_ = false;  // this step's
+  sabo::v1::StepForces walls_message_;
+  std::vector<const physics::BoundaryParticles*> walls_parts_;
+  protocol::SendBuffer walls_buffer_;
   // Hold exchanges: the plan of the block of exchanges in progress (a block starts where every solver steps),
   // its first exchange and its length (0: the next exchange starts one); whether the previous exchange
   // started one (energy.csv samples there: every state describes its time).

@@ -6,8 +6,10 @@
 // added like the DEM solver's, and the SPH forces are computed while the coupler
 // works. With boundary particles (structure walls, or boulders with
 // [contact.sph_dem] model = "boundary_particles") the wall particles at x_n arrive
-// in the StepForces of step n, so the SPH forces of step n are computed once they
-// are there (apply_coupling_forces), and the force on each wall particle goes back
+// ahead of the forces of step n, in a StepForces of their own (walls ahead: the
+// coupler computes its other pairs meanwhile), or inside the StepForces of step n
+// (a replay, a restart's catch-up), so the SPH forces of step n are computed once
+// they are there (take_walls_ahead, apply_coupling_forces), and the force on each wall particle goes back
 // in the next StepState.boundary_force, in the order received. With
 // sph.lagged_boundary_particles the SPH forces of step n are computed while the
 // coupler works, with the wall particles of step n - 1 moved ahead one step
@@ -30,6 +32,7 @@
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/checkpoint.hpp"
+#include "libsabo/protocol/walls_ahead.hpp"
 #include "libsabo/scene/loader.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/energy_audit.hpp"
@@ -263,21 +266,23 @@ class SphSolver final : public solver::CoupledSolver {
     }
   }
 
+  // The lagged fluid computes with the walls of the step before, so walls ahead would gain it nothing.
+  [[nodiscard]] bool takes_walls_ahead() const override { return boundary_walls_ && !lagged_walls_; }
+  void take_walls_ahead(const sabo::v1::StepForces& walls) override {
+    assert(takes_walls_ahead() && "the driver hands walls ahead only to a solver that registered them");
+    compute_with_walls(walls_of(walls), walls.step());
+    walls_taken_ = true;
+  }
+
   void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
-    if (boundary_walls_) {
-      const auto count = static_cast<std::size_t>(forces.boundary_volume_size());
-      physics::BoundaryParticles walls;
-      walls.position = unpack_vectors(forces.boundary_position(), count, "boundary_position");
-      // Empty: every wall particle at rest (BoundaryParticles keeps them empty then).
-      if (!forces.boundary_velocity().empty()) {
-        walls.velocity = unpack_vectors(forces.boundary_velocity(), count, "boundary_velocity");
+    if (walls_taken_) {
+      walls_taken_ = false;
+      if (protocol::has_boundary_particles(forces)) {
+        throw ProtocolError(fmt::format(
+            "StepForces of step {} carries boundary particles, which came ahead of it already", forces.step()));
       }
-      walls.normal = unpack_vectors(forces.boundary_normal(), count, "boundary_normal");
-      if (!forces.boundary_acceleration().empty()) {
-        walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
-      }
-      walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
-      walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
+    } else if (boundary_walls_) {
+      physics::BoundaryParticles walls = walls_of(forces);
       if (!lagged_walls_) {
         compute_with_walls(std::move(walls), forces.step());
       } else {
@@ -441,6 +446,23 @@ class SphSolver final : public solver::CoupledSolver {
   }
 
   // Sets the wall particles of step `walls_step` (moved ahead or not) and computes the fluid's forces with them.
+  static physics::BoundaryParticles walls_of(const sabo::v1::StepForces& forces) {
+    const auto count = static_cast<std::size_t>(forces.boundary_volume_size());
+    physics::BoundaryParticles walls;
+    walls.position = unpack_vectors(forces.boundary_position(), count, "boundary_position");
+    // Empty: every wall particle at rest (BoundaryParticles keeps them empty then).
+    if (!forces.boundary_velocity().empty()) {
+      walls.velocity = unpack_vectors(forces.boundary_velocity(), count, "boundary_velocity");
+    }
+    walls.normal = unpack_vectors(forces.boundary_normal(), count, "boundary_normal");
+    if (!forces.boundary_acceleration().empty()) {
+      walls.acceleration = unpack_vectors(forces.boundary_acceleration(), count, "boundary_acceleration");
+    }
+    walls.volume.assign(forces.boundary_volume().begin(), forces.boundary_volume().end());
+    walls.free_slip.assign(forces.boundary_free_slip().begin(), forces.boundary_free_slip().end());
+    return walls;
+  }
+
   void compute_with_walls(physics::BoundaryParticles walls, std::uint64_t walls_step) {
     if (leader_.active()) leader_.send(pack_walls(walls));
     leader_.send(RankCommand::compute, {dt_previous_});
@@ -467,6 +489,7 @@ class SphSolver final : public solver::CoupledSolver {
   bool boundary_walls_;
   bool lagged_walls_;  // sph.lagged_boundary_particles, with boundary particles
   bool have_boundary_forces_ = false;
+  bool walls_taken_ = false;               // this step's walls came ahead of its forces and were computed with
   std::uint64_t answered_walls_step_ = 0;  // the step of the wall particles model_.boundary_forces() answers
   // Lagged: the wall particles of the last StepForces, its step and its dt (s), for the next step's forces.
   struct LastWalls {

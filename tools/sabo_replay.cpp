@@ -29,6 +29,7 @@
 #include "libsabo/io/traffic.hpp"
 #include "libsabo/protocol/message_compare.hpp"
 #include "libsabo/protocol/socket.hpp"
+#include "libsabo/protocol/walls_ahead.hpp"
 
 namespace {
 
@@ -389,6 +390,19 @@ int replay_coupler(const io::TrafficReader& traffic, const std::string& endpoint
         wait(*s.socket, sabo::v1::MESSAGE_TYPE_STEP_FORCES, fmt::format("the forces of step {} for {}", step, s.role));
         sabo::v1::StepForces forces;
         inbound.parse(forces);
+        if (forces.walls_ahead()) {
+          // Walls ahead: the step's own StepForces follows; compared as the one StepForces the recording holds.
+          sabo::v1::StepForces rest;
+          wait(*s.socket, sabo::v1::MESSAGE_TYPE_STEP_FORCES,
+               fmt::format("the forces of step {} for {} after its walls", step, s.role));
+          inbound.parse(rest);
+          if (rest.walls_ahead() || rest.step() != forces.step()) {
+            throw ProtocolError(
+                fmt::format("sent walls ahead for step {} to {}, then no forces of that step", step, s.role));
+          }
+          protocol::move_boundary_particles(forces, rest);
+          forces = std::move(rest);
+        }
         comparison.compare_forces(s.registration, traffic.forces(s.role, step), forces);
         stopped = stopped || forces.stop();
       }

@@ -24,7 +24,9 @@
 //                              same force by point of contact (sensors.csv)
 //   scatter(solvers, dt, out)  once dt_n is known: adds its forces (and
 //                              torques) to BOTH sides' replies, its boundary
-//                              particles to the sph_solver's
+//                              particles to the sph_solver's (placed by
+//                              compute(): boundary_particles(), which the
+//                              coupler may send ahead of the other pairs)
 //   interest(role)             the region of each side it needs at step n + 1
 //
 // History: everything that carries over from one step to the next (tangential
@@ -236,6 +238,9 @@ class ContactPair {
   // Hold exchanges: true when both its sides must step at every exchange (a pair that sends boundary
   // particles: the sph_solver takes them at every step, and the fluid's force on them comes back a step later).
   [[nodiscard]] virtual bool every_exchange() const { return false; }
+  // Walls ahead: the boundary particles this pair sends the sph_solver, those of this step once compute() placed
+  // them (the list scatter() appends to the replies); nullptr: it sends none.
+  [[nodiscard]] virtual const physics::BoundaryParticles* boundary_particles() const { return nullptr; }
   [[nodiscard]] virtual NewtonBalance newton_balance() const = 0;
   // J in the pair's springs at x_n, and W dissipated by its dashpots and slip in step n (acts over dt_n).
   struct Energy {

@@ -33,6 +33,7 @@ class SphDemBoundaryPair final : public ContactPair {
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
   [[nodiscard]] InterestRequest interest(Role role) const override;
   [[nodiscard]] bool every_exchange() const override { return true; }
+  [[nodiscard]] const physics::BoundaryParticles* boundary_particles() const override { return &selected_; }
   [[nodiscard]] NewtonBalance newton_balance() const override { return balance_; }
   [[nodiscard]] std::size_t contact_count() const override { return boulders_touched_; }
   [[nodiscard]] nlohmann::json effect() const override;

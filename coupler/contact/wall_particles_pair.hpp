@@ -20,6 +20,7 @@ class WallParticlesPair final : public ContactPair {
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
   [[nodiscard]] InterestRequest interest(Role role) const override;
   [[nodiscard]] bool every_exchange() const override { return true; }
+  [[nodiscard]] const physics::BoundaryParticles* boundary_particles() const override { return &walls_.selected(); }
   [[nodiscard]] NewtonBalance newton_balance() const override;
   // Not on a deformable structure: there the walls' acceleration enters their pressure (the fluid's added
   // mass), and that force held over several of the structure's steps feeds its vibration (C1 in

@@ -5,5 +5,6 @@ target_sources(sabo_core PRIVATE
   ${CMAKE_CURRENT_LIST_DIR}/socket.cpp
   ${CMAKE_CURRENT_LIST_DIR}/solver_link.cpp
   ${CMAKE_CURRENT_LIST_DIR}/surface_codec.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/walls_ahead.cpp
   ${CMAKE_CURRENT_LIST_DIR}/wire.cpp
 )

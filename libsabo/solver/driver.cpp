@@ -173,6 +173,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   registration.set_max_substeps(solver.max_substeps());
   registration.set_holds(solver.can_hold());
   registration.set_takes_state(solver.can_take_state());
+  registration.set_walls_ahead(solver.takes_walls_ahead());
 
   const std::string role_text = role_name(role);
   const io::CheckpointStore checkpoints(options.out_dir / "checkpoints", role_text, io::file_digest(options.scene),
@@ -266,7 +267,28 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         overlapped = seconds_since(start);
       }
 
-      const auto& forces = link.receive_forces(step);
+      const sabo::v1::StepForces* received = &link.receive_forces(step);
+      if (received->walls_ahead()) {
+        if (!registration.walls_ahead() || hold) {
+          throw ProtocolError(fmt::format("StepForces of step {} carries walls ahead{}", step,
+                                          hold ? " at a hold" : "; this solver registered walls_ahead = false"));
+        }
+        if (received->index_size() > 0 || received->node_force_size() > 0 || received->stop() || received->output() ||
+            received->checkpoint() || received->holds() > 0 || received->substeps() > 1 || received->has_taken()) {
+          throw ProtocolError(fmt::format(
+              "the walls-ahead StepForces of step {} carries more than the boundary particles (forces, stop, "
+              "output, checkpoint, holds, substeps or taken state come in the step's own StepForces)",
+              step));
+        }
+        const auto walls_start = Clock::now();
+        solver.take_walls_ahead(*received);
+        overlapped += seconds_since(walls_start);
+        received = &link.receive_forces(step);
+        if (received->walls_ahead()) {
+          throw ProtocolError(fmt::format("two StepForces of step {} carry walls ahead", step));
+        }
+      }
+      const sabo::v1::StepForces& forces = *received;
 
       start = Clock::now();
       if (forces.hold() != hold) {

@@ -61,6 +61,11 @@ class Interest {
 // StepState after them is followed by compute_internal_forces as at any step. A checkpoint is written at
 // the last hold only (the state of the exchange after it). A solver that can hold says so with can_hold()
 // (by default: one that can take several steps per exchange).
+// Walls ahead (docs/protocol.md): a solver that takes_walls_ahead() may get, after sending its state and
+// before step 3, a StepForces carrying only the step's boundary particles (StepForces.walls_ahead):
+// take_walls_ahead() computes with them while the coupler computes its other pairs, and the step's
+// apply_coupling_forces() then gets a StepForces without them. A solver that registered it must also take
+// the boundary particles inside the step's StepForces (a replay, a restart's catch-up send them so).
 // A solver started with --resume FILE is built from the scene as usual, then
 // load_checkpoint() puts it back at step n + 1: from there it must produce
 // the same bits as the process that wrote the file.
@@ -85,6 +90,9 @@ class CoupledSolver {
   [[nodiscard]] virtual std::uint32_t max_substeps() const { return 1; }
   // Whether it may answer hold exchanges (step less often than it exchanges).
   [[nodiscard]] virtual bool can_hold() const { return max_substeps() > 1; }
+  // Walls ahead: whether it takes a step's boundary particles ahead of its forces, and taking them.
+  [[nodiscard]] virtual bool takes_walls_ahead() const { return false; }
+  virtual void take_walls_ahead(const sabo::v1::StepForces& /*walls*/) {}
   // Restarts: a solver that can write its whole state says so; save writes it into `group`, load
   // restores it from a group that save wrote for the same scene (FileError otherwise).
   [[nodiscard]] virtual bool can_checkpoint() const { return false; }

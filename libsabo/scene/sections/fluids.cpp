@@ -66,10 +66,10 @@ void Schema::build_sph() {
                "the sph_solver computes its forces of step n while the coupler computes its contacts, with the "
                "wall particles of step n - 1 moved ahead one step by their velocity and acceleration (second "
                "order in the step; walls at rest do not move), instead of waiting for the wall particles of step "
-               "n. Faster where the coupler's contacts take long beside the fluid's step (on "
-               "`configs/debris_flow_dam.toml` the fluid waits a third of its time for them); the fluid's forces "
-               "still balance the boulders' and the walls' exactly, step by step. The first step waits, as without "
-               "it. Only with boundary particles."),
+               "n, which the coupler sends ahead of its other contacts (docs/protocol.md, \"Walls ahead\"). "
+               "Faster where the fluid and the coupler have cores of their own and placing the wall particles "
+               "takes long beside the fluid's step; the fluid's forces still balance the boulders' and the walls' "
+               "exactly, step by step. The first step waits, as without it. Only with boundary particles."),
       K("sound_speed", Type::number)
           .required("30.0")
           .unit("m/s")

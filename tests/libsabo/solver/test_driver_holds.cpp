@@ -3,6 +3,9 @@
 // without a step or a force computation, the first with the energies of its step, and sends the whole state it
 // filled then (a change reported once, as the fem_solver's new topology, included) where it steps again. A hold
 // that nobody announced, and a step where a hold was announced, end the solver with an error naming the step.
+// Walls ahead, at the end: the boundary particles of a step taken ahead of its forces.
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -86,14 +89,15 @@ struct ScriptedCoupler : ::testing::Test {
     inbound.parse(message);
     return message;
   }
-  void accept_registration() {
-    receive<sabo::v1::Register>(sabo::v1::MESSAGE_TYPE_REGISTER);
+  sabo::v1::Register accept_registration() {
+    auto registration = receive<sabo::v1::Register>(sabo::v1::MESSAGE_TYPE_REGISTER);
     sabo::v1::RegisterReply reply;
     reply.set_accepted(true);
     reply.set_protocol_version(protocol::kProtocolVersion);
     reply.set_end_time(1.0);
     reply.set_interest_all(true);
     socket.send(reply, inbound.peer);
+    return registration;
   }
   sabo::v1::StepState state() { return receive<sabo::v1::StepState>(sabo::v1::MESSAGE_TYPE_STEP_STATE); }
   void send(sabo::v1::StepForces forces) {
@@ -183,6 +187,92 @@ TEST_F(ScriptedCoupler, AHoldNobodyAnnouncedAndAStepWhereAHoldWasEndTheSolver) {
     std::cout << "error: " << error.message() << "\n";
     EXPECT_NE(error.message().find(announced ? "StepForces of step 1 is not a hold" : "a hold that no StepForces"),
               std::string::npos);
+    EXPECT_EQ(solver_run.get(), 1);
+  }
+}
+
+// Walls ahead (docs/protocol.md, "Walls ahead"): a solver that registered walls_ahead takes a step's boundary
+// particles from the StepForces that comes ahead of the step's forces, before those forces; boundary particles
+// inside the step's own StepForces (a replay, a restart's catch-up) reach apply_coupling_forces as before.
+namespace {
+
+struct WallsSolver : FakeSolver {
+  bool takes = true;
+  std::vector<std::string> calls;  // in order: "walls N@step" and "forces N" (N boundary particles)
+  [[nodiscard]] bool takes_walls_ahead() const override { return takes; }
+  void take_walls_ahead(const sabo::v1::StepForces& walls) override {
+    calls.push_back(fmt::format("walls {}@{}", walls.boundary_volume_size(), walls.step()));
+  }
+  void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
+    calls.push_back(fmt::format("forces {}", forces.boundary_volume_size()));
+  }
+};
+
+sabo::v1::StepForces walls_ahead(std::uint64_t step, int particles) {
+  sabo::v1::StepForces walls;
+  walls.set_step(step);
+  walls.set_walls_ahead(true);
+  for (int k = 0; k < particles; ++k) {
+    for (int c = 0; c < 3; ++c) walls.add_boundary_position(k);
+    walls.add_boundary_volume(1e-6);
+  }
+  return walls;
+}
+
+}  // namespace
+
+TEST_F(ScriptedCoupler, WallsAheadAreTakenBeforeTheStepsForcesAndInsideThemToo) {
+  WallsSolver fake;
+  auto solver_run = std::async(std::launch::async, [&] { return solver::run_solver(fake, scene, options, Role::sph); });
+  EXPECT_TRUE(accept_registration().walls_ahead());
+
+  state();
+  send(walls_ahead(0, 2));
+  send(step_forces(0, 1e-3, 0));
+  state();
+  auto merged = walls_ahead(1, 3);  // as a replay sends them: inside the step's StepForces
+  merged.set_walls_ahead(false);
+  merged.set_dt(1e-3);
+  send(merged);
+  state();
+  send(walls_ahead(2, 1));
+  auto last = step_forces(2, 1e-3, 0);
+  last.set_stop(true);
+  send(last);
+  receive<sabo::v1::Goodbye>(sabo::v1::MESSAGE_TYPE_GOODBYE);
+  EXPECT_EQ(solver_run.get(), 0);
+  const std::vector<std::string> expected{"walls 2@0", "forces 0", "forces 3", "walls 1@2", "forces 0"};
+  std::cout << "calls: " << fmt::format("{}", fmt::join(fake.calls, ", ")) << " (expected "
+            << fmt::format("{}", fmt::join(expected, ", ")) << ")\n";
+  EXPECT_EQ(fake.calls, expected);
+}
+
+TEST_F(ScriptedCoupler, WallsAheadThatDoNotFitEndTheSolver) {
+  struct Case {
+    bool takes;
+    sabo::v1::StepForces first;
+    const char* expected;
+  };
+  auto with_forces = walls_ahead(0, 1);
+  with_forces.add_index(0);
+  for (int c = 0; c < 3; ++c) with_forces.add_force(1.0);
+  const Case cases[] = {
+      {false, walls_ahead(0, 1), "this solver registered walls_ahead = false"},
+      {true, with_forces, "carries more than the boundary particles"},
+      {true, walls_ahead(0, 1), "two StepForces of step 0 carry walls ahead"},
+  };
+  for (const Case& c : cases) {
+    WallsSolver fake;
+    fake.takes = c.takes;
+    auto solver_run =
+        std::async(std::launch::async, [&] { return solver::run_solver(fake, scene, options, Role::sph); });
+    accept_registration();
+    state();
+    send(c.first);
+    if (c.takes && c.first.index_size() == 0) send(walls_ahead(0, 1));  // the second walls of the third case
+    const auto error = receive<sabo::v1::Error>(sabo::v1::MESSAGE_TYPE_ERROR);
+    std::cout << "error: " << error.message() << "\n";
+    EXPECT_NE(error.message().find(c.expected), std::string::npos) << error.message();
     EXPECT_EQ(solver_run.get(), 1);
   }
 }
