@@ -637,6 +637,7 @@ void add_loaded_particles(std::span<const std::uint32_t> index, std::span<const 
     }
   }
 }
+
 // The boundary_* fields of `f`: the particles of `parts`, in order.
 void add_boundary_particles(const std::vector<const physics::BoundaryParticles*>& parts, sabo::v1::StepForces& f) {
   using P = physics::BoundaryParticles;
