@@ -11,12 +11,16 @@
 
 namespace sabo::coupler {
 
-double pairs_on_critical_path(const std::vector<SolverCycle>& cycles, double pair_seconds) {
+double pairs_on_critical_path(const std::vector<SolverCycle>& cycles, const PairSeconds& pairs) {
   const SolverCycle* slowest = nullptr;
   for (const SolverCycle& c : cycles) {
     if (slowest == nullptr || c.compute > slowest->compute) slowest = &c;
   }
-  return slowest == nullptr ? 0.0 : std::min(pair_seconds, slowest->waited);
+  if (slowest == nullptr) return 0.0;
+  if (!slowest->waited_for_forces) return std::min(pairs.all, slowest->waited);
+  const double for_forces = std::clamp(*slowest->waited_for_forces, 0.0, slowest->waited);
+  return std::min(pairs.walls_ahead, slowest->waited - for_forces) +
+         std::min(std::max(0.0, pairs.all - pairs.walls_ahead), for_forces);
 }
 
 std::FILE* open_for_writing(const std::filesystem::path& file) {

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,14 +20,23 @@ namespace sabo::coupler {
 struct SolverCycle {
   double compute = 0;
   double waited = 0;
+  // Walls ahead at that exchange: of `waited`, what it waited for its forces after its walls came (the rest
+  // was for the walls); nullopt: it waited for one StepForces.
+  std::optional<double> waited_for_forces;
+};
+// The pairs' seconds at an exchange: all of them, and of those the pairs whose boundary particles went ahead.
+struct PairSeconds {
+  double all = 0;
+  double walls_ahead = 0;
 };
 // The seconds by which the pairs' `pair_seconds` lengthened an exchange: what the slowest solver (the one that
 // computed longest) waited for its forces, up to pair_seconds; had the forces come pair_seconds sooner, it
 // would have waited that much less. All of them when the slowest solver waits for them, none when it computes
 // its own forces meanwhile. (The longest compute + wait over all solvers against the same with each wait
 // shortened says the same, but each solver's compute + wait is the exchange's length plus its own noise, and
-// the largest of them over-counts.)
-[[nodiscard]] double pairs_on_critical_path(const std::vector<SolverCycle>& cycles, double pair_seconds);
+// the largest of them over-counts.) A solver that got its walls ahead waited for the pairs that placed them
+// before it could compute, and for the others only after: each part counts against its own wait.
+[[nodiscard]] double pairs_on_critical_path(const std::vector<SolverCycle>& cycles, const PairSeconds& pairs);
 
 // Opens `file` for writing (created or truncated); throws FileError naming it.
 [[nodiscard]] std::FILE* open_for_writing(const std::filesystem::path& file);

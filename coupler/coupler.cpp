@@ -188,6 +188,8 @@ void Coupler::accept_state(Peer& peer, std::uint64_t step) {
   // Its wait is a sum over the process's life: a restarted process starts it again.
   peer.waited = std::max(0.0, peer.incoming.wait_seconds() - peer.reported_wait);
   peer.reported_wait = peer.incoming.wait_seconds();
+  peer.waited_for_forces = std::max(0.0, peer.incoming.forces_wait_seconds() - peer.reported_forces_wait);
+  peer.reported_forces_wait = peer.incoming.forces_wait_seconds();
   const bool held = peer.incoming.held();
   if (held) {
     validate_held_state(peer);
@@ -509,11 +511,13 @@ void Coupler::compute_contacts(std::uint64_t step) {
     slot.seconds += seconds_since(pair_start);
   };
   double sending = 0;
+  last_walls_contact_seconds_ = 0;
   if (walls_ahead_ && steps_now(*peers_[peer_index(Role::sph)], step)) {
     // Each pair computes from the states and its own history alone: the order changes no bit.
     for (auto& slot : pairs_) {
       if (slot.pair->boundary_particles() != nullptr) compute(slot);
     }
+    last_walls_contact_seconds_ = seconds_since(start);
     const auto send_start = Clock::now();
     send_walls_ahead(step);
     sending = seconds_since(send_start);
@@ -1064,10 +1068,16 @@ int Coupler::run() {
       for (auto& peer : peers_) {
         step_compute = std::max(step_compute, peer->reported_compute);
         peer->compute_seconds += peer->reported_compute;
-        cycles_.push_back({.compute = peer->reported_compute, .waited = peer->waited});
+        // Walls ahead went to the sph_solver at the exchange its state answers (reset at this one's pairs).
+        const bool walls_came_ahead = walls_sent_ahead_ && peer->role == Role::sph;
+        cycles_.push_back(
+            {.compute = peer->reported_compute,
+             .waited = peer->waited,
+             .waited_for_forces = walls_came_ahead ? std::optional(peer->waited_for_forces) : std::nullopt});
       }
       critical_compute_seconds_ += step_compute;
-      critical_contact_seconds_ += pairs_on_critical_path(cycles_, last_contact_seconds_);
+      critical_contact_seconds_ +=
+          pairs_on_critical_path(cycles_, {.all = last_contact_seconds_, .walls_ahead = last_walls_contact_seconds_});
       last_contact_seconds_ = 0;
 
       // A block of exchanges starts where every solver steps (every exchange without hold exchanges): its plan

@@ -231,7 +231,8 @@ class Coupler {
   // computes its own forces meanwhile), and the pairs' seconds at the last exchange.
   double critical_contact_seconds_ = 0;
   double last_contact_seconds_ = 0;
-  std::vector<SolverCycle> cycles_;  // scratch: each solver's part of the exchange
+  double last_walls_contact_seconds_ = 0;  // of those, the pairs whose boundary particles went ahead
+  std::vector<SolverCycle> cycles_;        // scratch: each solver's part of the exchange
   double newton_max_residual_ = 0;
   std::uint64_t newton_violations_ = 0;
   std::size_t max_contacts_ = 0;

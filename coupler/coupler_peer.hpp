@@ -36,10 +36,12 @@ struct Coupler::Peer {
   bool has_state = false;
   bool said_goodbye = false;
   sabo::v1::Goodbye goodbye;
-  double compute_seconds = 0;   // reported in StepState, summed
-  double reported_compute = 0;  // s: compute_seconds of its last message, held or whole
-  double reported_wait = 0;     // s: wait_seconds of its last message
-  double waited = 0;            // s: what it waited for the forces of the exchange before its last message
+  double compute_seconds = 0;       // reported in StepState, summed
+  double reported_compute = 0;      // s: compute_seconds of its last message, held or whole
+  double reported_wait = 0;         // s: wait_seconds of its last message
+  double waited = 0;                // s: what it waited for the forces of the exchange before its last message
+  double reported_forces_wait = 0;  // s: forces_wait_seconds of its last message
+  double waited_for_forces = 0;     // s: of `waited`, after its walls came ahead (walls ahead only)
   // Hold exchanges (docs/architecture.md, "Multirate"): the exchange at which it steps next (it holds at
   // those before) and the time its states carry until then.
   std::uint64_t next_step_exchange = 0;

@@ -109,7 +109,8 @@ std::vector<std::uint64_t> RestartJournal::digests(const sabo::v1::StepState& st
                                  S::kEnergiesFieldNumber,
                                  S::kTopologyFieldNumber,
                                  S::kComputeSecondsFieldNumber,
-                                 S::kWaitSecondsFieldNumber};
+                                 S::kWaitSecondsFieldNumber,
+                                 S::kForcesWaitSecondsFieldNumber};
     google::protobuf::FieldMask mask;
     const auto* descriptor = S::descriptor();
     for (int k = 0; k < descriptor->field_count(); ++k) {

@@ -207,6 +207,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
   double compute_seconds = 0;
   double checkpoint_seconds = 0;
   std::uint64_t substeps_taken = 0;
+  double forces_wait_seconds = 0;  // of the link's wait: for StepForces after their walls came ahead
   int exit_code = 0;
   try {
     const auto& reply = link.register_solver(registration);
@@ -258,6 +259,7 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
       compute_since_last += seconds_since(start);
       state.set_compute_seconds(compute_since_last);
       state.set_wait_seconds(link.wait_seconds());
+      state.set_forces_wait_seconds(forces_wait_seconds);
       link.send_state(state);
 
       start = Clock::now();
@@ -283,7 +285,9 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         const auto walls_start = Clock::now();
         solver.take_walls_ahead(*received);
         overlapped += seconds_since(walls_start);
+        const double waited_before = link.wait_seconds();
         received = &link.receive_forces(step);
+        forces_wait_seconds += link.wait_seconds() - waited_before;
         if (received->walls_ahead()) {
           throw ProtocolError(fmt::format("two StepForces of step {} carry walls ahead", step));
         }
