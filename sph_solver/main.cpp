@@ -445,7 +445,7 @@ class SphSolver final : public solver::CoupledSolver {
     return list;
   }
 
-  // Sets the wall particles of step `walls_step` (moved ahead or not) and computes the fluid's forces with them.
+  // The wall particles a StepForces carries; ProtocolError when its arrays do not fit their count.
   static physics::BoundaryParticles walls_of(const sabo::v1::StepForces& forces) {
     const auto count = static_cast<std::size_t>(forces.boundary_volume_size());
     physics::BoundaryParticles walls;
@@ -463,6 +463,7 @@ class SphSolver final : public solver::CoupledSolver {
     return walls;
   }
 
+  // Sets the wall particles of step `walls_step` (moved ahead or not) and computes the fluid's forces with them.
   void compute_with_walls(physics::BoundaryParticles walls, std::uint64_t walls_step) {
     if (leader_.active()) leader_.send(pack_walls(walls));
     leader_.send(RankCommand::compute, {dt_previous_});
