@@ -32,7 +32,6 @@
 
 #include "libsabo/core/error.hpp"
 #include "libsabo/io/checkpoint.hpp"
-#include "libsabo/protocol/walls_ahead.hpp"
 #include "libsabo/scene/loader.hpp"
 #include "libsabo/solver/driver.hpp"
 #include "sph_solver/energy_audit.hpp"
@@ -276,11 +275,7 @@ class SphSolver final : public solver::CoupledSolver {
 
   void apply_coupling_forces(const sabo::v1::StepForces& forces) override {
     if (walls_taken_) {
-      walls_taken_ = false;
-      if (protocol::has_boundary_particles(forces)) {
-        throw ProtocolError(fmt::format(
-            "StepForces of step {} carries boundary particles, which came ahead of it already", forces.step()));
-      }
+      walls_taken_ = false;  // the driver refuses a StepForces that brings them again
     } else if (boundary_walls_) {
       physics::BoundaryParticles walls = walls_of(forces);
       if (!lagged_walls_) {

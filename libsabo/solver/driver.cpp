@@ -13,6 +13,7 @@
 #include "libsabo/core/signals.hpp"
 #include "libsabo/io/checkpoint.hpp"
 #include "libsabo/protocol/solver_link.hpp"
+#include "libsabo/protocol/walls_ahead.hpp"
 #include "libsabo/scene/loader.hpp"
 
 namespace sabo::solver {
@@ -290,6 +291,10 @@ int run_solver(CoupledSolver& solver, const scene::Scene& scene, const SolverOpt
         forces_wait_seconds += link.wait_seconds() - waited_before;
         if (received->walls_ahead()) {
           throw ProtocolError(fmt::format("two StepForces of step {} carry walls ahead", step));
+        }
+        if (protocol::has_boundary_particles(*received)) {
+          throw ProtocolError(
+              fmt::format("StepForces of step {} carries boundary particles, which came ahead of it already", step));
         }
       }
       const sabo::v1::StepForces& forces = *received;

@@ -120,10 +120,10 @@ class LaggedBoundaryParticlesTest(RealRunTestCase):
         self.assertLess(residuals["sph_dem_boundary_particles"], 1e-12)
         self.assertEqual(summary["newton_third_law"]["violations"], 0)
         # The coupling overhead counts the pairs only for what they lengthened the exchanges (test_critical_path
-        # checks the rule on numbers). Waiting for its wall particles the fluid waits for all of the pairs' time
-        # on a quiet machine (100 %), computing beside them it hides most of them (5-8 %); on a busy one another
-        # solver's slowed step hides some of them in both runs (88 % waiting with another test beside it), so only
-        # the bounds are checked here.
+        # checks the rule on numbers). Without the lag the fluid waits for the pairs that place its wall particles
+        # (sent ahead of the others) and computes beside the rest; with it, it computes beside all of them. How
+        # much of them lies on the path then depends on how busy the machine is (another solver's slowed step
+        # hides some), so only the bounds are checked here.
         for lagged, out in runs.items():
             coupler = read_json(os.path.join(out, "summary.json"))["processes"]["coupler"]
             on_path, total = coupler["contact_seconds_on_critical_path"], coupler["contact_seconds"]

@@ -260,7 +260,10 @@ TEST_F(ScriptedCoupler, WallsAheadThatDoNotFitEndTheSolver) {
       {false, walls_ahead(0, 1), "this solver registered walls_ahead = false"},
       {true, with_forces, "carries more than the boundary particles"},
       {true, walls_ahead(0, 1), "two StepForces of step 0 carry walls ahead"},
+      {true, walls_ahead(0, 1), "carries boundary particles, which came ahead of it already"},
   };
+  auto walls_again = walls_ahead(0, 1);  // the fourth case's StepForces: the walls once more, not flagged
+  walls_again.set_walls_ahead(false);
   for (const Case& c : cases) {
     WallsSolver fake;
     fake.takes = c.takes;
@@ -269,7 +272,8 @@ TEST_F(ScriptedCoupler, WallsAheadThatDoNotFitEndTheSolver) {
     accept_registration();
     state();
     send(c.first);
-    if (c.takes && c.first.index_size() == 0) send(walls_ahead(0, 1));  // the second walls of the third case
+    if (&c == &cases[2]) send(walls_ahead(0, 1));
+    if (&c == &cases[3]) send(walls_again);
     const auto error = receive<sabo::v1::Error>(sabo::v1::MESSAGE_TYPE_ERROR);
     std::cout << "error: " << error.message() << "\n";
     EXPECT_NE(error.message().find(c.expected), std::string::npos) << error.message();
