@@ -285,6 +285,7 @@ void Coupler::collect_states(std::uint64_t step) {
     }
     accept_state(*peer, step);
     receive_seconds_ += seconds_since(receive_start);
+    if (walls_ahead_ && !walls_placed_early_ && peer->role != Role::sph) place_walls_before_the_fluid(step);
   }
   wait_seconds_ += seconds_since(wait_start);
 }
@@ -496,6 +497,7 @@ void Coupler::mark_evaluated_pairs(std::uint64_t step) {
 
 void Coupler::compute_contacts(std::uint64_t step) {
   walls_sent_ahead_ = false;
+  const bool placed_early = std::exchange(walls_placed_early_, false);
   if (pairs_.empty()) return;
   const auto start = Clock::now();
   std::size_t contacts = 0;
@@ -517,10 +519,16 @@ void Coupler::compute_contacts(std::uint64_t step) {
     for (auto& slot : pairs_) {
       if (slot.pair->boundary_particles() != nullptr) compute(slot);
     }
-    last_walls_contact_seconds_ = seconds_since(start);
-    const auto send_start = Clock::now();
-    send_walls_ahead(step);
-    sending = seconds_since(send_start);
+    // Placed early, what compute() did of these pairs now (the fluid's forces on the particles sent before) held
+    // up no wall. A replacement of the sph_solver that joined after the walls went (to the process it replaced,
+    // killed while it integrated) gets them now.
+    last_walls_contact_seconds_ = placed_early ? early_walls_seconds_ : seconds_since(start);
+    if (!placed_early || peers_[peer_index(Role::sph)]->identity != early_walls_to_) {
+      const auto send_start = Clock::now();
+      send_walls_ahead(step);
+      sending = seconds_since(send_start);
+    }
+    walls_sent_ahead_ = true;
     for (auto& slot : pairs_) {
       if (slot.pair->boundary_particles() == nullptr) compute(slot);
     }
@@ -528,7 +536,7 @@ void Coupler::compute_contacts(std::uint64_t step) {
     for (auto& slot : pairs_) compute(slot);
   }
   max_contacts_ = std::max(max_contacts_, contacts);
-  last_contact_seconds_ = seconds_since(start) - sending;
+  last_contact_seconds_ = seconds_since(start) - sending + (placed_early ? early_walls_seconds_ : 0.0);
   contact_seconds_ += last_contact_seconds_;
   send_seconds_ += sending;
 }
@@ -551,7 +559,38 @@ void Coupler::send_walls_ahead(std::uint64_t step) {
     // as one StepForces from the journal).
     if (!sph.journal) throw;
   }
-  walls_sent_ahead_ = true;
+}
+
+void Coupler::place_walls_before_the_fluid(std::uint64_t step) {
+  const Peer& sph = *peers_[peer_index(Role::sph)];
+  if (sph.has_state || sph.catching_up || !steps_now(sph, step) || restarting()) return;
+  bool any = false;
+  for (const auto& slot : pairs_) {
+    if (slot.pair->boundary_particles() == nullptr) continue;
+    if (!slot.pair->can_place_ahead()) return;
+    for (const Role role : slot.pair->roles()) {
+      const Peer& side = *peers_[peer_index(role)];
+      if (role != Role::sph && (!side.has_state || side.catching_up || !steps_now(side, step))) return;
+    }
+    any = true;
+  }
+  if (!any) return;
+  const auto start = Clock::now();
+  for (auto& slot : pairs_) {
+    if (slot.pair->boundary_particles() == nullptr) continue;
+    slot.evaluated = true;  // both its sides step now, as mark_evaluated_pairs() will find (send_walls_ahead reads it)
+    const auto pair_start = Clock::now();
+    // Its clock as compute_contacts() gives it: t_n is the time the coupler expects of this step's states.
+    slot.pair->place_ahead(solvers_, {.step = step, .time = expected_time_, .dt_previous = slot.dt_previous});
+    slot.seconds += seconds_since(pair_start);
+  }
+  early_walls_seconds_ = seconds_since(start);
+  early_walls_to_ = sph.identity;
+  const auto send_start = Clock::now();
+  send_walls_ahead(step);
+  send_seconds_ += seconds_since(send_start);
+  walls_placed_early_ = true;
+  ++walls_before_the_fluid_;
 }
 
 const SurfaceNodes& Coupler::surface_ids() {

@@ -108,6 +108,9 @@ class Coupler {
   // Walls ahead (docs/protocol.md): this step's boundary particles, of the evaluated pairs in pair order (the
   // list scatter_pairs() builds again in replies_.boundary()), in a StepForces of their own to the sph_solver.
   void send_walls_ahead(std::uint64_t step);
+  // With walls ahead, once the states that the boundary-particle pairs read besides the fluid's are in: they
+  // place this step's particles from what they kept of the fluid, and the walls go before the fluid's state.
+  void place_walls_before_the_fluid(std::uint64_t step);
   // The surface's node ids now (held forces on nodes are kept by id).
   const SurfaceNodes& surface_ids();
   void check_newton_third_law(std::uint64_t step);
@@ -192,6 +195,12 @@ class Coupler {
   // message of the step, its particles' lists (checked against the replies' list) and its send buffer.
   bool walls_ahead_ = false;
   bool walls_sent_ahead_ = false;  // this step's
+  // Placed and sent before the fluid's state of the step was in (place_walls_before_the_fluid), in s; and how
+  // many exchanges did so over the run.
+  bool walls_placed_early_ = false;
+  double early_walls_seconds_ = 0;
+  std::string early_walls_to_;  // the sph_solver's connection they went to
+  std::uint64_t walls_before_the_fluid_ = 0;
   sabo::v1::StepForces walls_message_;
   std::vector<const physics::BoundaryParticles*> walls_parts_;
   protocol::SendBuffer walls_buffer_;

@@ -80,6 +80,7 @@ void Coupler::write_checkpoint_file(std::uint64_t step) {
     stats.set_attribute("wait_seconds", wait_seconds_);
     stats.set_attribute("critical_compute_seconds", critical_compute_seconds_);
     stats.set_attribute("critical_contact_seconds", critical_contact_seconds_);
+    stats.set_attribute("walls_before_the_fluid_state", static_cast<std::int64_t>(walls_before_the_fluid_));
     stats.set_attribute("checkpoint_seconds", checkpoint_seconds_);
     stats.set_attribute(
         "wall_seconds",
@@ -213,6 +214,9 @@ void Coupler::restore_state() {
   critical_contact_seconds_ = stats.has_attribute("critical_contact_seconds")
                                   ? stats.double_attribute("critical_contact_seconds")
                                   : contact_seconds_;
+  walls_before_the_fluid_ = stats.has_attribute("walls_before_the_fluid_state")
+                                ? static_cast<std::uint64_t>(stats.int_attribute("walls_before_the_fluid_state"))
+                                : 0;
   checkpoint_seconds_ = stats.double_attribute("checkpoint_seconds");
   wall_before_ = stats.double_attribute("wall_seconds");
   bytes_received_before_ = static_cast<std::uint64_t>(stats.int_attribute("bytes_received"));

@@ -43,6 +43,8 @@ void Coupler::write_summary(const std::string& status) {
                           {"checkpoint_seconds", checkpoint_seconds_},
                           {"messaging_seconds", receive_seconds_ + send_seconds_},
                           {"wait_seconds", wait_seconds_ - receive_seconds_}};
+  // Exchanges whose boundary particles went to the sph_solver before its state was in (docs/protocol.md).
+  if (walls_ahead_) processes["coupler"]["walls_before_the_fluid_state"] = walls_before_the_fluid_;
   for (const auto& peer : peers_) {
     const bool have_goodbye = peer->said_goodbye && peer->goodbye.steps() > 0;
     processes[peer->name()] = {

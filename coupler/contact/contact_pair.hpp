@@ -13,6 +13,12 @@
 //                              after the generic checks: what this pair needs of
 //                              it (throws ProtocolError; the run ends naming
 //                              the solver)
+//   place_ahead(solvers, clock) only if can_place_ahead(), before the fluid's
+//                              state of step n is in: places this step's
+//                              boundary particles from the other side's state
+//                              and what the pair kept of the fluid, so that
+//                              the coupler sends them while the sph_solver
+//                              integrates (compute() then places none)
 //   compute(solvers, clock)    gathers what it needs of the states at x_n (and
 //                              of forces a solver returned for an earlier step)
 //                              and computes the contact forces of step n with
@@ -241,6 +247,10 @@ class ContactPair {
   // Walls ahead: the boundary particles this pair sends the sph_solver, those of this step once compute() placed
   // them (the list scatter() appends to the replies); nullptr: it sends none.
   [[nodiscard]] virtual const physics::BoundaryParticles* boundary_particles() const { return nullptr; }
+  // Walls ahead of the fluid's state: whether place_ahead() can place this step's boundary particles now, before
+  // the sph_solver's state of the step is in (the other side's state must be).
+  [[nodiscard]] virtual bool can_place_ahead() const { return false; }
+  virtual void place_ahead(const Solvers& /*solvers*/, const StepClock& /*clock*/) {}
   [[nodiscard]] virtual NewtonBalance newton_balance() const = 0;
   // J in the pair's springs at x_n, and W dissipated by its dashpots and slip in step n (acts over dt_n).
   struct Energy {

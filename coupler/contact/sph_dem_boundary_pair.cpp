@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <Eigen/Geometry>
+#include <cassert>
 #include <cmath>
 
 #include "coupler/contact/history_io.hpp"
@@ -33,7 +34,8 @@ std::size_t steps_back(const sabo::v1::StepState& state) {
 SphDemBoundaryPair::SphDemBoundaryPair(const scene::Scene& scene)
     : spacing_(scene.sph.particle_spacing),
       support_(scene.sph.kernel_support()),
-      layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support_ / spacing_ - 1e-9)))) {
+      layers_(static_cast<std::size_t>(std::max(1.0, std::ceil(support_ / spacing_ - 1e-9)))),
+      margin_(0.25 * support_) {
   for (const auto& set : scene.particle_sets) boundary_set_.push_back(scene.boundary_particle_set(set.name) ? 1 : 0);
   if (scene.sph.periodic_x) periodic_.emplace_back(0, *scene.sph.periodic_x);
   if (scene.sph.periodic_y) periodic_.emplace_back(1, *scene.sph.periodic_y);
@@ -56,6 +58,7 @@ void SphDemBoundaryPair::start(const Solvers& solvers, Replies& replies) {
     }
     sampling_[i] = &it->second;
     max_radius_ = std::max(max_radius_, radius);
+    for (const Vec3& offset : it->second.offset) max_reach_ = std::max(max_reach_, offset.norm());
     ++sampled;
     particles += it->second.size();
   }
@@ -98,7 +101,29 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
   }
   boulders_touched_ = touched_.size();
 
-  // 2. The particles of the boulders at x_n, those within the support of a fluid particle.
+  // 2. The boulders' particles of this step, unless the coupler had them placed ahead of the fluid's state.
+  fluid_position_.resize(static_cast<std::size_t>(fluid.position_size()) / 3);
+  for (std::size_t f = 0; f < fluid_position_.size(); ++f) fluid_position_[f] = vec3_at(fluid.position(), f);
+  if (!placed_) {
+    placed_from_kept_ = kept_;
+    place(solvers, clock, kept_ ? std::span<const Vec3>(kept_position_) : std::span<const Vec3>(fluid_position_),
+          margin_);
+  }
+  if (placed_from_kept_) check_fluid_moved_within_margin(fluid, clock.step);
+  std::swap(kept_position_, fluid_position_);
+  kept_index_.assign(fluid.index().begin(), fluid.index().end());
+  kept_ = true;
+  placed_ = placed_from_kept_ = false;
+}
+
+void SphDemBoundaryPair::place_ahead(const Solvers& solvers, const StepClock& clock) {
+  assert(kept_ && "the coupler places ahead only a pair that can_place_ahead()");
+  place(solvers, clock, kept_position_, margin_);
+  placed_ = placed_from_kept_ = true;
+}
+
+void SphDemBoundaryPair::place(const Solvers& solvers, const StepClock& clock, std::span<const Vec3> fluid,
+                               double margin) {
   const SolverView& dem = solvers.at(Role::dem);
   const sabo::v1::StepState& boulders = *dem.state;
   const double dt_previous = clock.dt_previous;
@@ -146,24 +171,21 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
   for (int k = 0; k < boulders.index_size(); ++k) seen[boulders.index(k)] = 1;
   for (std::size_t i = 0; i < sampling_.size(); ++i) has_last_[i] = has_last_[i] && seen[i];
 
-  // A candidate goes when a fluid particle lies within the support: each candidate asks the fluid's grid
-  // on its own (parallel, and the answer is the same whatever the order).
+  // A candidate goes when a fluid particle lies within the reach: each candidate asks the fluid's grid on its
+  // own (parallel, and the answer is the same whatever the order).
   near_.assign(candidate_position_.size(), 0);
   if (!candidate_position_.empty()) {
-    fluid_position_.resize(static_cast<std::size_t>(fluid.position_size()) / 3);
-    for (std::size_t f = 0; f < fluid_position_.size(); ++f) fluid_position_[f] = vec3_at(fluid.position(), f);
-    fluid_grid_.build_points(fluid_position_, support_);
-    const double reach2 = support_ * support_;
+    fluid_grid_.build_points(fluid, support_);
+    const double reach = support_ + margin;
+    const double reach2 = reach * reach;
     const auto count = static_cast<std::int64_t>(candidate_position_.size());
 #pragma omp parallel for schedule(static) if (count > 4096)
     for (std::int64_t signed_c = 0; signed_c < count; ++signed_c) {
       const auto c = static_cast<std::size_t>(signed_c);
       const Vec3& x = candidate_position_[c];
-      const Aabb box{x.array() - support_, x.array() + support_};
+      const Aabb box{x.array() - reach, x.array() + reach};
       near_[c] =
-          fluid_grid_.any_in(box, [&](std::uint32_t f) { return (fluid_position_[f] - x).squaredNorm() <= reach2; })
-              ? 1
-              : 0;
+          fluid_grid_.any_in(box, [&](std::uint32_t f) { return (fluid[f] - x).squaredNorm() <= reach2; }) ? 1 : 0;
     }
   }
   selected_.resize(0);
@@ -185,6 +207,56 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
   }
   max_sent_ = std::max(max_sent_, selected_.size());
   dt_previous_ = dt_previous;
+}
+
+Vec3 SphDemBoundaryPair::minimum_image(Vec3 d) const {
+  for (const auto& [axis, span] : periodic_) {
+    const double period = span[1] - span[0];
+    d[axis] -= period * std::round(d[axis] / period);
+  }
+  return d;
+}
+
+void SphDemBoundaryPair::check_fluid_moved_within_margin(const sabo::v1::StepState& fluid, std::uint64_t step) {
+  // fluid_position_: the fluid at x_n; kept_: at the exchange before. A particle there moved less than the
+  // margin; one that was not there must be beyond the support of every boulder particle.
+  std::uint32_t ids = 0;
+  for (const std::uint32_t id : kept_index_) ids = std::max(ids, id + 1);
+  for (const std::uint32_t id : fluid.index()) ids = std::max(ids, id + 1);
+  if (kept_slot_of_id_.size() < ids) kept_slot_of_id_.resize(ids, -1);
+  for (std::size_t k = 0; k < kept_index_.size(); ++k) kept_slot_of_id_[kept_index_[k]] = static_cast<std::int64_t>(k);
+  std::string problem;
+  const double new_reach = max_reach_ + support_;
+  for (std::size_t f = 0; f < fluid_position_.size() && problem.empty(); ++f) {
+    const std::uint32_t id = fluid.index(static_cast<int>(f));
+    const Vec3& x = fluid_position_[f];
+    const std::int64_t slot = kept_slot_of_id_[id];
+    if (slot >= 0) {
+      const double moved = minimum_image(x - kept_position_[static_cast<std::size_t>(slot)]).norm();
+      if (!(moved <= margin_)) {
+        problem = fmt::format("fluid particle {} moved {:.4g} m from its state of the exchange before", id, moved);
+      }
+      continue;
+    }
+    for (const Vec3& centre : centre_cover_) {
+      const double distance = minimum_image(x - centre).norm();
+      if (distance <= new_reach) {
+        problem = fmt::format(
+            "fluid particle {}, absent from the state of the exchange before, lies {:.4g} m from a boulder's centre",
+            id, distance);
+        break;
+      }
+    }
+  }
+  for (const std::uint32_t id : kept_index_) kept_slot_of_id_[id] = -1;
+  if (!problem.empty()) {
+    throw ProtocolError(fmt::format(
+        "state of step {}: {}, while the boulders' boundary particles of this step were placed, ahead of this "
+        "state, within {:.4g} m of the fluid's earlier positions (the support {:.4g} m plus a margin of {:.4g} m, "
+        "many times the distance a stable SPH step moves a particle): the sph_solver's step is unstable, or it "
+        "moved the particle by other than its velocity",
+        step, problem, support_ + margin_, support_, margin_));
+  }
 }
 
 void SphDemBoundaryPair::scatter(const Solvers& solvers, double dt, Replies& replies) {
@@ -263,6 +335,13 @@ void SphDemBoundaryPair::save_history(io::hdf5::Group& group) const {
   write_array(group, "last_velocity", velocity);
   write_array(group, "last_spin", spin);
   write_array(group, "has_last", has_last_);
+  // The fluid the next step's particles are placed from (none before the first step).
+  if (kept_) {
+    std::vector<double> position;
+    for (const Vec3& x : kept_position_) position.insert(position.end(), {x.x(), x.y(), x.z()});
+    write_array(group, "kept_fluid_index", kept_index_);
+    write_array(group, "kept_fluid_position", position);
+  }
 }
 
 void SphDemBoundaryPair::restore_history(const io::hdf5::Group& group) {
@@ -297,6 +376,21 @@ void SphDemBoundaryPair::restore_history(const io::hdf5::Group& group) {
     last_velocity_[i] = Vec3(velocity[3 * i], velocity[3 * i + 1], velocity[3 * i + 2]);
     last_spin_[i] = Vec3(spin[3 * i], spin[3 * i + 1], spin[3 * i + 2]);
     has_last_[i] = has_last[i];
+  }
+  // A checkpoint of an older Sabo keeps no fluid: the next step places from the fluid's state, as a first step.
+  kept_ = group.exists("kept_fluid_index");
+  kept_index_.clear();
+  kept_position_.clear();
+  if (kept_) {
+    kept_index_ = read_array<std::uint32_t>(group, "kept_fluid_index");
+    const auto position = read_array<double>(group, "kept_fluid_position");
+    if (position.size() != 3 * kept_index_.size()) {
+      throw FileError(fmt::format("{}: {} positions for the {} fluid particles kept", group.path(), position.size(),
+                                  kept_index_.size()));
+    }
+    for (std::size_t k = 0; k < kept_index_.size(); ++k) {
+      kept_position_.emplace_back(position[3 * k], position[3 * k + 1], position[3 * k + 2]);
+    }
   }
   dt_previous_ = group.double_attribute("dt_previous");
   max_sent_ = static_cast<std::size_t>(group.int_attribute("max_sent_per_step"));

@@ -8,6 +8,17 @@
 // come back in a later StepState and are summed per boulder into a force and
 // a torque (r x f about its centre at the time they were sent).
 //
+// Placed ahead of the fluid's state: the particles of step n are those within
+// support + margin (margin = support / 4) of the fluid of the exchange before,
+// which the pair keeps (and its checkpoint holds), so that they can go as soon
+// as the dem_solver's state n is in, while the sph_solver still integrates.
+// A fluid particle moves far less than the margin in one step (its CFL
+// condition keeps it to a few percent of the support), so every particle within
+// the support of the fluid at x_n is among them; compute() checks that on the
+// fluid's state n and stops the run naming the particle otherwise. The extra
+// particles lie beyond the support of every fluid particle and exert nothing.
+// Only the first exchange (no fluid kept yet) places from the fluid at x_n.
+//
 // Impulse, not force: the fluid felt those forces over its step m (the step
 // whose StepForces carried the particles, or with lagged boundary particles
 // the step after it, which took them moved ahead), dt_avg,m = (dt_{m-1} +
@@ -30,6 +41,8 @@ class SphDemBoundaryPair final : public ContactPair {
   [[nodiscard]] std::array<Role, 2> roles() const override { return {Role::sph, Role::dem}; }
   void start(const Solvers& solvers, Replies& replies) override;
   void compute(const Solvers& solvers, const StepClock& clock) override;
+  [[nodiscard]] bool can_place_ahead() const override { return kept_; }
+  void place_ahead(const Solvers& solvers, const StepClock& clock) override;
   void scatter(const Solvers& solvers, double dt, Replies& replies) override;
   [[nodiscard]] InterestRequest interest(Role role) const override;
   [[nodiscard]] bool every_exchange() const override { return true; }
@@ -84,7 +97,23 @@ class SphDemBoundaryPair final : public ContactPair {
   std::vector<std::uint32_t> candidate_owner_, candidate_point_;
   std::vector<char> near_;
   std::vector<Vec3> fluid_position_;
-  physics::CellList fluid_grid_;  // of the fluid this step, cell = support
+  physics::CellList fluid_grid_;  // of the fluid the particles are placed from, cell = support
+
+  // The particles of step n from the boulders at x_n, those within support + margin of `fluid` (positions, m).
+  void place(const Solvers& solvers, const StepClock& clock, std::span<const Vec3> fluid, double margin);
+  // Throws ProtocolError when a particle of the fluid's state n lies within the support of a boulder particle
+  // that the placement from the kept fluid may have left out.
+  void check_fluid_moved_within_margin(const sabo::v1::StepState& fluid, std::uint64_t step);
+  [[nodiscard]] Vec3 minimum_image(Vec3 d) const;  // across the fluid's periodic axes
+
+  double margin_;                              // m: support / 4
+  double max_reach_ = 0;                       // m: the farthest particle of a sampled boulder from its centre
+  bool placed_ = false;                        // this exchange's particles are placed
+  bool placed_from_kept_ = false;              // ... from the kept fluid
+  bool kept_ = false;                          // kept_index_ and kept_position_ hold a fluid (possibly empty)
+  std::vector<std::uint32_t> kept_index_;      // the fluid of the exchange before: its particle ids
+  std::vector<Vec3> kept_position_;            // m
+  std::vector<std::int64_t> kept_slot_of_id_;  // scratch for the check: id -> slot in kept_, -1 none
 };
 
 }  // namespace sabo::coupler

@@ -329,7 +329,8 @@ TEST(SphDemBoundary, SendsTheBoulderParticlesNearTheFluidMovingRigidly) {
   pair.start(s.solvers, replies);
   ASSERT_TRUE(replies.boundary().active());
   const Vec3 centre(0.1, 0.2, 0.3), v(0.5, -0.2, 0.1), w(0, 0, 20);
-  // One fluid particle just outside the boulder along +x: only the particles within the support (3 dx).
+  // One fluid particle just outside the boulder along +x: only the particles within the support (3 dx) and the
+  // margin of a placement ahead (a quarter of it), every one within the support among them.
   const Vec3 fluid = centre + Vec3(kRadius + 0.5 * kDx, 0, 0);
   s.set_fluid({fluid}, {Vec3::Zero()}, 0);
   s.set_spheres({centre}, {v}, {w}, 0);
@@ -339,9 +340,17 @@ TEST(SphDemBoundary, SendsTheBoulderParticlesNearTheFluidMovingRigidly) {
   std::cout << b.size() << " of " << all.size() << " boundary particles sent\n";
   ASSERT_GT(b.size(), 10u);
   ASSERT_LT(b.size(), all.size() / 4);
+  const double support = scene.sph.kernel_support();
+  std::size_t within_support = 0;
+  for (std::size_t p = 0; p < all.size(); ++p) within_support += (centre + all.offset[p] - fluid).norm() <= support;
+  std::size_t sent_within_support = 0;
+  for (std::size_t k = 0; k < b.size(); ++k) sent_within_support += (b.position[k] - fluid).norm() <= support;
+  std::cout << within_support << " within the support, all sent\n";
+  EXPECT_EQ(sent_within_support, within_support);
+  EXPECT_LT(within_support, b.size());
   for (std::size_t k = 0; k < b.size(); ++k) {
     const Vec3 r = b.position[k] - centre;
-    EXPECT_LE((b.position[k] - fluid).norm(), scene.sph.kernel_support() * (1 + 1e-12));
+    EXPECT_LE((b.position[k] - fluid).norm(), 1.25 * support * (1 + 1e-12));
     EXPECT_NEAR((b.velocity[k] - (v + w.cross(r))).norm(), 0.0, 1e-12);
     EXPECT_NEAR(b.normal[k].dot(r.normalized()), 1.0, 1e-12);
     // At step 0 the acceleration is unknown (zero): only the centripetal part of the spin.
@@ -398,6 +407,87 @@ TEST(SphDemBoundary, ReturnedForcesBecomeTheBouldersImpulseWithItsTorque) {
   (void)dt2;
 }
 
+// Walls ahead of the fluid's state: step 1's particles placed from the fluid kept at step 0 are the same
+// whether the coupler has them placed before the fluid's state 1 is in (place_ahead) or in compute(), and they
+// hold every boulder particle within the support of the fluid at step 1.
+TEST(SphDemBoundary, PlacedAheadFromTheKeptFluidHoldTheParticlesWithinTheSupportOfTheFluidNow) {
+  scene::Scene scene = two_body_scene(scene::SphDemContact::Model::boundary_particles);
+  const double support = scene.sph.kernel_support();
+  const std::vector<Vec3> fluid0{Vec3(kRadius + 0.5 * kDx, 0, 0), Vec3(0, kRadius + 0.8 * kDx, 0)};
+  // Each moves a fifth of the support (the margin is a quarter), the first towards the boulder.
+  const std::vector<Vec3> fluid1{fluid0[0] - Vec3(0.2 * support, 0, 0), fluid0[1] + Vec3(0, 0, 0.2 * support)};
+  std::vector<physics::BoundaryParticles> placed;
+  for (const bool ahead : {true, false}) {
+    SphDemBoundaryPair pair(scene);
+    TwoSolvers s(2, {kRadius});
+    Replies replies;
+    pair.start(s.solvers, replies);
+    EXPECT_FALSE(pair.can_place_ahead()) << "no fluid kept before the first step";
+    s.set_fluid(fluid0, {Vec3::Zero(), Vec3::Zero()}, 0);
+    s.set_spheres({Vec3::Zero()}, {Vec3(0.1, 0, 0)}, {Vec3::Zero()}, 0);
+    pair.compute(s.solvers, {0, 0.0, 0.0});
+    ASSERT_TRUE(pair.can_place_ahead());
+    s.set_spheres({Vec3(1e-3, 0, 0)}, {Vec3(0.1, 0, 0)}, {Vec3::Zero()}, 1);
+    if (ahead) pair.place_ahead(s.solvers, {1, 1e-2, 1e-2});  // the fluid's state 1 is not in yet
+    s.set_fluid(fluid1, {Vec3::Zero(), Vec3::Zero()}, 1);
+    pair.compute(s.solvers, {1, 1e-2, 1e-2});
+    placed.push_back(pair.selected());
+  }
+  ASSERT_EQ(placed[0].position, placed[1].position);
+  ASSERT_EQ(placed[0].acceleration, placed[1].acceleration);
+  const auto all = geometry::sample_sphere(kRadius, kDx, 3);
+  std::size_t needed = 0, found = 0;
+  for (std::size_t p = 0; p < all.size(); ++p) {
+    const Vec3 x = Vec3(1e-3, 0, 0) + all.offset[p];
+    if ((x - fluid1[0]).norm() > support && (x - fluid1[1]).norm() > support) continue;
+    ++needed;
+    for (const Vec3& y : placed[0].position) found += (y - x).norm() < 1e-15;
+  }
+  std::cout << needed << " boulder particles within the support of the fluid at step 1, " << found
+            << " of them placed ahead; " << placed[0].size() << " placed in all\n";
+  EXPECT_GT(needed, 10u);
+  EXPECT_EQ(found, needed);
+}
+
+// The check of the fluid's state against the fluid the particles were placed from: a particle that moved more
+// than the margin, or one new to the state near a boulder, stops the run naming it.
+TEST(SphDemBoundary, AFluidParticleBeyondTheMarginOfThePlacementAheadIsAnError) {
+  scene::Scene scene = two_body_scene(scene::SphDemContact::Model::boundary_particles);
+  const double support = scene.sph.kernel_support();
+  const auto two_steps = [&](const std::vector<Vec3>& fluid0, const std::vector<Vec3>& fluid1) {
+    SphDemBoundaryPair pair(scene);
+    TwoSolvers s(3, {kRadius});
+    Replies replies;
+    pair.start(s.solvers, replies);
+    s.set_fluid(fluid0, std::vector<Vec3>(fluid0.size(), Vec3::Zero()), 0);
+    s.set_spheres({Vec3::Zero()}, {Vec3::Zero()}, {Vec3::Zero()}, 0);
+    pair.compute(s.solvers, {0, 0.0, 0.0});
+    s.set_spheres({Vec3::Zero()}, {Vec3::Zero()}, {Vec3::Zero()}, 1);
+    pair.place_ahead(s.solvers, {1, 1e-4, 1e-4});
+    s.set_fluid(fluid1, std::vector<Vec3>(fluid1.size(), Vec3::Zero()), 1);
+    pair.compute(s.solvers, {1, 1e-4, 1e-4});
+  };
+  const Vec3 near(kRadius + 0.5 * kDx, 0, 0), far(1.0, 0, 0);
+  EXPECT_NO_THROW(two_steps({near, far}, {near - Vec3(0.24 * support, 0, 0), far}));
+  try {
+    two_steps({near, far}, {near - Vec3(0.26 * support, 0, 0), far});
+    ADD_FAILURE() << "a particle that moved 0.26 supports was taken";
+  } catch (const ProtocolError& error) {
+    std::cout << error.what() << "\n";
+    EXPECT_NE(std::string(error.what()).find("fluid particle 0 moved"), std::string::npos);
+  }
+  // A third particle, absent at step 0, appears at step 1 within the support of the boulder's particles.
+  EXPECT_NO_THROW(two_steps({near, far}, {near, far, Vec3(0.5, 0, 0)}));
+  try {
+    two_steps({near, far}, {near, far, Vec3(0, 0, -kRadius - 0.5 * kDx)});
+    ADD_FAILURE() << "a new particle next to the boulder was taken";
+  } catch (const ProtocolError& error) {
+    EXPECT_NE(std::string(error.what()).find("fluid particle 2, absent from the state of the exchange before"),
+              std::string::npos)
+        << error.what();
+  }
+}
+
 TEST(SphDemBoundary, HistoryRestoresToTheSameNextStep) {
   scene::Scene scene = two_body_scene(scene::SphDemContact::Model::boundary_particles);
   const auto path =
@@ -436,7 +526,9 @@ TEST(SphDemBoundary, HistoryRestoresToTheSameNextStep) {
     const auto file = io::hdf5::File::open(path);
     second.restore_history(file.group("sph_dem"));
   }
+  ASSERT_TRUE(second.can_place_ahead()) << "the checkpoint keeps the fluid that step 1's particles are placed from";
   step(second, s2, r2, 1, returned, Vec3(0, 0, -1.1));
+  ASSERT_EQ(first.selected().position, second.selected().position);
   ASSERT_EQ(r1.particle_force(sabo::Role::dem), r2.particle_force(sabo::Role::dem));
   ASSERT_EQ(r1.particle_torque(sabo::Role::dem), r2.particle_torque(sabo::Role::dem));
   ASSERT_EQ(first.selected().acceleration, second.selected().acceleration);

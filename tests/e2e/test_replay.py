@@ -6,7 +6,7 @@ import json
 import os
 import shutil
 
-from e2e_support import RealRunTestCase
+from e2e_support import RealRunTestCase, read_json
 
 TANK = "configs/tests/sph_boulders_tank.toml"
 
@@ -14,10 +14,15 @@ TANK = "configs/tests/sph_boulders_tank.toml"
 class ReplayTestCase(RealRunTestCase):
     """A recorded run and its replays; the tests are in the classes below (one ctest each)."""
 
-    def recorded_run(self, name="recorded", fields_line=None):
-        """A short run of the boulder tank recorded in full (or with `fields_line` in [recording])."""
+    def recorded_run(self, name="recorded", fields_line=None, replace=(), append=""):
+        """A short run of the boulder tank recorded in full (or with `fields_line` in [recording]), with each
+        (old, new) of `replace` done and `append` added."""
         with open(self.scene_path(TANK), encoding="utf-8") as handle:
             text = handle.read()
+        for old, new in replace:
+            self.assertIn(old, text)
+            text = text.replace(old, new, 1)
+        text += append
         self.assertIn("end_time = 0.3", text)
         self.assertIn('fields = ["position", "velocity", "force", "torque", "energies"]', text)
         text = text.replace("end_time = 0.3", "end_time = 0.04")
@@ -41,6 +46,24 @@ class ReplayProcessesTest(ReplayTestCase):
     def test_every_process_of_an_unchanged_build_matches_its_recording(self):
         run = self.recorded_run()
         for role in ("sph", "dem", "fem", "coupler"):
+            code, out, err = self.replay(run, role)
+            print("replay {}: exit {}; {}".format(role, code, out.splitlines()[0] if out else err))
+            self.assertEqual(code, 0, out + err)
+            self.assertIn("every field matches", out)
+        self.assertNoProcessLeft(run, pids_file=False)
+
+    def test_walls_sent_before_the_fluids_state_replay_to_the_bit(self):
+        """The tank's walls as penalty contacts: the boulders' wall particles go before the fluid's state is in
+        (docs/protocol.md, "Walls ahead") at most exchanges of the run, and in whatever order the replay feeds the
+        states; the coupler and the sph_solver replay to the bit."""
+        run = self.recorded_run("penalty_walls", replace=[('wall_model = "boundary_particles"',
+                                                           'wall_model = "penalty"')],
+                                append="\n[contact.sph_fem]\nnormal_stiffness = 1e4\n")
+        summary = read_json(os.path.join(run, "summary.json"))
+        ahead = summary["processes"]["coupler"]["walls_before_the_fluid_state"]
+        print("the walls went before the fluid's state at {} of {} exchanges".format(ahead, summary["steps"]))
+        self.assertGreater(ahead, 0)
+        for role in ("coupler", "sph"):
             code, out, err = self.replay(run, role)
             print("replay {}: exit {}; {}".format(role, code, out.splitlines()[0] if out else err))
             self.assertEqual(code, 0, out + err)
