@@ -62,6 +62,8 @@ void SphDemBoundaryPair::start(const Solvers& solvers, Replies& replies) {
     ++sampled;
     particles += it->second.size();
   }
+  // The coupler checks every state's indices against the table (and restore_history() the kept ones).
+  kept_slot_of_id_.assign(static_cast<std::size_t>(solvers.at(Role::sph).registration->particles().id_size()), -1);
   force_.assign(n, Vec3::Zero());
   torque_.assign(n, Vec3::Zero());
   last_velocity_.assign(n, Vec3::Zero());
@@ -105,21 +107,20 @@ void SphDemBoundaryPair::compute(const Solvers& solvers, const StepClock& clock)
   fluid_position_.resize(static_cast<std::size_t>(fluid.position_size()) / 3);
   for (std::size_t f = 0; f < fluid_position_.size(); ++f) fluid_position_[f] = vec3_at(fluid.position(), f);
   if (!placed_) {
-    placed_from_kept_ = kept_;
     place(solvers, clock, kept_ ? std::span<const Vec3>(kept_position_) : std::span<const Vec3>(fluid_position_),
           margin_);
   }
-  if (placed_from_kept_) check_fluid_moved_within_margin(fluid, clock.step);
+  if (kept_) check_fluid_moved_within_margin(fluid, clock.step);  // placed from it, ahead or just now
   std::swap(kept_position_, fluid_position_);
   kept_index_.assign(fluid.index().begin(), fluid.index().end());
   kept_ = true;
-  placed_ = placed_from_kept_ = false;
+  placed_ = false;
 }
 
 void SphDemBoundaryPair::place_ahead(const Solvers& solvers, const StepClock& clock) {
   assert(kept_ && "the coupler places ahead only a pair that can_place_ahead()");
   place(solvers, clock, kept_position_, margin_);
-  placed_ = placed_from_kept_ = true;
+  placed_ = true;
 }
 
 void SphDemBoundaryPair::place(const Solvers& solvers, const StepClock& clock, std::span<const Vec3> fluid,
@@ -220,10 +221,6 @@ Vec3 SphDemBoundaryPair::minimum_image(Vec3 d) const {
 void SphDemBoundaryPair::check_fluid_moved_within_margin(const sabo::v1::StepState& fluid, std::uint64_t step) {
   // fluid_position_: the fluid at x_n; kept_: at the exchange before. A particle there moved less than the
   // margin; one that was not there must be beyond the support of every boulder particle.
-  std::uint32_t ids = 0;
-  for (const std::uint32_t id : kept_index_) ids = std::max(ids, id + 1);
-  for (const std::uint32_t id : fluid.index()) ids = std::max(ids, id + 1);
-  if (kept_slot_of_id_.size() < ids) kept_slot_of_id_.resize(ids, -1);
   for (std::size_t k = 0; k < kept_index_.size(); ++k) kept_slot_of_id_[kept_index_[k]] = static_cast<std::int64_t>(k);
   std::string problem;
   const double new_reach = max_reach_ + support_;
@@ -387,6 +384,12 @@ void SphDemBoundaryPair::restore_history(const io::hdf5::Group& group) {
     if (position.size() != 3 * kept_index_.size()) {
       throw FileError(fmt::format("{}: {} positions for the {} fluid particles kept", group.path(), position.size(),
                                   kept_index_.size()));
+    }
+    for (const std::uint32_t id : kept_index_) {
+      if (id >= kept_slot_of_id_.size()) {
+        throw FileError(fmt::format("{}: a kept fluid particle has index {}, the sph_solver has {} particles",
+                                    group.path(), id, kept_slot_of_id_.size()));
+      }
     }
     for (std::size_t k = 0; k < kept_index_.size(); ++k) {
       kept_position_.emplace_back(position[3 * k], position[3 * k + 1], position[3 * k + 2]);

@@ -109,11 +109,10 @@ class SphDemBoundaryPair final : public ContactPair {
   double margin_;                              // m: support / 4
   double max_reach_ = 0;                       // m: the farthest particle of a sampled boulder from its centre
   bool placed_ = false;                        // this exchange's particles are placed
-  bool placed_from_kept_ = false;              // ... from the kept fluid
   bool kept_ = false;                          // kept_index_ and kept_position_ hold a fluid (possibly empty)
   std::vector<std::uint32_t> kept_index_;      // the fluid of the exchange before: its particle ids
   std::vector<Vec3> kept_position_;            // m
-  std::vector<std::int64_t> kept_slot_of_id_;  // scratch for the check: id -> slot in kept_, -1 none
+  std::vector<std::int64_t> kept_slot_of_id_;  // per fluid particle: its slot in kept_ during the check, else -1
 };
 
 }  // namespace sabo::coupler

@@ -65,8 +65,8 @@ class Interest {
 // before step 3, a StepForces carrying only the step's boundary particles (StepForces.walls_ahead):
 // take_walls_ahead() computes with them while the coupler computes its other pairs, and the step's
 // apply_coupling_forces() then gets a StepForces without them (the driver refuses one with them). A solver
-// that registered it must also take
-// the boundary particles inside the step's StepForces (a replay, a restart's catch-up send them so).
+// that registered it must also take the boundary particles inside the step's StepForces (a replay, a
+// restart's catch-up send them so).
 // A solver started with --resume FILE is built from the scene as usual, then
 // load_checkpoint() puts it back at step n + 1: from there it must produce
 // the same bits as the process that wrote the file.

@@ -17,6 +17,11 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 SABO = os.path.join(ROOT, "sabo")
 FAKES = os.path.join(HERE, "fakes")
 BUILD_DIR = os.path.abspath(os.environ.get("SABO_BUILD_DIR") or os.path.join(ROOT, "build"))
+# scene_variant()'s replace and append that give configs/tests/sph_boulders_tank.toml penalty walls (a stiffness
+# that keeps their contact step, 0.4 ms, above the fluid's): the boulders then place the only wall particles,
+# which the coupler sends before the fluid's state is in (docs/protocol.md, "Walls ahead").
+TANK_PENALTY_WALLS = {"replace": [('wall_model = "boundary_particles"', 'wall_model = "penalty"')],
+                      "append": "\n[contact.sph_fem]\nnormal_stiffness = 1e4\n"}
 
 
 # Martin & Moyce 1952, n^2 = 2: the dam-break front Z = z / a at T = t sqrt(2 g / a) (docs/benchmarks.md S1).

@@ -6,7 +6,7 @@ import json
 import os
 import shutil
 
-from e2e_support import RealRunTestCase, read_json
+from e2e_support import TANK_PENALTY_WALLS, RealRunTestCase, read_json
 
 TANK = "configs/tests/sph_boulders_tank.toml"
 
@@ -17,19 +17,9 @@ class ReplayTestCase(RealRunTestCase):
     def recorded_run(self, name="recorded", fields_line=None, replace=(), append=""):
         """A short run of the boulder tank recorded in full (or with `fields_line` in [recording]), with each
         (old, new) of `replace` done and `append` added."""
-        with open(self.scene_path(TANK), encoding="utf-8") as handle:
-            text = handle.read()
-        for old, new in replace:
-            self.assertIn(old, text)
-            text = text.replace(old, new, 1)
-        text += append
-        self.assertIn("end_time = 0.3", text)
-        self.assertIn('fields = ["position", "velocity", "force", "torque", "energies"]', text)
-        text = text.replace("end_time = 0.3", "end_time = 0.04")
-        text = text.replace('fields = ["position", "velocity", "force", "torque", "energies"]', fields_line or "")
-        scene = os.path.join(self.tmp, name + ".toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(text)
+        scene = self.scene_variant(TANK, name, [("end_time = 0.3", "end_time = 0.04"),
+                                                ('fields = ["position", "velocity", "force", "torque", "energies"]',
+                                                 fields_line or "")] + list(replace), append)
         out = os.path.join(self.tmp, name)
         sabo = self.run_sabo(scene, out)
         self.assertEqual(sabo.wait(120), 0, sabo.output())
@@ -56,9 +46,7 @@ class ReplayProcessesTest(ReplayTestCase):
         """The tank's walls as penalty contacts: the boulders' wall particles go before the fluid's state is in
         (docs/protocol.md, "Walls ahead") at most exchanges of the run, and in whatever order the replay feeds the
         states; the coupler and the sph_solver replay to the bit."""
-        run = self.recorded_run("penalty_walls", replace=[('wall_model = "boundary_particles"',
-                                                           'wall_model = "penalty"')],
-                                append="\n[contact.sph_fem]\nnormal_stiffness = 1e4\n")
+        run = self.recorded_run("penalty_walls", **TANK_PENALTY_WALLS)
         summary = read_json(os.path.join(run, "summary.json"))
         ahead = summary["processes"]["coupler"]["walls_before_the_fluid_state"]
         print("the walls went before the fluid's state at {} of {} exchanges".format(ahead, summary["steps"]))

@@ -7,40 +7,27 @@ uninterrupted run, and summary.json names the restart. A scene with restart = "o
 import os
 import random
 
-from e2e_support import RealRunTestCase, read_json
+from e2e_support import TANK_PENALTY_WALLS, RealRunTestCase, read_json
 
 TANK = "configs/tests/sph_boulders_tank.toml"
 OUTPUTS = ["forces.csv", "energy.csv", "dem.pvd", "sph.pvd", "fem.pvd"]
 ROLES = ("dem_solver", "sph_solver", "fem_solver")
-# The tank with its walls as penalty contacts (stiffness for a contact step above the fluid's, 0.4 ms).
-WALLS_BEFORE_THE_FLUID = ("tank_penalty_walls", [('wall_model = "boundary_particles"', 'wall_model = "penalty"')],
-                          "\n[contact.sph_fem]\nnormal_stiffness = 1e4\n")
 
 
 class RestartTestCase(RealRunTestCase):
     def write_scene(self, name, extra_run_lines="", replace=(), append=""):
-        with open(self.scene_path(TANK), encoding="utf-8") as handle:
-            text = handle.read()
-        self.assertIn("end_time = 0.3", text)
-        text = text.replace("end_time = 0.3", "end_time = 0.3\n" + extra_run_lines)
-        for old, new in replace:
-            self.assertIn(old, text)
-            text = text.replace(old, new, 1)
-        text += append
         # No traffic recording: the coupler's restart journal is what the catch-up uses.
-        text = text.replace("[recording]", "[recording]\nenabled = false", 1) if "[recording]" in text else text
-        scene = os.path.join(self.tmp, name + ".toml")
-        with open(scene, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        return scene
+        return self.scene_variant(TANK, name, [("end_time = 0.3", "end_time = 0.3\n" + extra_run_lines),
+                                               ("[recording]", "[recording]\nenabled = false")] + list(replace),
+                                  append)
 
     def assertSameOutputs(self, reference, run):
         self.assertSameRunOutputs(reference, run, OUTPUTS)
-    def kill_three_times_and_compare(self, role, variant=None, trials=3):
-        """Runs the tank uninterrupted, then kills `role` at three seeded random steps (the first `trials` of
-        them), one run each: every run restarts it, completes and writes the uninterrupted run's outputs.
-        `variant`: (name, replace, append) of write_scene for another tank."""
-        name, replace, append = variant or ("tank", (), "")
+
+    def kill_three_times_and_compare(self, role, name="tank", replace=(), append="", trials=3):
+        """Runs the tank (with write_scene's `replace` and `append`) uninterrupted, then kills `role` at three
+        seeded random steps (the first `trials` of them), one run each: every run restarts it, completes and writes
+        the uninterrupted run's outputs."""
         scene = self.write_scene(name, "checkpoint_interval = 0.03", replace, append)
         reference = os.path.join(self.tmp, "reference")
         sabo = self.run_sabo(scene, reference)
@@ -87,7 +74,7 @@ class RestartSphSolverWallsBeforeTheFluidTest(RestartTestCase):
         sends them before the fluid's state is in (docs/protocol.md, "Walls ahead"), often to a sph_solver that is
         killed before it reads them. Its replacement gets them again with the step's forces, and the run is the
         uninterrupted one (before that was mended, every such restart failed for want of the walls)."""
-        self.kill_three_times_and_compare("sph_solver", WALLS_BEFORE_THE_FLUID, trials=2)
+        self.kill_three_times_and_compare("sph_solver", "tank_penalty_walls", trials=2, **TANK_PENALTY_WALLS)
         summary = read_json(os.path.join(self.tmp, "reference", "summary.json"))
         ahead = summary["processes"]["coupler"]["walls_before_the_fluid_state"]
         print("the walls went before the fluid's state at {} of {} exchanges".format(ahead, summary["steps"]))

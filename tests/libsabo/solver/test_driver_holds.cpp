@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <optional>
 #include <string>
 
 #include "libsabo/protocol/socket.hpp"
@@ -251,19 +252,20 @@ TEST_F(ScriptedCoupler, WallsAheadThatDoNotFitEndTheSolver) {
   struct Case {
     bool takes;
     sabo::v1::StepForces first;
+    std::optional<sabo::v1::StepForces> then;  // the StepForces after it, if any
     const char* expected;
   };
   auto with_forces = walls_ahead(0, 1);
   with_forces.add_index(0);
   for (int c = 0; c < 3; ++c) with_forces.add_force(1.0);
-  const Case cases[] = {
-      {false, walls_ahead(0, 1), "this solver registered walls_ahead = false"},
-      {true, with_forces, "carries more than the boundary particles"},
-      {true, walls_ahead(0, 1), "two StepForces of step 0 carry walls ahead"},
-      {true, walls_ahead(0, 1), "carries boundary particles, which came ahead of it already"},
-  };
-  auto walls_again = walls_ahead(0, 1);  // the fourth case's StepForces: the walls once more, not flagged
+  auto walls_again = walls_ahead(0, 1);  // the step's own StepForces with the walls once more
   walls_again.set_walls_ahead(false);
+  const Case cases[] = {
+      {false, walls_ahead(0, 1), std::nullopt, "this solver registered walls_ahead = false"},
+      {true, with_forces, std::nullopt, "carries more than the boundary particles"},
+      {true, walls_ahead(0, 1), walls_ahead(0, 1), "two StepForces of step 0 carry walls ahead"},
+      {true, walls_ahead(0, 1), walls_again, "carries boundary particles, which came ahead of it already"},
+  };
   for (const Case& c : cases) {
     WallsSolver fake;
     fake.takes = c.takes;
@@ -272,8 +274,7 @@ TEST_F(ScriptedCoupler, WallsAheadThatDoNotFitEndTheSolver) {
     accept_registration();
     state();
     send(c.first);
-    if (&c == &cases[2]) send(walls_ahead(0, 1));
-    if (&c == &cases[3]) send(walls_again);
+    if (c.then) send(*c.then);
     const auto error = receive<sabo::v1::Error>(sabo::v1::MESSAGE_TYPE_ERROR);
     std::cout << "error: " << error.message() << "\n";
     EXPECT_NE(error.message().find(c.expected), std::string::npos) << error.message();
